@@ -1,0 +1,308 @@
+"""The paper's first-order closed form of a fixed-attitude arc (Eqs. 12-26).
+
+Why not Eqs. 15 and 20-26 as printed
+------------------------------------
+The printed elliptic solution measures theta from the parking orbit's apse line and
+carries 1/e0 factors, a pole in tan(theta/2) and a branch jump in E (Eq. 26).  An
+optimiser restarts arcs on nearly circular orbits, where the apse line is undefined
+and those forms lose every digit.  Here Eq. 13 is integrated in closed form once more,
+in a frame whose theta starts at the arc's first radius (so theta0 = 0 and the
+eccentricity vector zeta = (e_x, e_y) is a smooth function of the state), and the
+integrals are written with the complex variable
+
+    u(phi) = beta e^{-i omega} e^{i phi},   beta = e / (1 + sqrt(1 - e^2)),
+
+for which 1 + e cos(phi - omega) = |1 + u|^2 / (1 + beta^2) and
+1 / (1 + e cos f) = (2 Re(1 / (1 + u)) - 1) / sqrt(1 - e^2).  Since |u| < 1, the
+principal log(1 + u) is continuous over any number of revolutions, E - f equals
+-2 arg(1 + u), and the only removable singularity left is log(1 + u) / u, which is
+evaluated by a series near u = 0.  The result is the same function as Eq. 15 at
+e0 = 0 and Eqs. 20-26 for e0 > 0 (the tests check both), with finite first and
+second derivatives everywhere on 0 <= e0 < 1.
+
+Units: lengths in r0 (the arc's first radius), speeds in sqrt(mu / r0), as in the
+paper; :func:`arc_end` converts from and to the canonical polar state.
+
+Eq. 6 as printed carries 1/(q3 s^2); the consistent prefactor is 1/s^2 (see
+PHYSICS-NOTES.md).  Only Eq. 14, which agrees with 1/s^2, is used here.
+"""
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.physics.elements import ac_tilde, polar_from_q, q_from_polar
+
+
+class _Complex:
+    """A complex number whose parts are CasADi expressions or floats."""
+
+    __slots__ = ("re", "im")
+
+    def __init__(self, re, im=0.0):
+        self.re, self.im = re, im
+
+    @staticmethod
+    def _lift(z):
+        return z if isinstance(z, _Complex) else _Complex(z, 0.0)
+
+    def __add__(self, other):
+        other = self._lift(other)
+        return _Complex(self.re + other.re, self.im + other.im)
+
+    __radd__ = __add__
+
+    def __sub__(self, other):
+        other = self._lift(other)
+        return _Complex(self.re - other.re, self.im - other.im)
+
+    def __rsub__(self, other):
+        return self._lift(other) - self
+
+    def __neg__(self):
+        return _Complex(-self.re, -self.im)
+
+    def __mul__(self, other):
+        other = self._lift(other)
+        return _Complex(
+            self.re * other.re - self.im * other.im,
+            self.re * other.im + self.im * other.re,
+        )
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, other):
+        other = self._lift(other)
+        den = other.re**2 + other.im**2
+        return _Complex(
+            (self.re * other.re + self.im * other.im) / den,
+            (self.im * other.re - self.re * other.im) / den,
+        )
+
+    def __rtruediv__(self, other):
+        return self._lift(other) / self
+
+    def conj(self):
+        return _Complex(self.re, -self.im)
+
+    def abs2(self):
+        return self.re**2 + self.im**2
+
+
+_I = _Complex(0.0, 1.0)
+
+
+def _expi(phi):
+    return _Complex(ca.cos(phi), ca.sin(phi))
+
+
+def _log1p_right_half(u):
+    """Principal log(1 + u) for Re(1 + u) > 0, where arg(1 + u) is an atan."""
+    one_plus = 1 + u
+    return _Complex(0.5 * ca.log(one_plus.abs2()), ca.atan(one_plus.im / one_plus.re))
+
+
+#: Below this |u| the series serves; above it the direct quotient loses < 1 digit.
+_SERIES_RADIUS = 0.3
+#: atanh(v)/v = sum v^(2n)/(2n+1); with |v| <= 0.3/1.7 the 13th term is below 1e-19.
+_SERIES_TERMS = 13
+
+
+def _log1p_over(u, small):
+    """log(1 + u) / u for |u| < 1, finite with all derivatives at u = 0.
+
+    ``small`` is the (scalar) condition |u| < _SERIES_RADIUS.  There the identity
+    log(1 + u) = 2 atanh(v), v = u / (2 + u), turns the quotient into
+    2/(2 + u) * sum v^(2n)/(2n+1), a rapidly converging polynomial.  Elsewhere the
+    quotient is formed on a copy of u that the series branch replaces by a harmless
+    constant, so neither branch ever sees 0/0 (whose derivative would be NaN even
+    where it is not selected).
+    """
+    v = u / (2 + u)
+    v2 = v * v
+    series = _Complex(1.0 / (2 * _SERIES_TERMS - 1), 0.0)
+    for n in range(_SERIES_TERMS - 2, -1, -1):
+        series = series * v2 + 1.0 / (2 * n + 1)
+    series = series * (2 / (2 + u))
+    u_safe = _Complex(ca.if_else(small, 0.5, u.re), ca.if_else(small, 0.0, u.im))
+    direct = _log1p_right_half(u_safe) / u_safe
+    return _Complex(
+        ca.if_else(small, series.re, direct.re), ca.if_else(small, series.im, direct.im)
+    )
+
+
+class _KeplerIntegrals:
+    """Integrals over [0, phi] along the Keplerian orbit w = 1 + e_x cos + e_y sin.
+
+    The arc's constants are formed once, so that expressions evaluated at many phi
+    share them.  ``at(phi)`` returns (I_a, I_b, I_c): I_a = int e^{i phi}/w,
+    I_b = int e^{i phi}/w^2 and I_c = int 1/w^2, the last being
+    (Delta M)/(1 - e^2)^{3/2}.
+    """
+
+    def __init__(self, ex, ey):
+        self.ex, self.ey = ex, ey
+        self.e2 = ex**2 + ey**2
+        self.root = ca.sqrt(1 - self.e2)
+        b = 1 / (1 + self.root)
+        self.kappa = _Complex(b * ex, -b * ey)  # u at phi = 0
+        self.small = b**2 * self.e2 < _SERIES_RADIUS**2
+        self.lam0 = _log1p_over(self.kappa, self.small)
+        self.log0 = _log1p_right_half(self.kappa)
+        self.w0 = 1 + ex
+        self.esin0 = -ey / self.w0  # e sin(f) / w at phi = 0
+
+    def w(self, phi):
+        return 1 + self.ex * ca.cos(phi) + self.ey * ca.sin(phi)
+
+    def i_c(self, phi, rot=None, dlog=None):
+        """int_0^phi dphi / w^2, from Kepler's equation with E - f = -2 arg(1 + u)."""
+        rot = _expi(phi) if rot is None else rot
+        dlog = _log1p_right_half(self.kappa * rot) - self.log0 if dlog is None else dlog
+        w1 = 1 + self.ex * rot.re + self.ey * rot.im
+        # The change of e sin(f) / w turns Delta E into Delta M.
+        desin = (self.ex * rot.im - self.ey * rot.re) / w1 - self.esin0
+        one_m_e2 = 1 - self.e2
+        return (phi - 2 * dlog.im) / (self.root * one_m_e2) - desin / one_m_e2
+
+    def at(self, phi):
+        rot = _expi(phi)
+        u = self.kappa * rot
+        dlog = _log1p_right_half(u) - self.log0
+        lam = _log1p_over(u, self.small)
+        i_a = (
+            -_I * (rot * lam - self.lam0) - self.kappa.conj() * (phi - _I * dlog.conj())
+        ) / self.root
+        i_c = self.i_c(phi, rot, dlog)
+        w1 = 1 + self.ex * rot.re + self.ey * rot.im
+        i_b = -_I * (rot / w1 - 1 / self.w0) - _Complex(self.ex, self.ey) * i_c
+        return i_a, i_b, i_c
+
+
+class FirstOrderArc:
+    """The first-order solution of one fixed-attitude arc (Eq. 12), in the arc's frame.
+
+    Parameters
+    ----------
+    q0 : 3-vector
+        Keplerian elements (Eq. 5) at phi = 0, in a frame whose theta is 0 at the
+        arc's start and normalised by the radius there (so q0_3 s(0) = 1).
+    actilde : scalar
+        a~_c of Eq. 7 for this arc (times any throttle).
+    R, T : scalars
+        Thrust factors of Eqs. 3-4.
+    """
+
+    def __init__(self, q0, actilde, R, T):
+        self.q0 = q0
+        self.h0 = 1 / q0[2]
+        self.kepler = _KeplerIntegrals(q0[0] * self.h0, q0[1] * self.h0)
+        self.actilde, self.R, self.T = actilde, R, T
+
+    def matrix(self, phi):
+        """D(phi) with q(phi) = q0 + a~_c D(phi) [R, T]^T: h0 * int_0^phi B (Eq. 14)."""
+        i_a, i_b, i_c = self.kepler.at(phi)
+        return self.h0 * ca.vertcat(
+            ca.horzcat(i_a.im, i_a.re + i_b.re),
+            ca.horzcat(-i_a.re, i_a.im + i_b.im),
+            ca.horzcat(0, -i_c),
+        )
+
+    def q(self, phi):
+        """q(phi) = q0 + a~_c D(phi) [R, T]^T (Eqs. 12, 13; Eqs. 15-16 at e0 = 0)."""
+        return self.q0 + self.actilde * ca.mtimes(self.matrix(phi), ca.vertcat(self.R, self.T))
+
+    def time(self, phi_a, phi_b, nodes=8):
+        """Time from phi_a to phi_b, in units sqrt(r0^3 / mu).
+
+        dt/dphi = 1 / (q3 s^2).  Its Keplerian part h0^3 / w^2 integrates exactly
+        (Kepler's equation); the first-order remainder, of relative size a~_c, is
+        integrated by an n-point Gauss-Legendre rule over the closed-form q(phi).
+        """
+        kep = self.kepler
+        exact = self.h0**3 * (kep.i_c(phi_b) - kep.i_c(phi_a))
+        xg, wg = gauss_legendre(nodes)
+        width = phi_b - phi_a
+        correction = 0
+        for xk, wk in zip(xg, wg):
+            phi = phi_a + width * xk
+            q = self.q(phi)
+            s = q[0] * ca.cos(phi) + q[1] * ca.sin(phi) + q[2]
+            correction += wk * (1 / (q[2] * s**2) - self.h0**3 / kep.w(phi) ** 2)
+        return exact + width * correction
+
+
+def q_of_theta(q0, theta0, theta, actilde, R, T):
+    """First-order elements q(theta) of Eq. 12 in any fixed reference frame.
+
+    ``q0`` are the Keplerian elements at ``theta0`` (for the paper's parking orbit,
+    Eq. 8 with theta measured from the apse line), normalised by r(theta0).  The
+    frame's theta may start anywhere; the rotation to the arc's own frame is exact.
+    """
+    c0, s0 = ca.cos(theta0), ca.sin(theta0)
+    # Rotating the reference direction by theta0 rotates (q1, q2) by -theta0.
+    q_local = ca.vertcat(c0 * q0[0] + s0 * q0[1], -s0 * q0[0] + c0 * q0[1], q0[2])
+    q = FirstOrderArc(q_local, actilde, R, T).q(theta - theta0)
+    return ca.vertcat(c0 * q[0] - s0 * q[1], s0 * q[0] + c0 * q[1], q[2])
+
+
+def theta_max_circular(actilde, T):
+    """Largest arc angle with q3 > 0 from a circular orbit: 1 / (T a~_c) (after Eq. 16)."""
+    return 1 / (T * actilde)
+
+
+def gauss_legendre(nodes):
+    """Nodes and weights of the n-point Gauss-Legendre rule on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    return (x + 1) / 2, w / 2
+
+
+def arc_frame(x0, ac, R, T):
+    """The :class:`FirstOrderArc` that starts at polar state ``x0`` (canonical units).
+
+    The arc's reference direction is the starting radius, so theta0 = 0 and the
+    eccentricity vector enters smoothly; lengths are then in r0 = x0[0].
+    """
+    r0 = x0[0]
+    q0 = q_from_polar(ca.vertcat(r0, 0, x0[2], x0[3]), r0)
+    return FirstOrderArc(q0, ac_tilde(ac, r0), R, T)
+
+
+def arc_state(x0, arc, phi):
+    """Canonical polar state at angle phi along ``arc`` started at ``x0`` (Eqs. 9-11)."""
+    r0 = x0[0]
+    local = polar_from_q(arc.q(phi), phi, r0)
+    return ca.vertcat(local[0], x0[1] + phi, local[2], local[3])
+
+
+def arc_end(x0, dtheta, ac, R, T, panels=4, nodes=8):
+    """Polar state after a fixed-attitude arc of angle ``dtheta``, and the time it takes.
+
+    Parameters
+    ----------
+    x0 : 4-vector
+        Polar state [r, theta, v_r, v_theta] at the arc's start, canonical units.
+    dtheta : scalar
+        Arc angle, radians (several revolutions are fine).
+    ac : scalar
+        Characteristic acceleration at 1 au, canonical units (times any throttle).
+    R, T : scalars
+        Thrust factors of Eqs. 3-4.
+    panels, nodes : int
+        Composite Gauss-Legendre rule for the time of flight: ``panels`` equal
+        pieces of the arc, ``nodes`` points each.
+
+    Returns
+    -------
+    x1 : 4-vector
+        Polar state at theta0 + dtheta (Eqs. 9-11 on the q of Eq. 12).
+    dt : scalar
+        Time along the arc, TU (see :meth:`FirstOrderArc.time`).
+    q3 : scalar
+        q3 at the arc's end; the first-order solution is valid only while it is
+        positive, and for T >= 0 this is its smallest value on the arc.
+    """
+    arc = arc_frame(x0, ac, R, T)
+    dt = 0
+    for p in range(panels):
+        dt += arc.time(dtheta * p / panels, dtheta * (p + 1) / panels, nodes)
+    return arc_state(x0, arc, dtheta), x0[0] ** 1.5 * dt, arc.q(dtheta)[2]

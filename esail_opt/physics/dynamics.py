@@ -1,0 +1,28 @@
+"""The full equations of motion, Eqs. 1-2, in canonical units."""
+
+import casadi as ca
+
+
+def rhs(x, ac, R, T):
+    """Time derivative of the polar state ``[r, theta, v_r, v_theta]`` (Eqs. 1-2).
+
+    The propulsive acceleration is ``ac (r_E / r) (R, T)`` with r_E = 1 au and mu = 1.
+    """
+    r, vr, vt = x[0], x[2], x[3]
+    thrust = ac / r
+    return ca.vertcat(
+        vr,
+        vt / r,
+        vt**2 / r - 1 / r**2 + thrust * R,
+        -vr * vt / r + thrust * T,
+    )
+
+
+def rhs_in_theta(x, ac, R, T):
+    """Derivative of ``[r, theta, v_r, v_theta]`` and of time, with theta as the
+    independent variable: Eqs. 1-2 divided by theta' = v_theta / r.
+
+    Returns the 5-vector d[r, theta, v_r, v_theta, t]/dtheta; its theta entry is 1.
+    """
+    dt_dtheta = x[0] / x[3]
+    return ca.vertcat(rhs(x, ac, R, T) * dt_dtheta, dt_dtheta)

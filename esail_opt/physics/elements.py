@@ -1,0 +1,88 @@
+"""Conversions between the polar state, Bombardelli's elements q and classical elements.
+
+The polar state is ``x = [r, theta, v_r, v_theta]`` in canonical units (au, rad,
+au/TU, au/TU, with mu = 1).  The elements q of Eq. 5 are dimensionless: lengths are
+scaled by a reference radius r0 and speeds by sqrt(mu / r0), and theta is measured
+from whatever fixed direction the polar state uses.
+"""
+
+import casadi as ca
+
+
+def q_from_polar(x, r0):
+    """Elements q (Eq. 5) of a polar state, normalised by the radius r0.
+
+    Uses h q3 = 1, q1 = cos(th) (v_th - q3) + sin(th) v_r and
+    q2 = sin(th) (v_th - q3) - cos(th) v_r, with speeds in sqrt(mu / r0) and
+    h = r v_th in sqrt(mu r0): the inverse of Eqs. 9-11, smooth for every e < 1.
+    """
+    r, th, vr, vt = x[0], x[1], x[2], x[3]
+    scale = ca.sqrt(r0)
+    vr_n, vt_n = vr * scale, vt * scale
+    q3 = r0 / (r * vt_n)
+    q1 = ca.cos(th) * (vt_n - q3) + ca.sin(th) * vr_n
+    q2 = ca.sin(th) * (vt_n - q3) - ca.cos(th) * vr_n
+    return ca.vertcat(q1, q2, q3)
+
+
+def polar_from_q(q, theta, r0):
+    """Polar state at angle theta from elements q normalised by r0 (Eqs. 9-11)."""
+    q1, q2, q3 = q[0], q[1], q[2]
+    s = q1 * ca.cos(theta) + q2 * ca.sin(theta) + q3
+    speed = 1 / ca.sqrt(r0)
+    return ca.vertcat(
+        r0 / (q3 * s),
+        theta,
+        speed * (q1 * ca.sin(theta) - q2 * ca.cos(theta)),
+        speed * s,
+    )
+
+
+def eccentricity_vector(x):
+    """Osculating eccentricity vector (e cos omega, e sin omega), mu = 1.
+
+    Built from e cos(th - omega) = h v_th - 1 and e sin(th - omega) = h v_r, so it is
+    smooth at e = 0, where the apse line itself is undefined.
+    """
+    r, th, vr, vt = x[0], x[1], x[2], x[3]
+    h = r * vt
+    ec_f, es_f = h * vt - 1, h * vr
+    return ca.vertcat(
+        ec_f * ca.cos(th) - es_f * ca.sin(th),
+        ec_f * ca.sin(th) + es_f * ca.cos(th),
+    )
+
+
+def classical_from_polar(x):
+    """Osculating (a, e, omega, h, nu) of a polar state, mu = 1.
+
+    omega and nu come from atan2 and have no derivative at e = 0; use
+    :func:`eccentricity_vector` where derivatives are needed.
+    """
+    r, th, vr, vt = x[0], x[1], x[2], x[3]
+    a = 1 / (2 / r - vr**2 - vt**2)
+    ev = eccentricity_vector(x)
+    e = ca.sqrt(ev[0] ** 2 + ev[1] ** 2)
+    omega = ca.atan2(ev[1], ev[0])
+    return a, e, omega, r * vt, th - omega
+
+
+def polar_from_classical(a, e, omega, nu):
+    """Polar state on the orbit (a, e, omega) at true anomaly nu, theta = omega + nu."""
+    p = a * (1 - e**2)
+    w = 1 + e * ca.cos(nu)
+    return ca.vertcat(p / w, omega + nu, e * ca.sin(nu) / ca.sqrt(p), w / ca.sqrt(p))
+
+
+def parking_q0(e0, theta0):
+    """Initial elements on the parking orbit with theta from its apse line (Eq. 8)."""
+    return ca.vertcat(e0, 0, 1) / ca.sqrt(1 + e0 * ca.cos(theta0))
+
+
+def ac_tilde(ac, r0):
+    """Dimensionless characteristic acceleration a~_c (Eq. 7).
+
+    With canonical ac (units mu/au^2), r_E = 1 au and r0 in au,
+    a~_c = ac / (mu / r0^2) * (r_E / r0) = ac r0.
+    """
+    return ac * r0
