@@ -1,0 +1,129 @@
+"""The ``esail-opt`` command line.
+
+Each subcommand parses its options here and hands the work to the module that
+owns it.  Bad input ends in one line on stderr and exit status 2.
+"""
+
+import argparse
+import sys
+
+from esail_opt.errors import InputError
+
+EXIT_INPUT = 2
+
+
+def _number(text):
+    """argparse type: any float, NaN included, so range checks can name the field."""
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def _add_propagate(sub):
+    p = sub.add_parser(
+        "propagate",
+        help="fly one fixed attitude from a parking orbit (closed form and/or CVODES)",
+        description="Fly one fixed pitch angle from a parking orbit with the paper's "
+        "closed form (no rectification; it ends where its own clock reaches the "
+        "horizon) and/or CVODES on Eqs. 1-2, and write the samples as JSON.",
+    )
+    p.add_argument("--a0", type=_number, default=1.0, help="parking orbit semimajor axis, au (default 1)")
+    p.add_argument("--e0", type=_number, default=0.0, help="parking orbit eccentricity, [0, 1) (default 0)")
+    p.add_argument("--nu0", type=_number, default=0.0, help="departure true anomaly, deg (default 0)")
+    p.add_argument("--ac", type=_number, required=True, help="characteristic acceleration, mm/s^2, > 0")
+    p.add_argument("--alpha", type=_number, required=True, help="pitch angle, deg, in [-90, 90]")
+    p.add_argument("--years", type=_number, required=True, help="horizon, years, > 0")
+    p.add_argument("--method", choices=("closed-form", "cvodes", "both"), default="both")
+    p.add_argument("--samples", type=int, default=None,
+                   help="sample intervals, equal in theta (default: 32 per parking-orbit period, at least 200)")
+    p.add_argument("--out", default=None, help="JSON file to write (default: print a summary only)")
+    p.set_defaults(run=_run_propagate)
+
+
+def _run_propagate(args):
+    from esail_opt import fixed_attitude
+    from esail_opt.files import write_json
+
+    case = fixed_attitude.FixedAttitudeCase(args.a0, args.e0, args.nu0, args.ac, args.alpha, args.years)
+    if args.samples is not None and args.samples < 1:
+        raise InputError(f"samples = {args.samples} is outside [1, inf)")
+    print(f"propagating {args.years:g} years at alpha = {args.alpha:g} deg ({args.method}) ...",
+          file=sys.stderr)
+    result = fixed_attitude.run(case, args.method, args.samples)
+    for key in ("closed_form", "cvodes"):
+        if key in result:
+            last = {name: values[-1] for name, values in result[key].items()}
+            print(f"{key:12s} end: t = {last['t_days']:.2f} d, theta = {last['theta_deg']:.2f} deg, "
+                  f"r = {last['r_au']:.6f} au, v_r = {last['vr_km_s']:.4f} km/s, "
+                  f"v_theta = {last['vtheta_km_s']:.4f} km/s")
+    if "eps" in result:
+        scope = "" if result["eps_over_whole_arc"] else " (over the angles CVODES reaches: it escapes)"
+        print(f"eps (Eq. 27) = {100 * result['eps']:.3f} %{scope}")
+    if args.out:
+        write_json(args.out, result)
+        print(f"wrote {args.out}")
+    return 0
+
+
+def _add_reproduce(sub):
+    p = sub.add_parser("reproduce", help="reproduce the paper's figures",
+                       description="Write a PNG and a JSON for one of the paper's figures.")
+    p.add_argument("figure", choices=sorted(_figures()))
+    p.add_argument("--out", default="results/paper", help="output directory (default results/paper)")
+    p.set_defaults(run=_run_reproduce)
+
+
+def _figures():
+    from esail_opt import reproduce
+
+    return reproduce.FIGURES
+
+
+def _run_reproduce(args):
+    written = _figures()[args.figure](args.out)
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+def _add_bench(sub):
+    from esail_opt import bench
+
+    p = sub.add_parser("bench", help="benchmarks, each against a baseline timed in the same run")
+    p.add_argument("name", choices=sorted(bench.BENCHES))
+    p.add_argument("--out", default="results/bench", help="output directory (default results/bench)")
+    p.add_argument("--repeats", type=int, default=20, help="timed runs per method (median; default 20)")
+    p.set_defaults(run=_run_bench)
+
+
+def _run_bench(args):
+    from esail_opt import bench
+
+    if args.repeats < 1:
+        raise InputError(f"repeats = {args.repeats} is outside [1, inf)")
+    print(f"wrote {bench.BENCHES[args.name](args.out, args.repeats)}")
+    return 0
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog="esail-opt", description="E-sail trajectory propagation and optimisation")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_propagate(sub)
+    _add_reproduce(sub)
+    _add_bench(sub)
+    return parser
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except InputError as err:
+        print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
+        return EXIT_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())
