@@ -25,26 +25,41 @@ NODES = 8
 
 
 @functools.lru_cache(maxsize=None)
+def panel_function(coefficients=EXACT, nodes=NODES):
+    """One closed-form arc between two of its angles: ``(x0[5], ac, alpha, phi_a, phi_b)
+    -> (state at phi_b [4], time from phi_a to phi_b, q3 at phi_b)``, an SX Function."""
+    x0 = ca.SX.sym("x0", 5)
+    ac, alpha = ca.SX.sym("ac"), ca.SX.sym("alpha")
+    phi_a, phi_b = ca.SX.sym("phi_a"), ca.SX.sym("phi_b")
+    R, T = radial_transverse(alpha, coefficients)
+    arc = arc_frame(x0[:4], ac, R, T)
+    dt = x0[0] ** 1.5 * arc.time(phi_a, phi_b, nodes)
+    return ca.Function(
+        "panel", [x0, ac, alpha, phi_a, phi_b],
+        [arc_state(x0[:4], arc, phi_b), dt, arc.q(phi_b)[2]],
+    )
+
+
+@functools.lru_cache(maxsize=None)
 def arc_function(samples, coefficients=EXACT, nodes=NODES):
     """One closed-form arc sampled at phi_k = dtheta k / samples, k = 1..samples.
 
-    Returns an SX Function ``(x0[5], ac, alpha, dtheta) -> (xs[5 x samples], q3)``
+    Returns a Function ``(x0[5], ac, alpha, dtheta) -> (xs[5 x samples], q3)``
     where ``ac`` already includes any throttle, the time row of ``xs`` continues from
     x0's, and ``q3`` is the validity margin at the arc's end (positive is valid).
-    The sample intervals double as the panels of the time quadrature.
+    The sample intervals double as the panels of the time quadrature.  The samples
+    are a ``map`` of one panel Function, so building it costs the same for any count;
+    ``expand()`` it where one flat SX expression is wanted.
     """
-    x0 = ca.SX.sym("x0", 5)
-    ac, alpha, dtheta = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("dtheta")
-    R, T = radial_transverse(alpha, coefficients)
-    arc = arc_frame(x0[:4], ac, R, T)
-    time_unit = x0[0] ** 1.5
-    t, columns = x0[4], []
-    for k in range(1, samples + 1):
-        t = t + time_unit * arc.time(dtheta * (k - 1) / samples, dtheta * k / samples, nodes)
-        columns.append(ca.vertcat(arc_state(x0[:4], arc, dtheta * k / samples), t))
-    q3 = arc.q(dtheta)[2]
+    panel = panel_function(coefficients, nodes).map(samples)
+    x0 = ca.MX.sym("x0", 5)
+    ac, alpha, dtheta = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("dtheta")
+    fractions = ca.DM(np.arange(samples + 1) / samples).T
+    phis = dtheta * fractions
+    states, dts, q3s = panel(x0, ac, alpha, phis[:, :-1], phis[:, 1:])
+    times = x0[4] + ca.cumsum(dts, 1)
     return ca.Function(
-        "arc", [x0, ac, alpha, dtheta], [ca.horzcat(*columns), q3],
+        "arc", [x0, ac, alpha, dtheta], [ca.vertcat(states, times), q3s[-1]],
         ["x0", "ac", "alpha", "dtheta"], ["xs", "q3"],
     )
 
@@ -84,7 +99,7 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES):
     angle = duration * x0[3] / x0[0]
     for _ in range(NEWTON_STEPS):
         angle = angle - (clock(angle) - duration) / rate(angle)
-    xs, q3 = arc_function(samples, coefficients, nodes)(x0, ac, alpha, angle)
+    xs, q3 = arc_function(samples, coefficients, nodes).expand()(x0, ac, alpha, angle)
     return ca.Function(
         "timed_arc", [x0, ac, alpha, duration], [xs, q3, xs[4, -1] - x0[4] - duration],
         ["x0", "ac", "alpha", "duration"], ["xs", "q3", "residual"],
