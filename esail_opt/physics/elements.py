@@ -48,8 +48,8 @@ def eccentricity_vector(x):
     h = r * vt
     ec_f, es_f = h * vt - 1, h * vr
     return ca.vertcat(
-        ec_f * ca.cos(th) - es_f * ca.sin(th),
-        ec_f * ca.sin(th) + es_f * ca.cos(th),
+        ec_f * ca.cos(th) + es_f * ca.sin(th),
+        ec_f * ca.sin(th) - es_f * ca.cos(th),
     )
 
 
