@@ -60,7 +60,10 @@ def segment_integrator(samples, independent="time", coefficients=EXACT, tol=TOLE
     grid = [k / samples for k in range(1, samples + 1)]
     # In theta, an escaping orbit's angle tends to a finite limit and dt/dtheta to
     # infinity: fail fast there instead of grinding through the time domain's budget.
+    # Adams, as the paper's reference: on these non-stiff orbits it is ~50x more
+    # accurate than CVODES's default BDF at the same tolerance, and faster.
     opts = {"abstol": tol, "reltol": tol, "max_num_steps": MAX_STEPS[independent],
+            "linear_multistep_method": "adams",
             "disable_internal_warnings": True, "show_eval_warnings": False}
     dae = {"x": x, "p": ca.vertcat(ac, alpha, length), "ode": ode}
     integ = ca.integrator("segment", "cvodes", dae, 0, grid, opts)
