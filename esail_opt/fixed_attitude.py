@@ -20,11 +20,11 @@ from esail_opt.propagation.rectified import rectified_function
 from esail_opt.propagation.simulate import SimulationError, simulate
 
 METHODS = ("closed-form", "cvodes", "both")
-#: The closed form's clock diverges only logarithmically at theta_max (q3 -> 0), so
-#: any horizon is reached "before" it; an arc counts as past theta_max once q3 has
-#: fallen to this fraction of its departure value, where a near-circular orbit's
-#: radius would have grown a hundredfold.
-VALIDITY_FLOOR = 0.1
+#: Beyond theta_max (q3 = 0), or where the transverse speed s of Eq. 11 reaches 0,
+#: r = r0 / (q3 s) of Eq. 9 leaves (0, inf) and the clock diverges.  Near those
+#: points the first-order arc is meaningless long before the divergence, so an arc
+#: counts as valid only while every sample keeps r within (0, r0 / VALIDITY_FLOOR].
+VALIDITY_FLOOR = 0.01
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ def closed_form(case, samples):
     Raises
     ------
     InputError
-        If the horizon lies past theta_max, where q3 reaches 0.
+        If the horizon lies past the arc's validity (see VALIDITY_FLOOR).
     """
     x0 = np.r_[case.state0(), 0.0]
     arc = rectified_function(1, samples, "theta", case.coefficients)
@@ -107,23 +107,30 @@ def closed_form(case, samples):
         xs, q3 = arc(x0, ac, alpha, angle)
         return np.array(xs), float(q3)
 
+    def valid(xs, q3):
+        r, t = xs[0], xs[4]
+        return (q3 > 0 and np.all(np.isfinite(xs)) and np.all(r > 0)
+                and np.all(r <= x0[0] / VALIDITY_FLOOR) and np.all(np.diff(t) > 0))
+
     horizon = case.horizon()
-    floor = VALIDITY_FLOOR * x0[0] ** -0.5 / x0[3]  # that fraction of q3 at departure
-    # Double the angle until the clock passes the horizon or q3 sinks to the floor.
+    # Double the angle until the clock passes the horizon or the arc stops being valid.
     low, high = 0.0, horizon * x0[3] / x0[0]
     while True:
         xs, q3 = run(high)
-        if q3 <= floor or not np.all(np.isfinite(xs)):
-            limit = brentq(lambda a: run(a)[1] - floor, low, high, xtol=1e-12)
-            reach = run(limit)[0][4, -1]
+        if not valid(xs, q3):
+            good, bad = low, high
+            while bad - good > 1e-9 * bad:
+                mid = 0.5 * (good + bad)
+                good, bad = (mid, bad) if valid(*run(mid)) else (good, mid)
+            reach = run(good)[0][4, -1] if good > 0 else 0.0
             if reach < horizon:
                 allowed = units.time_to_days(reach) / units.YEAR_DAYS
                 raise InputError(
-                    f"years = {case.years:g} is past theta_max: the closed form holds "
-                    f"only while q3 > 0, here up to theta - theta0 = "
-                    f"{math.degrees(limit):.1f} deg; allowed years in (0, {allowed:.3g})"
+                    f"years = {case.years:g} is past theta_max: the first-order arc holds "
+                    f"(q3 > 0, r within {1 / VALIDITY_FLOOR:g} r0) only up to theta - theta0 "
+                    f"= {math.degrees(good):.1f} deg; allowed years in (0, {allowed:.3g})"
                 )
-            high = limit
+            high = good
             break
         if xs[4, -1] >= horizon:
             break
