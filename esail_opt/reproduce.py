@@ -11,7 +11,7 @@ from esail_opt.files import save_figure, write_json
 from esail_opt.physics import constants as units
 from esail_opt.physics.closed_form import theta_max_circular
 from esail_opt.physics.elements import ac_tilde
-from esail_opt.physics.thrust import radial_transverse
+from esail_opt.physics.thrust import EXACT, radial_transverse
 
 #: The maps' grid: 5 deg in pitch (so +/-45 deg is on it) and 0.005 mm/s^2 in a_c.
 ALPHA_DEG = np.linspace(-90, 90, 37)
@@ -130,3 +130,353 @@ def fig4(out):
 
 
 FIGURES = {"fig2": fig2, "fig3": fig3, "fig4": fig4}
+
+
+# -- Sec. 3: the 10-year orbit raising (Figs. 5-7) and how rectification converges --
+
+#: The paper's Sec. 3 case: a_c = 0.1 mm/s^2, alpha_n = 45 deg, circular at 1 au, 10 years,
+#: one rectification every six months (19 rectifications, 20 arcs).
+RAISING = {"ac_mm_s2": 0.1, "alpha_deg": 45.0, "r0_au": 1.0, "years": 10.0, "arcs": 20}
+#: Plot samples per arc (at most 9 deg of theta each) and CVODES/Ref. [10] plot points
+#: (about 1.5 days apart): both resolve the one-year short-period oscillation.
+SAMPLES_PER_ARC = 20
+DENSE_POINTS = 2400
+CURVE_NAMES = {
+    "cvodes": "numerical integration (CVODES, tol 1e-12)",
+    "ref10": "Ref. [10] (r'' neglected in Eq. 1)",
+    "closed_form": "closed form, 19 rectifications (20 arcs)",
+}
+_STYLES = {"cvodes": ("k", "-"), "ref10": ("tab:blue", "--"), "closed_form": ("tab:red", "-.")}
+_RAISING_TEXT = "10-year orbit raising, a_c = 0.1 mm/s^2, alpha_n = 45 deg, r0 = 1 au, e0 = 0"
+_RAISING_TITLE = (r"10-year orbit raising, $a_c$ = 0.1 mm/s$^2$, $\alpha_n$ = 45 deg, "
+                  r"$r_0$ = 1 au, $e_0$ = 0")
+
+
+def _raising_inputs():
+    """Departure state, pitch (rad), a_c and horizon of the Sec. 3 case, canonical units."""
+    alpha = math.radians(RAISING["alpha_deg"])
+    circle = np.array([RAISING["r0_au"], 0.0, 0.0, RAISING["r0_au"] ** -0.5])
+    ac = units.accel_from_mm_s2(RAISING["ac_mm_s2"])
+    return circle, alpha, ac, units.time_from_years(RAISING["years"])
+
+
+def raising_curves():
+    """The three trajectories of Figs. 5-7 in canonical units, rows [r, theta, v_r, v_theta, t].
+
+    The closed form is found with lengths in time (six months of its own clock
+    per arc, as the paper rectifies), then each arc is re-sampled in theta over the
+    angle it was found to span: the same arcs from the same states, only with plot
+    points in between (the time propagator's cost grows with its sample count).
+    """
+    from esail_opt.propagation.rectified import propagate
+    from esail_opt.propagation.ref10 import ref10_function
+    from esail_opt.propagation.simulate import simulate
+
+    x0, alpha, ac, horizon = _raising_inputs()
+    arcs = RAISING["arcs"]
+    points, _ = propagate(x0, [alpha] * arcs, [horizon / arcs] * arcs, ac, length_in="time")
+    closed, q3 = propagate(x0, [alpha] * arcs, np.diff(points[1]), ac,
+                           samples=SAMPLES_PER_ARC)
+    if np.any(q3 <= 0):
+        raise RuntimeError("an arc of the closed form went past theta_max (q3 <= 0)")
+    cvodes = simulate(x0, [alpha], [horizon], ac, samples=DENSE_POINTS)
+    R, T = radial_transverse(alpha)
+    t = np.linspace(0.0, horizon, DENSE_POINTS + 1)
+    ref10 = np.vstack([np.array(ref10_function(t.size)(t[None, :], x0[0], ac, R, T, 0.0)), t])
+    # CVODES again at exactly the closed form's and the rectification points' times,
+    # for the errors reported beside the plots.
+    at_closed = simulate(x0, [alpha] * (arcs * SAMPLES_PER_ARC), np.diff(closed[4]), ac)
+    return {"cvodes": cvodes, "ref10": ref10, "closed_form": closed,
+            "cvodes_at_closed_form": at_closed,
+            "clock_mismatch": float(np.max(np.abs(closed[4, ::SAMPLES_PER_ARC] - points[4])))}
+
+
+def _errors(curves):
+    """Largest and final |dr|/r0 of the closed form and Ref. [10] against CVODES at equal times."""
+    r0 = RAISING["r0_au"]
+    closed, truth = curves["closed_form"], curves["cvodes_at_closed_form"]
+    ref10, dense = curves["ref10"], curves["cvodes"]
+    return {
+        "closed_form_max_dr_over_r0": float(np.max(np.abs(closed[0] - truth[0])) / r0),
+        "closed_form_final_dr_au": float(closed[0, -1] - truth[0, -1]),
+        "closed_form_final_dtheta_deg": float(np.degrees(closed[1, -1] - truth[1, -1])),
+        "ref10_max_dr_over_r0": float(np.max(np.abs(ref10[0] - dense[0])) / r0),
+        "ref10_final_dr_au": float(ref10[0, -1] - dense[0, -1]),
+        "ref10_final_dtheta_deg": float(np.degrees(ref10[1, -1] - dense[1, -1])),
+        "closed_form_clock_mismatch_tu": curves["clock_mismatch"],
+        "note": "errors at equal times against CVODES; the closed form's samples are "
+                "equally spaced in theta within each arc, CVODES was flown to the same times",
+    }
+
+
+def _raising_json(figure, curves, series):
+    """A figure's JSON: the case, the errors, and ``series(xs)`` of each curve."""
+    data = {
+        "figure": figure,
+        "case": dict(RAISING, rectifications=RAISING["arcs"] - 1, b1=EXACT[0], b2=EXACT[1]),
+        "curves": CURVE_NAMES,
+        "errors": _errors(curves),
+    }
+    for key in CURVE_NAMES:
+        xs = curves[key]
+        data[key] = {"t_days": units.time_to_days(xs[4]).tolist(), **series(xs)}
+    # Taken from the closed form's samples (every arc's first and last), so that a
+    # quantity unwrapped along the curve (omega) is unwrapped the same way here.
+    data["rectification_points"] = {
+        key: values[::SAMPLES_PER_ARC] for key, values in data["closed_form"].items()
+    }
+    return data
+
+
+def _raising_axes(rows, ylabels, title):
+    """Stacked panels against time in days."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(rows, 1, figsize=(7, 2.4 * rows + 0.6), sharex=True,
+                             layout="constrained")
+    for ax, label in zip(np.atleast_1d(axes), ylabels):
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    np.atleast_1d(axes)[-1].set_xlabel("time [days]")
+    fig.suptitle(title, fontsize=9)
+    return fig, np.atleast_1d(axes)
+
+
+def _plot_series(axes, data, keys):
+    """The three curves in each panel, and the rectification points as squares."""
+    for curve in CURVE_NAMES:
+        color, style = _STYLES[curve]
+        for ax, key in zip(axes, keys):
+            ax.plot(data[curve]["t_days"], data[curve][key], color=color, ls=style, lw=1.1,
+                    label=CURVE_NAMES[curve])
+    for ax, key in zip(axes, keys):
+        ax.plot(data["rectification_points"]["t_days"], data["rectification_points"][key],
+                "s", mfc="none", mec="tab:red", ms=4)
+    axes[0].legend(fontsize=7)
+
+
+def _write(out, name, data, fig):
+    """Write ``<out>/<name>.json`` and ``.png`` atomically; return both paths."""
+    out = Path(out)
+    write_json(out / f"{name}.json", data)
+    save_figure(fig, out / f"{name}.png")
+    return [out / f"{name}.json", out / f"{name}.png"]
+
+
+def fig5(out):
+    """Fig. 5: r, v_r and v_theta against time, the three models."""
+
+    def series(xs):
+        return {"r_au": xs[0].tolist(), "vr_km_s": units.speed_to_km_s(xs[2]).tolist(),
+                "vtheta_km_s": units.speed_to_km_s(xs[3]).tolist()}
+
+    curves = raising_curves()
+    data = _raising_json("Fig. 5: " + _RAISING_TEXT + "; closed form with 19 "
+                         "rectifications (20 arcs)", curves, series)
+    fig, axes = _raising_axes(3, ["r [au]", r"$v_r$ [km/s]", r"$v_\theta$ [km/s]"],
+                              "Fig. 5: " + _RAISING_TITLE + "\nclosed form: 19 rectifications "
+                              "(20 arcs, squares)")
+    _plot_series(axes, data, ["r_au", "vr_km_s", "vtheta_km_s"])
+    return _write(out, "fig5", data, fig)
+
+
+def osculating(xs):
+    """Osculating a (au), e, omega (deg, unwrapped) and h (au^2/day) of polar states."""
+    import casadi as ca
+
+    from esail_opt.physics.elements import classical_from_polar
+
+    x = ca.SX.sym("x", 4)
+    elements = ca.Function("elements", [x], [ca.vertcat(*classical_from_polar(x)[:4])])
+    a, e, omega, h = np.array(elements.map(xs.shape[1])(xs[:4]))
+    # At e = 0 (the departure) the apse line is undefined and atan2 returns 0.
+    omega = np.degrees(np.unwrap(omega))
+    return {"a_au": a.tolist(), "e": e.tolist(), "omega_deg": omega.tolist(),
+            "h_au2_day": (h / units.TU_DAYS).tolist()}
+
+
+def fig6(out):
+    """Fig. 6: osculating a, e, omega and h against time, the three models."""
+    curves = raising_curves()
+    data = _raising_json("Fig. 6: osculating elements, " + _RAISING_TEXT
+                         + "; closed form with 19 rectifications (20 arcs)", curves, osculating)
+    data["note"] = ("omega is measured from the departure radius (the parking orbit has no "
+                    "apse line); it is unwrapped, and meaningless while e is near 0")
+    fig, axes = _raising_axes(4, ["a [au]", "e", r"$\omega$ [deg]", r"h [au$^2$/day]"],
+                              "Fig. 6: osculating elements, " + _RAISING_TITLE
+                              + "\nclosed form: 19 rectifications (20 arcs, squares)")
+    _plot_series(axes, data, ["a_au", "e", "omega_deg", "h_au2_day"])
+    return _write(out, "fig6", data, fig)
+
+
+def fig7(out):
+    """Fig. 7: the polar trajectory with the rectification points (squares)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def series(xs):
+        return {"x_au": (xs[0] * np.cos(xs[1])).tolist(), "y_au": (xs[0] * np.sin(xs[1])).tolist(),
+                "r_au": xs[0].tolist(), "theta_deg": np.degrees(xs[1]).tolist()}
+
+    curves = raising_curves()
+    data = _raising_json("Fig. 7: trajectory, " + _RAISING_TEXT
+                         + "; closed form with 19 rectifications (20 arcs)", curves, series)
+    fig, ax = plt.subplots(figsize=(6.5, 6.5), layout="constrained")
+    for curve in CURVE_NAMES:
+        color, style = _STYLES[curve]
+        ax.plot(data[curve]["x_au"], data[curve]["y_au"], color=color, ls=style, lw=1,
+                label=CURVE_NAMES[curve])
+    points = data["rectification_points"]
+    ax.plot(points["x_au"], points["y_au"], "s", mfc="none", mec="tab:red", ms=5,
+            label="rectification points (start, 19 rectifications, end)")
+    ax.plot(0, 0, "o", color="orange", ms=8)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [au]")
+    ax.set_ylabel("y [au]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower left")
+    ax.set_title("Fig. 7: " + _RAISING_TITLE, fontsize=9)
+    return _write(out, "fig7", data, fig)
+
+
+#: Arc counts of the convergence study; each doubles the last.
+CONVERGENCE_ARCS = [5, 10, 20, 40, 80, 160, 320, 640, 1280, 2560]
+#: Below this count the error changes sign between 20 and 40 arcs (arcs of a
+#: quarter revolution and more are outside the asymptotic regime), so the order is
+#: fitted on the counts from here on.
+FIT_FROM_ARCS = 160
+
+
+def _slope(arcs, errors, start=FIT_FROM_ARCS):
+    """Least-squares slope of log(error) against log(arcs) over arcs >= start."""
+    arcs, errors = np.asarray(arcs, float), np.abs(np.asarray(errors, float))
+    keep = arcs >= start
+    return float(np.polyfit(np.log(arcs[keep]), np.log(errors[keep]), 1)[0])
+
+
+def convergence_errors(arcs=CONVERGENCE_ARCS):
+    """Final errors of the rectified closed form against CVODES after 10 years.
+
+    Two schedules of N equal arcs, so that each error is measured where it exists:
+
+    * equal durations (10 years / N, lengths in time): the final time is exact by
+      construction, and the errors in r and theta are taken at 10 years;
+    * equal angles (lengths in theta), the total being the angle CVODES sweeps in
+      10 years: theta is exact by construction, and the time-of-flight error is
+      the closed form's time at that angle minus 10 years (r there is kept too).
+
+    Each also with Richardson extrapolation from N and 2N arcs (cost 3N arcs).
+    """
+    from esail_opt.propagation.rectified import propagate, propagate_extrapolated
+    from esail_opt.propagation.simulate import simulate
+
+    x0, alpha, ac, horizon = _raising_inputs()
+    truth = simulate(x0, [alpha], [horizon], ac)[:, -1]
+    sweep = truth[1] - x0[1]
+    rows = {key: [] for key in ("plain", "richardson")}
+    for n in arcs:
+        for key, run in (("plain", propagate), ("richardson", propagate_extrapolated)):
+            timed, q3_t = run(x0, [alpha] * n, [horizon / n] * n, ac, length_in="time")
+            angled, q3_a = run(x0, [alpha] * n, [sweep / n] * n, ac, length_in="theta")
+            if min(q3_t.min(), q3_a.min()) <= 0:
+                raise RuntimeError(f"{n} arcs: an arc went past theta_max")
+            rows[key].append({
+                "r": abs(timed[0, -1] - truth[0]),
+                "theta": abs(math.degrees(timed[1, -1] - truth[1])),
+                "tof": abs(units.time_to_days(angled[4, -1] - truth[4])),
+                "r_same_theta": abs(angled[0, -1] - truth[0]),
+            })
+        print(f"convergence: {n} arcs, |dr| = {rows['plain'][-1]['r']:.3e} au plain, "
+              f"{rows['richardson'][-1]['r']:.3e} au Richardson", file=sys.stderr, flush=True)
+    return truth, rows
+
+
+def convergence(out):
+    """Final errors after 10 years against the number of rectification arcs, log-log."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    truth, rows = convergence_errors()
+    arcs = np.array(CONVERGENCE_ARCS)
+
+    def column(key, name):
+        return [row[name] for row in rows[key]]
+
+    data = {
+        "figure": "Convergence of the rectified closed form with the number of arcs: "
+                  + _RAISING_TEXT,
+        "case": dict(RAISING, b1=EXACT[0], b2=EXACT[1]),
+        "truth_cvodes": {"r_au": float(truth[0]), "theta_deg": float(np.degrees(truth[1])),
+                         "tof_days": float(units.time_to_days(truth[4]))},
+        "definitions": {
+            "err_r_au": "|r - r_cvodes| at 10 years, N arcs of equal duration (10 years / N)",
+            "err_theta_deg": "|theta - theta_cvodes| at 10 years, the same equal-duration arcs",
+            "err_tof_days": "|t - 10 years| where the closed form reaches the angle CVODES "
+                            "sweeps in 10 years, N arcs of equal angle (with equal durations "
+                            "the time of flight is exact by construction)",
+            "err_r_same_theta_au": "|r - r_cvodes| at that same angle, equal-angle arcs",
+            "richardson": "2 x(2N arcs) - x(N arcs) at the end; cost 3N arcs evaluated",
+            "slope": f"least-squares slope of log(error) vs log(arcs) for arcs >= {FIT_FROM_ARCS}",
+        },
+        "arcs": arcs.tolist(),
+        "err_r_au": column("plain", "r"),
+        "err_theta_deg": column("plain", "theta"),
+        "err_tof_days": column("plain", "tof"),
+        "err_r_same_theta_au": column("plain", "r_same_theta"),
+        "richardson": {
+            "arcs": arcs.tolist(),
+            "cost_arcs": (3 * arcs).tolist(),
+            "err_r_au": column("richardson", "r"),
+            "err_theta_deg": column("richardson", "theta"),
+            "err_tof_days": column("richardson", "tof"),
+            "err_r_same_theta_au": column("richardson", "r_same_theta"),
+        },
+    }
+    slopes = {}
+    for key in ("err_r_au", "err_theta_deg", "err_tof_days"):
+        slopes[key] = {"plain": _slope(arcs, data[key]),
+                       "richardson": _slope(arcs, data["richardson"][key])}
+    data["slope"] = slopes
+    data["err_640_over_err_20"] = {
+        key: data[key][CONVERGENCE_ARCS.index(640)] / data[key][CONVERGENCE_ARCS.index(20)]
+        for key in ("err_r_au", "err_theta_deg", "err_tof_days")
+    }
+    # Equal cost: Richardson from N and 2N (3N arcs) against plain with the arc count
+    # on the grid nearest above 3N (4N), which favours the plain scheme.
+    data["equal_cost"] = {
+        "note": "Richardson at cost 3N against plain at 4N arcs (the next grid point above)",
+        "richardson_arcs_cost": (3 * arcs[:-2]).tolist(),
+        "plain_arcs": (4 * arcs[:-2]).tolist(),
+        "err_r_au_ratio_plain_over_richardson": [
+            data["err_r_au"][i + 2] / data["richardson"]["err_r_au"][i]
+            for i in range(arcs.size - 2)
+        ],
+    }
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4), layout="constrained")
+    labels = {"err_r_au": "final |dr| [au]", "err_theta_deg": r"final |d$\theta$| [deg]",
+              "err_tof_days": "time-of-flight error [days]"}
+    for ax, key in zip(axes, labels):
+        ax.loglog(arcs, data[key], "o-", color="tab:red",
+                  label=f"plain (slope {slopes[key]['plain']:.2f})")
+        ax.loglog(3 * arcs, data["richardson"][key], "s--", color="tab:green",
+                  label=f"Richardson, N & 2N (slope {slopes[key]['richardson']:.2f})")
+        guide = data[key][-1] * arcs[-1] / arcs
+        ax.loglog(arcs, guide, ":", color="0.5", label="1/N")
+        ax.set_xlabel("arcs evaluated (plain: N; Richardson: 3N)")
+        ax.set_ylabel(labels[key])
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    fig.suptitle("Rectified closed form vs CVODES after 10 years: " + _RAISING_TITLE
+                 + "\n(r, theta: arcs of equal duration; time of flight: arcs of equal angle)",
+                 fontsize=9)
+    return _write(out, "convergence", data, fig)
+
+
+FIGURES.update({"fig5": fig5, "fig6": fig6, "fig7": fig7, "convergence": convergence})
