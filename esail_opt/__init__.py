@@ -1,0 +1,22 @@
+"""esail_opt: trajectory optimisation of Electric Solar Wind Sails on the paper's
+first-order closed form, verified on Eqs. 1-2 with CVODES.
+
+A problem file does ``import esail_opt as eo`` and builds ``problem = eo.Problem(...)``
+from the names below (see :mod:`esail_opt.optimisation.problem`); ``eo.solve(problem)``
+runs it and returns a :class:`Solution`.
+"""
+
+from esail_opt.optimisation.problem import (  # noqa: F401
+    BEST_FIT, EXACT, CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius, MinTime,
+    Orbit, ParkingOrbit, PathConstraints, PolarState, Problem, Rendezvous, Sail, Segments,
+)
+
+
+def __getattr__(name):
+    # The application layer (matplotlib, Ipopt) loads only when asked for, so that
+    # ``import esail_opt`` in a problem file stays cheap.
+    if name in ("solve", "Solution"):
+        from esail_opt import solution
+
+        return getattr(solution, name)
+    raise AttributeError(f"module 'esail_opt' has no attribute {name!r}")

@@ -1,0 +1,1 @@
+"""Layer 3: problem definition, transcription to an NLP, the Ipopt solve and its verification."""

@@ -1,0 +1,423 @@
+"""A trajectory optimisation problem, stated in the boundary's units and checked on creation.
+
+A user writes a problem file in ``problems/`` that builds one :class:`Problem` and names
+it ``problem``::
+
+    import esail_opt as eo
+
+    problem = eo.Problem(
+        name="earth_mars_min_time",
+        departure=eo.ParkingOrbit(a_au=1.0),
+        sail=eo.Sail(ac_mm_s2=1.0),
+        segments=eo.Segments(count=20, sub_arcs=3),
+        objective=eo.MinTime(),
+        target=eo.CircularOrbit(radius_au=1.524),
+    )
+
+Everything here is plain data in au, days, degrees, km/s and mm/s^2; every field is
+range-checked when it is built (``InputError`` names the field and the allowed range),
+so a bad file fails before any NLP is made.  The ``canonical_*`` methods are the one
+place where this layer converts to the package's canonical units.
+"""
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Union
+
+import numpy as np
+
+from esail_opt.errors import InputError, check_range
+from esail_opt.physics import constants as units
+from esail_opt.physics.elements import polar_from_classical
+from esail_opt.physics.thrust import BEST_FIT, EXACT
+
+__all__ = [
+    "ParkingOrbit", "PolarState", "Sail", "Segments", "MinTime", "MaxRadius", "MaxEnergy",
+    "FinalStateExpression", "CircularOrbit", "Orbit", "Rendezvous", "PathConstraints",
+    "Problem", "EXACT", "BEST_FIT",
+]
+
+
+def _check_finite_positive_int(name, value, low=1):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name} = {value!r} is not an integer in [{low}, inf)")
+    if value < low:
+        raise InputError(f"{name} = {value!r} is outside [{low}, inf)")
+    return int(value)
+
+
+# ---------------------------------------------------------------- departure
+
+
+@dataclass(frozen=True)
+class ParkingOrbit:
+    """Depart from a Keplerian parking orbit.
+
+    Attributes
+    ----------
+    a_au : float
+        Semimajor axis, au, > 0.
+    e : float
+        Eccentricity, [0, 1).
+    omega_deg : float
+        Argument of perihelion from the polar frame's x axis, deg, [-360, 360].
+    nu_deg : float
+        Departure true anomaly, deg, [-360, 360]; the initial value if ``free_anomaly``.
+    free_anomaly : bool
+        Let the optimiser choose where on the parking orbit to leave.
+    """
+
+    a_au: float
+    e: float = 0.0
+    omega_deg: float = 0.0
+    nu_deg: float = 0.0
+    free_anomaly: bool = False
+
+    def __post_init__(self):
+        check_range("departure.a_au", self.a_au, 0, low_open=True, unit="au")
+        check_range("departure.e", self.e, 0, 1, high_open=True)
+        check_range("departure.omega_deg", self.omega_deg, -360, 360, unit="deg")
+        check_range("departure.nu_deg", self.nu_deg, -360, 360, unit="deg")
+
+    def state(self, nu=None):
+        """Canonical polar state at true anomaly ``nu`` (rad; default the stated one).
+
+        Works on floats and CasADi symbols alike (the free-anomaly NLP passes a symbol).
+        """
+        nu = math.radians(self.nu_deg) if nu is None else nu
+        return polar_from_classical(self.a_au, self.e, math.radians(self.omega_deg), nu)
+
+
+@dataclass(frozen=True)
+class PolarState:
+    """Depart from an explicit polar state.
+
+    Attributes
+    ----------
+    r_au : float
+        Solar distance, au, > 0.
+    theta_deg : float
+        Polar angle, deg, [-360, 360].
+    vr_km_s, vtheta_km_s : float
+        Radial and transverse velocity, km/s; the orbit must be bound (e < 1) and
+        prograde (vtheta > 0), as the closed form requires.
+    """
+
+    r_au: float
+    theta_deg: float
+    vr_km_s: float
+    vtheta_km_s: float
+    free_anomaly: bool = field(default=False, init=False)
+
+    def __post_init__(self):
+        check_range("departure.r_au", self.r_au, 0, low_open=True, unit="au")
+        check_range("departure.theta_deg", self.theta_deg, -360, 360, unit="deg")
+        check_range("departure.vr_km_s", self.vr_km_s, unit="km/s")
+        check_range("departure.vtheta_km_s", self.vtheta_km_s, 0, low_open=True, unit="km/s")
+        x = self.state()
+        energy = 0.5 * (x[2] ** 2 + x[3] ** 2) - 1 / x[0]
+        if energy >= 0:
+            v_esc = units.speed_to_km_s(math.sqrt(2 / x[0]))
+            raise InputError(f"departure speed = {units.speed_to_km_s(math.hypot(x[2], x[3])):.4g} "
+                             f"km/s is outside [0, {v_esc:.4g}) km/s (the escape speed: e < 1)")
+
+    def state(self, nu=None):
+        """Canonical polar state (``nu`` is ignored: there is no orbit to slide along)."""
+        return np.array([self.r_au, math.radians(self.theta_deg),
+                         units.speed_from_km_s(self.vr_km_s),
+                         units.speed_from_km_s(self.vtheta_km_s)])
+
+
+# ---------------------------------------------------------------- sail and arcs
+
+
+@dataclass(frozen=True)
+class Sail:
+    """The E-sail: characteristic acceleration at 1 au, thrust model, pitch bounds.
+
+    Attributes
+    ----------
+    ac_mm_s2 : float
+        Characteristic acceleration at r_E = 1 au, mm/s^2, in (0, 100].
+    coefficients : tuple of float
+        (b1, b2) of Eqs. 3-4: ``EXACT`` (3/4, 1/4) or ``BEST_FIT``.
+    alpha_min_deg, alpha_max_deg : float
+        Pitch bounds, deg, a subset of [-90, 90] with min <= max.
+    """
+
+    ac_mm_s2: float
+    coefficients: tuple = EXACT
+    alpha_min_deg: float = -90.0
+    alpha_max_deg: float = 90.0
+
+    def __post_init__(self):
+        check_range("sail.ac_mm_s2", self.ac_mm_s2, 0, 100, low_open=True, unit="mm/s^2")
+        if len(self.coefficients) != 2:
+            raise InputError(f"sail.coefficients = {self.coefficients!r} is not a pair (b1, b2)")
+        b1 = check_range("sail.coefficients[0] (b1)", self.coefficients[0], 0, 1, low_open=True)
+        check_range("sail.coefficients[1] (b2)", self.coefficients[1], 0, b1)
+        lo = check_range("sail.alpha_min_deg", self.alpha_min_deg, -90, 90, unit="deg")
+        check_range("sail.alpha_max_deg", self.alpha_max_deg, lo, 90, unit="deg")
+
+    @property
+    def ac(self):
+        """Characteristic acceleration in canonical units (mu / au^2)."""
+        return units.accel_from_mm_s2(self.ac_mm_s2)
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Control segments: N pieces of constant pitch, each made of closed-form sub-arcs.
+
+    Attributes
+    ----------
+    count : int
+        Number N of constant-pitch segments, >= 1.
+    sub_arcs : int
+        Rectified closed-form arcs chained inside each segment, >= 1; more give
+        accuracy (the error per arc falls as its length squared) without more controls.
+    equal : bool
+        Equal segment angles (one shared length) or free ones.
+    extrapolate : bool
+        Richardson-extrapolate every sub-arc (whole and two halves): the NLP's error
+        against Eqs. 1-2 then falls like 1/n^2 instead of 1/n in the arc count, at three
+        times the arcs (see ``transcription.closed_form_segment``).
+    """
+
+    count: int = 20
+    sub_arcs: int = 3
+    equal: bool = True
+    extrapolate: bool = True
+
+    def __post_init__(self):
+        _check_finite_positive_int("segments.count", self.count)
+        _check_finite_positive_int("segments.sub_arcs", self.sub_arcs)
+
+
+# ---------------------------------------------------------------- objectives
+
+
+@dataclass(frozen=True)
+class MinTime:
+    """Minimise the time of flight (the target fixes the end)."""
+
+    fixed_time = False
+
+
+@dataclass(frozen=True)
+class _FixedTime:
+    tof_days: float
+
+    fixed_time = True
+
+    def __post_init__(self):
+        check_range("objective.tof_days", self.tof_days, 0, 36525, low_open=True, unit="days")
+
+
+@dataclass(frozen=True)
+class MaxRadius(_FixedTime):
+    """Maximise the final solar distance after ``tof_days`` days."""
+
+
+@dataclass(frozen=True)
+class MaxEnergy(_FixedTime):
+    """Maximise the final orbital energy v^2/2 - 1/r after ``tof_days`` days.
+
+    While the orbit stays bound, this is the same as maximising the final osculating
+    semimajor axis a = -1 / (2 E), without a's pole at E = 0.
+    """
+
+
+@dataclass(frozen=True)
+class FinalStateExpression(_FixedTime):
+    """Minimise a user expression of the final state after ``tof_days`` days.
+
+    Attributes
+    ----------
+    function : callable
+        ``function(x)`` with ``x`` the final polar state [r, theta, v_r, v_theta] as a
+        CasADi column (canonical units: au, rad, au/TU with mu = 1) returns a scalar
+        CasADi expression to *minimise*.  Use CasADi operations (``casadi.sqrt``,
+        ``casadi.cos``, ...) so that Ipopt gets exact derivatives; e.g. maximising the
+        angular momentum is ``lambda x: -x[0] * x[3]``.
+    tof_days : float
+        Fixed time of flight, days.
+    """
+
+    function: Callable = None
+    tof_days: float = 365.25
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not callable(self.function):
+            raise InputError(f"objective.function = {self.function!r} is not callable")
+
+
+# ---------------------------------------------------------------- targets
+
+
+@dataclass(frozen=True)
+class CircularOrbit:
+    """End on the circular orbit of radius ``radius_au`` (r = R, v_r = 0, v_theta = sqrt(mu/R))."""
+
+    radius_au: float
+
+    def __post_init__(self):
+        check_range("target.radius_au", self.radius_au, 0.05, 100, unit="au")
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """End on the orbit (a, e), anywhere and with any apse line.
+
+    The constraints are the energy -1/(2a) and the angular momentum sqrt(a (1 - e^2)),
+    which are smooth where the apse line is not (e = 0 included).
+    """
+
+    a_au: float
+    e: float
+
+    def __post_init__(self):
+        check_range("target.a_au", self.a_au, 0.05, 100, unit="au")
+        check_range("target.e", self.e, 0, 1, high_open=True)
+
+
+@dataclass(frozen=True)
+class Rendezvous:
+    """Meet a body on a circular orbit: position and velocity.
+
+    Attributes
+    ----------
+    radius_au : float
+        The body's orbit radius, au.
+    phase_deg : float
+        The body's polar angle at departure (t = 0), deg; it moves at the mean
+        motion n = sqrt(mu / R^3).
+    """
+
+    radius_au: float
+    phase_deg: float
+
+    def __post_init__(self):
+        check_range("target.radius_au", self.radius_au, 0.05, 100, unit="au")
+        check_range("target.phase_deg", self.phase_deg, -360, 360, unit="deg")
+
+
+# ---------------------------------------------------------------- path and problem
+
+
+@dataclass(frozen=True)
+class PathConstraints:
+    """Path constraints of the NLP.
+
+    Attributes
+    ----------
+    r_min_au : float
+        Smallest solar distance allowed at the segment nodes, au, >= 0.
+    q3_margin : float
+        Smallest q3 allowed at every closed-form arc's end, (0, 1): the first-order
+        solution is only meaningful while q3 > 0 (PHYSICS-NOTES, theta_max).
+    """
+
+    r_min_au: float = 0.1
+    q3_margin: float = 0.2
+
+    def __post_init__(self):
+        check_range("path.r_min_au", self.r_min_au, 0, 100, unit="au")
+        check_range("path.q3_margin", self.q3_margin, 0, 1, low_open=True, high_open=True)
+
+
+Departure = Union[ParkingOrbit, PolarState]
+Objective = Union[MinTime, MaxRadius, MaxEnergy, FinalStateExpression]
+Target = Optional[Union[CircularOrbit, Orbit, Rendezvous]]
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One mission: departure, sail, segments, objective, target and path constraints.
+
+    Attributes
+    ----------
+    name : str
+        Used for the default output folder ``results/<name>/``.
+    departure : ParkingOrbit or PolarState
+    sail : Sail
+    segments : Segments
+    objective : MinTime, MaxRadius, MaxEnergy or FinalStateExpression
+    target : CircularOrbit, Orbit, Rendezvous or None
+        None leaves the final state free (then the objective must fix the time).
+    path : PathConstraints
+    guess_alpha_deg : float or None
+        Constant pitch of the forward propagation that seeds the NLP; default +45 deg
+        when the target lies outward, -45 deg inward, +45 deg with no target.
+    max_revolutions : float
+        Bound on the total swept angle, revolutions; it also bounds each free segment.
+    description : str
+    """
+
+    name: str
+    departure: Departure
+    sail: Sail
+    segments: Segments = Segments()
+    objective: Objective = MinTime()
+    target: Target = None
+    path: PathConstraints = PathConstraints()
+    guess_alpha_deg: Optional[float] = None
+    max_revolutions: float = 20.0
+    description: str = ""
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name or any(c in self.name for c in "/\\"):
+            raise InputError(f"name = {self.name!r} is not a non-empty file-name string")
+        for attr, kinds in (("departure", (ParkingOrbit, PolarState)), ("sail", (Sail,)),
+                            ("segments", (Segments,)),
+                            ("objective", (MinTime, MaxRadius, MaxEnergy, FinalStateExpression)),
+                            ("path", (PathConstraints,))):
+            if not isinstance(getattr(self, attr), kinds):
+                names = ", ".join(k.__name__ for k in kinds)
+                raise InputError(f"{attr} = {getattr(self, attr)!r} is not one of: {names}")
+        if self.target is not None and not isinstance(self.target, (CircularOrbit, Orbit, Rendezvous)):
+            raise InputError(f"target = {self.target!r} is not one of: CircularOrbit, Orbit, "
+                             "Rendezvous, None")
+        if self.target is None and not self.objective.fixed_time:
+            raise InputError("objective = MinTime needs a target (target = None leaves "
+                             "nothing to reach); use a fixed-time objective")
+        if self.guess_alpha_deg is not None:
+            lo, hi = self.sail.alpha_min_deg, self.sail.alpha_max_deg
+            check_range("guess_alpha_deg", self.guess_alpha_deg, lo, hi, unit="deg")
+        check_range("max_revolutions", self.max_revolutions, 0, 1000, low_open=True)
+
+    def with_segments(self, count):
+        """The same problem with ``count`` control segments (``--segments``)."""
+        seg = self.segments
+        return _replace(self, segments=Segments(count, seg.sub_arcs, seg.equal, seg.extrapolate))
+
+    # -- canonical views, the only unit conversions of this layer
+
+    def x0(self):
+        """Departure polar state, canonical units, as a numpy array."""
+        return np.array(self.departure.state(), float).ravel()
+
+    def alpha_bounds(self):
+        return math.radians(self.sail.alpha_min_deg), math.radians(self.sail.alpha_max_deg)
+
+    def fixed_tof(self):
+        """Fixed time of flight in TU, or None for minimum time."""
+        if self.objective.fixed_time:
+            return units.time_from_days(self.objective.tof_days)
+        return None
+
+    def target_radius(self):
+        """Radius the initial guess aims at (a for an (a, e) orbit), au, or None."""
+        t = self.target
+        if isinstance(t, (CircularOrbit, Rendezvous)):
+            return t.radius_au
+        if isinstance(t, Orbit):
+            return t.a_au
+        return None
+
+
+def _replace(obj, **changes):
+    import dataclasses
+
+    return dataclasses.replace(obj, **changes)

@@ -1,0 +1,397 @@
+"""The transcription: a :class:`Problem` turned into a multiple-shooting NLP.
+
+Decision variables (each scaled to order one):
+
+* ``alpha[N]``: the constant pitch of each segment, rad, within the sail's bounds;
+* ``length[N]``: each segment's arc angle, rad (equal segments: chained equalities);
+* ``X[5 x N]``: the state [r, theta, v_r, v_theta, t] at the end of each segment;
+* ``nu0``: the departure true anomaly, when it is free.
+
+A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q, Eqs. 9-11 for the state, the
+time by Gauss-Legendre quadrature of dt/dtheta) chained with rectification at each
+sub-arc's start, all at one pitch, and by default Richardson-extrapolated.  The segment
+Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
+the NLP holds one copy of the arc's graph however many segments there are.  The same
+builder accepts any segment Function of the same signature: the benchmark swaps in
+CVODES arcs (:func:`cvodes_segment`).
+
+Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
+end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
+the last node, and the time of flight when the objective fixes it.
+"""
+
+import functools
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.propagation.rectified import extrapolated_function, propagate, rectified_function
+from esail_opt.propagation.simulate import segment_integrator
+from esail_opt.errors import InputError
+from esail_opt.optimisation import problem as pb
+
+#: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
+#: a_c = 1 mm/s^2 (PHYSICS-NOTES: sub-arcs of about a tenth of a radian).
+GUESS_STEP = 0.05
+#: Gauss-Legendre points of each sub-arc's time quadrature.  Sub-arcs are short (a tenth
+#: to a third of a radian), where 4 points already give the 8-point tof to 1e-11 days on
+#: Earth-Venus (30 x 3 sub-arcs); the arc's cost grows with them (1.6 s against 2.3 s).
+QUAD_NODES = 4
+#: Guess steps per call of the (cached) rectified propagator.
+GUESS_CHUNK = 200
+
+
+@functools.lru_cache(maxsize=None)
+def closed_form_segment(sub_arcs, coefficients=pb.EXACT, extrapolate=True):
+    """One constant-pitch segment of ``sub_arcs`` rectified closed-form arcs.
+
+    Parameters
+    ----------
+    sub_arcs : int
+        Rectified arcs chained in the segment, each dtheta / sub_arcs long.
+    coefficients : tuple
+        (b1, b2) of Eqs. 3-4.
+    extrapolate : bool
+        Richardson-extrapolate the segment (``rectified.extrapolated_function``: its
+        chain of sub-arcs flown as it is and with every sub-arc halved, combined as
+        2 x_halves - x_whole at the segment's end; every segment restarts from its node).  The rectified closed
+        form's error falls only like 1/N with N arcs (PHYSICS-NOTES); extrapolation
+        cancels that leading term at three times the arcs.  On Earth-Venus at 1 mm/s^2,
+        30 x 3 extrapolated sub-arcs miss the CVODES flight by 6e3 km, where 30 x 12
+        plain ones miss by 2e5 km.
+
+    Returns
+    -------
+    casadi.Function
+        ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``, SX and expanded:
+        x = [r, theta, v_r, v_theta, t] canonical, and q3 is each sub-arc's validity
+        margin at its end (the smallest over its whole and half arcs).
+    """
+    x0 = ca.SX.sym("x0", 5)
+    ac, alpha, dtheta = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("dtheta")
+    if extrapolate:
+        chain = extrapolated_function(sub_arcs, "theta", coefficients, QUAD_NODES).expand()
+    else:
+        chain = rectified_function(sub_arcs, 1, "theta", coefficients, QUAD_NODES).expand()
+    ones = ca.DM.ones(1, sub_arcs)
+    xs, q3 = chain(x0, ac * ones, alpha * ones, dtheta / sub_arcs * ones)
+    return ca.Function("segment", [x0, ac, alpha, dtheta], [xs[:, -1], q3.T],
+                       ["x0", "ac", "alpha", "dtheta"], ["x1", "q3"])
+
+
+@functools.lru_cache(maxsize=None)
+def cvodes_segment(sub_arcs, coefficients=pb.EXACT):
+    """The same segment as :func:`closed_form_segment` with CVODES arcs on Eqs. 1-2.
+
+    ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``: one CVODES integration in
+    theta over the segment at tolerances 1e-12 (``simulate.segment_integrator``); CasADi
+    differentiates it through forward and adjoint sensitivities.  There is no first-order
+    arc, so its q3 outputs are a constant 1, which keeps the NLP's constraint count and
+    structure identical to the closed form's (for the benchmark).
+    """
+    seg = segment_integrator(1, "theta", coefficients)
+    x0 = ca.MX.sym("x0", 5)
+    ac, alpha, dtheta = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("dtheta")
+    x1 = seg(x0, ac, alpha, dtheta)[:, -1]
+    return ca.Function("segment_cvodes", [x0, ac, alpha, dtheta],
+                       [x1, ca.MX.ones(sub_arcs, 1)],
+                       ["x0", "ac", "alpha", "dtheta"], ["x1", "q3"])
+
+
+def flown_segments(problem, alpha, lengths, x_start):
+    """The NLP's own chain of segments flown forward from ``x_start`` (no continuity
+    defects): node states [5 x N+1] with time, for checks and tests."""
+    seg = closed_form_segment(problem.segments.sub_arcs, problem.sail.coefficients,
+                              problem.segments.extrapolate)
+    x = np.r_[np.asarray(x_start, float), 0.0]
+    out = [x]
+    for al, ln in zip(alpha, lengths):
+        x = np.array(seg(x, problem.sail.ac, al, ln)[0]).ravel()
+        out.append(x)
+    return np.column_stack(out)
+
+
+@dataclass
+class Guess:
+    """An initial guess in canonical units: pitch, segment angles, node states, nu0."""
+
+    alpha: np.ndarray
+    lengths: np.ndarray
+    nodes: np.ndarray  # 5 x N: [r, theta, v_r, v_theta, t] at each segment's end
+    nu0: float
+    revolutions_k: int = 0  # rendezvous: whole turns between the sail and the body
+
+
+def _sweep_to(problem, x0, alpha, stop, what):
+    """Fly constant pitch from x0 in GUESS_STEP arcs until ``stop(xs)`` returns an index.
+
+    Returns the swept angle at the (linearly interpolated) stopping point.
+
+    Raises
+    ------
+    InputError
+        If the propagation leaves the closed form's validity (an escaping orbit, q3 <= 0)
+        or sweeps ``max_revolutions`` before it stops: no seed can be built from it.
+    """
+    limit = 2 * math.pi * problem.max_revolutions
+    ac = problem.sail.ac
+    coeff = problem.sail.coefficients
+    state, swept, t0 = np.asarray(x0, float), 0.0, 0.0
+    deg = math.degrees(alpha)
+    while swept < limit:
+        xs, q3 = propagate(state, np.full(GUESS_CHUNK, alpha), np.full(GUESS_CHUNK, GUESS_STEP),
+                           ac, samples=1, coefficients=coeff)
+        xs[4] += t0
+        hit = stop(xs)
+        if hit is not None:
+            return swept + GUESS_STEP * hit
+        bad = ~np.isfinite(xs[0, 1:]) | (xs[0, 1:] <= 0) | ~(q3 > 0)
+        if bad.any():
+            left = swept + GUESS_STEP * np.flatnonzero(bad)[0]
+            raise InputError(
+                f"guess_alpha_deg = {deg:g} deg: the seeding propagation at constant pitch "
+                f"leaves the closed form's validity (escape or q3 <= 0) after {left:.3g} rad "
+                f"without reaching {what}; choose another guess_alpha_deg")
+        swept += GUESS_STEP * GUESS_CHUNK
+        state, t0 = xs[:4, -1], xs[4, -1]
+    raise InputError(f"max_revolutions = {problem.max_revolutions:g}: the seeding propagation "
+                     f"at {deg:g} deg does not reach {what} within it")
+
+
+def _crossing(values, level):
+    """Fractional index where ``values`` first reaches ``level`` (from either side), or None.
+
+    Only the finite leading part counts: past a NaN (an arc beyond its validity) there
+    is nothing to interpolate."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    values = values[: bad[0]] if bad.size else values
+    if values.size < 2:
+        return None
+    side = np.sign(values - level)
+    change = np.flatnonzero(side[1:] != side[0])
+    if not change.size:
+        return None
+    i = change[0]
+    a, b = values[i], values[i + 1]
+    return i + (level - a) / (b - a) if b != a else float(i)
+
+
+def guess_alpha(problem):
+    """Constant pitch (rad) of the seeding propagation: the problem's, else +-45 deg by
+    whether the target lies outward, clipped to the pitch bounds."""
+    if problem.guess_alpha_deg is not None:
+        deg = problem.guess_alpha_deg
+    else:
+        radius = problem.target_radius()
+        deg = -45.0 if radius is not None and radius < problem.x0()[0] else 45.0
+    lo, hi = problem.sail.alpha_min_deg, problem.sail.alpha_max_deg
+    return math.radians(min(max(deg, lo), hi))
+
+
+def initial_guess(problem):
+    """Seed the NLP from a forward rectified propagation at one constant pitch (never zeros).
+
+    The total angle is where that propagation (GUESS_STEP arcs) reaches the target
+    radius (minimum time) or the fixed time of flight; it is cut into N equal segments,
+    and the nodes are the states the NLP's own segments reach from the departure, so
+    every continuity constraint holds exactly at the start.
+    """
+    x0 = problem.x0()
+    alpha = guess_alpha(problem)
+    tof = problem.fixed_tof()
+    if tof is not None:
+        sweep = _sweep_to(problem, x0, alpha, lambda xs: _crossing(xs[4], tof),
+                          f"the time of flight ({problem.objective.tof_days:g} days)")
+    else:
+        radius = problem.target_radius()
+        sweep = _sweep_to(problem, x0, alpha, lambda xs: _crossing(xs[0], radius),
+                          f"the target radius ({radius:g} au)")
+    n = problem.segments.count
+    lengths = np.full(n, sweep / n)
+    # The nodes come from the NLP's own segment map, so continuity holds exactly.
+    xs = flown_segments(problem, np.full(n, alpha), lengths, x0)
+    nodes = xs[:, 1:]
+    k = 0
+    if isinstance(problem.target, pb.Rendezvous):
+        body = _body_angle(problem.target, xs[4, -1])
+        # The sail arrives from an inner (faster) orbit, so it can gain angle on the body
+        # by waiting, not lose it: aim at the next whole turn ahead of the guess's lag.
+        k = int(math.ceil((nodes[1, -1] - body) / (2 * math.pi)))
+    nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
+    return Guess(np.full(n, alpha), lengths, nodes, nu0, k)
+
+
+def _body_angle(target, t):
+    """Polar angle of the rendezvous body at time t (TU): phase0 + n t, unwrapped."""
+    return math.radians(target.phase_deg) + t * target.radius_au ** -1.5
+
+
+@dataclass
+class Transcription:
+    """The NLP and the maps from its flat variable vector back to the schedule."""
+
+    nlp: dict
+    nlp_g: ca.Function  # w -> g, to re-check the constraints at a returned point
+    x0: np.ndarray  # scaled initial guess
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    unpack: ca.Function  # w -> (alpha[N], lengths[N], nodes[4 x N], durations[N], x_start[4], q3)
+    guess: Guess
+    names: dict
+
+
+def _target_constraints(target, xf, tf, k):
+    """Smooth equality constraints that put the final state xf on the target."""
+    r, th, vr, vt = xf[0], xf[1], xf[2], xf[3]
+    if target is None:
+        return []
+    if isinstance(target, pb.CircularOrbit):
+        radius = target.radius_au
+        return [r - radius, vr, vt - radius ** -0.5]
+    if isinstance(target, pb.Orbit):
+        # Energy and angular momentum: both are smooth, the apse line stays free, and
+        # e = 0 needs no special case.
+        energy = 0.5 * (vr**2 + vt**2) - 1 / r
+        return [energy + 0.5 / target.a_au, r * vt - math.sqrt(target.a_au * (1 - target.e**2))]
+    if isinstance(target, pb.Rendezvous):
+        radius = target.radius_au
+        # The revolution count k is fixed from the guess: matching the angle mod 2 pi
+        # by (cos, sin) pairs would give two parallel constraint gradients.
+        body = math.radians(target.phase_deg) + tf * radius ** -1.5 + 2 * math.pi * k
+        return [r - radius, th - body, vr, vt - radius ** -0.5]
+    raise TypeError(target)
+
+
+def _objective(objective, xf, tf):
+    if isinstance(objective, pb.MinTime):
+        return tf
+    if isinstance(objective, pb.MaxRadius):
+        return -xf[0]
+    if isinstance(objective, pb.MaxEnergy):
+        return -(0.5 * (xf[2] ** 2 + xf[3] ** 2) - 1 / xf[0])
+    if isinstance(objective, pb.FinalStateExpression):
+        value = objective.function(xf)
+        size = value.numel() if hasattr(value, "numel") else np.size(value)
+        if not isinstance(value, (ca.MX, ca.SX, ca.DM, float, int)) or size != 1:
+            raise pb.InputError("objective.function must return one scalar CasADi expression "
+                                f"of the final state, not {value!r}")
+        return value
+    raise TypeError(objective)
+
+
+def transcribe(problem, segment=None, guess=None):
+    """Build the multiple-shooting NLP of ``problem``.
+
+    Parameters
+    ----------
+    problem : Problem
+    segment : casadi.Function, optional
+        ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[m])``; default the closed form's
+        :func:`closed_form_segment`.  The benchmark passes CVODES arcs here.
+    guess : Guess, optional
+        Default :func:`initial_guess`.
+
+    Returns
+    -------
+    Transcription
+    """
+    if segment is None:
+        segment = closed_form_segment(problem.segments.sub_arcs, problem.sail.coefficients,
+                                      problem.segments.extrapolate)
+    guess = initial_guess(problem) if guess is None else guess
+    n = problem.segments.count
+    equal = problem.segments.equal
+    dep = problem.departure
+    free_nu = bool(getattr(dep, "free_anomaly", False))
+
+    # Scales: the guess's segment angle for lengths, its whole sweep for theta and its
+    # time of flight for t; radii and speeds are already of order one in canonical units.
+    len_scale = float(np.mean(guess.lengths))
+    th_scale = max(1.0, float(abs(guess.nodes[1, -1])))
+    t_scale = max(1.0, float(guess.nodes[4, -1]))
+    node_scale = np.array([1.0, th_scale, 1.0, 1.0, t_scale])
+
+    # MX with the segment Function mapped: the NLP holds one copy of the arc's graph.
+    # (Inlining the SX arcs instead solves a little faster but takes ~30 s to build the
+    # derivatives for 60 segments.)  Every variable couples only neighbouring segments --
+    # the node carries the elapsed time, and equal lengths are chained equalities rather
+    # than one shared variable -- so the constraint Jacobian is banded and colours in a
+    # handful of directions; a shared length column plus a sum-of-durations row made it
+    # dense and cost 0.75 s per Jacobian on the 60-segment orbit raising, against 0.03 s.
+    sym = ca.MX
+    w_alpha = sym.sym("alpha", n)
+    w_len = sym.sym("length", n)
+    w_nodes = sym.sym("nodes", 5, n)
+    w_nu = sym.sym("nu0", 1 if free_nu else 0)
+    w = ca.vertcat(w_alpha, w_len, ca.vec(w_nodes), w_nu)
+
+    lengths = w_len * len_scale
+    nodes = w_nodes * ca.DM(node_scale)
+    x_start = dep.state(w_nu[0]) if free_nu else ca.DM(problem.x0())
+    starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
+    ends, q3 = segment.map(n)(starts, problem.sail.ac, w_alpha.T, lengths.T)
+    durations = (nodes[4, :] - starts[4, :]).T
+    tf = nodes[4, -1]
+    xf = nodes[:4, -1]
+
+    g = [ca.vec((ends - nodes) / ca.DM(node_scale))]
+    lbg, ubg = [np.zeros(5 * n)], [np.zeros(5 * n)]
+    names = {"continuity": 5 * n}
+    q3 = ca.vec(q3)
+    g.append(q3)
+    lbg.append(np.full(q3.numel(), problem.path.q3_margin))
+    ubg.append(np.full(q3.numel(), np.inf))
+    names["q3"] = q3.numel()
+    if equal and n > 1:
+        g.append(w_len[1:] - w_len[:-1])
+        lbg.append(np.zeros(n - 1))
+        ubg.append(np.zeros(n - 1))
+        names["equal_lengths"] = n - 1
+    # Durations positive: a segment running backwards in time is never physical.
+    g.append(durations / t_scale)
+    lbg.append(np.zeros(n))
+    ubg.append(np.full(n, np.inf))
+    names["durations"] = n
+    tof = problem.fixed_tof()
+    if tof is not None:
+        g.append((tf - tof) / t_scale)
+        lbg.append([0.0])
+        ubg.append([0.0])
+        names["tof"] = 1
+    target = _target_constraints(problem.target, xf, tf, guess.revolutions_k)
+    if target:
+        g.append(ca.vertcat(*target))
+        lbg.append(np.zeros(len(target)))
+        ubg.append(np.zeros(len(target)))
+        names["target"] = len(target)
+
+    # Bounds.  r >= r_min at the nodes is a bound; v_theta > 0 keeps the orbit prograde,
+    # as the closed form (q3 = 1/h) assumes.
+    a_lo, a_hi = problem.alpha_bounds()
+    max_sweep = 2 * math.pi * problem.max_revolutions
+    node_lo = np.array([max(problem.path.r_min_au, 1e-3), -np.inf, -10.0, 1e-2, 0.0]) / node_scale
+    node_hi = np.array([100.0, np.inf, 10.0, 20.0, np.inf]) / node_scale
+    lbx = np.r_[np.full(n, a_lo), np.full(n, 1e-4 / len_scale),
+                np.tile(node_lo, n), np.full(w_nu.numel(), -4 * math.pi)]
+    ubx = np.r_[np.full(n, a_hi), np.full(n, max_sweep / n / len_scale if equal else
+                                          max_sweep / len_scale),
+                np.tile(node_hi, n), np.full(w_nu.numel(), 4 * math.pi)]
+    x_init = np.r_[guess.alpha, guess.lengths / len_scale,
+                   (guess.nodes / node_scale[:, None]).ravel(order="F"),
+                   np.full(w_nu.numel(), guess.nu0)]
+    x_init = np.clip(x_init, lbx, ubx)
+
+    f = _objective(problem.objective, xf, tf)
+    nu0 = w_nu[0] if free_nu else sym(guess.nu0)
+    unpack = ca.Function("unpack", [w], [w_alpha, lengths, nodes[:4, :], durations, x_start, q3,
+                                         nu0],
+                         ["w"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
+                                 "nu0"])
+    g = ca.vertcat(*g)
+    return Transcription({"x": w, "f": f, "g": g}, ca.Function("g", [w], [g]), x_init, lbx, ubx,
+                         np.concatenate([np.ravel(v) for v in lbg]),
+                         np.concatenate([np.ravel(v) for v in ubg]), unpack, guess, names)
