@@ -106,6 +106,58 @@ def _run_bench(args):
     return 0
 
 
+def _add_solve(sub):
+    p = sub.add_parser(
+        "solve", help="optimise a problem file and verify the result on CVODES",
+        description="Solve the problem defined in PROBLEM.py (a file that builds "
+        "`problem = esail_opt.Problem(...)`) by closed-form multiple shooting and Ipopt, "
+        "fly the result on Eqs. 1-2 with CVODES, and write solution.json, schedule.csv, "
+        "trajectory.png and timeline.png.  Exit status 0 only when Ipopt converged "
+        "(Solve_Succeeded), 1 otherwise, 2 for a bad problem file or an infeasible target.",
+    )
+    p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
+    p.add_argument("--segments", type=int, default=None,
+                   help="number of control segments N, >= 1 (default: the problem's)")
+    p.add_argument("--out", default=None, help="output directory (default results/<problem name>)")
+    p.set_defaults(run=_run_solve)
+
+
+def _run_solve(args):
+    from pathlib import Path
+
+    from esail_opt import solution
+    from esail_opt.optimisation.problem_file import load_problem
+
+    if args.segments is not None and args.segments < 1:
+        raise InputError(f"segments = {args.segments} is outside [1, inf)")
+    problem = load_problem(args.problem_file)
+
+    tty = sys.stderr.isatty()
+    shown = []
+
+    def progress(text):
+        # One line: on a terminal it is rewritten in place at each stage and erased at
+        # the end; in a log only the first stage is written, as one plain line.
+        if tty:
+            print(f"\r\033[Kesail-opt solve: {text} ...", end="", file=sys.stderr, flush=True)
+        elif not shown:
+            print(f"esail-opt solve: {text} ...", file=sys.stderr, flush=True)
+        shown.append(text)
+
+    sol = solution.solve(problem, segments=args.segments, progress=progress)
+    if tty:
+        print("\r\033[K", end="", file=sys.stderr, flush=True)
+    if sol["outcome"] == "infeasible":
+        # An unreachable target is a problem the user must change: say so, keep no files.
+        raise InputError(f"target: infeasible (Ipopt status {sol['status']} after "
+                         f"{sol['iterations']} iterations); nothing written")
+    out = Path(args.out) if args.out else Path("results") / problem.name
+    for path in sol.write(out):
+        print(f"wrote {path}")
+    print(sol.summary())
+    return 0 if sol.converged else 1
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="esail-opt", description="E-sail trajectory propagation and optimisation")
@@ -113,6 +165,7 @@ def build_parser():
     _add_propagate(sub)
     _add_reproduce(sub)
     _add_bench(sub)
+    _add_solve(sub)
     return parser
 
 

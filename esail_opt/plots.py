@@ -1,0 +1,113 @@
+"""Plots of a :class:`~esail_opt.solution.Solution`, drawn from its JSON data alone.
+
+``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
+the departure and target orbits and the segment boundaries.  ``timeline.png``: r, v_r,
+v_theta, alpha_n and the osculating a and e against time.
+"""
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only: never needs a display
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from esail_opt.files import save_figure  # noqa: E402
+
+
+def _orbit_xy(a, e, omega_rad=0.0, points=361):
+    nu = np.linspace(0, 2 * np.pi, points)
+    r = a * (1 - e**2) / (1 + e * np.cos(nu))
+    return r * np.cos(nu + omega_rad), r * np.sin(nu + omega_rad)
+
+
+def _xy(traj):
+    r = np.asarray(traj["r_au"], float)
+    th = np.radians(np.asarray(traj["theta_deg"], float))
+    return r * np.cos(th), r * np.sin(th)
+
+
+def trajectory_figure(solution):
+    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes."""
+    d = solution.data
+    prob = d["problem"]
+    fig, ax = plt.subplots(figsize=(6.4, 6.4))
+    dep = prob["departure"]
+    if dep["kind"] == "ParkingOrbit":
+        ax.plot(*_orbit_xy(dep["a_au"], dep["e"], np.radians(dep["omega_deg"])), color="0.6",
+                lw=0.8, ls="--", label="departure orbit")
+    else:
+        s = prob["departure_state"]
+        ax.plot(*_orbit_xy(s["a_au"], 0.0), color="0.6", lw=0.8, ls="--",
+                label="departure a (circle)")
+    tgt = prob["target"]
+    if tgt is not None:
+        if tgt["kind"] == "Orbit":
+            # The apse line is free: draw the circle of radius a as a guide.
+            xy = _orbit_xy(tgt["a_au"], 0.0)
+            label = f"target a = {tgt['a_au']} au (e = {tgt['e']}, free apse line)"
+        else:
+            xy = _orbit_xy(tgt["radius_au"], 0.0)
+            label = "target orbit"
+        ax.plot(*xy, color="tab:green", lw=0.8, ls="--", label=label)
+    cf = d["trajectory"]["closed_form"]
+    ax.plot(*_xy(cf), color="tab:blue", lw=1.6, label="closed form (NLP)")
+    cv = d["trajectory"]["cvodes"]
+    if cv is not None:
+        ax.plot(*_xy(cv), color="tab:red", lw=0.9, ls="-.", label="CVODES (Eqs. 1-2)")
+    sched = d["schedule"]
+    starts = {"r_au": [], "theta_deg": []}
+    # Segment boundaries: the closed form's nodes, found in its samples by theta.
+    th_cf = np.asarray(cf["theta_deg"], float)
+    r_cf = np.asarray(cf["r_au"], float)
+    for row in sched:
+        starts["theta_deg"].append(row["theta_deg"])
+        starts["r_au"].append(np.interp(row["theta_deg"], th_cf, r_cf))
+    ax.plot(*_xy(starts), "o", ms=3, color="k", label="segment starts")
+    ax.plot([0], [0], "*", color="orange", ms=12)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (au)")
+    ax.set_ylabel("y (au)")
+    ax.set_title(f"{prob['name']}: tof {d['tof_days']:.1f} d, {d['status']}")
+    ax.legend(fontsize=7, loc="upper right")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def timeline_figure(solution):
+    """r, v_r, v_theta, alpha and osculating a and e against time (days)."""
+    d = solution.data
+    cf = d["trajectory"]["closed_form"]
+    cv = d["trajectory"]["cvodes"]
+    fig, axes = plt.subplots(3, 2, figsize=(10, 8), sharex=True)
+    panels = [("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"), ("vtheta_km_s", "v_theta (km/s)"),
+              (None, "alpha (deg)"), ("a_au", "osculating a (au)"), ("e", "osculating e")]
+    for ax, (key, label) in zip(axes.ravel(), panels):
+        if key is None:
+            t = [row["t_days"] for row in d["schedule"]]
+            alpha = [row["alpha_deg"] for row in d["schedule"]]
+            t_end = d["tof_days"]
+            ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k")
+            ax.set_ylim(-95, 95)
+        else:
+            ax.plot(cf["t_days"], cf[key], color="tab:blue", lw=1.4, label="closed form")
+            if cv is not None:
+                ax.plot(cv["t_days"], cv[key], color="tab:red", lw=0.9, ls="-.", label="CVODES")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=7)
+    for ax in axes[-1]:
+        ax.set_xlabel("t (days)")
+    fig.suptitle(f"{d['problem']['name']}: {d['status']}")
+    fig.tight_layout()
+    return fig
+
+
+def write_plots(solution, out_dir):
+    """Write trajectory.png and timeline.png atomically; return their paths."""
+    out = Path(out_dir)
+    paths = [out / "trajectory.png", out / "timeline.png"]
+    save_figure(trajectory_figure(solution), paths[0])
+    save_figure(timeline_figure(solution), paths[1])
+    return paths

@@ -1,0 +1,272 @@
+"""A solved problem, in the boundary's units: JSON and CSV writing and reading, a summary.
+
+:func:`solve` is the whole data path of a run -- Problem -> NLP -> Ipopt -> CVODES
+verification -> :class:`Solution` -- and is what ``esail-opt solve`` and scripts call.
+A Solution is a plain dict underneath (``.data``), exactly what ``solution.json`` holds,
+so one loaded back from disk prints and plots like a fresh one.
+"""
+
+import csv
+import functools
+import io
+import json
+import math
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.files import atomic_path, write_json
+from esail_opt.optimisation import problem as pb
+from esail_opt.optimisation.solve import solve_problem
+from esail_opt.optimisation.verify import verify
+from esail_opt.physics import constants as units
+from esail_opt.physics.elements import classical_from_polar
+
+SCHEDULE_FIELDS = ("t_days", "theta_deg", "alpha_deg", "duration_days", "dtheta_deg")
+
+
+@functools.lru_cache(maxsize=None)
+def _elements_function():
+    """Osculating (a, e) of one polar state as a Function, so it maps over columns
+    (classical_from_polar itself is written for one state)."""
+    x = ca.SX.sym("x", 4)
+    a, e = classical_from_polar(x)[:2]
+    return ca.Function("elements", [x], [a, e])
+
+
+def _polar_dict(x):
+    """Polar state(s) (4 or 4 x M), canonical -> boundary units, with osculating a and e."""
+    x = np.asarray(x, float)
+    cols = x.reshape(4, -1)
+    a, e = (np.array(v).ravel() for v in _elements_function().map(cols.shape[1])(cols))
+    out = {"r_au": cols[0], "theta_deg": np.degrees(cols[1]),
+           "vr_km_s": units.speed_to_km_s(cols[2]), "vtheta_km_s": units.speed_to_km_s(cols[3]),
+           "a_au": a, "e": e}
+    if x.ndim == 1:
+        return {k: float(v[0]) for k, v in out.items()}
+    return {k: np.asarray(v).tolist() for k, v in out.items()}
+
+
+def _trajectory(xs):
+    out = _polar_dict(xs[:4])
+    out["t_days"] = units.time_to_days(np.asarray(xs[4])).tolist()
+    return out
+
+
+def _objective_meaning(objective):
+    if isinstance(objective, pb.MinTime):
+        return "time of flight, TU (minimised)"
+    if isinstance(objective, pb.MaxRadius):
+        return "-(final r), au (minimised)"
+    if isinstance(objective, pb.MaxEnergy):
+        return "-(final energy v^2/2 - 1/r), canonical (minimised)"
+    return "user expression of the final state, canonical (minimised)"
+
+
+def _target_dict(target):
+    if target is None:
+        return None
+    out = {"kind": type(target).__name__}
+    out.update({k: getattr(target, k) for k in target.__dataclass_fields__})
+    return out
+
+
+class Solution:
+    """A solved problem: what ``solution.json`` holds, with reading, writing and printing.
+
+    Parameters
+    ----------
+    data : dict
+        The JSON content (see :func:`solve` for its fields).
+    """
+
+    def __init__(self, data):
+        self.data = data
+
+    # -- access
+    @property
+    def converged(self):
+        return bool(self.data["converged"])
+
+    @property
+    def tof_days(self):
+        return self.data["tof_days"]
+
+    def __getitem__(self, key):
+        return self.data[key]
+
+    # -- files
+    @classmethod
+    def load(cls, path):
+        """Read a ``solution.json`` back."""
+        return cls(json.loads(Path(path).read_text()))
+
+    def schedule_csv(self):
+        """The schedule as CSV text, one row per segment (same rows as ``schedule``)."""
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=SCHEDULE_FIELDS, lineterminator="\n")
+        writer.writeheader()
+        for row in self.data["schedule"]:
+            writer.writerow({k: f"{row[k]:.10g}" for k in SCHEDULE_FIELDS})
+        return buf.getvalue()
+
+    def write(self, out_dir, plots=True):
+        """Write solution.json, schedule.csv and (optionally) the two PNGs, each atomically.
+
+        Returns the list of paths written.
+        """
+        out = Path(out_dir)
+        written = [out / "solution.json", out / "schedule.csv"]
+        write_json(written[0], self.data)
+        with atomic_path(written[1]) as tmp:
+            tmp.write_text(self.schedule_csv())
+        if plots:
+            from esail_opt import plots as plotting
+
+            written += plotting.write_plots(self, out)
+        return written
+
+    # -- printing
+    def summary(self):
+        d = self.data
+        v = d["verification"]
+        lines = [
+            f"{d['problem']['name']}: {d['status']} ({'converged' if d['converged'] else 'NOT converged'}), "
+            f"{d['iterations']} iterations, {d['solve_seconds']:.2f} s",
+            f"  tof {d['tof_days']:.3f} d (closed form), {len(d['schedule'])} segments x "
+            f"{d['problem']['sub_arcs']} sub-arcs",
+            "  final (closed form): r {r_au:.6f} au, theta {theta_deg:.3f} deg, a {a_au:.6f} au, "
+            "e {e:.5f}".format(**d["final_state"]),
+        ]
+        if v.get("error"):
+            lines.append(f"  verification: {v['error']}")
+        else:
+            cv = v["cvodes_final_state"]
+            lines.append(f"  CVODES: r {cv['r_au']:.6f} au, a {cv['a_au']:.6f} au, e {cv['e']:.5f}; "
+                         f"miss vs NLP {v['miss_r_km']:.4g} km, {v['miss_v_m_s']:.4g} m/s, "
+                         f"{v['miss_theta_deg']:.4g} deg")
+            if v.get("target_miss_r_km") is not None:
+                extra = (f", {v['target_miss_v_m_s']:.4g} m/s"
+                         if v.get("target_miss_v_m_s") is not None else "")
+                lines.append(f"  CVODES miss vs target: {v['target_miss_r_km']:.4g} km{extra}")
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.summary()
+
+    def plot(self, out_dir=None):
+        """Draw trajectory.png and timeline.png figures; write them if ``out_dir`` is given."""
+        from esail_opt import plots as plotting
+
+        if out_dir is not None:
+            return plotting.write_plots(self, out_dir)
+        return plotting.trajectory_figure(self), plotting.timeline_figure(self)
+
+
+def solve(problem, segments=None, progress=None, samples=16):
+    """Solve ``problem`` and verify it on CVODES: the whole data path of one run.
+
+    Parameters
+    ----------
+    problem : esail_opt.Problem
+    segments : int, optional
+        Override the problem's number of control segments N (>= 1).
+    progress : callable, optional
+        ``progress(text)`` is called at each stage (the CLI shows it on stderr).
+    samples : int
+        Plot samples per segment.
+
+    Returns
+    -------
+    Solution
+        Its ``data`` has: ``problem`` (name and settings), ``status`` (Ipopt's return
+        status), ``converged`` (True only for "Solve_Succeeded"), ``acceptable`` (True for
+        "Solved_To_Acceptable_Level", which is *not* counted as converged), ``outcome``
+        ("converged", "acceptable", "infeasible" or "failed"), ``objective`` and
+        ``objective_meaning``, ``tof_days``, ``iterations``, ``solve_seconds``,
+        ``constraint_violation``, ``schedule`` (per segment ``t_days`` and ``theta_deg``
+        at its start, ``alpha_deg``, ``duration_days``, ``dtheta_deg``), ``final_state``
+        (closed form: ``r_au``, ``theta_deg``, ``vr_km_s``, ``vtheta_km_s``, ``a_au``,
+        ``e``), ``verification`` (``miss_r_km``, ``miss_v_m_s``, ``miss_theta_deg`` of
+        CVODES against the NLP's final state; ``target_miss_r_km``/``target_miss_v_m_s``
+        of CVODES against the target; ``cvodes_final_state``), and ``trajectory``
+        (closed-form and CVODES samples for the plots).
+    """
+    from esail_opt.errors import InputError
+
+    if segments is not None:
+        if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
+            raise InputError(f"segments = {segments!r} is outside [1, inf)")
+        problem = problem.with_segments(segments)
+    say = progress or (lambda text: None)
+    n, sub = problem.segments.count, problem.segments.sub_arcs
+    say(f"{problem.name}: building the NLP ({n} segments x {sub} sub-arcs)")
+    result, tr = solve_problem(problem)
+    say(f"{problem.name}: {result.status} after {result.iterations} iterations; verifying on CVODES")
+    check = verify(problem, result, samples)
+
+    starts_t = np.r_[0.0, np.cumsum(result.durations)[:-1]]
+    starts_th = np.r_[result.x_start[1], result.nodes[1, :-1]]
+    schedule = [
+        {"t_days": units.time_to_days(t), "theta_deg": math.degrees(th),
+         "alpha_deg": math.degrees(al), "duration_days": units.time_to_days(dt),
+         "dtheta_deg": math.degrees(ln)}
+        for t, th, al, dt, ln in zip(starts_t, starts_th, result.alpha, result.durations,
+                                     result.lengths)
+    ]
+    verification = {k: v for k, v in check.misses.items()}
+    verification["error"] = check.error
+    if check.error is None:
+        verification["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
+        verification["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
+    dep = problem.departure
+    data = {
+        "problem": {
+            "name": problem.name, "description": problem.description,
+            "ac_mm_s2": problem.sail.ac_mm_s2, "coefficients": list(problem.sail.coefficients),
+            "alpha_bounds_deg": [problem.sail.alpha_min_deg, problem.sail.alpha_max_deg],
+            "segments": n, "sub_arcs": sub, "equal_segments": problem.segments.equal,
+            "objective": type(problem.objective).__name__,
+            "target": _target_dict(problem.target),
+            "departure": {"kind": type(dep).__name__,
+                          **{k: getattr(dep, k) for k in dep.__dataclass_fields__}},
+            "departure_state": _polar_dict(result.x_start),
+            "r_min_au": problem.path.r_min_au, "q3_margin": problem.path.q3_margin,
+        },
+        "status": result.status,
+        "converged": result.converged,
+        "acceptable": result.outcome == "acceptable",
+        "outcome": result.outcome,
+        "objective": result.objective,
+        "objective_meaning": _objective_meaning(problem.objective),
+        "tof_days": units.time_to_days(float(np.sum(result.durations))),
+        "iterations": result.iterations,
+        "stages": [{"status": st, "iterations": it} for st, it in result.stages],
+        "solve_seconds": result.solve_seconds,
+        "constraint_violation": result.constraint_violation,
+        "min_q3": float(np.min(result.q3)),
+        "schedule": schedule,
+        "final_state": _polar_dict(result.nodes[:, -1]),
+        "verification": verification,
+        "trajectory": {
+            "closed_form": _trajectory(check.closed_form),
+            "cvodes": _trajectory(check.cvodes) if check.error is None else None,
+        },
+    }
+    return Solution(_finite(data))
+
+
+def _finite(obj):
+    """Replace NaN/inf by None so the JSON stays standard (write_json forbids NaN)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
