@@ -155,3 +155,93 @@ def propagate(out, repeats):
 
 
 BENCHES["propagate"] = propagate
+
+
+def _solve_case(problem_file, repeats):
+    """Time one problem's NLP with closed-form arcs and with CVODES arcs (see :func:`solve`)."""
+    import dataclasses
+
+    import casadi as ca
+
+    from esail_opt.optimisation.problem_file import load_problem
+    from esail_opt.optimisation.solve import ipopt_options
+    from esail_opt.optimisation.transcription import (
+        closed_form_segment, cvodes_segment, initial_guess, transcribe)
+
+    problem = load_problem(problem_file)
+    # One NLP, one start: equal lengths (a free-length problem is normally solved in two
+    # stages, equal then free; the benchmark times the single equal-length NLP).
+    problem = dataclasses.replace(
+        problem, segments=dataclasses.replace(problem.segments, equal=True))
+    seg = problem.segments
+    guess = initial_guess(problem)
+    segments = {
+        "closed_form": closed_form_segment(seg.sub_arcs, problem.sail.coefficients,
+                                           seg.extrapolate),
+        "cvodes": cvodes_segment(seg.sub_arcs, problem.sail.coefficients),
+    }
+    runs = max(1, min(repeats, 3))
+    case = {"problem": problem.name, "segments": seg.count, "sub_arcs": seg.sub_arcs,
+            "extrapolate": seg.extrapolate, "runs": runs}
+    for name, segment in segments.items():
+        tr = transcribe(problem, segment, guess)
+        times, stats, objective = [], None, None
+        for _ in range(runs):
+            start = time.perf_counter()
+            solver = ca.nlpsol("bench_" + name, "ipopt", tr.nlp, ipopt_options())
+            sol = solver(x0=tr.x0, lbx=tr.lbx, ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
+            times.append(time.perf_counter() - start)
+            stats, objective = solver.stats(), float(sol["f"])
+        case[f"{name}_seconds"] = statistics.median(times)
+        case[f"{name}_iterations"] = int(stats["iter_count"])
+        case[f"{name}_status"] = stats["return_status"]
+        case[f"{name}_objective"] = objective
+    case["ratio"] = case["cvodes_seconds"] / case["closed_form_seconds"]
+    return case
+
+
+#: Problems of the solve benchmark: short arcs at a high acceleration, then the paper's
+#: low-acceleration orbit raising, where each CVODES arc needs more steps.
+SOLVE_PROBLEMS = ("earth_venus_min_time.py", "orbit_raising_10yr.py")
+
+
+def solve(out, repeats):
+    """The optimiser's NLP with closed-form arcs against the same NLP with CVODES arcs.
+
+    For each problem in ``SOLVE_PROBLEMS`` (shipped files, their own N and sub-arcs, with
+    equal segment lengths so that each side is one NLP from one start) both NLPs have the same variables, bounds, constraints (the CVODES one's q3 rows are
+    constant), initial guess and Ipopt options (MUMPS, exact Hessian); only the segment
+    Function differs: the Richardson-extrapolated closed-form chain, or one CVODES
+    integration of Eqs. 1-2 in theta at 1e-12 with CasADi's sensitivities.  Each is timed
+    from ``nlpsol`` construction to the end of the solve, the median of
+    ``min(repeats, 3)`` runs.  ``ratio`` is cvodes_seconds / closed_form_seconds.  The
+    top-level keys are the first problem's; ``cases`` holds all.
+    """
+    from pathlib import Path
+
+    from esail_opt.files import write_json
+
+    folder = Path(__file__).resolve().parents[1] / "problems"
+    cases = [_solve_case(folder / name, repeats) for name in SOLVE_PROBLEMS]
+    keys = ("closed_form_seconds", "cvodes_seconds", "closed_form_iterations",
+            "cvodes_iterations", "ratio")
+    data = {key: cases[0][key] for key in keys}
+    data["problem"] = cases[0]["problem"]
+    data["cases"] = cases
+    data["how"] = ("median wall time of nlpsol construction + solve; same problem, N, "
+                   "initial guess and Ipopt options; ratio = cvodes_seconds / "
+                   "closed_form_seconds")
+    for case in cases:
+        print_table(f"solve: {case['problem']}, N = {case['segments']} x {case['sub_arcs']} "
+                    f"sub-arcs, median of {case['runs']}", [
+                        (name, case[f"{key}_seconds"],
+                         f"s, {case[f'{key}_iterations']} it, {case[f'{key}_status']}, "
+                         f"objective {case[f'{key}_objective']:.9g}")
+                        for name, key in (("closed form", "closed_form"), ("CVODES arcs", "cvodes"))
+                    ] + [("ratio", case["ratio"], "(CVODES / closed form)")])
+    path = Path(out) / "solve.json"
+    write_json(path, data)
+    return path
+
+
+BENCHES["solve"] = solve
