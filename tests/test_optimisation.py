@@ -1,0 +1,254 @@
+"""Fast tests of the optimiser: the transcription against the rectified propagator, the
+Ipopt set-up, problem validation and the ``solve`` command's handling of bad files."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import esail_opt as eo
+from esail_opt import cli
+from esail_opt.errors import InputError
+from esail_opt.optimisation import transcription as tr
+from esail_opt.optimisation.solve import outcome_of, solve_problem
+from esail_opt.physics import constants as units
+from esail_opt.propagation.rectified import propagate, propagate_extrapolated
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def small_problem(**changes):
+    """Earth-Venus at a coarse resolution: converges in about a second."""
+    fields = dict(name="small", departure=eo.ParkingOrbit(1.0), sail=eo.Sail(1.0),
+                  segments=eo.Segments(8, 2), objective=eo.MinTime(),
+                  target=eo.CircularOrbit(0.723))
+    fields.update(changes)
+    return eo.Problem(**fields)
+
+
+# ------------------------------------------------ transcription vs rectified propagation
+
+
+@pytest.mark.parametrize("extrapolate", [False, True])
+def test_segment_chain_is_the_rectified_propagation(extrapolate):
+    """The NLP's segment map, chained, equals rectified.propagate over the same arcs."""
+    p = small_problem(segments=eo.Segments(5, 3, extrapolate=extrapolate),
+                      departure=eo.ParkingOrbit(0.9, e=0.1, nu_deg=30.0))
+    rng = np.random.default_rng(4)
+    alpha = rng.uniform(-1.2, 1.2, 5)
+    lengths = rng.uniform(0.1, 0.6, 5)
+    nodes = tr.flown_segments(p, alpha, lengths, p.x0())
+    if not extrapolate:
+        ref, _ = propagate(p.x0(), np.repeat(alpha, 3), np.repeat(lengths / 3, 3), p.sail.ac)
+        np.testing.assert_allclose(nodes, ref[:, ::3], rtol=0, atol=1e-12)
+    # Extrapolation combines each segment's whole and halved sub-arc chains, restarted at
+    # every node: compare segment by segment from the NLP's own nodes.
+    for k in range(5):
+        fly = propagate_extrapolated if extrapolate else propagate
+        ref, _ = fly(nodes[:4, k], np.full(3, alpha[k]), np.full(3, lengths[k] / 3), p.sail.ac)
+        np.testing.assert_allclose(ref[:4, -1], nodes[:4, k + 1], rtol=0, atol=1e-12)
+        assert ref[4, -1] == pytest.approx(nodes[4, k + 1] - nodes[4, k], abs=1e-12)
+
+
+def test_fixed_pitch_solve_reproduces_rectified_propagation():
+    """Every pitch fixed (alpha bounds 30..30 deg) and the time fixed: the only freedom
+    left is the common segment angle, and the NLP's nodes must be the rectified
+    closed-form propagation of that schedule, arc for arc."""
+    p = small_problem(sail=eo.Sail(0.5, alpha_min_deg=30.0, alpha_max_deg=30.0),
+                      segments=eo.Segments(6, 2), objective=eo.MaxRadius(tof_days=200.0),
+                      target=None)
+    res, _ = solve_problem(p)
+    assert res.status == "Solve_Succeeded"
+    np.testing.assert_allclose(res.alpha, math.radians(30.0), atol=1e-12)
+    starts = np.column_stack([p.x0(), res.nodes[:, :-1]])
+    for k in range(6):
+        ref, _ = propagate_extrapolated(starts[:, k], np.full(2, math.radians(30.0)),
+                                        np.full(2, res.lengths[k] / 2), p.sail.ac)
+        np.testing.assert_allclose(res.nodes[:, k], ref[:4, -1], rtol=0, atol=1e-9)
+        assert ref[4, -1] == pytest.approx(res.durations[k], abs=1e-9)
+    assert units.time_to_days(res.durations.sum()) == pytest.approx(200.0, abs=1e-7)
+
+
+def test_initial_guess_is_a_forward_propagation_that_reaches_the_target_radius():
+    p = small_problem()
+    guess = tr.initial_guess(p)
+    assert np.all(guess.alpha == math.radians(-45.0))  # inward target: -45 deg
+    assert guess.nodes[0, -1] == pytest.approx(0.723, abs=2e-3)
+    assert np.all(np.abs(guess.nodes) > 0).any() and np.all(guess.lengths > 0)
+
+
+# ------------------------------------------------ Ipopt set-up and status
+
+
+def test_ipopt_opt_in_working_directory_is_not_read(tmp_path, monkeypatch):
+    # If Ipopt read this file, the 1e-9 s wall-time limit would stop it at once.
+    (tmp_path / "ipopt.opt").write_text("max_wall_time 1e-9\nmax_iter 1\n")
+    monkeypatch.chdir(tmp_path)
+    res, _ = solve_problem(small_problem())
+    assert res.status == "Solve_Succeeded"
+    assert res.iterations > 1
+
+
+def test_acceptable_level_is_not_converged():
+    assert outcome_of("Solve_Succeeded") == "converged"
+    assert outcome_of("Solved_To_Acceptable_Level") == "acceptable"
+    assert outcome_of("Infeasible_Problem_Detected") == "infeasible"
+    assert outcome_of("Maximum_Iterations_Exceeded") == "failed"
+
+
+def test_small_transfer_converges_and_lands_on_target():
+    res, _ = solve_problem(small_problem())
+    assert res.converged
+    r, _, vr, vt = res.nodes[:, -1]
+    assert abs(r - 0.723) < 1e-9 and abs(vr) < 1e-9 and abs(vt - 0.723 ** -0.5) < 1e-9
+    assert res.constraint_violation < 1e-9
+    assert np.all(res.q3 >= 0.2 - 1e-9)
+    # Within 1.5 % of the continuous-control optimum (305.10 d, tests/reference): even
+    # 8 segments are close, and a much longer time would mean another basin.
+    assert 300.0 < units.time_to_days(res.objective) < 1.015 * 305.105
+
+
+# ------------------------------------------------ problem validation
+
+
+@pytest.mark.parametrize("build, field", [
+    (lambda: eo.Sail(0.0), "sail.ac_mm_s2"),
+    (lambda: eo.Sail(-1.0), "sail.ac_mm_s2"),
+    (lambda: eo.Sail(float("nan")), "sail.ac_mm_s2"),
+    (lambda: eo.ParkingOrbit(1.0, e=1.0), "departure.e"),
+    (lambda: eo.ParkingOrbit(float("nan")), "departure.a_au"),
+    (lambda: eo.Sail(1.0, alpha_min_deg=40, alpha_max_deg=10), "sail.alpha_max_deg"),
+    (lambda: eo.Sail(1.0, alpha_min_deg=-100), "sail.alpha_min_deg"),
+    (lambda: eo.Segments(0), "segments.count"),
+    (lambda: eo.Segments(3, 0), "segments.sub_arcs"),
+    (lambda: eo.MaxEnergy(tof_days=-1), "objective.tof_days"),
+    (lambda: eo.CircularOrbit(float("inf")), "target.radius_au"),
+    (lambda: eo.Orbit(1.5, 1.2), "target.e"),
+    (lambda: small_problem(target=None), "objective"),
+])
+def test_bad_fields_name_themselves(build, field):
+    with pytest.raises(InputError, match=field.replace(".", r"\.")):
+        build()
+
+
+# ------------------------------------------------ the solve command on bad files
+
+BAD_FILES = {
+    "ac_zero": ("sail=eo.Sail(0.0)", "sail.ac_mm_s2 = 0.0 mm/s^2 is outside (0, 100]"),
+    "e0_one": ("departure=eo.ParkingOrbit(1.0, e=1.0)", "departure.e = 1.0 is outside [0, 1)"),
+    "inverted_pitch": ("sail=eo.Sail(1.0, alpha_min_deg=30, alpha_max_deg=-30)",
+                       "sail.alpha_max_deg = -30 deg is outside [30, 90] deg"),
+    "no_segments": ("segments=eo.Segments(0)", "segments.count = 0 is outside [1, inf)"),
+    "nan": ("target=eo.CircularOrbit(float('nan'))", "target.radius_au = nan au is outside"),
+}
+
+
+def _write_problem(path, override):
+    base = dict(name="'bad'", departure="eo.ParkingOrbit(1.0)", sail="eo.Sail(1.0)",
+                segments="eo.Segments(6, 2)", objective="eo.MinTime()",
+                target="eo.CircularOrbit(0.723)")
+    key, value = override.split("=", 1)
+    base[key] = value
+    args = ", ".join(f"{k}={v}" for k, v in base.items())
+    path.write_text(f"import esail_opt as eo\nproblem = eo.Problem({args})\n")
+
+
+def _run(capsys, argv):
+    code = cli.main(argv)
+    captured = capsys.readouterr()
+    # The progress report rewrites one line in place ("\r", erase-line); what stays on
+    # screen is every piece that is not a progress stage (those end in " ...").
+    pieces = captured.err.replace("\x1b[K", "").replace("\r", "\n").splitlines()
+    lines = [ln for ln in pieces if ln.strip() and not ln.endswith(" ...")]
+    return code, lines, captured
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_bad_problem_file_gives_one_line_and_writes_nothing(case, tmp_path, capsys):
+    override, message = BAD_FILES[case]
+    path = tmp_path / f"{case}.py"
+    _write_problem(path, override)
+    out = tmp_path / "out"
+    code, lines, captured = _run(capsys, ["solve", str(path), "--out", str(out)])
+    assert code == cli.EXIT_INPUT
+    assert len(lines) == 1 and message in lines[0], lines
+    assert "Traceback" not in captured.err
+    assert not out.exists()
+
+
+def test_missing_problem_gives_one_line(tmp_path, capsys):
+    path = tmp_path / "empty.py"
+    path.write_text("import esail_opt as eo\nproblme = None\n")
+    out = tmp_path / "out"
+    code, lines, _ = _run(capsys, ["solve", str(path), "--out", str(out)])
+    assert code == cli.EXIT_INPUT
+    assert len(lines) == 1 and "problem is missing" in lines[0]
+    assert not out.exists()
+
+
+def test_segments_option_below_one(tmp_path, capsys):
+    out = tmp_path / "out"
+    code, lines, _ = _run(capsys, ["solve", str(REPO / "problems/earth_venus_min_time.py"),
+                                   "--segments", "0", "--out", str(out)])
+    assert code == cli.EXIT_INPUT
+    assert len(lines) == 1 and "segments = 0 is outside [1, inf)" in lines[0]
+    assert not out.exists()
+
+
+def test_unreachable_target_is_reported_infeasible(tmp_path, capsys):
+    # 30 days cannot take a 1 mm/s^2 sail from 1 au to a circular orbit at 1.524 au.
+    path = tmp_path / "unreachable.py"
+    _write_problem(path, "objective=eo.MaxRadius(tof_days=30.0)")
+    path.write_text(path.read_text().replace("0.723", "1.524"))
+    out = tmp_path / "out"
+    code, lines, _ = _run(capsys, ["solve", str(path), "--out", str(out)])
+    assert code == cli.EXIT_INPUT
+    assert len(lines) == 1 and "infeasible" in lines[0]
+    assert not out.exists()
+
+
+# ------------------------------------------------ other targets and objectives
+
+
+def test_orbit_target_with_free_apse_line():
+    p = small_problem(segments=eo.Segments(10, 2), target=eo.Orbit(1.3, 0.1))
+    res, _ = solve_problem(p)
+    assert res.converged
+    r, _, vr, vt = res.nodes[:, -1]
+    energy = 0.5 * (vr**2 + vt**2) - 1 / r
+    assert -0.5 / energy == pytest.approx(1.3, abs=1e-9)
+    assert math.sqrt(1 - (r * vt) ** 2 / 1.3) == pytest.approx(0.1, abs=1e-8)
+
+
+def test_user_expression_objective_matches_the_builtin_one():
+    """A user expression -r of the final state is the built-in MaxRadius: same optimum."""
+    def build(objective):
+        return small_problem(segments=eo.Segments(10, 2), objective=objective, target=None)
+
+    user, _ = solve_problem(build(eo.FinalStateExpression(function=lambda x: -x[0],
+                                                          tof_days=200.0)))
+    builtin, transcription = solve_problem(build(eo.MaxRadius(tof_days=200.0)))
+    assert user.converged and builtin.converged
+    assert user.objective == pytest.approx(builtin.objective, abs=1e-9)
+    np.testing.assert_allclose(user.alpha, builtin.alpha, atol=1e-6)
+    # and it beats the constant-pitch seed's final radius
+    assert -user.objective > transcription.guess.nodes[0, -1] + 1e-3
+    assert units.time_to_days(user.durations.sum()) == pytest.approx(200.0, abs=1e-7)
+
+
+def test_free_lengths_are_solved_in_two_stages_and_do_no_worse():
+    equal, _ = solve_problem(small_problem(segments=eo.Segments(8, 2)))
+    free, _ = solve_problem(small_problem(segments=eo.Segments(8, 2, equal=False)))
+    assert [status for status, _ in free.stages] == ["Solve_Succeeded"] * 2
+    assert free.iterations == sum(it for _, it in free.stages)
+    assert free.converged
+    # Free lengths contain the equal-length schedule, and start from it.
+    assert free.objective <= equal.objective + 1e-9
+    assert np.ptp(free.lengths) > 1e-3  # and they did move
+
+
+def test_a_seed_that_cannot_reach_the_target_is_a_clear_input_error():
+    # +25 deg raises the orbit, which escapes long before it could reach 0.723 au.
+    with pytest.raises(InputError, match=r"guess_alpha_deg = 25 deg: .*target radius \(0.723 au\)"):
+        tr.initial_guess(small_problem(guess_alpha_deg=25.0))

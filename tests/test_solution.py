@@ -1,0 +1,59 @@
+"""The Solution: its JSON fields, CSV rows, and a round trip through the files."""
+
+import json
+import math
+
+import pytest
+
+import esail_opt as eo
+from esail_opt.physics import constants as units
+from esail_opt.solution import Solution, _finite
+
+
+@pytest.fixture(scope="module")
+def solution():
+    problem = eo.Problem("tiny", eo.ParkingOrbit(1.0), eo.Sail(1.0), eo.Segments(6, 2),
+                         eo.MinTime(), eo.CircularOrbit(0.723))
+    return eo.solve(problem)
+
+
+def test_json_has_the_issue_fields(solution):
+    d = solution.data
+    for key in ("status", "converged", "objective", "tof_days", "iterations", "solve_seconds",
+                "schedule", "final_state", "verification"):
+        assert key in d
+    assert set(d["schedule"][0]) >= {"t_days", "theta_deg", "alpha_deg"}
+    assert set(d["final_state"]) >= {"r_au", "theta_deg", "vr_km_s", "vtheta_km_s"}
+    assert set(d["verification"]) >= {"miss_r_km", "miss_v_m_s", "miss_theta_deg",
+                                      "target_miss_r_km"}
+    assert d["converged"] is (d["status"] == "Solve_Succeeded")
+    # min time: the objective is the time of flight, in TU
+    assert units.time_to_days(d["objective"]) == pytest.approx(d["tof_days"], rel=1e-12)
+    starts = [row["t_days"] for row in d["schedule"]]
+    assert starts[0] == 0.0 and all(b > a for a, b in zip(starts, starts[1:]))
+    assert all(-90 <= row["alpha_deg"] <= 90 for row in d["schedule"])
+
+
+def test_files_round_trip(solution, tmp_path):
+    written = solution.write(tmp_path, plots=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["schedule.csv", "solution.json"]
+    loaded = Solution.load(written[0])
+    assert loaded.data == json.loads(json.dumps(solution.data))
+    rows = (tmp_path / "schedule.csv").read_text().splitlines()
+    assert len(rows) == len(solution["schedule"]) + 1
+    first = dict(zip(rows[0].split(","), map(float, rows[1].split(","))))
+    assert first["alpha_deg"] == pytest.approx(solution["schedule"][0]["alpha_deg"], rel=1e-9)
+    assert "tiny" in loaded.summary()
+
+
+def test_non_finite_numbers_become_null():
+    assert _finite({"a": [math.nan, 1.0], "b": math.inf}) == {"a": [None, 1.0], "b": None}
+
+
+def test_same_problem_gives_the_same_numbers(solution):
+    again = eo.solve(eo.Problem("tiny", eo.ParkingOrbit(1.0), eo.Sail(1.0), eo.Segments(6, 2),
+                                eo.MinTime(), eo.CircularOrbit(0.723))).data
+    first = dict(solution.data)
+    for d in (first, again):
+        d.pop("solve_seconds")
+    assert json.dumps(first) == json.dumps(again)
