@@ -180,7 +180,8 @@ def solve(problem, segments=None, progress=None, samples=16):
     Returns
     -------
     Solution
-        Its ``data`` has: ``problem`` (name and settings), ``status`` (Ipopt's return
+        Its ``data`` has: ``problem`` (name and settings; ``segments`` is the count N
+        used, also when ``segments_per_revolution`` set it), ``status`` (Ipopt's return
         status), ``converged`` (True only for "Solve_Succeeded"), ``acceptable`` (True for
         "Solved_To_Acceptable_Level", which is *not* counted as converged), ``outcome``
         ("converged", "acceptable", "infeasible" or "failed"), ``objective`` and
@@ -200,9 +201,13 @@ def solve(problem, segments=None, progress=None, samples=16):
             raise InputError(f"segments = {segments!r} is outside [1, inf)")
         problem = problem.with_segments(segments)
     say = progress or (lambda text: None)
-    n, sub = problem.segments.count, problem.segments.sub_arcs
-    say(f"{problem.name}: building the NLP ({n} segments x {sub} sub-arcs)")
+    seg = problem.segments
+    count = (f"{seg.count} segments" if seg.per_revolution is None
+             else f"{seg.per_revolution} segments per revolution")
+    say(f"{problem.name}: building the NLP ({count} x {seg.sub_arcs} sub-arcs)")
     result, tr = solve_problem(problem)
+    # The count actually used: with a per-revolution rule the seed propagation fixed it.
+    n, sub = result.alpha.size, seg.sub_arcs
     say(f"{problem.name}: {result.status} after {result.iterations} iterations; verifying on CVODES")
     check = verify(problem, result, samples)
 
@@ -226,7 +231,8 @@ def solve(problem, segments=None, progress=None, samples=16):
             "name": problem.name, "description": problem.description,
             "ac_mm_s2": problem.sail.ac_mm_s2, "coefficients": list(problem.sail.coefficients),
             "alpha_bounds_deg": [problem.sail.alpha_min_deg, problem.sail.alpha_max_deg],
-            "segments": n, "sub_arcs": sub, "equal_segments": problem.segments.equal,
+            "segments": n, "segments_per_revolution": seg.per_revolution,
+            "sub_arcs": sub, "equal_segments": seg.equal,
             "objective": type(problem.objective).__name__,
             "target": _target_dict(problem.target),
             "departure": {"kind": type(dep).__name__,

@@ -171,8 +171,9 @@ class Segments:
 
     Attributes
     ----------
-    count : int
-        Number N of constant-pitch segments, >= 1.
+    count : int or None
+        Number N of constant-pitch segments, >= 1; None (the default) means 20 unless
+        ``per_revolution`` is given.
     sub_arcs : int
         Rectified closed-form arcs chained inside each segment, >= 1; more give
         accuracy (the error per arc falls as its length squared) without more controls.
@@ -182,16 +183,40 @@ class Segments:
         Richardson-extrapolate every sub-arc (whole and two halves): the NLP's error
         against Eqs. 1-2 then falls like 1/n^2 instead of 1/n in the arc count, at three
         times the arcs (see ``transcription.closed_form_segment``).
+    per_revolution : int or None
+        Segments per revolution K, >= 1, instead of a total: N is then
+        ceil(K sweep / 2 pi), with ``sweep`` the angle the constant-pitch seeding
+        propagation flies to the target radius or the fixed time of flight
+        (``transcription.initial_guess``).  For multi-revolution spirals, whose number
+        of turns is not known before that propagation.  Exclusive with ``count``.
     """
 
-    count: int = 20
+    count: Optional[int] = None
     sub_arcs: int = 3
     equal: bool = True
     extrapolate: bool = True
+    per_revolution: Optional[int] = None
 
     def __post_init__(self):
-        _check_finite_positive_int("segments.count", self.count)
+        if self.per_revolution is None:
+            # count's default of 20 holds only without a per-revolution rule, so it is
+            # filled in here (a frozen dataclass needs object.__setattr__ for that).
+            object.__setattr__(self, "count", 20 if self.count is None else self.count)
+            _check_finite_positive_int("segments.count", self.count)
+        else:
+            _check_finite_positive_int("segments.per_revolution", self.per_revolution)
+            if self.count is not None:
+                raise InputError(f"segments.count = {self.count!r} and segments.per_revolution "
+                                 f"= {self.per_revolution!r}: give one of them, not both")
         _check_finite_positive_int("segments.sub_arcs", self.sub_arcs)
+
+    def count_for(self, sweep):
+        """Number of segments for a seeding sweep of ``sweep`` rad: ``count`` if fixed,
+        else ceil(per_revolution * sweep / 2 pi), at least 1."""
+        if self.per_revolution is None:
+            return self.count
+        # The tiny tolerance keeps an exact whole number of turns from rounding up.
+        return max(1, math.ceil(self.per_revolution * sweep / (2 * math.pi) - 1e-9))
 
 
 # ---------------------------------------------------------------- objectives
@@ -388,9 +413,9 @@ class Problem:
         check_range("max_revolutions", self.max_revolutions, 0, 1000, low_open=True)
 
     def with_segments(self, count):
-        """The same problem with ``count`` control segments (``--segments``)."""
-        seg = self.segments
-        return _replace(self, segments=Segments(count, seg.sub_arcs, seg.equal, seg.extrapolate))
+        """The same problem with ``count`` control segments (``--segments``; it replaces
+        a ``per_revolution`` rule)."""
+        return _replace(self, segments=_replace(self.segments, count=count, per_revolution=None))
 
     # -- canonical views, the only unit conversions of this layer
 

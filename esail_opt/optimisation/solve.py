@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from esail_opt.optimisation.transcription import Guess, transcribe
+from esail_opt.optimisation.transcription import Guess, initial_guess, transcribe
 
 CONVERGED = ("Solve_Succeeded",)
 ACCEPTABLE = ("Solved_To_Acceptable_Level",)
@@ -115,11 +115,13 @@ def solve_problem(problem, segment=None, options=None):
     are the sums over both stages; ``stages`` lists each stage's status.
     """
     seg = problem.segments
-    guess = None
     first = None
-    if not seg.equal and seg.count > 1:
+    # The seed fixes N (a per-revolution count is resolved by its propagation) and does
+    # not depend on whether the lengths are free, so both stages share it.
+    guess = initial_guess(problem)
+    if not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
-        tr1 = transcribe(equal, segment)
+        tr1 = transcribe(equal, segment, guess)
         first = solve_transcription(tr1, options)
         if first.outcome in ("converged", "acceptable"):
             nodes = np.vstack([first.nodes, np.cumsum(first.durations)])

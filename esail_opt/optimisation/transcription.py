@@ -196,7 +196,9 @@ def initial_guess(problem):
     The total angle is where that propagation (GUESS_STEP arcs) reaches the target
     radius (minimum time) or the fixed time of flight; it is cut into N equal segments,
     and the nodes are the states the NLP's own segments reach from the departure, so
-    every continuity constraint holds exactly at the start.
+    every continuity constraint holds exactly at the start.  N is the problem's count,
+    or with ``Segments(per_revolution=K)`` ceil(K sweep / 2 pi) (``Segments.count_for``):
+    the guess fixes the NLP's size, and :func:`transcribe` takes N from it.
     """
     x0 = problem.x0()
     alpha = guess_alpha(problem)
@@ -208,7 +210,7 @@ def initial_guess(problem):
         radius = problem.target_radius()
         sweep = _sweep_to(problem, x0, alpha, lambda xs: _crossing(xs[0], radius),
                           f"the target radius ({radius:g} au)")
-    n = problem.segments.count
+    n = problem.segments.count_for(sweep)
     lengths = np.full(n, sweep / n)
     # The nodes come from the NLP's own segment map, so continuity holds exactly.
     xs = flown_segments(problem, np.full(n, alpha), lengths, x0)
@@ -293,7 +295,7 @@ def transcribe(problem, segment=None, guess=None):
         ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[m])``; default the closed form's
         :func:`closed_form_segment`.  The benchmark passes CVODES arcs here.
     guess : Guess, optional
-        Default :func:`initial_guess`.
+        Default :func:`initial_guess`.  Its size sets the number of segments N.
 
     Returns
     -------
@@ -303,7 +305,8 @@ def transcribe(problem, segment=None, guess=None):
         segment = closed_form_segment(problem.segments.sub_arcs, problem.sail.coefficients,
                                       problem.segments.extrapolate)
     guess = initial_guess(problem) if guess is None else guess
-    n = problem.segments.count
+    # The guess fixes N: a per-revolution rule is only resolved by its propagation.
+    n = guess.alpha.size
     equal = problem.segments.equal
     dep = problem.departure
     free_nu = bool(getattr(dep, "free_anomaly", False))
