@@ -112,13 +112,19 @@ def _add_solve(sub):
         description="Solve the problem defined in PROBLEM.py (a file that builds "
         "`problem = esail_opt.Problem(...)`) by closed-form multiple shooting and Ipopt, "
         "fly the result on Eqs. 1-2 with CVODES, and write solution.json, schedule.csv, "
-        "trajectory.png and timeline.png.  Exit status 0 only when Ipopt converged "
-        "(Solve_Succeeded), 1 otherwise, 2 for a bad problem file or an infeasible target.",
+        "trajectory.png and timeline.png.  With --polish, then re-solve the same schedule "
+        "on exact CVODES arcs of Eqs. 1-2 in time, warm-started from the closed-form "
+        "optimum, and verify that it flies to within 1 m and 1 mm/s.  Exit status 0 only "
+        "when Ipopt converged (Solve_Succeeded) -- and, with --polish, the polish converged "
+        "and its verified miss is within those bounds -- 1 otherwise, 2 for a bad problem "
+        "file or an infeasible target.",
     )
     p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
     p.add_argument("--segments", type=int, default=None,
                    help="number of control segments N, >= 1 (default: the problem's)")
     p.add_argument("--out", default=None, help="output directory (default results/<problem name>)")
+    p.add_argument("--polish", action="store_true",
+                   help="refine the optimum on exact CVODES arcs (Eqs. 1-2, in time)")
     p.set_defaults(run=_run_solve)
 
 
@@ -144,7 +150,8 @@ def _run_solve(args):
             print(f"esail-opt solve: {text} ...", file=sys.stderr, flush=True)
         shown.append(text)
 
-    sol = solution.solve(problem, segments=args.segments, progress=progress)
+    sol = solution.solve(problem, segments=args.segments, progress=progress,
+                         polish=args.polish)
     if tty:
         print("\r\033[K", end="", file=sys.stderr, flush=True)
     if sol["outcome"] == "infeasible":
@@ -155,6 +162,8 @@ def _run_solve(args):
     for path in sol.write(out):
         print(f"wrote {path}")
     print(sol.summary())
+    if args.polish and not sol["polish"]["verified"]:
+        return 1
     return 0 if sol.converged else 1
 
 

@@ -2,7 +2,8 @@
 
 ``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
 the departure and target orbits and the segment boundaries.  ``timeline.png``: r, v_r,
-v_theta, alpha_n and the osculating a and e against time.
+v_theta, alpha_n and the osculating a and e against time.  A polished solution adds the
+CVODES flight of its polished schedule to both, and the pitch panel shows that schedule.
 """
 
 from pathlib import Path
@@ -56,6 +57,10 @@ def trajectory_figure(solution):
     cv = d["trajectory"]["cvodes"]
     if cv is not None:
         ax.plot(*_xy(cv), color="tab:red", lw=0.9, ls="-.", label="CVODES (Eqs. 1-2)")
+    exact = d["trajectory"].get("polished")
+    if exact is not None:
+        ax.plot(*_xy(exact), color="tab:purple", lw=1.2, ls=":",
+                label="polished, CVODES (Eqs. 1-2)")
     sched = d["schedule"]
     starts = {"r_au": [], "theta_deg": []}
     # Segment boundaries: the closed form's nodes, found in its samples by theta.
@@ -69,7 +74,10 @@ def trajectory_figure(solution):
     ax.set_aspect("equal")
     ax.set_xlabel("x (au)")
     ax.set_ylabel("y (au)")
-    ax.set_title(f"{prob['name']}: tof {d['tof_days']:.1f} d, {d['status']}")
+    title = f"{prob['name']}: tof {d['tof_days']:.1f} d, {d['status']}"
+    if d.get("tof_days_exact") is not None:
+        title += f"\npolished: tof {d['tof_days_exact']:.2f} d, {d['polish']['status']}"
+    ax.set_title(title)
     ax.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
     return fig
@@ -80,26 +88,36 @@ def timeline_figure(solution):
     d = solution.data
     cf = d["trajectory"]["closed_form"]
     cv = d["trajectory"]["cvodes"]
+    exact = d["trajectory"].get("polished")
+    # With a polish, the pitch panel shows the polished schedule: the one that flies.
+    polished = exact is not None
+    sched = d["polish"]["schedule"] if polished else d["schedule"]
     fig, axes = plt.subplots(3, 2, figsize=(10, 8), sharex=True)
     panels = [("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"), ("vtheta_km_s", "v_theta (km/s)"),
               (None, "alpha (deg)"), ("a_au", "osculating a (au)"), ("e", "osculating e")]
     for ax, (key, label) in zip(axes.ravel(), panels):
         if key is None:
-            t = [row["t_days"] for row in d["schedule"]]
-            alpha = [row["alpha_deg"] for row in d["schedule"]]
-            t_end = d["tof_days"]
-            ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k")
+            t = [row["t_days"] for row in sched]
+            alpha = [row["alpha_deg"] for row in sched]
+            t_end = d["tof_days_exact"] if polished else d["tof_days"]
+            ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
+                    label="polished" if polished else None)
             ax.set_ylim(-95, 95)
         else:
             ax.plot(cf["t_days"], cf[key], color="tab:blue", lw=1.4, label="closed form")
             if cv is not None:
                 ax.plot(cv["t_days"], cv[key], color="tab:red", lw=0.9, ls="-.", label="CVODES")
+            if polished:
+                ax.plot(exact["t_days"], exact[key], color="tab:purple", lw=1.0, ls=":",
+                        label="polished (CVODES)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7)
     for ax in axes[-1]:
         ax.set_xlabel("t (days)")
-    fig.suptitle(f"{d['problem']['name']}: {d['status']}")
+    fig.suptitle(f"{d['problem']['name']}: {d['status']}"
+                 + (f"; polished {d['polish']['status']} (pitch: polished schedule)"
+                    if polished else ""))
     fig.tight_layout()
     return fig
 

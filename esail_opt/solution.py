@@ -18,6 +18,7 @@ import numpy as np
 
 from esail_opt.files import atomic_path, write_json
 from esail_opt.optimisation import problem as pb
+from esail_opt.optimisation import polish as exact_refinement
 from esail_opt.optimisation.solve import solve_problem
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
@@ -102,17 +103,20 @@ class Solution:
         """Read a ``solution.json`` back."""
         return cls(json.loads(Path(path).read_text()))
 
-    def schedule_csv(self):
-        """The schedule as CSV text, one row per segment (same rows as ``schedule``)."""
+    def schedule_csv(self, polished=False):
+        """The schedule as CSV text, one row per segment (same rows as ``schedule``, or
+        with ``polished`` as ``polish["schedule"]``)."""
+        rows = self.data["polish"]["schedule"] if polished else self.data["schedule"]
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=SCHEDULE_FIELDS, lineterminator="\n")
         writer.writeheader()
-        for row in self.data["schedule"]:
+        for row in rows:
             writer.writerow({k: f"{row[k]:.10g}" for k in SCHEDULE_FIELDS})
         return buf.getvalue()
 
     def write(self, out_dir, plots=True):
-        """Write solution.json, schedule.csv and (optionally) the two PNGs, each atomically.
+        """Write solution.json, schedule.csv (and schedule_polished.csv after a polish)
+        and (optionally) the two PNGs, each atomically.
 
         Returns the list of paths written.
         """
@@ -121,6 +125,10 @@ class Solution:
         write_json(written[0], self.data)
         with atomic_path(written[1]) as tmp:
             tmp.write_text(self.schedule_csv())
+        if "schedule" in self.data.get("polish", {}):
+            written.append(out / "schedule_polished.csv")
+            with atomic_path(written[-1]) as tmp:
+                tmp.write_text(self.schedule_csv(polished=True))
         if plots:
             from esail_opt import plots as plotting
 
@@ -150,7 +158,30 @@ class Solution:
                 extra = (f", {v['target_miss_v_m_s']:.4g} m/s"
                          if v.get("target_miss_v_m_s") is not None else "")
                 lines.append(f"  CVODES miss vs target: {v['target_miss_r_km']:.4g} km{extra}")
+        lines += self._polish_lines()
         return "\n".join(lines)
+
+    def _polish_lines(self):
+        """Summary lines of the exact refinement, if there was one."""
+        p = self.data.get("polish")
+        if p is None:
+            return []
+        if p.get("status") is None:
+            return [f"  polish: {p['note']}"]
+        lines = [f"  polish: {p['status']} ({'converged' if p['converged'] else 'NOT converged'}), "
+                 f"{p['iterations']} iterations, {p['seconds']:.2f} s; exact tof "
+                 f"{p['tof_days']:.3f} d (closed form {self.data['tof_days']:.3f} d)"]
+        v = p["verification"]
+        if v.get("error") is None:
+            line = (f"  polished CVODES miss vs NLP {v['miss_r_m']:.3g} m, "
+                    f"{v['miss_v_mm_s']:.3g} mm/s")
+            if v.get("target_miss_r_m") is not None:
+                line += f"; vs target {v['target_miss_r_m']:.3g} m"
+                if v.get("target_miss_v_mm_s") is not None:
+                    line += f", {v['target_miss_v_mm_s']:.3g} mm/s"
+            lines.append(line)
+        lines.append(f"  polish: {p['note']}")
+        return lines
 
     def __str__(self):
         return self.summary()
@@ -164,7 +195,83 @@ class Solution:
         return plotting.trajectory_figure(self), plotting.timeline_figure(self)
 
 
-def solve(problem, segments=None, progress=None, samples=16):
+def _schedule(result):
+    """Per-segment rows (boundary units) of an NLP result's schedule."""
+    starts_t = np.r_[0.0, np.cumsum(result.durations)[:-1]]
+    starts_th = np.r_[result.x_start[1], result.nodes[1, :-1]]
+    return [
+        {"t_days": units.time_to_days(t), "theta_deg": math.degrees(th),
+         "alpha_deg": math.degrees(al), "duration_days": units.time_to_days(dt),
+         "dtheta_deg": math.degrees(ln)}
+        for t, th, al, dt, ln in zip(starts_t, starts_th, result.alpha, result.durations,
+                                     result.lengths)
+    ]
+
+
+def _metres(km):
+    return None if km is None else 1e3 * km
+
+
+def _polish_data(problem, exact, check):
+    """The ``polish`` object of solution.json: the exact optimum and its verification.
+
+    Misses are in metres and mm/s, the scale of the bounds (1 m, 1 mm/s) they are held
+    to; ``verified`` is True only when Ipopt converged and both the miss against the
+    polished NLP's final state and the miss against the target are within them.
+    """
+    m = check.misses
+    vs_nlp = {"position_m": _metres(m["miss_r_km"]),
+              "velocity_mm_s": _metres(m["miss_v_m_s"])}
+    vs_target = {"position_m": _metres(m["target_miss_r_km"]),
+                 "velocity_mm_s": _metres(m["target_miss_v_m_s"])}
+    verification = {"miss_r_m": vs_nlp["position_m"], "miss_v_mm_s": vs_nlp["velocity_mm_s"],
+                    "miss_theta_deg": m["miss_theta_deg"],
+                    "target_miss_r_m": vs_target["position_m"],
+                    "target_miss_v_mm_s": vs_target["velocity_mm_s"], "error": check.error}
+    if "target_miss_e" in m:
+        verification["target_miss_e"] = m["target_miss_e"]
+    if check.error is None:
+        verification["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
+        verification["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
+    within_nlp = exact_refinement.meets_bounds(vs_nlp)
+    # No target: nothing to miss.  An (a, e) target's position miss is the error of a.
+    within_target = problem.target is None or exact_refinement.meets_bounds(vs_target)
+    verified = exact.converged and within_nlp and within_target
+    problems = []
+    if not exact.converged:
+        problems.append(f"Ipopt did not converge ({exact.status})")
+    if check.error is not None:
+        problems.append(check.error)
+    else:
+        if not within_nlp:
+            problems.append("the CVODES flight misses the polished NLP's final state by "
+                            f"{vs_nlp['position_m']:.3g} m, {vs_nlp['velocity_mm_s']:.3g} mm/s")
+        if not within_target:
+            extra = (f", {vs_target['velocity_mm_s']:.3g} mm/s"
+                     if vs_target["velocity_mm_s"] is not None else "")
+            problems.append(f"the CVODES flight misses the target by "
+                            f"{vs_target['position_m']:.3g} m{extra}")
+    bounds = (f"{exact_refinement.MISS_BOUND_M:g} m and "
+              f"{exact_refinement.MISS_BOUND_MM_S:g} mm/s")
+    note = (f"exact: verified miss below {bounds}" if verified else
+            f"NOT exact to {bounds}: " + "; ".join(problems))
+    return {
+        "status": exact.status, "converged": exact.converged, "outcome": exact.outcome,
+        "iterations": exact.iterations, "seconds": exact.solve_seconds,
+        "constraint_violation": exact.constraint_violation,
+        "objective": exact.objective,
+        "tof_days": units.time_to_days(float(np.sum(exact.durations))),
+        "bounds": {"position_m": exact_refinement.MISS_BOUND_M,
+                   "velocity_mm_s": exact_refinement.MISS_BOUND_MM_S},
+        "within_bounds_vs_nlp": within_nlp, "within_bounds_vs_target": within_target,
+        "verified": verified, "note": note,
+        "schedule": _schedule(exact),
+        "final_state": _polar_dict(exact.nodes[:, -1]),
+        "verification": verification,
+    }
+
+
+def solve(problem, segments=None, progress=None, samples=16, polish=False):
     """Solve ``problem`` and verify it on CVODES: the whole data path of one run.
 
     Parameters
@@ -176,6 +283,9 @@ def solve(problem, segments=None, progress=None, samples=16):
         ``progress(text)`` is called at each stage (the CLI shows it on stderr).
     samples : int
         Plot samples per segment.
+    polish : bool
+        Then refine the closed-form optimum on exact CVODES arcs in time
+        (:func:`esail_opt.optimisation.polish.polish`) and verify that schedule too.
 
     Returns
     -------
@@ -193,6 +303,18 @@ def solve(problem, segments=None, progress=None, samples=16):
         CVODES against the NLP's final state; ``target_miss_r_km``/``target_miss_v_m_s``
         of CVODES against the target; ``cvodes_final_state``), and ``trajectory``
         (closed-form and CVODES samples for the plots).
+
+        With ``polish``, also ``objective_closed_form`` (= ``objective``),
+        ``objective_exact``, ``tof_days_exact``, ``trajectory["polished"]`` (the CVODES
+        flight of the polished schedule) and ``polish``: ``status``, ``converged``,
+        ``outcome``, ``iterations``, ``seconds``, ``constraint_violation``,
+        ``objective``, ``tof_days``, ``schedule``, ``final_state`` (the polished NLP's),
+        ``verification`` (``miss_r_m``, ``miss_v_mm_s`` against the polished NLP's final
+        state, ``target_miss_r_m``, ``target_miss_v_mm_s`` against the target, of the
+        schedule flown from the departure in one CVODES chain), ``bounds`` (1 m,
+        1 mm/s), ``within_bounds_vs_nlp``, ``within_bounds_vs_target``, ``verified``
+        and ``note`` (says plainly when the polished schedule is not exact).  The other
+        fields stay those of the closed-form optimum.
     """
     from esail_opt.errors import InputError
 
@@ -210,16 +332,7 @@ def solve(problem, segments=None, progress=None, samples=16):
     n, sub = result.alpha.size, seg.sub_arcs
     say(f"{problem.name}: {result.status} after {result.iterations} iterations; verifying on CVODES")
     check = verify(problem, result, samples)
-
-    starts_t = np.r_[0.0, np.cumsum(result.durations)[:-1]]
-    starts_th = np.r_[result.x_start[1], result.nodes[1, :-1]]
-    schedule = [
-        {"t_days": units.time_to_days(t), "theta_deg": math.degrees(th),
-         "alpha_deg": math.degrees(al), "duration_days": units.time_to_days(dt),
-         "dtheta_deg": math.degrees(ln)}
-        for t, th, al, dt, ln in zip(starts_t, starts_th, result.alpha, result.durations,
-                                     result.lengths)
-    ]
+    schedule = _schedule(result)
     verification = {k: v for k, v in check.misses.items()}
     verification["error"] = check.error
     if check.error is None:
@@ -260,6 +373,22 @@ def solve(problem, segments=None, progress=None, samples=16):
             "cvodes": _trajectory(check.cvodes) if check.error is None else None,
         },
     }
+    # A closed form that found no optimum has nothing worth refining.
+    if polish and result.outcome in ("converged", "acceptable"):
+        say(f"{problem.name}: polishing on exact CVODES arcs in time ({n} segments)")
+        exact, _ = exact_refinement.polish(problem, result, tr.guess.revolutions_k)
+        say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
+            "verifying on CVODES")
+        exact_check = verify(problem, exact, samples)
+        data["objective_closed_form"] = result.objective
+        data["objective_exact"] = exact.objective
+        data["tof_days_exact"] = units.time_to_days(float(np.sum(exact.durations)))
+        data["polish"] = _polish_data(problem, exact, exact_check)
+        data["trajectory"]["polished"] = (_trajectory(exact_check.cvodes)
+                                          if exact_check.error is None else None)
+    elif polish:
+        data["polish"] = {"status": None, "converged": False, "verified": False,
+                          "note": f"NOT polished: the closed-form solve ended {result.status}"}
     return Solution(_finite(data))
 
 

@@ -13,7 +13,9 @@ sub-arc's start, all at one pitch, and by default Richardson-extrapolated.  The 
 Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
 the NLP holds one copy of the arc's graph however many segments there are.  The same
 builder accepts any segment Function of the same signature: the benchmark swaps in
-CVODES arcs (:func:`cvodes_segment`).
+CVODES arcs (:func:`cvodes_segment`), and the exact refinement
+(``optimisation.polish``) CVODES arcs in time (:func:`cvodes_time_segment`, with the
+segment durations as the length variables: ``transcribe(..., independent="time")``).
 
 Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
 end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
@@ -98,6 +100,26 @@ def cvodes_segment(sub_arcs, coefficients=pb.EXACT):
     return ca.Function("segment_cvodes", [x0, ac, alpha, dtheta],
                        [x1, ca.MX.ones(sub_arcs, 1)],
                        ["x0", "ac", "alpha", "dtheta"], ["x1", "q3"])
+
+
+@functools.lru_cache(maxsize=None)
+def cvodes_time_segment(coefficients=pb.EXACT):
+    """One constant-pitch segment of Eqs. 1-2 integrated by CVODES in time: the exact arc.
+
+    ``(x0[5], ac, alpha, duration) -> (x1[5], q3[0])``: one CVODES integration over the
+    segment's duration (TU) at tolerances 1e-12 (``simulate.segment_integrator``), which
+    CasADi differentiates through forward and adjoint sensitivities.  The state's t row
+    advances by the duration itself.  An exact arc has no first-order validity margin, so
+    q3 is empty and :func:`transcribe` (``independent="time"``) adds no q3 rows.  Time,
+    not theta, is the independent variable: the verification flies the schedule in time,
+    so the polished NLP and its check integrate the same equations the same way.
+    """
+    seg = segment_integrator(1, "time", coefficients)
+    x0 = ca.MX.sym("x0", 5)
+    ac, alpha, duration = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("duration")
+    x1 = seg(x0, ac, alpha, duration)[:, -1]
+    return ca.Function("segment_exact", [x0, ac, alpha, duration], [x1, ca.MX(0, 1)],
+                       ["x0", "ac", "alpha", "duration"], ["x1", "q3"])
 
 
 def flown_segments(problem, alpha, lengths, x_start):
@@ -285,22 +307,32 @@ def _objective(objective, xf, tf):
     raise TypeError(objective)
 
 
-def transcribe(problem, segment=None, guess=None):
+def transcribe(problem, segment=None, guess=None, independent="theta"):
     """Build the multiple-shooting NLP of ``problem``.
 
     Parameters
     ----------
     problem : Problem
     segment : casadi.Function, optional
-        ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[m])``; default the closed form's
-        :func:`closed_form_segment`.  The benchmark passes CVODES arcs here.
+        ``(x0[5], ac, alpha, length) -> (x1[5], q3[m])``; default the closed form's
+        :func:`closed_form_segment`.  The benchmark passes CVODES arcs here, and the
+        exact refinement :func:`cvodes_time_segment` (with ``independent="time"``).
     guess : Guess, optional
-        Default :func:`initial_guess`.  Its size sets the number of segments N.
+        Default :func:`initial_guess`.  Its size sets the number of segments N.  With
+        ``independent="time"`` its ``lengths`` are the segment durations (TU).
+    independent : {"theta", "time"}
+        What the length variables measure: each segment's arc angle (rad), or its
+        duration (TU).  In time, equal segments mean equal angles (a constraint on the
+        nodes' theta), the segment lengths returned by ``unpack`` are still the angles
+        swept, and a segment with an empty q3 output adds no q3 rows.
 
     Returns
     -------
     Transcription
     """
+    if independent not in ("theta", "time"):
+        raise ValueError(f"independent must be 'theta' or 'time', not {independent!r}")
+    in_time = independent == "time"
     if segment is None:
         segment = closed_form_segment(problem.segments.sub_arcs, problem.sail.coefficients,
                                       problem.segments.extrapolate)
@@ -332,12 +364,16 @@ def transcribe(problem, segment=None, guess=None):
     w_nu = sym.sym("nu0", 1 if free_nu else 0)
     w = ca.vertcat(w_alpha, w_len, ca.vec(w_nodes), w_nu)
 
-    lengths = w_len * len_scale
     nodes = w_nodes * ca.DM(node_scale)
     x_start = dep.state(w_nu[0]) if free_nu else ca.DM(problem.x0())
     starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
-    ends, q3 = segment.map(n)(starts, problem.sail.ac, w_alpha.T, lengths.T)
-    durations = (nodes[4, :] - starts[4, :]).T
+    ends, q3 = segment.map(n)(starts, problem.sail.ac, w_alpha.T, (w_len * len_scale).T)
+    if in_time:
+        durations = w_len * len_scale
+        lengths = (nodes[1, :] - starts[1, :]).T
+    else:
+        lengths = w_len * len_scale
+        durations = (nodes[4, :] - starts[4, :]).T
     tf = nodes[4, -1]
     xf = nodes[:4, -1]
 
@@ -345,12 +381,14 @@ def transcribe(problem, segment=None, guess=None):
     lbg, ubg = [np.zeros(5 * n)], [np.zeros(5 * n)]
     names = {"continuity": 5 * n}
     q3 = ca.vec(q3)
-    g.append(q3)
-    lbg.append(np.full(q3.numel(), problem.path.q3_margin))
-    ubg.append(np.full(q3.numel(), np.inf))
-    names["q3"] = q3.numel()
+    if q3.numel():
+        g.append(q3)
+        lbg.append(np.full(q3.numel(), problem.path.q3_margin))
+        ubg.append(np.full(q3.numel(), np.inf))
+        names["q3"] = q3.numel()
     if equal and n > 1:
-        g.append(w_len[1:] - w_len[:-1])
+        # In time the variables are durations: equal segments still mean equal angles.
+        g.append(lengths[1:] - lengths[:-1] if in_time else w_len[1:] - w_len[:-1])
         lbg.append(np.zeros(n - 1))
         ubg.append(np.zeros(n - 1))
         names["equal_lengths"] = n - 1
@@ -378,10 +416,14 @@ def transcribe(problem, segment=None, guess=None):
     max_sweep = 2 * math.pi * problem.max_revolutions
     node_lo = np.array([max(problem.path.r_min_au, 1e-3), -np.inf, -10.0, 1e-2, 0.0]) / node_scale
     node_hi = np.array([100.0, np.inf, 10.0, 20.0, np.inf]) / node_scale
+    if in_time:
+        # The sweep limit bounds angles; a duration has no such bound.
+        len_hi = np.inf
+    else:
+        len_hi = max_sweep / n / len_scale if equal else max_sweep / len_scale
     lbx = np.r_[np.full(n, a_lo), np.full(n, 1e-4 / len_scale),
                 np.tile(node_lo, n), np.full(w_nu.numel(), -4 * math.pi)]
-    ubx = np.r_[np.full(n, a_hi), np.full(n, max_sweep / n / len_scale if equal else
-                                          max_sweep / len_scale),
+    ubx = np.r_[np.full(n, a_hi), np.full(n, len_hi),
                 np.tile(node_hi, n), np.full(w_nu.numel(), 4 * math.pi)]
     x_init = np.r_[guess.alpha, guess.lengths / len_scale,
                    (guess.nodes / node_scale[:, None]).ravel(order="F"),

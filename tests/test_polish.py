@@ -1,0 +1,149 @@
+"""Exact refinement (``--polish``): the closed-form optimum re-solved on CVODES arcs in time.
+
+References: the verified-miss bounds of issue 6 (1 m, 1 mm/s: what CVODES at a relative
+1e-12 resolves), and the independent continuous-control collocation optimum of
+tests/reference/collocation_min_time.json, which a piecewise-constant exact schedule can
+approach but not beat (beyond the reference's own mesh error, 2e-9 d).
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import esail_opt as eo
+from esail_opt.optimisation import polish as exact_refinement
+from esail_opt.optimisation.problem_file import load_problem
+from esail_opt.optimisation.solve import solve_problem
+from esail_opt.optimisation.transcription import cvodes_time_segment, transcribe
+
+REPO = Path(__file__).resolve().parents[1]
+REFERENCE = json.loads((REPO / "tests" / "reference" / "collocation_min_time.json").read_text())
+#: Slack on "cannot beat the continuous optimum": the reference's coarse and fine meshes
+#: agree to 2e-9 d, so 1e-3 d only absorbs the polish's own convergence tolerance.
+BEAT_SLACK_DAYS = 1e-3
+
+
+def _problem(name, segments=None):
+    problem = load_problem(REPO / "problems" / f"{name}_min_time.py")
+    return problem if segments is None else problem.with_segments(segments)
+
+
+def _assert_exact(sol):
+    """The polished schedule converged and flies to within 1 m and 1 mm/s of both the
+    polished NLP's final state and the target."""
+    p = sol["polish"]
+    assert p["converged"], p["status"]
+    v = p["verification"]
+    assert v["error"] is None
+    assert v["miss_r_m"] < 1.0 and v["miss_v_mm_s"] < 1.0, v
+    assert v["target_miss_r_m"] < 1.0 and v["target_miss_v_mm_s"] < 1.0, v
+    assert p["verified"] and p["within_bounds_vs_nlp"] and p["within_bounds_vs_target"]
+    assert p["note"].startswith("exact")
+
+
+# -- fast: a coarse Earth-Venus (6 segments), polished and not
+
+
+@pytest.fixture(scope="module")
+def coarse_venus():
+    problem = _problem("earth_venus", segments=6)
+    return problem, eo.solve(problem, polish=True), eo.solve(problem)
+
+
+def test_coarse_polish_flies_within_bounds(coarse_venus):
+    _, sol, _ = coarse_venus
+    _assert_exact(sol)
+    assert sol["polish"]["iterations"] > 0 and sol["polish"]["seconds"] > 0
+
+
+def test_coarse_polish_cannot_beat_the_continuous_optimum(coarse_venus):
+    # 6 constant-pitch segments are a coarse control: above the continuous optimum
+    # (305.105 d), never below it.
+    _, sol, _ = coarse_venus
+    assert sol["tof_days_exact"] >= REFERENCE["earth_venus"]["tof_days"] - BEAT_SLACK_DAYS
+    assert sol["objective_exact"] == sol["polish"]["objective"]
+    assert math.isclose(sol["tof_days_exact"], sol["polish"]["tof_days"], rel_tol=1e-12)
+
+
+def test_polish_leaves_the_closed_form_fields_unchanged(coarse_venus):
+    _, polished, plain = coarse_venus
+    for key in ("objective", "tof_days", "status", "iterations", "schedule", "final_state"):
+        assert polished[key] == plain[key], key
+    assert polished["objective_closed_form"] == plain["objective"]
+    assert "polish" not in plain.data and "objective_exact" not in plain.data
+    assert "polished" not in plain["trajectory"]
+
+
+def test_polished_schedule_is_consistent(coarse_venus):
+    # The rows sum to the exact time of flight, their angles to the final theta, and the
+    # polished CVODES trajectory ends where the schedule says.
+    _, sol, _ = coarse_venus
+    rows = sol["polish"]["schedule"]
+    assert len(rows) == 6
+    assert math.isclose(sum(r["duration_days"] for r in rows), sol["tof_days_exact"],
+                        rel_tol=1e-12)
+    assert math.isclose(sum(r["dtheta_deg"] for r in rows),
+                        sol["polish"]["final_state"]["theta_deg"], rel_tol=1e-9)
+    assert math.isclose(sol["trajectory"]["polished"]["t_days"][-1], sol["tof_days_exact"],
+                        rel_tol=1e-12)
+
+
+def test_polished_solution_writes_and_loads_back(coarse_venus, tmp_path):
+    _, sol, _ = coarse_venus
+    paths = sol.write(tmp_path)
+    assert tmp_path / "schedule_polished.csv" in paths
+    back = eo.Solution.load(tmp_path / "solution.json")
+    assert back["polish"]["verified"] and back["tof_days_exact"] == sol["tof_days_exact"]
+    lines = (tmp_path / "schedule_polished.csv").read_text().splitlines()
+    assert len(lines) == 7 and float(lines[1].split(",")[3]) > 0
+    assert "polish: exact" in back.summary()
+
+
+def test_warm_start_satisfies_continuity_and_drops_q3():
+    # Nodes from the CVODES flight of the closed-form schedule: every continuity row of the
+    # time NLP holds at the start (to CVODES round-off), only the target is missed; and
+    # the exact NLP has no q3 rows.
+    problem = _problem("earth_venus", segments=4)
+    result, tr = solve_problem(problem)
+    guess = exact_refinement.warm_start(problem, result, tr.guess.revolutions_k)
+    exact = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), guess,
+                       independent="time")
+    assert "q3" not in exact.names and "q3" in tr.names
+    g = np.array(exact.nlp_g(exact.x0)).ravel()
+    assert np.max(np.abs(g[: exact.names["continuity"]])) < 1e-9
+    np.testing.assert_allclose(guess.lengths, result.durations)
+
+
+def test_transcribe_rejects_an_unknown_independent_variable():
+    with pytest.raises(ValueError, match="independent"):
+        transcribe(_problem("earth_venus", segments=2), independent="angle")
+
+
+@pytest.mark.parametrize("miss, ok", [
+    ({"position_m": 0.2, "velocity_mm_s": 0.01}, True),
+    ({"position_m": 1.5, "velocity_mm_s": 0.01}, False),
+    ({"position_m": 0.2, "velocity_mm_s": 2.0}, False),
+    ({"position_m": 0.2, "velocity_mm_s": None}, True),  # an (a, e) target: no velocity miss
+    ({"position_m": None, "velocity_mm_s": None}, False),  # no flight: never within
+    ({"position_m": float("nan"), "velocity_mm_s": 0.0}, False),
+])
+def test_meets_bounds(miss, ok):
+    assert exact_refinement.meets_bounds(miss) is ok
+
+
+# -- slow: the shipped transfers at 1 mm/s^2 against the collocation optimum
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, segments", [("earth_venus", 30), ("earth_mars", 60)])
+def test_shipped_transfer_polished_is_exact_and_near_collocation(name, segments):
+    sol = eo.solve(_problem(name), polish=True)
+    assert sol["problem"]["segments"] == segments
+    _assert_exact(sol)
+    reference = REFERENCE[name]["tof_days"]
+    tof = sol["tof_days_exact"]
+    assert abs(tof - reference) < 0.01 * reference
+    assert tof >= reference - BEAT_SLACK_DAYS
