@@ -147,3 +147,20 @@ def test_shipped_transfer_polished_is_exact_and_near_collocation(name, segments)
     tof = sol["tof_days_exact"]
     assert abs(tof - reference) < 0.01 * reference
     assert tof >= reference - BEAT_SLACK_DAYS
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, reference_key, segments", [
+    ("earth_venus_low_thrust", "earth_venus_low", 111),
+    ("earth_mars_low_thrust", "earth_mars_low", 100),
+])
+def test_low_thrust_transfer_polished_within_0_3_percent(name, reference_key, segments):
+    """Issue 5: polished multi-revolution spirals at 0.1 mm/s^2 land within 0.3 % of the
+    collocation optimum (measured: +0.003 % Venus, +0.048 % Mars) and cannot beat it."""
+    sol = eo.solve(load_problem(REPO / "problems" / f"{name}.py"), polish=True)
+    assert sol["problem"]["segments"] == segments
+    _assert_exact(sol)
+    reference = REFERENCE[reference_key]["tof_days"]
+    tof = sol["tof_days_exact"]
+    assert abs(tof - reference) < 0.003 * reference
+    assert tof >= reference - BEAT_SLACK_DAYS
