@@ -2,8 +2,9 @@
 
 ``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
 the departure and target orbits and the segment boundaries.  ``timeline.png``: r, v_r,
-v_theta, alpha_n and the osculating a and e against time.  A polished solution adds the
-CVODES flight of its polished schedule to both, and the pitch panel shows that schedule.
+v_theta, alpha_n (with the throttle kappa on a second axis when the problem has one) and
+the osculating a and e against time.  A polished solution adds the CVODES flight of its
+polished schedule to both, and the pitch panel shows that schedule.
 """
 
 from pathlib import Path
@@ -103,6 +104,15 @@ def timeline_figure(solution):
             ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
                     label="polished" if polished else None)
             ax.set_ylim(-95, 95)
+            if sched and "throttle" in sched[0]:
+                # The throttle shares the pitch panel on a right-hand axis: it switches
+                # at the same times, and a coast (kappa = 0) explains a pitch that wanders.
+                kappa = [row["throttle"] for row in sched]
+                twin = ax.twinx()
+                twin.step(t + [t_end], kappa + kappa[-1:], where="post", color="tab:orange",
+                          lw=1.0)
+                twin.set_ylim(-0.05, 1.05)
+                twin.set_ylabel("throttle kappa", color="tab:orange")
         else:
             ax.plot(cf["t_days"], cf[key], color="tab:blue", lw=1.4, label="closed form")
             if cv is not None:

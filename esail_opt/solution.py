@@ -25,6 +25,9 @@ from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
 
 SCHEDULE_FIELDS = ("t_days", "theta_deg", "alpha_deg", "duration_days", "dtheta_deg")
+#: The column a throttled problem adds: kappa per segment, in [0, 1].  Unthrottled
+#: schedules leave it out, so their files stay as they were.
+THROTTLE_FIELD = "throttle"
 
 
 @functools.lru_cache(maxsize=None)
@@ -107,11 +110,13 @@ class Solution:
         """The schedule as CSV text, one row per segment (same rows as ``schedule``, or
         with ``polished`` as ``polish["schedule"]``)."""
         rows = self.data["polish"]["schedule"] if polished else self.data["schedule"]
+        fields = SCHEDULE_FIELDS + ((THROTTLE_FIELD,) if rows and THROTTLE_FIELD in rows[0]
+                                    else ())
         buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=SCHEDULE_FIELDS, lineterminator="\n")
+        writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
         writer.writeheader()
         for row in rows:
-            writer.writerow({k: f"{row[k]:.10g}" for k in SCHEDULE_FIELDS})
+            writer.writerow({k: f"{row[k]:.10g}" for k in fields})
         return buf.getvalue()
 
     def write(self, out_dir, plots=True):
@@ -195,17 +200,22 @@ class Solution:
         return plotting.trajectory_figure(self), plotting.timeline_figure(self)
 
 
-def _schedule(result):
-    """Per-segment rows (boundary units) of an NLP result's schedule."""
+def _schedule(result, throttled=False):
+    """Per-segment rows (boundary units) of an NLP result's schedule; with ``throttled``
+    each row also carries its ``throttle`` kappa."""
     starts_t = np.r_[0.0, np.cumsum(result.durations)[:-1]]
     starts_th = np.r_[result.x_start[1], result.nodes[1, :-1]]
-    return [
+    rows = [
         {"t_days": units.time_to_days(t), "theta_deg": math.degrees(th),
          "alpha_deg": math.degrees(al), "duration_days": units.time_to_days(dt),
          "dtheta_deg": math.degrees(ln)}
         for t, th, al, dt, ln in zip(starts_t, starts_th, result.alpha, result.durations,
                                      result.lengths)
     ]
+    if throttled:
+        for row, kappa in zip(rows, result.throttle):
+            row[THROTTLE_FIELD] = float(kappa)
+    return rows
 
 
 def _metres(km):
@@ -265,7 +275,7 @@ def _polish_data(problem, exact, check):
                    "velocity_mm_s": exact_refinement.MISS_BOUND_MM_S},
         "within_bounds_vs_nlp": within_nlp, "within_bounds_vs_target": within_target,
         "verified": verified, "note": note,
-        "schedule": _schedule(exact),
+        "schedule": _schedule(exact, problem.sail.throttle),
         "final_state": _polar_dict(exact.nodes[:, -1]),
         "verification": verification,
     }
@@ -297,7 +307,8 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         ("converged", "acceptable", "infeasible" or "failed"), ``objective`` and
         ``objective_meaning``, ``tof_days``, ``iterations``, ``solve_seconds``,
         ``constraint_violation``, ``schedule`` (per segment ``t_days`` and ``theta_deg``
-        at its start, ``alpha_deg``, ``duration_days``, ``dtheta_deg``), ``final_state``
+        at its start, ``alpha_deg``, ``duration_days``, ``dtheta_deg``, and with
+        ``Sail(throttle=True)`` ``throttle``, kappa in [0, 1]), ``final_state``
         (closed form: ``r_au``, ``theta_deg``, ``vr_km_s``, ``vtheta_km_s``, ``a_au``,
         ``e``), ``verification`` (``miss_r_km``, ``miss_v_m_s``, ``miss_theta_deg`` of
         CVODES against the NLP's final state; ``target_miss_r_km``/``target_miss_v_m_s``
@@ -332,7 +343,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     n, sub = result.alpha.size, seg.sub_arcs
     say(f"{problem.name}: {result.status} after {result.iterations} iterations; verifying on CVODES")
     check = verify(problem, result, samples)
-    schedule = _schedule(result)
+    schedule = _schedule(result, problem.sail.throttle)
     verification = {k: v for k, v in check.misses.items()}
     verification["error"] = check.error
     if check.error is None:
@@ -373,6 +384,10 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
             "cvodes": _trajectory(check.cvodes) if check.error is None else None,
         },
     }
+    if problem.sail.throttle:
+        # Only a throttled problem names its bounds: an unthrottled solution.json is
+        # exactly what it was before throttles existed.
+        data["problem"]["throttle_bounds"] = [problem.sail.throttle_min, problem.sail.throttle_max]
     # A closed form that found no optimum has nothing worth refining.
     if polish and result.outcome in ("converged", "acceptable"):
         say(f"{problem.name}: polishing on exact CVODES arcs in time ({n} segments)")

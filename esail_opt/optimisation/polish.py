@@ -54,18 +54,20 @@ def warm_start(problem, result, revolutions_k=0):
     Returns
     -------
     Guess
-        Pitch and durations (TU) as the closed form's; nodes [5 x N] from CVODES flying
-        that schedule from the departure, or the closed form's own nodes if CVODES fails
-        (an escaping flight, say), so a failed flight never blocks the polish.
+        Pitch, throttle and durations (TU) as the closed form's; nodes [5 x N] from
+        CVODES flying that schedule from the departure, or the closed form's own nodes if
+        CVODES fails (an escaping flight, say), so a failed flight never blocks the polish.
     """
     durations = np.asarray(result.durations, float)
     try:
         flown = simulate(result.x_start, result.alpha, durations, problem.sail.ac,
-                         samples=1, independent="time", coefficients=problem.sail.coefficients)
+                         throttles=result.throttle, samples=1, independent="time",
+                         coefficients=problem.sail.coefficients)
         nodes = flown[:, 1:]
     except SimulationError:
         nodes = np.vstack([result.nodes, np.cumsum(durations)])
-    return Guess(np.asarray(result.alpha, float), durations, nodes, result.nu0, revolutions_k)
+    return Guess(np.asarray(result.alpha, float), durations, nodes, result.nu0, revolutions_k,
+                 result.throttle)
 
 
 def polish(problem, result, revolutions_k=0, options=None):

@@ -62,6 +62,7 @@ class NLPResult:
     constraint_violation: float
     nu0: float
     stages: list = None  # [(status, iterations)] of a staged solve, first stage first
+    throttle: np.ndarray = None  # kappa per segment (all 1 without a throttle)
 
     @property
     def converged(self):
@@ -99,7 +100,7 @@ def solve_transcription(tr, options=None):
         alpha=parts[0].ravel(), lengths=parts[1].ravel(), nodes=parts[2],
         durations=parts[3].ravel(), x_start=parts[4].ravel(), q3=parts[5].ravel(),
         constraint_violation=violation, nu0=float(parts[6].ravel()[0]),
-        stages=[(status, int(stats.get("iter_count", -1)))],
+        stages=[(status, int(stats.get("iter_count", -1)))], throttle=parts[7].ravel(),
     )
 
 
@@ -126,7 +127,7 @@ def solve_problem(problem, segment=None, options=None):
         if first.outcome in ("converged", "acceptable"):
             nodes = np.vstack([first.nodes, np.cumsum(first.durations)])
             guess = Guess(first.alpha, first.lengths, nodes, first.nu0,
-                          tr1.guess.revolutions_k)
+                          tr1.guess.revolutions_k, first.throttle)
     tr = transcribe(problem, segment, guess)
     result = solve_transcription(tr, options)
     if first is not None:

@@ -5,7 +5,9 @@ Decision variables (each scaled to order one):
 * ``alpha[N]``: the constant pitch of each segment, rad, within the sail's bounds;
 * ``length[N]``: each segment's arc angle, rad (equal segments: chained equalities);
 * ``X[5 x N]``: the state [r, theta, v_r, v_theta, t] at the end of each segment;
-* ``nu0``: the departure true anomaly, when it is free.
+* ``nu0``: the departure true anomaly, when it is free;
+* ``kappa[N]``: each segment's throttle in the sail's bounds, with ``Sail(throttle=True)``;
+  the segment then flies at kappa a_c (the closed form scales a~_c by kappa).
 
 A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q, Eqs. 9-11 for the state, the
 time by Gauss-Legendre quadrature of dt/dtheta) chained with rectification at each
@@ -122,28 +124,32 @@ def cvodes_time_segment(coefficients=pb.EXACT):
                        ["x0", "ac", "alpha", "duration"], ["x1", "q3"])
 
 
-def flown_segments(problem, alpha, lengths, x_start):
+def flown_segments(problem, alpha, lengths, x_start, throttle=None):
     """The NLP's own chain of segments flown forward from ``x_start`` (no continuity
-    defects): node states [5 x N+1] with time, for checks and tests."""
+    defects): node states [5 x N+1] with time, for checks and tests.  ``throttle`` is
+    kappa per segment, default 1."""
     seg = closed_form_segment(problem.segments.sub_arcs, problem.sail.coefficients,
                               problem.segments.extrapolate)
+    kappa = np.ones(len(alpha)) if throttle is None else np.asarray(throttle, float)
     x = np.r_[np.asarray(x_start, float), 0.0]
     out = [x]
-    for al, ln in zip(alpha, lengths):
-        x = np.array(seg(x, problem.sail.ac, al, ln)[0]).ravel()
+    for al, ln, ka in zip(alpha, lengths, kappa):
+        x = np.array(seg(x, problem.sail.ac * ka, al, ln)[0]).ravel()
         out.append(x)
     return np.column_stack(out)
 
 
 @dataclass
 class Guess:
-    """An initial guess in canonical units: pitch, segment angles, node states, nu0."""
+    """An initial guess in canonical units: pitch, segment angles, node states, nu0, and
+    the throttle per segment (None means full thrust, 1, everywhere)."""
 
     alpha: np.ndarray
     lengths: np.ndarray
     nodes: np.ndarray  # 5 x N: [r, theta, v_r, v_theta, t] at each segment's end
     nu0: float
     revolutions_k: int = 0  # rendezvous: whole turns between the sail and the body
+    throttle: np.ndarray = None
 
 
 def _sweep_to(problem, x0, alpha, stop, what):
@@ -263,7 +269,8 @@ class Transcription:
     ubx: np.ndarray
     lbg: np.ndarray
     ubg: np.ndarray
-    unpack: ca.Function  # w -> (alpha[N], lengths[N], nodes[4 x N], durations[N], x_start[4], q3)
+    # w -> (alpha, lengths, nodes[4 x N], durations, x_start, q3, nu0, throttle)
+    unpack: ca.Function
     guess: Guess
     names: dict
 
@@ -362,12 +369,19 @@ def transcribe(problem, segment=None, guess=None, independent="theta"):
     w_len = sym.sym("length", n)
     w_nodes = sym.sym("nodes", 5, n)
     w_nu = sym.sym("nu0", 1 if free_nu else 0)
-    w = ca.vertcat(w_alpha, w_len, ca.vec(w_nodes), w_nu)
+    kappa_bounds = problem.throttle_bounds()
+    # The throttle variables come last, so that an unthrottled NLP keeps exactly its
+    # old layout and a throttled one only appends N columns.
+    w_kappa = sym.sym("kappa", 0 if kappa_bounds is None else n)
+    w = ca.vertcat(w_alpha, w_len, ca.vec(w_nodes), w_nu, w_kappa)
 
     nodes = w_nodes * ca.DM(node_scale)
     x_start = dep.state(w_nu[0]) if free_nu else ca.DM(problem.x0())
     starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
-    ends, q3 = segment.map(n)(starts, problem.sail.ac, w_alpha.T, (w_len * len_scale).T)
+    # The closed form (and Eqs. 1-2) take the characteristic acceleration per segment,
+    # so a throttle simply scales it.
+    ac = problem.sail.ac if kappa_bounds is None else problem.sail.ac * w_kappa.T
+    ends, q3 = segment.map(n)(starts, ac, w_alpha.T, (w_len * len_scale).T)
     if in_time:
         durations = w_len * len_scale
         lengths = (nodes[1, :] - starts[1, :]).T
@@ -421,21 +435,26 @@ def transcribe(problem, segment=None, guess=None, independent="theta"):
         len_hi = np.inf
     else:
         len_hi = max_sweep / n / len_scale if equal else max_sweep / len_scale
+    k_lo, k_hi = (1.0, 1.0) if kappa_bounds is None else kappa_bounds
+    k_init = np.ones(n) if guess.throttle is None else np.asarray(guess.throttle, float)
     lbx = np.r_[np.full(n, a_lo), np.full(n, 1e-4 / len_scale),
-                np.tile(node_lo, n), np.full(w_nu.numel(), -4 * math.pi)]
+                np.tile(node_lo, n), np.full(w_nu.numel(), -4 * math.pi),
+                np.full(w_kappa.numel(), k_lo)]
     ubx = np.r_[np.full(n, a_hi), np.full(n, len_hi),
-                np.tile(node_hi, n), np.full(w_nu.numel(), 4 * math.pi)]
+                np.tile(node_hi, n), np.full(w_nu.numel(), 4 * math.pi),
+                np.full(w_kappa.numel(), k_hi)]
     x_init = np.r_[guess.alpha, guess.lengths / len_scale,
                    (guess.nodes / node_scale[:, None]).ravel(order="F"),
-                   np.full(w_nu.numel(), guess.nu0)]
+                   np.full(w_nu.numel(), guess.nu0), k_init[: w_kappa.numel()]]
     x_init = np.clip(x_init, lbx, ubx)
 
     f = _objective(problem.objective, xf, tf)
     nu0 = w_nu[0] if free_nu else sym(guess.nu0)
+    throttle = sym.ones(n, 1) if kappa_bounds is None else w_kappa
     unpack = ca.Function("unpack", [w], [w_alpha, lengths, nodes[:4, :], durations, x_start, q3,
-                                         nu0],
+                                         nu0, throttle],
                          ["w"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
-                                 "nu0"])
+                                 "nu0", "throttle"])
     g = ca.vertcat(*g)
     return Transcription({"x": w, "f": f, "g": g}, ca.Function("g", [w], [g]), x_init, lbx, ubx,
                          np.concatenate([np.ravel(v) for v in lbg]),

@@ -92,7 +92,8 @@ def verify(problem, result, samples=16):
     ----------
     problem : Problem
     result : NLPResult
-        Its ``x_start``, ``alpha``, ``durations`` and ``lengths`` define the schedule.
+        Its ``x_start``, ``alpha``, ``durations``, ``lengths`` and ``throttle`` (kappa
+        per segment; None is full thrust) define the schedule.
     samples : int
         Output points per segment (time-equal for CVODES, theta-equal per sub-arc for
         the closed form); only the plots use them.
@@ -104,6 +105,8 @@ def verify(problem, result, samples=16):
     ac, coeff = problem.sail.ac, problem.sail.coefficients
     sub = problem.segments.sub_arcs
     x0 = np.asarray(result.x_start, float)
+    kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
+             else np.asarray(result.throttle, float))
     # The plotted closed form restarts every segment at its NLP node (plain sub-arcs,
     # sampled): the NLP's extrapolated segment ends are exactly the next nodes.
     per_sub = max(1, samples // sub)
@@ -112,15 +115,16 @@ def verify(problem, result, samples=16):
     pieces = [np.r_[x0, 0.0][:, None]]
     for k in range(result.alpha.size):
         xs, _ = propagate(starts[:, k], np.full(sub, result.alpha[k]),
-                          np.full(sub, result.lengths[k] / sub), ac, samples=per_sub,
+                          np.full(sub, result.lengths[k] / sub), ac,
+                          throttles=np.full(sub, kappa[k]), samples=per_sub,
                           coefficients=coeff)
         xs[4] += t0[k]
         pieces.append(xs[:, 1:])
     closed = np.column_stack(pieces)
     error = None
     try:
-        flown = simulate(x0, result.alpha, result.durations, ac, samples=samples,
-                         independent="time", coefficients=coeff)
+        flown = simulate(x0, result.alpha, result.durations, ac, throttles=kappa,
+                         samples=samples, independent="time", coefficients=coeff)
     except Exception as err:  # CVODES gave up (e.g. an escaping orbit): report, do not hide
         error = f"CVODES failed: {err}"
         flown = np.full((5, 1), np.nan)
