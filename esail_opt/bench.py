@@ -487,3 +487,92 @@ def _collocation_solve(colloc, seed, ac, radius):
     report = stage(n, colloc.solution_guess(search))
     fine = stage(2 * n, colloc.solution_guess(report))
     return fine, stages, total
+
+
+SWEEP_PROBLEM = '''
+import esail_opt as eo
+
+problem = eo.Problem(
+    name="bench_sweep_earth_mars",
+    departure=eo.ParkingOrbit(a_au=1.0),
+    sail=eo.Sail(ac_mm_s2=1.0),
+    segments=eo.Segments(count=20, sub_arcs=2),
+    objective=eo.MinTime(),
+    target=eo.CircularOrbit(radius_au=1.524),
+)
+'''
+SWEEP_PARAM = "ac_mm_s2=0.6:1.6:8"
+
+
+def sweep(out, repeats):
+    """Sweep wall time on a process pool of 1 worker against 2, the same sweep, one run.
+
+    The family is Earth-Mars minimum time at 20 segments x 2 sub-arcs over 8 values of
+    a_c in [0.6, 1.6] mm/s^2 (a few seconds of Ipopt each), so the members outweigh the
+    pool's start-up (each spawned worker imports CasADi once).  The wall time covers
+    the whole ``sweep.run``: pool start, every member, pool shutdown.  With ``repeats``
+    above 1 the two pool sizes alternate (at most 3 runs each) and the medians count,
+    so that a burst of load on a shared machine hits both alike.  Whether the two
+    pools return the same numbers is recorded as well.
+    """
+    import os
+    import tempfile
+    from pathlib import Path
+
+    from esail_opt import sweep as family
+    from esail_opt.files import write_json
+
+    runs = max(1, min(repeats, 3))
+    seconds = {1: [], 2: []}
+    member_sums = {1: [], 2: []}
+    rows = {}
+    # Two workers can only help if two CPUs are free: the load is recorded so that a
+    # ratio near 1 on a busy shared machine reads as what it is.
+    load_before = os.getloadavg()
+    with tempfile.TemporaryDirectory(prefix="esail_bench_sweep_") as tmp:
+        path = Path(tmp) / "bench_sweep_earth_mars.py"
+        path.write_text(SWEEP_PROBLEM)
+        for run in range(runs):
+            for workers in (1, 2):
+                print(f"bench sweep: run {run + 1}/{runs}, {workers} worker(s) ...", flush=True)
+                start = time.perf_counter()
+                result = family.run(path, SWEEP_PARAM, workers=workers)
+                seconds[workers].append(time.perf_counter() - start)
+                member_sums[workers].append(sum(r["seconds"] for r in result["rows"]))
+                rows[workers] = [{k: v for k, v in row.items() if k != "seconds"}
+                                 for row in result["rows"]]
+    one, two = statistics.median(seconds[1]), statistics.median(seconds[2])
+    data = {
+        "case": {"problem": "Earth-Mars minimum time, 1 au -> 1.524 au, 20 segments x 2 "
+                            "sub-arcs", "param": SWEEP_PARAM, "members": len(rows[1])},
+        "runs": runs,
+        "cpus": os.cpu_count(),
+        "one_worker_seconds": one,
+        "two_workers_seconds": two,
+        "ratio": one / two,
+        "one_worker_runs_seconds": seconds[1],
+        "two_workers_runs_seconds": seconds[2],
+        "member_seconds_sum_one_worker": statistics.median(member_sums[1]),
+        "member_seconds_sum_two_workers": statistics.median(member_sums[2]),
+        "load_average_1_5_15_before": list(load_before),
+        "load_average_1_5_15_after": list(os.getloadavg()),
+        "converged": sum(1 for r in rows[1] if r["converged"]),
+        "identical_rows": rows[1] == rows[2],
+        "how": "wall time of esail_opt.sweep.run (spawned process pool start, all members, "
+               "shutdown), median over alternating runs, same machine and run; ratio = "
+               "one_worker_seconds / two_workers_seconds (2 would be perfect scaling)",
+    }
+    print_table(f"bench sweep: {data['case']['members']} members, median of {runs}", [
+        ("1 worker", one, "s"),
+        ("2 workers", two, "s"),
+        ("ratio 1 / 2 workers", data["ratio"], ""),
+        ("sum of member times, 1 worker", data["member_seconds_sum_one_worker"], "s"),
+        ("load average before / after", f"{load_before[0]:.2f} / {os.getloadavg()[0]:.2f}", ""),
+        ("identical rows", str(data["identical_rows"]), ""),
+    ])
+    path = Path(out) / "sweep.json"
+    write_json(path, data)
+    return path
+
+
+BENCHES["sweep"] = sweep

@@ -167,6 +167,50 @@ def _run_solve(args):
     return 0 if sol.converged else 1
 
 
+def _add_sweep(sub):
+    p = sub.add_parser(
+        "sweep", help="solve a problem file over a range of one parameter",
+        description="Solve the problem in PROBLEM.py once per value of one parameter, "
+        "on a local process pool (or a Dask distributed scheduler), and write sweep.csv, "
+        "sweep.json and sweep.png.  A member that fails or does not converge is reported "
+        "in its row and does not stop the others.  Sweepable names: "
+        + ", ".join(_sweepable()) + ".",
+    )
+    p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
+    p.add_argument("--param", required=True, metavar="NAME=START:STOP:COUNT",
+                   help="parameter and its grid, e.g. ac_mm_s2=0.2:2:10 (COUNT values, ends included)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local worker processes, >= 1 (default: min(COUNT, CPUs))")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on this Dask distributed scheduler instead (needs the dask extra)")
+    p.add_argument("--out", default=None,
+                   help="output directory (default results/<problem name>_sweep_<NAME>)")
+    p.set_defaults(run=_run_sweep)
+
+
+def _sweepable():
+    from esail_opt.sweep import SWEEPABLE
+
+    return SWEEPABLE
+
+
+def _run_sweep(args):
+    from pathlib import Path
+
+    from esail_opt import sweep
+
+    name = args.param.partition("=")[0].strip()
+    result = sweep.run(args.problem_file, args.param, workers=args.workers,
+                       scheduler=args.scheduler,
+                       progress=lambda row, done, total: sweep.progress_line(row, done, total, name))
+    out = Path(args.out) if args.out else Path("results") / f"{result['problem']}_sweep_{name}"
+    for path in sweep.write(result, out):
+        print(f"wrote {path}")
+    print(f"{len(result['rows']) - result['failed']}/{len(result['rows'])} members converged "
+          f"in {result['wall_seconds']:.1f} s ({result['executor']})")
+    return 0 if result["failed"] == 0 else 1
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="esail-opt", description="E-sail trajectory propagation and optimisation")
@@ -175,6 +219,7 @@ def build_parser():
     _add_reproduce(sub)
     _add_bench(sub)
     _add_solve(sub)
+    _add_sweep(sub)
     return parser
 
 
