@@ -339,9 +339,23 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
              else f"{seg.per_revolution} segments per revolution")
     say(f"{problem.name}: building the NLP ({count} x {seg.sub_arcs} sub-arcs)")
     result, tr = solve_problem(problem)
+    say(f"{problem.name}: {result.status} after {result.iterations} iterations; verifying on CVODES")
+    return solution_of(problem, result, tr.guess.revolutions_k, samples, polish, say)
+
+
+def solution_of(problem, result, revolutions_k=0, samples=16, polish=False, progress=None,
+                theta_window=None):
+    """The :class:`Solution` of a closed-form optimum already found: its CVODES
+    verification and, with ``polish``, its exact refinement (see :func:`solve`, which
+    is this after the solve; the global search calls it for each optimum it keeps).
+
+    ``revolutions_k`` is the rendezvous turn count of the NLP (``Transcription.guess``),
+    and ``theta_window`` the final-angle box (rad) it was solved in, which the polish keeps.
+    """
+    say = progress or (lambda text: None)
+    seg = problem.segments
     # The count actually used: with a per-revolution rule the seed propagation fixed it.
     n, sub = result.alpha.size, seg.sub_arcs
-    say(f"{problem.name}: {result.status} after {result.iterations} iterations; verifying on CVODES")
     check = verify(problem, result, samples)
     schedule = _schedule(result, problem.sail.throttle)
     verification = {k: v for k, v in check.misses.items()}
@@ -391,7 +405,8 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     # A closed form that found no optimum has nothing worth refining.
     if polish and result.outcome in ("converged", "acceptable"):
         say(f"{problem.name}: polishing on exact CVODES arcs in time ({n} segments)")
-        exact, _ = exact_refinement.polish(problem, result, tr.guess.revolutions_k)
+        exact, _ = exact_refinement.polish(problem, result, revolutions_k,
+                                           theta_window=theta_window)
         say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
             "verifying on CVODES")
         exact_check = verify(problem, exact, samples)

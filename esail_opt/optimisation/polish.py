@@ -54,23 +54,35 @@ def warm_start(problem, result, revolutions_k=0):
     Returns
     -------
     Guess
-        Pitch, throttle and durations (TU) as the closed form's; nodes [5 x N] from
-        CVODES flying that schedule from the departure, or the closed form's own nodes if
-        CVODES fails (an escaping flight, say), so a failed flight never blocks the polish.
+        Pitch, throttle and durations (TU) as the closed form's; nodes as
+        :func:`exact_guess` flies them, or the closed form's own nodes if CVODES fails
+        (an escaping flight, say), so a failed flight never blocks the polish.
     """
-    durations = np.asarray(result.durations, float)
+    nodes = np.vstack([result.nodes, np.cumsum(result.durations)])
+    return exact_guess(problem, result.x_start, result.alpha, result.durations, nodes,
+                       result.nu0, revolutions_k, result.throttle)
+
+
+def exact_guess(problem, x_start, alpha, durations, fallback_nodes, nu0=0.0, revolutions_k=0,
+                throttle=None):
+    """A start for the exact (CVODES-in-time) NLP from any schedule.
+
+    The nodes are the CVODES flight of the schedule (pitch, durations in TU, throttle)
+    from ``x_start``, so every continuity constraint holds at the start; if that flight
+    fails, ``fallback_nodes`` [5 x N] are used instead.  The polish passes a closed-form
+    optimum here; the benchmark passes the constant-pitch seed (a cold start).
+    """
+    durations = np.asarray(durations, float)
     try:
-        flown = simulate(result.x_start, result.alpha, durations, problem.sail.ac,
-                         throttles=result.throttle, samples=1, independent="time",
-                         coefficients=problem.sail.coefficients)
+        flown = simulate(x_start, alpha, durations, problem.sail.ac, throttles=throttle,
+                         samples=1, independent="time", coefficients=problem.sail.coefficients)
         nodes = flown[:, 1:]
     except SimulationError:
-        nodes = np.vstack([result.nodes, np.cumsum(durations)])
-    return Guess(np.asarray(result.alpha, float), durations, nodes, result.nu0, revolutions_k,
-                 result.throttle)
+        nodes = np.asarray(fallback_nodes, float)
+    return Guess(np.asarray(alpha, float), durations, nodes, nu0, revolutions_k, throttle)
 
 
-def polish(problem, result, revolutions_k=0, options=None):
+def polish(problem, result, revolutions_k=0, options=None, theta_window=None):
     """Re-solve ``problem`` on exact CVODES arcs in time, warm-started from ``result``.
 
     Parameters
@@ -82,6 +94,10 @@ def polish(problem, result, revolutions_k=0, options=None):
         The closed-form NLP's rendezvous revolution count (``Transcription.guess``).
     options : dict, optional
         Ipopt options; default :func:`polish_options`.
+    theta_window : (float, float), optional
+        The final-angle box (rad) of a revolution-window optimum
+        (``optimisation.multistart``): its polish keeps the box, or it would slide out
+        of its window into another optimum.
 
     Returns
     -------
@@ -92,7 +108,7 @@ def polish(problem, result, revolutions_k=0, options=None):
     """
     guess = warm_start(problem, result, revolutions_k)
     tr = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), guess,
-                    independent="time")
+                    independent="time", theta_window=theta_window)
     exact = solve_transcription(tr, polish_options() if options is None else options)
     return exact, tr
 

@@ -104,8 +104,12 @@ def solve_transcription(tr, options=None):
     )
 
 
-def solve_problem(problem, segment=None, options=None):
+def solve_problem(problem, segment=None, options=None, guess=None, theta_window=None):
     """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
+
+    ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, and
+    ``theta_window`` (rad) boxes the final polar angle (``transcribe``); the global
+    search (``optimisation.multistart``) uses both.
 
     Free segment lengths are solved in two stages: first with equal lengths (a smaller,
     better-conditioned NLP that converges in tens of iterations), then with the lengths
@@ -119,16 +123,16 @@ def solve_problem(problem, segment=None, options=None):
     first = None
     # The seed fixes N (a per-revolution count is resolved by its propagation) and does
     # not depend on whether the lengths are free, so both stages share it.
-    guess = initial_guess(problem)
+    guess = initial_guess(problem) if guess is None else guess
     if not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
-        tr1 = transcribe(equal, segment, guess)
+        tr1 = transcribe(equal, segment, guess, theta_window=theta_window)
         first = solve_transcription(tr1, options)
         if first.outcome in ("converged", "acceptable"):
             nodes = np.vstack([first.nodes, np.cumsum(first.durations)])
             guess = Guess(first.alpha, first.lengths, nodes, first.nu0,
                           tr1.guess.revolutions_k, first.throttle)
-    tr = transcribe(problem, segment, guess)
+    tr = transcribe(problem, segment, guess, theta_window=theta_window)
     result = solve_transcription(tr, options)
     if first is not None:
         result.iterations += first.iterations

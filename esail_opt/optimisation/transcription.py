@@ -314,7 +314,7 @@ def _objective(objective, xf, tf):
     raise TypeError(objective)
 
 
-def transcribe(problem, segment=None, guess=None, independent="theta"):
+def transcribe(problem, segment=None, guess=None, independent="theta", theta_window=None):
     """Build the multiple-shooting NLP of ``problem``.
 
     Parameters
@@ -332,6 +332,9 @@ def transcribe(problem, segment=None, guess=None, independent="theta"):
         duration (TU).  In time, equal segments mean equal angles (a constraint on the
         nodes' theta), the segment lengths returned by ``unpack`` are still the angles
         swept, and a segment with an empty q3 output adds no q3 rows.
+    theta_window : (float, float), optional
+        Bounds on the final polar angle, rad: a box on the last node's theta, which
+        confines the transfer to a number of revolutions (``optimisation.multistart``).
 
     Returns
     -------
@@ -443,6 +446,9 @@ def transcribe(problem, segment=None, guess=None, independent="theta"):
     ubx = np.r_[np.full(n, a_hi), np.full(n, len_hi),
                 np.tile(node_hi, n), np.full(w_nu.numel(), 4 * math.pi),
                 np.full(w_kappa.numel(), k_hi)]
+    if theta_window is not None:
+        last = 2 * n + 5 * (n - 1) + 1  # the final node's theta in w
+        lbx[last], ubx[last] = (v / th_scale for v in theta_window)
     x_init = np.r_[guess.alpha, guess.lengths / len_scale,
                    (guess.nodes / node_scale[:, None]).ravel(order="F"),
                    np.full(w_nu.numel(), guess.nu0), k_init[: w_kappa.numel()]]
