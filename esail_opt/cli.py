@@ -167,6 +167,55 @@ def _run_solve(args):
     return 0 if sol.converged else 1
 
 
+def _add_search(sub):
+    p = sub.add_parser(
+        "search", help="global search of a minimum-time problem over revolution classes",
+        description="Solve the minimum-time problem in PROBLEM.py once per revolution class "
+        "(the free start; then final-angle windows of whole revolutions for an orbit "
+        "transfer, or the sail's whole turns on the body for a rendezvous), polish every "
+        "distinct optimum on exact CVODES arcs, rank them on the verified exact time of "
+        "flight, and write search.json, search.csv, search.png and best/.  Exit status 0 "
+        "when the best optimum's polish is verified to 1 m and 1 mm/s, 1 otherwise.",
+    )
+    p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
+    p.add_argument("--extra-revolutions", type=int, default=2,
+                   help="revolution classes above the free optimum's, in [0, 20] (default 2)")
+    p.add_argument("--segments", type=int, default=None,
+                   help="number of control segments N, >= 1 (default: the problem's)")
+    p.add_argument("--no-polish", action="store_true",
+                   help="rank on the closed-form times without polishing (faster)")
+    p.add_argument("--out", default=None,
+                   help="output directory (default results/<problem name>_search)")
+    p.set_defaults(run=_run_search)
+
+
+def _run_search(args):
+    from pathlib import Path
+
+    from esail_opt import search
+    from esail_opt.optimisation.problem_file import load_problem
+
+    if args.segments is not None and args.segments < 1:
+        raise InputError(f"segments = {args.segments} is outside [1, inf)")
+    problem = load_problem(args.problem_file)
+    if args.segments is not None:
+        problem = problem.with_segments(args.segments)
+
+    def progress(text):
+        print(f"esail-opt search: {text} ...", file=sys.stderr, flush=True)
+
+    data, solutions = search.run(problem, args.extra_revolutions, polish=not args.no_polish,
+                                 progress=progress)
+    if not data["rows"]:
+        raise InputError(f"target: no start converged ({len(data['starts'])} starts); "
+                         "nothing written")
+    out = Path(args.out) if args.out else Path("results") / f"{problem.name}_search"
+    for path in search.write(data, solutions, out):
+        print(f"wrote {path}")
+    print("\n".join(search.summary(data)))
+    return 0 if data["best"]["verified"] or args.no_polish else 1
+
+
 def _add_sweep(sub):
     p = sub.add_parser(
         "sweep", help="solve a problem file over a range of one parameter",
@@ -183,6 +232,8 @@ def _add_sweep(sub):
                    help="local worker processes, >= 1 (default: min(COUNT, CPUs))")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on this Dask distributed scheduler instead (needs the dask extra)")
+    p.add_argument("--polish", action="store_true",
+                   help="also polish every member on exact CVODES arcs (Eqs. 1-2, in time)")
     p.add_argument("--out", default=None,
                    help="output directory (default results/<problem name>_sweep_<NAME>)")
     p.set_defaults(run=_run_sweep)
@@ -201,7 +252,7 @@ def _run_sweep(args):
 
     name = args.param.partition("=")[0].strip()
     result = sweep.run(args.problem_file, args.param, workers=args.workers,
-                       scheduler=args.scheduler,
+                       scheduler=args.scheduler, polish=args.polish,
                        progress=lambda row, done, total: sweep.progress_line(row, done, total, name))
     out = Path(args.out) if args.out else Path("results") / f"{result['problem']}_sweep_{name}"
     for path in sweep.write(result, out):
@@ -219,6 +270,7 @@ def build_parser():
     _add_reproduce(sub)
     _add_bench(sub)
     _add_solve(sub)
+    _add_search(sub)
     _add_sweep(sub)
     return parser
 

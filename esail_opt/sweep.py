@@ -64,7 +64,8 @@ SWEEPABLE = {
 }
 
 CSV_FIELDS = ("index", "value", "converged", "status", "tof_days", "objective",
-              "target_miss_r_km", "target_miss_v_m_s", "iterations", "seconds", "error")
+              "target_miss_r_km", "target_miss_v_m_s", "iterations", "tof_days_exact",
+              "exact_verified", "exact_target_miss_m", "seconds", "error")
 
 
 # ---------------------------------------------------------------- input
@@ -169,7 +170,7 @@ def _empty_row(index, value):
     return row
 
 
-def solve_member(index, name, value, source, filename):
+def solve_member(index, name, value, source, filename, polish=False):
     """Solve one member of the family and return its row; never raises.
 
     The problem file travels as text so that a worker on another machine (Dask) needs
@@ -187,6 +188,8 @@ def solve_member(index, name, value, source, filename):
         Text of the problem file.
     filename : str
         Its file name, so load errors read as they would for ``esail-opt solve``.
+    polish : bool
+        Also polish the member on exact CVODES arcs (``solution.solve(polish=True)``).
 
     Returns
     -------
@@ -194,7 +197,9 @@ def solve_member(index, name, value, source, filename):
         The fields of :data:`CSV_FIELDS`: ``converged`` is True only for Ipopt's
         Solve_Succeeded; ``target_miss_*`` are the CVODES verification's misses
         against the target; ``seconds`` is this member's wall time; ``error`` is None
-        or one line saying why the member failed.
+        or one line saying why the member failed.  With ``polish``:
+        ``tof_days_exact``, ``exact_verified`` (the polished schedule flies to within
+        1 m and 1 mm/s) and ``exact_target_miss_m``; None without.
     """
     from esail_opt import solution
     from esail_opt.optimisation.problem_file import load_problem
@@ -206,12 +211,17 @@ def solve_member(index, name, value, source, filename):
             path = Path(tmp) / filename
             path.write_text(source)
             problem = load_problem(path)
-        sol = solution.solve(variant(problem, name, value))
+        sol = solution.solve(variant(problem, name, value), polish=polish)
         check = sol["verification"]
         row.update(converged=sol.converged, status=sol["status"], tof_days=sol["tof_days"],
                    objective=sol["objective"], iterations=sol["iterations"],
                    target_miss_r_km=check.get("target_miss_r_km"),
                    target_miss_v_m_s=check.get("target_miss_v_m_s"))
+        exact = sol.data.get("polish")
+        if exact is not None:
+            row.update(tof_days_exact=exact.get("tof_days"), exact_verified=exact["verified"],
+                       exact_target_miss_m=(exact.get("verification") or {}).get(
+                           "target_miss_r_m"))
         if not sol.converged:
             row["error"] = f"not converged: Ipopt {sol['status']}"
         elif check.get("error"):
@@ -260,7 +270,7 @@ def _executor(workers, scheduler):
     return executor, f"dask distributed at {scheduler}", close
 
 
-def run(problem_file, param, workers=None, scheduler=None, progress=None):
+def run(problem_file, param, workers=None, scheduler=None, progress=None, polish=False):
     """Solve the family of ``problem_file`` over ``param`` and return the table.
 
     Parameters
@@ -276,6 +286,8 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None):
         Address of a Dask distributed scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
     progress : callable, optional
         ``progress(row, done, total)`` after each finished member.
+    polish : bool
+        Polish every member on exact CVODES arcs as well (see :func:`solve_member`).
 
     Returns
     -------
@@ -308,7 +320,7 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None):
     rows = [None] * len(values)
     start = time.perf_counter()
     try:
-        futures = [executor.submit(solve_member, i, name, v, source, filename)
+        futures = [executor.submit(solve_member, i, name, v, source, filename, polish)
                    for i, v in enumerate(values)]
         for done, future in enumerate(as_completed(futures), 1):
             try:
@@ -325,7 +337,7 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None):
     spec = SWEEPABLE[name]
     return {"problem": problem.name, "problem_file": str(problem_file), "param": name,
             "field": spec.path, "unit": spec.unit, "values": values, "executor": described,
-            "wall_seconds": time.perf_counter() - start,
+            "wall_seconds": time.perf_counter() - start, "polished": polish,
             "failed": sum(1 for r in rows if r["error"] is not None), "rows": rows}
 
 
@@ -364,7 +376,22 @@ def figure(result):
         good = [(r["value"], r[key]) for r in rows if r["error"] is None and r[key] is not None]
         bad = [(r["value"], r[key]) for r in rows if r["error"] is not None]
         if good:
-            ax.plot(*zip(*good), "o-", color="C0", label="converged")
+            ax.plot(*zip(*good), "o-", color="C0",
+                    label="converged (closed form)" if result.get("polished") else "converged")
+        exact_key = {"tof_days": "tof_days_exact", "target_miss_r_km": "exact_target_miss_m"}
+        if result.get("polished") and key in exact_key:
+            # The polished schedule's numbers beside the closed form's (metres to km).
+            scale_by = 1e-3 if key == "target_miss_r_km" else 1.0
+            exact = [(r["value"], scale_by * r[exact_key[key]]) for r in rows
+                     if r["error"] is None and r[exact_key[key]] is not None]
+            if exact:
+                ax.plot(*zip(*exact), "s--", color="C2", ms=5,
+                        label="polished (exact; hollow: not verified)")
+                hollow = [(r["value"], scale_by * r[exact_key[key]]) for r in rows
+                          if r["error"] is None and r[exact_key[key]] is not None
+                          and not r["exact_verified"]]
+                if hollow:
+                    ax.plot(*zip(*hollow), "s", mfc="white", color="C2", ms=7)
         shown = [(v, y) for v, y in bad if y is not None]
         if shown:
             ax.plot(*zip(*shown), "x", color="C3", ms=9, mew=2, label="not converged")
@@ -378,6 +405,8 @@ def figure(result):
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
+    if result.get("polished"):
+        axes[2].legend(fontsize=8)
     axes[-1].set_xlabel(label)
     axes[0].set_title(f"{result['problem']}: sweep of {result['field']} "
                       f"({len(rows) - result['failed']}/{len(rows)} ok)")
@@ -411,6 +440,9 @@ def progress_line(row, done, total, name, stream=None):
     """One line per finished member, for the command line (default on stderr)."""
     if row["error"] is None:
         what = f"converged, tof {row['tof_days']:.3f} d"
+        if row.get("tof_days_exact") is not None:
+            what += (f", exact {row['tof_days_exact']:.3f} d "
+                     f"({'verified' if row['exact_verified'] else 'NOT verified'})")
     else:
         what = f"FAILED ({row['error']})"
     seconds = f" in {row['seconds']:.1f} s" if row["seconds"] is not None else ""

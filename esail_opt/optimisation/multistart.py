@@ -1,0 +1,293 @@
+"""Global search of a minimum-time problem over its revolution classes.
+
+Ipopt finds the local optimum whose basin holds its start, and a transfer's basin is
+set above all by how many times it goes round the Sun.  The search therefore solves
+one NLP per revolution class and keeps every result:
+
+* **the free start**: the problem as it is, from its own constant-pitch seed;
+* **orbit transfers** (circular or (a, e) target, final angle free): revolution
+  windows.  Class k boxes the final polar angle into [theta0 + 2 pi k,
+  theta0 + 2 pi (k + 1)] (``transcribe(theta_window=...)``), seeded by a
+  constant-pitch spiral whose first crossing of the target radius lies in that window
+  (pitches near +-90 deg have little transverse thrust and wind many times before
+  they cross; see :func:`seed_pitches`);
+* **rendezvous** (final angle tied to the body): the whole turns k between the sail
+  and the body at arrival (``Guess.revolutions_k``), each seeded by the same
+  constant-pitch flight.
+
+A window whose bound is inactive at the solution holds a *free* local optimum: a KKT
+point of the boxed NLP with an inactive bound is one of the unboxed NLP.  A window
+whose bound is active holds only the best transfer with that many revolutions, which
+is reported as such (``Candidate.free`` False), never as a local optimum.  Each
+rendezvous class is a free local optimum: the constraint theta_f = phi_body(t_f) +
+2 pi k splits the feasible set into disjoint pieces, one per k.
+
+Results are grouped by (revolutions, time of flight): starts that reach the same
+optimum become one candidate that remembers every start that found it.
+"""
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from esail_opt.errors import InputError
+from esail_opt.optimisation import problem as pb
+from esail_opt.optimisation.solve import NLPResult, solve_problem
+from esail_opt.optimisation.transcription import (
+    Guess, flown_segments, guess_alpha, initial_guess)
+
+#: Two results are one optimum when their times of flight agree to this fraction and
+#: their revolutions to :data:`SAME_REVOLUTIONS`.  The closed-form NLP's own local
+#: optima differ by ~1e-4 of the tof where the pitch passes +-90 deg in different
+#: segments (R and T are pi-periodic, so +90 and -90 deg are one thrust and the box on
+#: alpha is an artificial wall); those are one transfer.
+SAME_TOF = 1e-3
+SAME_REVOLUTIONS = 0.02
+#: A final angle this close to a window's edge (rad) means the edge is active.
+EDGE_TOLERANCE = 1e-6
+#: Pitch fractions of the way from the seed's pitch to +-90 deg scanned for seeds:
+#: the closer to +-90 deg, the smaller the transverse thrust and the more turns before
+#: the spiral first reaches the target radius (on Earth-Mars at 1 mm/s^2, 80 deg crosses
+#: after 1.3 turns, 86 deg after 2.5 and 89 deg after 7.9).
+SEED_FRACTIONS = (0.0, 0.5, 0.75, 0.875, 0.9375, 0.96875, 0.984375, 0.9921875)
+
+
+@dataclass
+class Start:
+    """One start of the search: its label, revolution class and seed."""
+
+    label: str
+    revolutions: int  # the class: the window's k, or the rendezvous k
+    guess: Guess
+    window: tuple = None  # (lo, hi) final polar angle, rad, or None (free)
+
+
+@dataclass
+class Candidate:
+    """One distinct optimum the search found.
+
+    Attributes
+    ----------
+    result : NLPResult
+        The closed-form optimum (the best of the starts that reached it).
+    revolutions : float
+        Turns swept from departure to arrival, (theta_f - theta_0) / 2 pi.
+    revolutions_k : int
+        The rendezvous turn count its NLP used (0 for an orbit transfer).
+    free : bool
+        True for a local optimum of the problem as posed; False when a revolution
+        window's bound is active, i.e. the best transfer confined to that window.
+    window : list or None
+        [k, k + 1] revolutions of its window, or None.
+    theta_window : tuple or None
+        That window as final polar angles, rad, when its bound is active (a refinement
+        must keep it); None for a free optimum.
+    found_from : list of str
+        The starts that reached it.
+    """
+
+    result: NLPResult
+    revolutions: float
+    revolutions_k: int
+    free: bool
+    window: list = None
+    theta_window: tuple = None
+    found_from: list = field(default_factory=list)
+
+    @property
+    def tof(self):
+        """Closed-form time of flight, TU."""
+        return float(np.sum(self.result.durations))
+
+
+def _check(problem):
+    if not isinstance(problem.objective, pb.MinTime):
+        raise InputError(f"objective = {type(problem.objective).__name__}: the revolution "
+                         "search is for minimum-time problems (objective = MinTime)")
+    if getattr(problem.departure, "free_anomaly", False):
+        raise InputError("departure.free_anomaly = True: the revolution search counts turns "
+                         "from a fixed departure angle; fix the departure anomaly")
+
+
+def sweep(result):
+    """Angle swept by a result, rad."""
+    return float(result.nodes[1, -1] - result.x_start[1])
+
+
+def seed_pitches(problem):
+    """Constant pitches (rad) of the seeds: from the problem's own seed pitch towards
+    +-90 deg (the side of its sign), by :data:`SEED_FRACTIONS`, within the sail's bounds."""
+    alpha = guess_alpha(problem)
+    edge = math.pi / 2 if alpha >= 0 else -math.pi / 2
+    lo, hi = problem.alpha_bounds()
+    return [min(max(alpha + f * (edge - alpha), lo), hi) for f in SEED_FRACTIONS]
+
+
+def constant_pitch_seeds(problem):
+    """Seeds of :func:`seed_pitches` that reach the target radius: {alpha: Guess}.
+
+    A pitch whose flight never reaches it (it escapes first, or winds past
+    ``max_revolutions``) is left out."""
+    seeds = {}
+    for alpha in seed_pitches(problem):
+        try:
+            seeds[alpha] = initial_guess(dataclasses.replace(
+                problem, guess_alpha_deg=math.degrees(alpha)))
+        except InputError:
+            continue
+    return seeds
+
+
+def _stretched(problem, guess, total):
+    """``guess`` with its segments stretched to sweep ``total`` rad, nodes re-flown
+    (continuity exact), or None if that flight leaves the closed form's validity."""
+    lengths = guess.lengths * (total / float(np.sum(guess.lengths)))
+    xs = flown_segments(problem, guess.alpha, lengths, problem.x0())
+    if not np.all(np.isfinite(xs)):
+        return None
+    return Guess(guess.alpha, lengths, xs[:, 1:], guess.nu0, guess.revolutions_k)
+
+
+def window_starts(problem, classes):
+    """Starts of an orbit transfer's revolution windows ``classes`` (whole turns k).
+
+    Each window is seeded by the constant-pitch seed whose sweep lies in it (the pitch
+    nearest the problem's own seed pitch, if several do); a window no seed reaches
+    takes the seed whose sweep is nearest, stretched to the window's middle, if that
+    flight stays valid, and is otherwise skipped.
+    """
+    theta0 = float(problem.x0()[1])
+    seeds = constant_pitch_seeds(problem)
+    starts = []
+    for k in classes:
+        window = (theta0 + 2 * math.pi * k, theta0 + 2 * math.pi * (k + 1))
+        inside = [(a, g) for a, g in seeds.items()
+                  if window[0] <= g.nodes[1, -1] <= window[1]]
+        if inside:
+            alpha, guess = inside[0]
+            label = f"window {k}-{k + 1} rev, constant pitch {math.degrees(alpha):.4g} deg"
+        else:
+            middle = 2 * math.pi * (k + 0.5)
+            near = sorted(seeds.items(), key=lambda ag: abs(ag[1].nodes[1, -1] - theta0 - middle))
+            guess = None
+            for alpha, g in near:
+                guess = _stretched(problem, g, middle)
+                if guess is not None:
+                    break
+            if guess is None:
+                continue
+            label = (f"window {k}-{k + 1} rev, constant pitch {math.degrees(alpha):.4g} deg "
+                     f"stretched to {k + 0.5:g} rev")
+        starts.append(Start(label, k, guess, window))
+    return starts
+
+
+def rendezvous_starts(problem, classes):
+    """Starts of a rendezvous's turn counts k in ``classes``.
+
+    Each constant-pitch seed of :func:`seed_pitches` arrives with its own turn count on
+    the body (``Guess.revolutions_k``: pitches nearer +-90 deg wind more turns before
+    they reach the body's orbit); class k takes the first seed whose count is k, else
+    the seed whose count is nearest, with k imposed.
+    """
+    seeds = constant_pitch_seeds(problem)
+    starts = []
+    for k in classes:
+        alpha, guess = min(seeds.items(), key=lambda ag: abs(ag[1].revolutions_k - k))
+        label = f"rendezvous k = {k}, constant pitch {math.degrees(alpha):.4g} deg"
+        if guess.revolutions_k != k:
+            label += f" (its own k = {guess.revolutions_k})"
+        starts.append(Start(label, k, dataclasses.replace(guess, revolutions_k=k)))
+    return starts
+
+
+def _on_edge(result, window):
+    if window is None:
+        return False
+    th = float(result.nodes[1, -1])
+    return min(abs(th - window[0]), abs(th - window[1])) < EDGE_TOLERANCE * max(1.0, abs(th))
+
+
+def _same(a, b):
+    return (abs(a.revolutions - b.revolutions) < SAME_REVOLUTIONS
+            and abs(a.tof - b.tof) < SAME_TOF * max(a.tof, b.tof)
+            and a.revolutions_k == b.revolutions_k and a.free == b.free)
+
+
+def search(problem, extra_revolutions=2, progress=None):
+    """Solve ``problem`` from one start per revolution class; every distinct result.
+
+    Parameters
+    ----------
+    problem : Problem
+        A minimum-time problem with a fixed departure angle.
+    extra_revolutions : int
+        Classes beyond the free start's: windows (or rendezvous turn counts) from one
+        below the free optimum's to ``extra_revolutions`` above it.
+    progress : callable, optional
+        ``progress(text)`` before each start.
+
+    Returns
+    -------
+    (list of Candidate, list of dict)
+        The distinct converged optima, free ones first, each group by time of flight;
+        and one record per start: ``label``, ``revolutions`` (the class), ``status``,
+        ``iterations``, ``seconds``, ``tof`` (TU, or None) and ``candidate`` (its index
+        in the list, or None when it did not converge).
+    """
+    _check(problem)
+    if isinstance(extra_revolutions, bool) or not isinstance(extra_revolutions, int) \
+            or not 0 <= extra_revolutions <= 20:
+        raise InputError(f"extra_revolutions = {extra_revolutions!r} is outside [0, 20]")
+    say = progress or (lambda text: None)
+    rendezvous = isinstance(problem.target, pb.Rendezvous)
+    say(f"{problem.name}: start 1, the problem's own seed (free)")
+    first, tr = solve_problem(problem)
+    base_k = tr.guess.revolutions_k
+    if first.outcome == "converged":
+        centre = base_k if rendezvous else int(sweep(first) // (2 * math.pi))
+    else:
+        centre = base_k if rendezvous else int(float(tr.guess.nodes[1, -1]
+                                                      - problem.x0()[1]) // (2 * math.pi))
+    classes = [k for k in range(centre - 1, centre + extra_revolutions + 1)
+               if k >= 0 and not (rendezvous and k == base_k)]
+    starts = (rendezvous_starts(problem, classes) if rendezvous
+              else window_starts(problem, classes))
+
+    outcomes = [(Start("the problem's own seed (free)", centre, tr.guess), first, base_k)]
+    for i, start in enumerate(starts, 2):
+        say(f"{problem.name}: start {i}/{len(starts) + 1}, {start.label}")
+        result, tr = solve_problem(problem, guess=start.guess, theta_window=start.window)
+        outcomes.append((start, result, tr.guess.revolutions_k))
+
+    candidates, records = [], []
+    for start, result, k in outcomes:
+        record = {"label": start.label, "revolutions": start.revolutions,
+                  "status": result.status, "iterations": result.iterations,
+                  "seconds": result.solve_seconds, "candidate": None,
+                  "tof": float(np.sum(result.durations)) if result.converged else None}
+        records.append(record)
+        if not result.converged:
+            continue
+        window = (None if start.window is None
+                  else [start.revolutions, start.revolutions + 1])
+        free = not _on_edge(result, start.window)
+        found = Candidate(result, sweep(result) / (2 * math.pi), k, free, window,
+                          None if free else start.window, [start.label])
+        for other in candidates:
+            if _same(found, other):
+                other.found_from.append(start.label)
+                if found.tof < other.tof:
+                    other.result = found.result
+                found = None
+                break
+        if found is not None:
+            candidates.append(found)
+    candidates.sort(key=lambda c: (not c.free, c.tof))
+    for record in records:
+        for index, c in enumerate(candidates):
+            if record["label"] in c.found_from:
+                record["candidate"] = index
+    return candidates, records

@@ -1,0 +1,191 @@
+"""The global search job: every revolution class of a minimum-time problem, flown and ranked.
+
+``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`
+(one start per revolution class), then verifies every distinct optimum on CVODES and
+polishes it on exact arcs (:func:`esail_opt.solution.solution_of`), and ranks them on
+the exact time of flight of the polished schedules that fly to within 1 m and 1 mm/s
+(then, for any that do not, on the closed-form time).  It writes ``search.json`` and
+``search.csv`` (one row per optimum, all kept), ``search.png`` (revolutions against
+time of flight) and the best optimum's ``solution.json``, ``schedule.csv`` and plots
+under ``best/``.
+"""
+
+import csv
+import io
+from pathlib import Path
+
+from esail_opt.files import atomic_path, save_figure, write_json
+from esail_opt.optimisation import multistart
+from esail_opt.physics import constants as units
+from esail_opt.solution import _finite, solution_of
+
+FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous_k",
+          "tof_days_closed_form", "tof_days_exact", "verified", "polish_status",
+          "closed_form_target_miss_km",
+          "polished_target_miss_m", "found_from")
+
+
+def _rank_key(row):
+    exact = row["tof_days_exact"] if row["verified"] else None
+    return (exact is None, exact if exact is not None else row["tof_days_closed_form"])
+
+
+def run(problem, extra_revolutions=2, polish=True, progress=None):
+    """Search ``problem`` over its revolution classes; verify, polish and rank the optima.
+
+    Parameters
+    ----------
+    problem : Problem
+        Minimum time, fixed departure angle (``multistart.search``).
+    extra_revolutions : int
+        Revolution classes above the free optimum's (and one below).
+    polish : bool
+        Polish every optimum on exact CVODES arcs; without it the ranking uses the
+        closed-form times, and ``verified`` is False throughout.
+    progress : callable, optional
+        ``progress(text)`` at each stage.
+
+    Returns
+    -------
+    (dict, list of Solution)
+        The table (``rows`` ranked, best first; ``starts``, one record per start) and
+        the Solution of each row, in the same order.
+    """
+    say = progress or (lambda text: None)
+    candidates, starts = multistart.search(problem, extra_revolutions, progress)
+    rows, solutions = [], []
+    for i, c in enumerate(candidates, 1):
+        say(f"{problem.name}: optimum {i}/{len(candidates)} ({c.revolutions:.2f} rev): "
+            f"verifying{' and polishing' if polish else ''}")
+        sol = solution_of(problem, c.result, c.revolutions_k, polish=polish,
+                          theta_window=c.theta_window)
+        p = sol.data.get("polish") or {}
+        rows.append({
+            "revolutions": c.revolutions,
+            "free_local_optimum": c.free,
+            "window_rev": c.window,
+            "rendezvous_k": c.revolutions_k,
+            "tof_days_closed_form": sol["tof_days"],
+            "tof_days_exact": p.get("tof_days"),
+            "verified": bool(p.get("verified", False)),
+            "polish_status": p.get("status"),
+            "closed_form_target_miss_km": sol["verification"].get("target_miss_r_km"),
+            "polished_target_miss_m": (p.get("verification") or {}).get("target_miss_r_m"),
+            "found_from": c.found_from,
+            "candidate": i - 1,
+        })
+        solutions.append(sol)
+    order = sorted(range(len(rows)), key=lambda j: _rank_key(rows[j]))
+    rows = [dict(rows[j], rank=r) for r, j in enumerate(order, 1)]
+    solutions = [solutions[j] for j in order]
+    for record in starts:
+        if record["candidate"] is not None:
+            record["candidate"] = next(r["rank"] for r in rows
+                                       if r["candidate"] == record["candidate"])
+        tof = record.pop("tof")
+        record["tof_days"] = None if tof is None else units.time_to_days(tof)
+    for row in rows:
+        row.pop("candidate")
+    data = {
+        "problem": problem.name,
+        "extra_revolutions": extra_revolutions,
+        "polished": polish,
+        "rows": rows,
+        "best": rows[0] if rows else None,
+        "free_local_optima": sum(1 for r in rows if r["free_local_optimum"]),
+        "starts": starts,
+        "how": ("one Ipopt start per revolution class (multistart.search); rows are the "
+                "distinct converged optima, ranked on the exact time of flight of the "
+                "polished schedules verified to 1 m and 1 mm/s, then on the closed-form "
+                "time; free_local_optimum is False where the revolution window's bound is "
+                "active (the best transfer with that many revolutions, not a local "
+                "optimum of the problem as posed)"),
+    }
+    return _finite(data), solutions
+
+
+def table_csv(data):
+    """The ranked optima as CSV text (``found_from`` joined by "; ")."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
+    writer.writeheader()
+    for row in data["rows"]:
+        out = dict(row)
+        out["window_rev"] = "" if row["window_rev"] is None else "{}-{}".format(*row["window_rev"])
+        out["found_from"] = "; ".join(row["found_from"])
+        writer.writerow({k: ("" if out[k] is None else
+                             f"{out[k]:.10g}" if isinstance(out[k], float) else out[k])
+                         for k in FIELDS})
+    return buf.getvalue()
+
+
+def figure(data):
+    """Revolutions against time of flight: free local optima filled, window-bound
+    results hollow, the best ringed; exact (polished) times where verified."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    for free, style in ((True, dict(color="tab:blue", label="free local optimum")),
+                        (False, dict(facecolors="none", edgecolors="tab:orange",
+                                     label="best in its revolution window (bound active)"))):
+        pts = [r for r in data["rows"] if r["free_local_optimum"] is free]
+        if pts:
+            ax.scatter([r["revolutions"] for r in pts], [_tof(r) for r in pts], s=46, zorder=3,
+                       **style)
+    unverified = [r for r in data["rows"] if not r["verified"]]
+    if unverified and data["polished"]:
+        ax.scatter([r["revolutions"] for r in unverified], [_tof(r) for r in unverified],
+                   marker="x", s=70, color="tab:red", zorder=5,
+                   label="polish not verified to 1 m (closed-form time)")
+    best = data["best"]
+    if best is not None:
+        ax.scatter([best["revolutions"]], [_tof(best)], s=180, facecolors="none",
+                   edgecolors="k", zorder=4, label=f"best: {_tof(best):.2f} d")
+    for r in data["rows"]:
+        name = f"#{r['rank']}" + (f" k={r['rendezvous_k']}" if r["window_rev"] is None
+                                  and r["rendezvous_k"] else "")
+        ax.annotate(name, (r["revolutions"], _tof(r)), textcoords="offset points",
+                    xytext=(7, -3), fontsize=8)
+    ax.set_xlabel("revolutions, (theta_f - theta_0) / 360 deg")
+    ax.set_ylabel("time of flight, days")
+    exact = "exact (polished, verified) where available" if data["polished"] else "closed form"
+    ax.set_title(f"{data['problem']}: optima by revolutions ({exact})", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def _tof(row):
+    return row["tof_days_exact"] if row["verified"] else row["tof_days_closed_form"]
+
+
+def write(data, solutions, out_dir):
+    """Write search.json, search.csv, search.png and best/ (the best optimum's
+    solution files), each atomically; returns the paths written."""
+    out = Path(out_dir)
+    written = [out / "search.json", out / "search.csv", out / "search.png"]
+    write_json(written[0], data)
+    with atomic_path(written[1]) as tmp:
+        tmp.write_text(table_csv(data))
+    save_figure(figure(data), written[2])
+    if solutions:
+        written += solutions[0].write(out / "best")
+    return written
+
+
+def summary(data):
+    """The ranked table as text lines, days and revolutions."""
+    lines = [f"{data['problem']}: {len(data['rows'])} distinct optima from "
+             f"{len(data['starts'])} starts, {data['free_local_optima']} of them free local optima"]
+    for r in data["rows"]:
+        kind = ("free local optimum" if r["free_local_optimum"]
+                else f"window {r['window_rev'][0]}-{r['window_rev'][1]} rev, bound active")
+        exact = (f"exact {r['tof_days_exact']:.3f} d (verified)" if r["verified"] else
+                 "exact: not verified" if data["polished"] else "not polished")
+        lines.append(f"  #{r['rank']}: {r['revolutions']:.3f} rev, closed form "
+                     f"{r['tof_days_closed_form']:.3f} d, {exact}; {kind}")
+    return lines

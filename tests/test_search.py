@@ -1,0 +1,162 @@
+"""The global search over revolution classes (``esail-opt search``).
+
+References: the independent continuous-control collocation of
+tests/reference/collocation_min_time.json -- its free optimum, which a verified
+piecewise-constant exact schedule may approach but not beat, and its own revolution-window
+solves, which found (as this search does) that every Earth-Mars window beyond the free
+optimum's sits on its lower bound -- and the structure of the rendezvous constraint, whose
+turn counts k are disjoint pieces of the feasible set.
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import esail_opt as eo
+from esail_opt import cli, search
+from esail_opt.errors import InputError
+from esail_opt.optimisation import multistart
+from esail_opt.optimisation.problem_file import load_problem
+
+REPO = Path(__file__).resolve().parents[1]
+REFERENCE = json.loads((REPO / "tests" / "reference" / "collocation_min_time.json").read_text())
+#: A verified exact schedule cannot beat the continuous optimum by more than the polish's
+#: own convergence tolerance (the reference's meshes agree to 2e-9 d).
+BEAT_SLACK_DAYS = 1e-3
+
+
+def _load(name, segments=None):
+    problem = load_problem(REPO / "problems" / f"{name}.py")
+    return problem if segments is None else problem.with_segments(segments)
+
+
+# ---------------------------------------------------------------- fast
+
+
+def test_seed_pitches_wind_more_turns_towards_90_deg():
+    problem = _load("earth_mars_min_time")
+    pitches = multistart.seed_pitches(problem)
+    assert pitches[0] == pytest.approx(math.radians(45.0))
+    assert all(b > a for a, b in zip(pitches, pitches[1:]))
+    assert max(pitches) < math.pi / 2
+    seeds = multistart.constant_pitch_seeds(problem)
+    sweeps = [g.nodes[1, -1] for g in seeds.values()]
+    # From 45 deg on the first crossing of 1.524 au comes later and later: that is
+    # what lets one seed family reach every revolution window.
+    assert sweeps[-1] > 4 * 2 * math.pi > sweeps[0]
+    assert all(b > a for a, b in zip(sweeps[1:], sweeps[2:]))
+
+
+def test_window_starts_lie_in_their_windows():
+    problem = _load("earth_mars_min_time")
+    for start in multistart.window_starts(problem, [0, 1, 2]):
+        lo, hi = start.window
+        assert hi - lo == pytest.approx(2 * math.pi)
+        assert lo == pytest.approx(2 * math.pi * start.revolutions)
+        assert lo <= start.guess.nodes[1, -1] <= hi
+        assert np.all(np.isfinite(start.guess.nodes))
+
+
+def test_rendezvous_starts_carry_their_turn_count():
+    problem = _load("earth_mars_rendezvous")
+    starts = multistart.rendezvous_starts(problem, [1, 2])
+    assert [s.guess.revolutions_k for s in starts] == [1, 2]
+    assert all(s.window is None for s in starts)
+
+
+def test_search_refuses_problems_it_cannot_count():
+    raising = _load("orbit_raising_10yr")
+    with pytest.raises(InputError, match="objective = MaxEnergy"):
+        multistart.search(raising)
+    free = eo.Problem("free", eo.ParkingOrbit(1.0, free_anomaly=True, e=0.1), eo.Sail(1.0),
+                      eo.Segments(count=4), eo.MinTime(), eo.CircularOrbit(1.524))
+    with pytest.raises(InputError, match="free_anomaly"):
+        multistart.search(free)
+    with pytest.raises(InputError, match=r"extra_revolutions = 21 is outside \[0, 20\]"):
+        multistart.search(_load("earth_mars_min_time"), extra_revolutions=21)
+
+
+def test_search_command_rejects_bad_input_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = cli.main(["search", str(REPO / "problems" / "orbit_raising_10yr.py"),
+                     "--out", str(out)])
+    assert code == 2
+    assert "objective = MaxEnergy" in capsys.readouterr().err
+    assert cli.main(["search", str(REPO / "problems" / "earth_mars_min_time.py"),
+                     "--segments", "0", "--out", str(out)]) == 2
+    assert not out.exists()
+
+
+# ---------------------------------------------------------------- slow: real searches
+
+
+@pytest.fixture(scope="module")
+def earth_mars():
+    """Earth-Mars orbit transfer, 30 free segments x 3 sub-arcs, polished."""
+    return search.run(_load("earth_mars_min_time", segments=30))
+
+
+@pytest.mark.slow
+def test_earth_mars_best_is_the_collocation_optimum(earth_mars):
+    data, solutions = earth_mars
+    best = data["best"]
+    reference = REFERENCE["earth_mars"]
+    assert best["rank"] == 1 and best["free_local_optimum"] and best["verified"]
+    # Same revolution class as the continuous optimum, and its time within 0.1 %
+    # (30 piecewise-constant segments against a continuous pitch), never below it.
+    assert best["revolutions"] == pytest.approx(reference["revolutions"], abs=0.01)
+    assert reference["tof_days"] - BEAT_SLACK_DAYS <= best["tof_days_exact"]
+    assert best["tof_days_exact"] <= 1.001 * reference["tof_days"]
+    assert solutions[0]["polish"]["verified"]
+
+
+@pytest.mark.slow
+def test_earth_mars_window_optima_sit_on_their_bounds(earth_mars):
+    """Beyond the free optimum, the best k-revolution transfers end exactly k turns out
+    (the window's lower bound is active), so none is a local optimum of the free
+    problem -- what the collocation's own window solves found too."""
+    data, _ = earth_mars
+    windows = [r for r in data["rows"] if not r["free_local_optimum"]]
+    assert {r["window_rev"][0] for r in windows} == {1, 2}
+    colloc = {tuple(w["revolutions_window"]): w for w in
+              REFERENCE["earth_mars"]["revolution_window_solves"]}
+    for row in windows:
+        k = row["window_rev"][0]
+        assert row["revolutions"] == pytest.approx(k, abs=1e-6)
+        assert colloc[(k, k + 1)]["revolutions"] == pytest.approx(k, abs=1e-6)
+        assert row["verified"]
+        assert row["tof_days_exact"] > data["best"]["tof_days_exact"] + 50
+    assert data["free_local_optima"] == 1
+    # The ranking is on the exact, verified times.
+    times = [r["tof_days_exact"] for r in data["rows"]]
+    assert times == sorted(times)
+
+
+@pytest.mark.slow
+def test_earth_mars_rendezvous_has_separate_optima_and_returns_the_best(tmp_path):
+    """The shipped rendezvous, from its file alone: free local optima with different
+    revolutions (one per turn count k on Mars), the fastest verified one ranked first,
+    and everything written."""
+    problem = _load("earth_mars_rendezvous")
+    data, solutions = search.run(problem, extra_revolutions=1)
+    free = [r for r in data["rows"] if r["free_local_optimum"]]
+    assert len(free) >= 2
+    revolutions = sorted(r["revolutions"] for r in free)
+    assert revolutions[1] - revolutions[0] > 0.5
+    assert len({r["rendezvous_k"] for r in free}) == len(free)
+    best = data["best"]
+    assert best["verified"] and best["rendezvous_k"] == 0
+    assert all(best["tof_days_exact"] < r["tof_days_exact"] for r in data["rows"][1:])
+    # Rendezvous is harder than reaching the orbit anywhere: the continuous orbit
+    # transfer optimum is a lower bound.
+    assert best["tof_days_exact"] > REFERENCE["earth_mars"]["tof_days"]
+    written = search.write(data, solutions, tmp_path)
+    assert (tmp_path / "search.png").stat().st_size > 10_000
+    assert (tmp_path / "best" / "solution.json").exists()
+    lines = (tmp_path / "search.csv").read_text().splitlines()
+    assert lines[0].startswith("rank,revolutions,free_local_optimum")
+    assert len(lines) == 1 + len(data["rows"])
+    assert all(p.exists() for p in written)
