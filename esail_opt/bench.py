@@ -283,6 +283,126 @@ def solve(out, repeats):
 BENCHES["solve"] = solve
 
 
+#: Problems of the polish benchmark, with the shipped N and sub-arcs.
+POLISH_PROBLEMS = ("earth_venus_min_time.py", "earth_mars_min_time.py")
+#: Ipopt iteration budget of the cold start: a fifth of the solve's default, and four
+#: times what the warm polish needs, so that a cold start that stalls is seen as such.
+COLD_MAX_ITER = 1000
+
+
+def _flown_success(problem, result):
+    """Converged, and the schedule flown on CVODES reaches the target to 1 m and 1 mm/s."""
+    from esail_opt.optimisation.polish import meets_bounds
+    from esail_opt.optimisation.verify import verify
+
+    misses = verify(problem, result, samples=1).misses
+    r, v = misses.get("target_miss_r_km"), misses.get("target_miss_v_m_s")
+    metres = {"position_m": None if r is None else 1e3 * r,
+              "velocity_mm_s": None if v is None else 1e3 * v}
+    return result.converged and meets_bounds(metres), metres
+
+
+def _polish_case(problem_file):
+    """Closed form + polish against cold exact shooting, both from the same seed."""
+    import numpy as np
+
+    from esail_opt.optimisation.polish import exact_guess, polish, polish_options
+    from esail_opt.optimisation.problem_file import load_problem
+    from esail_opt.optimisation.solve import solve_problem, solve_transcription
+    from esail_opt.optimisation.transcription import (
+        cvodes_time_segment, initial_guess, transcribe)
+    from esail_opt.physics import constants as units
+
+    problem = load_problem(problem_file)
+    seed = initial_guess(problem)
+    case = {"problem": problem.name, "segments": seed.alpha.size,
+            "sub_arcs": problem.segments.sub_arcs, "equal_segments": problem.segments.equal}
+
+    start = time.perf_counter()
+    result, tr = solve_problem(problem, guess=seed)
+    case["closed_form_seconds"] = time.perf_counter() - start
+    case["closed_form_iterations"] = result.iterations
+    start = time.perf_counter()
+    exact, _ = polish(problem, result, tr.guess.revolutions_k)
+    case["polish_seconds"] = time.perf_counter() - start
+    case["polish_iterations"] = exact.iterations
+    case["warm_seconds"] = case["closed_form_seconds"] + case["polish_seconds"]
+    case["warm_status"] = exact.status
+    case["warm_tof_days"] = units.time_to_days(float(np.sum(exact.durations)))
+    case["warm_success"], case["warm_target_miss"] = _flown_success(problem, exact)
+
+    start = time.perf_counter()
+    durations = np.diff(np.r_[0.0, seed.nodes[4]])
+    cold_start = exact_guess(problem, problem.x0(), seed.alpha, durations, seed.nodes,
+                             seed.nu0, seed.revolutions_k)
+    cold_tr = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), cold_start,
+                         independent="time")
+    cold = solve_transcription(cold_tr, polish_options(max_iter=COLD_MAX_ITER))
+    case["cold_seconds"] = time.perf_counter() - start
+    case["cold_iterations"] = cold.iterations
+    case["cold_status"] = cold.status
+    case["cold_tof_days"] = (units.time_to_days(float(np.sum(cold.durations)))
+                             if cold.converged else None)
+    case["cold_success"], case["cold_target_miss"] = _flown_success(problem, cold)
+    case["ratio"] = case["cold_seconds"] / case["warm_seconds"]
+    return case
+
+
+def polish_bench(out, repeats):
+    """Closed-form solve + exact polish against a cold CVODES multiple shooting.
+
+    For each problem in ``POLISH_PROBLEMS`` (shipped N and sub-arcs, free or equal
+    segments as shipped) both paths start from the same constant-pitch seed
+    (``transcription.initial_guess``):
+
+    * warm: the closed-form NLP (``solve_problem``: equal lengths, then free), then
+      the polish on CVODES arcs in time warm-started from it;
+    * cold: the polish's own NLP (CVODES arcs in time, same Ipopt options, at most
+      ``COLD_MAX_ITER`` iterations) started directly from the seed, its nodes flown
+      by CVODES so continuity holds at the start.
+
+    Success means Ipopt converged (Solve_Succeeded) and the schedule flown on CVODES
+    reaches the target within 1 m and 1 mm/s.  Wall times cover building and solving
+    (and, for the cold start, flying its seed); one run each (``repeats`` is not
+    used: a cold start takes minutes).  ``ratio`` is cold_seconds / warm_seconds.
+    """
+    from pathlib import Path
+
+    from esail_opt.files import write_json
+
+    folder = Path(__file__).resolve().parents[1] / "problems"
+    cases = []
+    for name in POLISH_PROBLEMS:
+        print(f"bench polish: {name} ...", flush=True)
+        cases.append(_polish_case(folder / name))
+    data = {"cases": cases, "cold_max_iter": COLD_MAX_ITER,
+            "how": ("one run each, wall time of building + solving; warm = closed-form solve "
+                    "+ polish, cold = exact CVODES-in-time NLP from the constant-pitch seed; "
+                    "success = Solve_Succeeded and CVODES target miss < 1 m and 1 mm/s; "
+                    "ratio = cold_seconds / warm_seconds")}
+    for case in cases:
+        def outcome(side):
+            ok = "success" if case[f"{side}_success"] else "FAILED"
+            tof = case[f"{side}_tof_days"]
+            return (f"s ({case[f'{side}_status']}, {ok}"
+                    + (f", tof {tof:.3f} d)" if tof is not None else ")"))
+        print_table(f"polish: {case['problem']}, N = {case['segments']} x "
+                    f"{case['sub_arcs']} sub-arcs", [
+                        ("closed form", case["closed_form_seconds"],
+                         f"s, {case['closed_form_iterations']} it"),
+                        ("+ polish", case["polish_seconds"], f"s, {case['polish_iterations']} it"),
+                        ("warm total", case["warm_seconds"], outcome("warm")),
+                        ("cold CVODES shooting", case["cold_seconds"],
+                         f"{outcome('cold')}, {case['cold_iterations']} it"),
+                        ("ratio", case["ratio"], "(cold / warm)")])
+    path = Path(out) / "polish.json"
+    write_json(path, data)
+    return path
+
+
+BENCHES["polish"] = polish_bench
+
+
 def _collocation_module():
     """Import the independent collocation reference script (tests/reference/collocation.py)
     by its path: it is a script, not part of the package, and only this benchmark runs it.

@@ -91,7 +91,8 @@ def _add_bench(sub):
     from esail_opt import bench
 
     p = sub.add_parser("bench", help="benchmarks, each against a baseline timed in the same run")
-    p.add_argument("name", choices=sorted(bench.BENCHES))
+    p.add_argument("name", nargs="+", choices=sorted(bench.BENCHES),
+                   help="one or more benchmarks, run one after another in this run")
     p.add_argument("--out", default="results/bench", help="output directory (default results/bench)")
     p.add_argument("--repeats", type=int, default=20, help="timed runs per method (median; default 20)")
     p.set_defaults(run=_run_bench)
@@ -102,7 +103,8 @@ def _run_bench(args):
 
     if args.repeats < 1:
         raise InputError(f"repeats = {args.repeats} is outside [1, inf)")
-    print(f"wrote {bench.BENCHES[args.name](args.out, args.repeats)}")
+    for name in dict.fromkeys(args.name):
+        print(f"wrote {bench.BENCHES[name](args.out, args.repeats)}")
     return 0
 
 
