@@ -25,7 +25,9 @@ The problem
 Canonical units (au, mu = 1, TU = sqrt(au^3/mu)).  State x = [r, theta, v_r, v_theta].
 Start: circular orbit at 1 au, x(0) = [1, 0, 0, 1] (theta0 = 0: with a circular start the
 departure angle is irrelevant).  End: r = R, v_r = 0, v_theta = sqrt(1/R) at t = tf,
-theta(tf) free.  The sail is always on with characteristic acceleration a_c; the only
+theta(tf) free -- or, for a rendezvous case (``phase_deg`` and ``k`` in CASES), on the body:
+theta(tf) = phase + tf R^-3/2 + 2 pi k, one more equality (no revolution windows then: k
+fixes the class), and the verification adds the along-track miss to the body.  The sail is always on with characteristic acceleration a_c; the only
 control is the pitch alpha_n in [-90, 90] deg.  Minimise tf.
 
 Transcription
@@ -118,6 +120,9 @@ CASES = {
     "earth_venus": {"ac_mm_s2": 1.0, "rf_au": 0.723},
     "earth_mars_low": {"ac_mm_s2": 0.1, "rf_au": 1.524},
     "earth_venus_low": {"ac_mm_s2": 0.1, "rf_au": 0.723},
+    # Rendezvous with Mars, 44 deg ahead at departure, meeting it after gaining k = 0
+    # whole turns on it (problems/earth_mars_rendezvous.py's best class).
+    "earth_mars_rendezvous": {"ac_mm_s2": 1.0, "rf_au": 1.524, "phase_deg": 44.0, "k": 0},
 }
 R0_AU = 1.0
 
@@ -198,8 +203,9 @@ class Transcription:
     Grid point 3k + j (j = 0..3) of interval k sits at tau = (k + NODES[j]) / N.
     """
 
-    def __init__(self, N, ac, rf, print_level=0):
+    def __init__(self, N, ac, rf, print_level=0, rendezvous=None):
         self.N, self.ac, self.rf = N, ac, rf
+        self.rendezvous = rendezvous
         npts = DEGREE * N + 1
         self.npts = npts
         Z = ca.SX.sym("Z", 4, npts)
@@ -227,7 +233,13 @@ class Transcription:
 
         w = ca.vertcat(ca.vec(Z), ca.vec(A), tf)
         self.nw = w.numel()
-        nlp = {"x": w, "f": tf, "g": ca.vec(g)}
+        g = ca.vec(g)
+        if rendezvous is not None:
+            # Meet the body: theta(tf) = phi0 + n tf + 2 pi k, the body on its circular
+            # orbit of radius rf (r, v_r and v_theta are already the target's).
+            phi0, k = rendezvous
+            g = ca.vertcat(g, Z[1, -1] - (phi0 + tf * rf ** -1.5 + 2 * math.pi * k))
+        nlp = {"x": w, "f": tf, "g": g}
         opts = {
             "print_time": False,
             "ipopt.print_level": print_level,
@@ -295,7 +307,8 @@ class Transcription:
         tf, Z, A = self.unpack(sol["x"])
         # Multipliers of the v_r and v_theta defects at each collocation point (the NLP
         # costates, g being 4 x 3N stored column by column).
-        lam = np.asarray(sol["lam_g"]).reshape((4, DEGREE * self.N), order="F")
+        lam = np.asarray(sol["lam_g"]).ravel()[:4 * DEGREE * self.N].reshape(
+            (4, DEGREE * self.N), order="F")
         return {
             "tf": tf, "Z": Z, "A": A, "N": self.N, "lam_v": lam[2:4],
             "status": stats["return_status"],
@@ -420,7 +433,7 @@ def physical_pitch(alpha):
     return (np.asarray(alpha) + math.pi / 2) % math.pi - math.pi / 2
 
 
-def verify(sol, ac, rf):
+def verify(sol, ac, rf, rendezvous=None):
     """Re-integrate Eqs. 1-2 with the continuous piecewise-cubic control.
 
     Interval by interval so that DOP853 never steps across the kink (C0 only) of the
@@ -445,7 +458,7 @@ def verify(sol, ac, rf):
     km = units.length_to_km(1.0)
     m_s = units.speed_to_km_s(1.0) * 1e3
     dv = np.hypot(x[2] - tgt[1], x[3] - tgt[2])
-    return {
+    out = {
         "final_state_integrated": {"r_au": x[0], "theta_rad": x[1], "v_r": x[2], "v_theta": x[3]},
         "miss_r_km": abs(x[0] - tgt[0]) * km,
         "miss_v_r_m_s": abs(x[2] - tgt[1]) * m_s,
@@ -458,6 +471,12 @@ def verify(sol, ac, rf):
         "rhs_evaluations": int(nfev),
         "minimum_principle_cosine_min_max": minimum_principle_alignment(sol),
     }
+    if rendezvous is not None:
+        phi0, k = rendezvous
+        body = phi0 + tf * rf ** -1.5 + 2 * math.pi * k
+        # Along-track distance to the body at arrival (r, v_r, v_theta are checked above).
+        out["miss_body_km"] = abs(x[1] - body) * x[0] * km
+    return out
 
 
 # ----------------------------------------------------------------------------------------
@@ -506,18 +525,20 @@ FLY_MISS_M_S = 0.1
 
 
 def flies(ver):
-    return ver["miss_r_km"] < FLY_MISS_KM and ver["miss_v_m_s"] < FLY_MISS_M_S
+    return (ver["miss_r_km"] < FLY_MISS_KM and ver["miss_v_m_s"] < FLY_MISS_M_S
+            and ver.get("miss_body_km", 0.0) < FLY_MISS_KM)
 
 
 def miss_summary(ver):
     keys = ("miss_r_km", "miss_v_m_s", "theta_vs_collocation_km",
-            "minimum_principle_cosine_min_max")
-    return {k: ver[k] for k in keys}
+            "minimum_principle_cosine_min_max", "miss_body_km")
+    return {k: ver[k] for k in keys if k in ver}
 
 
 def run_case(name, spec):
     ac = units.accel_from_mm_s2(spec["ac_mm_s2"])
     rf = spec["rf_au"]
+    rv = ((math.radians(spec["phase_deg"]), spec["k"]) if "phase_deg" in spec else None)
     lb = tof_lower_bound(ac, rf)
     t_case = time.perf_counter()
     log(f"{name}: a_c = {spec['ac_mm_s2']} mm/s^2, R = {rf} au, "
@@ -527,7 +548,7 @@ def run_case(name, spec):
     guesses = starts(ac, rf)
     n_search = intervals_for(max(g.tf for g in guesses), rf,
                              INTERVALS_PER_REV_SEARCH, MIN_INTERVALS_SEARCH)
-    search = Transcription(n_search, ac, rf)
+    search = Transcription(n_search, ac, rf, rendezvous=rv)
     runs = []
 
     def record(s, label):
@@ -548,7 +569,8 @@ def run_case(name, spec):
     k_lo = max(0, int(math.floor(min(free_revs))) - 1)
     k_hi = int(math.floor(max(free_revs))) + 2
     windows = []
-    for k in range(k_lo, k_hi + 1):
+    # A rendezvous's turn count is fixed by its constraint: no windows to visit.
+    for k in ([] if rv is not None else range(k_lo, k_hi + 1)):
         window = (2 * math.pi * k, 2 * math.pi * (k + 1))
         boxed = search.solve(spiral_guess(ac, rf, k + 0.5), theta_window=window)
         windows.append({
@@ -573,12 +595,12 @@ def run_case(name, spec):
     refined, rejected = [], []
     for o in optima:
         n_rep = intervals_for(o["tf"], rf, INTERVALS_PER_REV_REPORT, MIN_INTERVALS_REPORT)
-        s = Transcription(n_rep, ac, rf).solve(solution_guess(o))
+        s = Transcription(n_rep, ac, rf, rendezvous=rv).solve(solution_guess(o))
         s["start"] = o["start"]
         if not s["ok"]:
             log(f"  optimum from {o['start']}: N={n_rep} failed ({s['status']})")
             continue
-        s["verification"] = verify(s, ac, rf)
+        s["verification"] = verify(s, ac, rf, rv)
         if flies(s["verification"]):
             refined.append(s)
         else:
@@ -594,7 +616,7 @@ def run_case(name, spec):
 
     # 3. Refinement study: the best on N and on 2N intervals (halved step).
     n = best["N"]
-    fine = Transcription(2 * n, ac, rf).solve(solution_guess(best))
+    fine = Transcription(2 * n, ac, rf, rendezvous=rv).solve(solution_guess(best))
     if not fine["ok"]:
         raise RuntimeError(f"{name}: fine mesh failed: {fine['status']}")
     tof_c = units.time_to_days(best["tf"])
@@ -602,12 +624,12 @@ def run_case(name, spec):
     rel = abs(tof_f - tof_c) / tof_f
     log(f"  refinement: N={n} {tof_c:.8f} d, 2N={2 * n} {tof_f:.8f} d, rel change {rel:.2e}")
 
-    ver = verify(fine, ac, rf)
+    ver = verify(fine, ac, rf, rv)
     log(f"  verification (2N): miss r {ver['miss_r_km']:.3e} km, v {ver['miss_v_m_s']:.3e} m/s, "
         f"along-track vs collocation {ver['theta_vs_collocation_km']:.3e} km")
 
     alpha_pts = control_at_points(fine["A"])
-    return {
+    result = {
         "ac_mm_s2": spec["ac_mm_s2"],
         "r0_au": R0_AU,
         "rf_au": rf,
@@ -670,6 +692,9 @@ def run_case(name, spec):
             "at N, the best re-solved at 2N; verification by DOP853 rtol=atol=1e-12."),
         "runtime_seconds": time.perf_counter() - t_case,
     }
+    if rv is not None:
+        result["rendezvous"] = {"phase_deg": spec["phase_deg"], "k": spec["k"]}
+    return result
 
 
 def main(argv):
