@@ -35,3 +35,23 @@ def save_figure(fig, path, dpi=150):
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format=Path(path).suffix.lstrip(".") or "png")
     plt.close(fig)
+
+
+def json_ready(obj):
+    """``obj`` with NaN/inf as None and numpy scalars as Python ones, so the JSON stays
+    standard (:func:`write_json` forbids NaN)."""
+    import math
+
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {k: json_ready(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_ready(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj

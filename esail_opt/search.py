@@ -14,10 +14,10 @@ import csv
 import io
 from pathlib import Path
 
-from esail_opt.files import atomic_path, save_figure, write_json
+from esail_opt.files import atomic_path, json_ready, save_figure, write_json
 from esail_opt.optimisation import multistart
 from esail_opt.physics import constants as units
-from esail_opt.solution import _finite, solution_of
+from esail_opt.solution import solution_of
 
 FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous_k",
           "tof_days_closed_form", "tof_days_exact", "verified", "polish_status",
@@ -101,7 +101,7 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
                 "active (the best transfer with that many revolutions, not a local "
                 "optimum of the problem as posed)"),
     }
-    return _finite(data), solutions
+    return json_ready(data), solutions
 
 
 def table_csv(data):

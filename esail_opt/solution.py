@@ -16,7 +16,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from esail_opt.files import atomic_path, write_json
+from esail_opt.files import atomic_path, json_ready, write_json
 from esail_opt.optimisation import problem as pb
 from esail_opt.optimisation import polish as exact_refinement
 from esail_opt.optimisation.solve import solve_problem
@@ -419,19 +419,5 @@ def solution_of(problem, result, revolutions_k=0, samples=16, polish=False, prog
     elif polish:
         data["polish"] = {"status": None, "converged": False, "verified": False,
                           "note": f"NOT polished: the closed-form solve ended {result.status}"}
-    return Solution(_finite(data))
+    return Solution(json_ready(data))
 
-
-def _finite(obj):
-    """Replace NaN/inf by None so the JSON stays standard (write_json forbids NaN)."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from esail_opt.errors import InputError
-from esail_opt.files import atomic_path, save_figure, write_json
+from esail_opt.files import atomic_path, json_ready, save_figure, write_json
 
 
 @dataclasses.dataclass(frozen=True)
@@ -420,20 +420,10 @@ def write(result, out_dir):
     paths = [out / "sweep.csv", out / "sweep.json", out / "sweep.png"]
     with atomic_path(paths[0]) as tmp:
         tmp.write_text(table_csv(result))
-    write_json(paths[1], _finite(result))
+    write_json(paths[1], json_ready(result))
     save_figure(figure(result), paths[2])
     return paths
 
-
-def _finite(obj):
-    """NaN/inf -> None, so the JSON stays standard (write_json forbids NaN)."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    return obj
 
 
 def progress_line(row, done, total, name, stream=None):

@@ -7,7 +7,8 @@ import pytest
 
 import esail_opt as eo
 from esail_opt.physics import constants as units
-from esail_opt.solution import Solution, _finite
+from esail_opt.files import json_ready
+from esail_opt.solution import Solution
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +48,7 @@ def test_files_round_trip(solution, tmp_path):
 
 
 def test_non_finite_numbers_become_null():
-    assert _finite({"a": [math.nan, 1.0], "b": math.inf}) == {"a": [None, 1.0], "b": None}
+    assert json_ready({"a": [math.nan, 1.0], "b": math.inf}) == {"a": [None, 1.0], "b": None}
 
 
 def test_same_problem_gives_the_same_numbers(solution):
