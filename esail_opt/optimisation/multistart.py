@@ -251,12 +251,11 @@ def search(problem, extra_revolutions=2, progress=None):
     else:
         centre = base_k if rendezvous else int(float(tr.guess.nodes[1, -1]
                                                       - problem.x0()[1]) // (2 * math.pi))
-    # The free start's own class gets no second start: a converged free optimum with
-    # its final angle in window k is already a local optimum of that window (bound
-    # inactive), and a rendezvous start's class is its k.
-    covered = base_k if rendezvous else (centre if first.outcome == "converged" else None)
+    # The free start's own window gets a start of its own as well: on Earth-Mars at 30
+    # segments the two reach the same transfer with the pitch passing +-90 deg in
+    # different segments, and only one of the two polished to a verified schedule.
     classes = [k for k in range(centre - 1, centre + extra_revolutions + 1)
-               if k >= 0 and k != covered]
+               if k >= 0 and not (rendezvous and k == base_k)]
     starts = (rendezvous_starts(problem, classes) if rendezvous
               else window_starts(problem, classes))
 
