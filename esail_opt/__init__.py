@@ -9,6 +9,7 @@ runs it and returns a :class:`Solution`.
 from esail_opt.optimisation.problem import (  # noqa: F401
     BEST_FIT, EXACT, CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius, MinTime,
     Orbit, ParkingOrbit, PathConstraints, PolarState, Problem, Rendezvous, Sail, Segments,
+    Tolerance,
 )
 
 

@@ -34,7 +34,7 @@ from esail_opt.physics.thrust import BEST_FIT, EXACT
 __all__ = [
     "ParkingOrbit", "PolarState", "Sail", "Segments", "MinTime", "MaxRadius", "MaxEnergy",
     "FinalStateExpression", "CircularOrbit", "Orbit", "Rendezvous", "PathConstraints",
-    "Problem", "EXACT", "BEST_FIT",
+    "Tolerance", "Problem", "EXACT", "BEST_FIT",
 ]
 
 
@@ -369,6 +369,31 @@ class PathConstraints:
         check_range("path.q3_margin", self.q3_margin, 0, 1, low_open=True, high_open=True)
 
 
+@dataclass(frozen=True)
+class Tolerance:
+    """How close the schedule, flown on Eqs. 1-2, must end to what the NLP promised.
+
+    A run is *verified* only when its flight meets both bounds: against the target,
+    or, for a problem without one, against the NLP's own final state (so that a
+    fixed-time objective is what it claims).  The closed form is refined until they
+    hold (``optimisation.refine``).
+
+    Attributes
+    ----------
+    position_km : float
+        Bound on the flown position miss, km, in [1e-3, 1e8].
+    velocity_m_s : float
+        Bound on the flown velocity miss, m/s, in [1e-6, 1e5].
+    """
+
+    position_km: float = 10_000.0
+    velocity_m_s: float = 10.0
+
+    def __post_init__(self):
+        check_range("tolerance.position_km", self.position_km, 1e-3, 1e8, unit="km")
+        check_range("tolerance.velocity_m_s", self.velocity_m_s, 1e-6, 1e5, unit="m/s")
+
+
 Departure = Union[ParkingOrbit, PolarState]
 Objective = Union[MinTime, MaxRadius, MaxEnergy, FinalStateExpression]
 Target = Optional[Union[CircularOrbit, Orbit, Rendezvous]]
@@ -394,6 +419,8 @@ class Problem:
         when the target lies outward, -45 deg inward, +45 deg with no target.
     max_revolutions : float
         Bound on the total swept angle, revolutions; it also bounds each free segment.
+    tolerance : Tolerance
+        What the flown schedule must meet to be reported as verified.
     description : str
     """
 
@@ -406,6 +433,7 @@ class Problem:
     path: PathConstraints = PathConstraints()
     guess_alpha_deg: Optional[float] = None
     max_revolutions: float = 20.0
+    tolerance: Tolerance = Tolerance()
     description: str = ""
 
     def __post_init__(self):
@@ -414,7 +442,7 @@ class Problem:
         for attr, kinds in (("departure", (ParkingOrbit, PolarState)), ("sail", (Sail,)),
                             ("segments", (Segments,)),
                             ("objective", (MinTime, MaxRadius, MaxEnergy, FinalStateExpression)),
-                            ("path", (PathConstraints,))):
+                            ("path", (PathConstraints,)), ("tolerance", (Tolerance,))):
             if not isinstance(getattr(self, attr), kinds):
                 names = ", ".join(k.__name__ for k in kinds)
                 raise InputError(f"{attr} = {getattr(self, attr)!r} is not one of: {names}")
@@ -433,6 +461,14 @@ class Problem:
         """The same problem with ``count`` control segments (``--segments``; it replaces
         a ``per_revolution`` rule)."""
         return _replace(self, segments=_replace(self.segments, count=count, per_revolution=None))
+
+    def with_tolerance(self, position_km=None, velocity_m_s=None):
+        """The same problem with the tolerance's bounds replaced where given
+        (``--tol-km``, ``--tol-m-s``)."""
+        tol = self.tolerance
+        return _replace(self, tolerance=Tolerance(
+            tol.position_km if position_km is None else position_km,
+            tol.velocity_m_s if velocity_m_s is None else velocity_m_s))
 
     # -- canonical views, the only unit conversions of this layer
 
