@@ -10,6 +10,8 @@ import sys
 from esail_opt.errors import InputError
 
 EXIT_INPUT = 2
+#: The shell's convention for a run stopped by SIGINT (128 + 2).
+EXIT_INTERRUPTED = 130
 
 
 def _number(text):
@@ -284,6 +286,10 @@ def main(argv=None):
     except InputError as err:
         print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
         return EXIT_INPUT
+    except KeyboardInterrupt:
+        print(f"\nesail-opt {args.command}: interrupted; nothing half-done was written",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":
