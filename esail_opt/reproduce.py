@@ -18,7 +18,7 @@ ALPHA_DEG = np.linspace(-90, 90, 37)
 AC_MM_S2 = np.linspace(0.005, 0.1, 20)
 YEARS = 5.0
 #: Mercury as the paper prints it: 0.308 au is nearly Mercury's perihelion radius,
-#: not its semimajor axis (0.387 au); PHYSICS-NOTES.md keeps the printed value.
+#: not its semimajor axis (0.387 au); the printed value is kept (THEORY.md §6.5).
 MERCURY = {"a0": 0.308, "e0": 0.206, "nu0": 0.0}
 
 

@@ -70,7 +70,7 @@ def test_closed_form_matches_quadrature_of_eq13(e0, th0, length, act, alpha):
 
 
 def paper_elliptic_d(e0, th0, th, act):
-    """Eqs. 21-25 as printed, with E from Eq. 26 made continuous (PHYSICS-NOTES.md)."""
+    """Eqs. 21-25 as printed, with E from Eq. 26 made continuous (THEORY.md §3.3, §6.2)."""
     h0 = math.sqrt(1 + e0 * math.cos(th0))
     beta = e0 / (1 + math.sqrt(1 - e0**2))
 

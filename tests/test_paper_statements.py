@@ -14,7 +14,7 @@ def test_fig3_eps_below_4_percent():
     assert reproduce.AC_MM_S2.max() == pytest.approx(0.1)
     eps = reproduce.eps_map(1.0, 0.0, 0.0, "fig3 test")
     assert eps.max() < 0.04
-    # PHYSICS-NOTES.md: the largest error is near +45 deg, and raising errs more.
+    # THEORY.md §6.6: the largest error is near +45 deg, and raising errs more.
     i, _ = np.unravel_index(np.argmax(eps), eps.shape)
     assert 30 <= reproduce.ALPHA_DEG[i] <= 60
     assert eps[list(reproduce.ALPHA_DEG).index(45.0)].max() > eps[list(reproduce.ALPHA_DEG).index(-45.0)].max()

@@ -40,7 +40,7 @@ def test_thrust_components_eqs_3_4(coefficients):
 
 
 def test_exact_model_equivalent_forms():
-    """R = (1 + cos^2 a)/2, T = sin a cos a / 2 for b1 = 3/4, b2 = 1/4 (PHYSICS-NOTES.md)."""
+    """R = (1 + cos^2 a)/2, T = sin a cos a / 2 for b1 = 3/4, b2 = 1/4 (THEORY.md §1.2)."""
     for a in np.linspace(-math.pi / 2, math.pi / 2, 19):
         R, T = radial_transverse(a)
         assert R == pytest.approx((1 + math.cos(a) ** 2) / 2, abs=1e-15)

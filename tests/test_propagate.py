@@ -29,7 +29,7 @@ def dop853(x0, ac, alpha, t_end, t_eval):
 
 
 def test_angular_momentum_grows_linearly_under_cvodes():
-    """With alpha fixed, Eq. 2 gives h = h0 + a_c T t exactly (PHYSICS-NOTES.md)."""
+    """With alpha fixed, Eq. 2 gives h = h0 + a_c T t exactly (THEORY.md §2.4)."""
     ac, alpha = units.accel_from_mm_s2(0.5), math.radians(30)
     xs = simulate([1.0, 0.0, 0.0, 1.0], [alpha], [20.0], ac, samples=50)
     _, T = radial_transverse(alpha)

@@ -236,7 +236,7 @@ def final_r_error(run, arcs, truth):
 
 
 def test_error_falls_like_one_over_arcs(truth_at_ten_years):
-    # PHYSICS-NOTES: 1/N.  Measured 1.025e-3 au at 320 arcs, 5.40e-4 au at 640.
+    # THEORY.md §5.2: 1/N.  Measured 1.025e-3 au at 320 arcs, 5.40e-4 au at 640.
     coarse = final_r_error(propagate, 320, truth_at_ten_years)
     fine = final_r_error(propagate, 640, truth_at_ten_years)
     assert 0.45 < fine / coarse < 0.6

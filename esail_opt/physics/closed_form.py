@@ -24,7 +24,7 @@ Units: lengths in r0 (the arc's first radius), speeds in sqrt(mu / r0), as in th
 paper; :func:`arc_end` converts from and to the canonical polar state.
 
 Eq. 6 as printed carries 1/(q3 s^2); the consistent prefactor is 1/s^2 (see
-PHYSICS-NOTES.md).  Only Eq. 14, which agrees with 1/s^2, is used here.
+THEORY.md §2.3 and §6.1).  Only Eq. 14, which agrees with 1/s^2, is used here.
 """
 
 import casadi as ca

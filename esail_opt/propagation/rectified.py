@@ -223,7 +223,7 @@ def extrapolated_function(segments, length_in="theta", coefficients=EXACT, nodes
     """Richardson extrapolation of the schedule to infinitely many arcs, one Function.
 
     The rectified closed form's error at a fixed point of the trajectory falls like
-    1/N with N arcs (PHYSICS-NOTES.md; measured by ``esail-opt reproduce
+    1/N with N arcs (THEORY.md §5.2-5.3; measured by ``esail-opt reproduce
     convergence``), so the leading term cancels in 2 x_{2N} - x_N: every segment is
     flown once whole and once as two halves, and the two end states are combined.
     The cost is 3N arcs.  ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) ->
