@@ -1,4 +1,4 @@
-"""Benchmarks.  Each one times its subject against a baseline measured in the same run
+"""The timing benchmarks (``esail_opt.bench`` merges their ``BENCHES``).  Each one times its subject against a baseline measured in the same run
 (machines are shared and noisy, so only ratios mean anything), prints a table and
 writes ``<out>/<name>.json``.  ``BENCHES`` maps a name to ``fn(out_dir, repeats)``,
 which returns the path it wrote."""
@@ -257,7 +257,7 @@ def solve(out, repeats):
 
     from esail_opt.files import write_json
 
-    folder = Path(__file__).resolve().parents[1] / "problems"
+    folder = Path(__file__).resolve().parents[2] / "problems"
     cases = [_solve_case(folder / name, repeats) for name in SOLVE_PROBLEMS]
     keys = ("closed_form_seconds", "cvodes_seconds", "closed_form_iterations",
             "cvodes_iterations", "ratio")
@@ -370,7 +370,7 @@ def polish_bench(out, repeats):
 
     from esail_opt.files import write_json
 
-    folder = Path(__file__).resolve().parents[1] / "problems"
+    folder = Path(__file__).resolve().parents[2] / "problems"
     cases = []
     for name in POLISH_PROBLEMS:
         print(f"bench polish: {name} ...", flush=True)
@@ -417,7 +417,7 @@ def _collocation_module():
 
     from esail_opt.errors import InputError
 
-    path = Path(__file__).resolve().parents[1] / "tests" / "reference" / "collocation.py"
+    path = Path(__file__).resolve().parents[2] / "tests" / "reference" / "collocation.py"
     if not path.is_file():
         raise InputError(f"bench lowthrust needs the collocation reference script {path}, "
                          "which is not there (run from a repository checkout)")
@@ -471,7 +471,7 @@ def lowthrust(out, repeats):
     from esail_opt.optimisation.verify import verify
     from esail_opt.physics import constants as units
 
-    folder = Path(__file__).resolve().parents[1] / "problems"
+    folder = Path(__file__).resolve().parents[2] / "problems"
     problem = _equal_lengths(load_problem(folder / LOWTHRUST_PROBLEM))
     colloc = _collocation_module()
     reference = json.loads(colloc.OUTPUT.read_text())[LOWTHRUST_REFERENCE]

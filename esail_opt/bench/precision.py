@@ -1,0 +1,396 @@
+"""Work-precision benchmark: solve time against verified accuracy, per method.
+
+Integrators are compared by the work each needs to reach a given accuracy, not at one
+setting each: a method that is fast at a coarse setting may need a fine, slow one to be
+as accurate as another.  Here the "work" is the wall time of a whole
+``solve_problem`` call (seed, NLP construction, Ipopt) and the "precision" is how far the
+optimised schedule, flown on the full Eqs. 1-2 by CVODES (``optimisation.verify``), ends
+from the target orbit: ``target_miss_r_km``.  Each method is run at several settings,
+its points form a curve, and the curves are read at fixed misses (1e6, 1e5 and 1e4 km)
+by :func:`seconds_at_miss`.
+
+The methods (a list of :class:`Method`; another entry is one more line in a case's
+``methods``):
+
+* ``closed_form``: the package's closed-form multiple shooting (Richardson-extrapolated
+  rectified arcs) at several segment counts and sub-arc counts;
+* ``rk4``: the same NLP with each segment integrated by classic RK4 in theta
+  (``bench.rk4.rk4_segment``) at several segment counts and steps per segment;
+* ``cvodes``: the same NLP with each segment one CVODES integration at 1e-12
+  (``transcription.cvodes_segment``), at one or two segment counts (it is slow).
+
+Every NLP has equal segment lengths (one Ipopt solve from the constant-pitch seed, as the
+other benchmarks time it) and the same Ipopt options; only the segment Function and the
+setting differ.
+"""
+
+import dataclasses
+import math
+import statistics
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+#: Target misses at which the curves are read, km, with their JSON keys.
+MISSES_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
+#: The method every other one is compared with (the ratios' denominator).
+BASELINE = "closed_form"
+#: Methods with fixed keys in each ``at_miss_km`` entry (null when never reached).
+REPORTED = ("closed_form", "rk4", "cvodes")
+
+
+@dataclass(frozen=True)
+class Method:
+    """One method at one setting.
+
+    Attributes
+    ----------
+    name : str
+        The method's name; points of the same name form one curve.
+    settings : dict
+        What is recorded with the point: ``segments`` (N, or None when a per-revolution
+        rule sets it: the solved N is recorded then) and ``steps`` (sub-arcs of the
+        closed form, RK4 steps per segment, None for an adaptive integrator); other keys
+        only label the progress line.
+    solve : callable
+        ``solve(problem) -> NLPResult``: everything that is timed.  ``problem`` is the
+        case's problem with equal segment lengths; the callable applies its own setting.
+    """
+
+    name: str
+    settings: dict
+    solve: Callable = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Case:
+    """A problem file (in ``problems/``) and the methods and settings run on it."""
+
+    file: str
+    methods: tuple
+
+
+def _with_count(problem, segments=None, per_revolution=None, sub_arcs=None):
+    """``problem`` with N fixed (``segments``) or per revolution, and its sub-arcs."""
+    seg = problem.segments
+    if per_revolution is not None:
+        seg = dataclasses.replace(seg, count=None, per_revolution=per_revolution)
+    elif segments is not None:
+        seg = dataclasses.replace(seg, count=segments, per_revolution=None)
+    if sub_arcs is not None:
+        seg = dataclasses.replace(seg, sub_arcs=sub_arcs)
+    return dataclasses.replace(problem, segments=seg)
+
+
+def closed_form(segments=None, sub_arcs=3, per_revolution=None):
+    """The package's own closed-form NLP (default segment) at one setting."""
+
+    def solve(problem):
+        from esail_opt.optimisation.solve import solve_problem
+
+        variant = _with_count(problem, segments, per_revolution, sub_arcs)
+        return solve_problem(variant)[0]
+
+    return Method("closed_form", {"segments": segments, "steps": sub_arcs,
+                                  "per_revolution": per_revolution}, solve)
+
+
+def rk4(segments=None, steps=1, per_revolution=None):
+    """The same NLP with RK4 segments of ``steps`` steps each."""
+
+    def solve(problem):
+        from esail_opt.bench.rk4 import rk4_segment
+        from esail_opt.optimisation.solve import solve_problem
+
+        variant = _with_count(problem, segments, per_revolution)
+        segment = rk4_segment(steps, problem.sail.coefficients)
+        return solve_problem(variant, segment=segment)[0]
+
+    return Method("rk4", {"segments": segments, "steps": steps,
+                          "per_revolution": per_revolution}, solve)
+
+
+def cvodes(segments=None, per_revolution=None):
+    """The same NLP with each segment one CVODES integration (1e-12) of Eqs. 1-2 in theta.
+
+    Its q3 rows are constants, so one row per segment keeps the NLP smallest; the
+    problem keeps its sub-arcs, which only shape the seed (the same seed as RK4's).
+    """
+
+    def solve(problem):
+        from esail_opt.optimisation.solve import solve_problem
+        from esail_opt.optimisation.transcription import cvodes_segment
+
+        variant = _with_count(problem, segments, per_revolution)
+        return solve_problem(variant, segment=cvodes_segment(1, problem.sail.coefficients))[0]
+
+    return Method("cvodes", {"segments": segments, "steps": None,
+                             "per_revolution": per_revolution}, solve)
+
+
+#: The two transfers.  At 1 mm/s^2 (about 1.2 revolutions) N is a total; at 0.1 mm/s^2
+#: (about 6.5 revolutions) it is per revolution, so N follows the seed's sweep as in the
+#: shipped problem file (16 per revolution x 2 sub-arcs there, N = 100).  RK4 also runs
+#: at coarser settings than the closed form: at its coarsest usual one (30 x 1 at
+#: 1 mm/s^2) it already misses by under 1e4 km, and a curve must cross a miss to be read
+#: there rather than only bounded.  CVODES segments are exact to 1e-12 at any N and cost
+#: seconds per solve, so they run at one or two N.
+CASES = (
+    Case("earth_mars_min_time.py", (
+        *(closed_form(segments=n, sub_arcs=s) for n in (20, 40, 60) for s in (1, 3)),
+        *(rk4(segments=n, steps=m) for n in (10, 20, 30, 60, 100) for m in (1, 2, 4)),
+        cvodes(segments=20), cvodes(segments=40),
+    )),
+    Case("earth_mars_low_thrust.py", (
+        *(closed_form(per_revolution=k, sub_arcs=s) for k in (8, 16, 24) for s in (1, 2)),
+        *(rk4(per_revolution=k, steps=m) for k in (4, 8, 16, 24) for m in (1, 2, 4)),
+        cvodes(per_revolution=4), cvodes(per_revolution=8),
+    )),
+)
+
+
+# ------------------------------------------------------------------ reading the curves
+
+
+def envelope(points):
+    """The lower-left envelope of (seconds, miss) points: those no other point beats.
+
+    A point is on it when every faster point misses by more.  Points with a miss of
+    None (failed) are left out.
+
+    Parameters
+    ----------
+    points : iterable of (float, float or None)
+        (seconds, miss_km).
+
+    Returns
+    -------
+    list of (float, float)
+        The envelope, fastest first: seconds strictly increasing, miss strictly
+        decreasing.
+    """
+    kept = []
+    # Ties in time: the more accurate first, so the other is dropped as dominated.
+    for seconds, miss in sorted((p for p in points if p[1] is not None),
+                                key=lambda p: (p[0], p[1])):
+        if not kept or miss < kept[-1][1]:
+            kept.append((float(seconds), float(miss)))
+    return kept
+
+
+def seconds_at_miss(points, target):
+    """Solve time at which a method's curve reaches a miss of ``target`` km.
+
+    Read on the lower-left envelope (:func:`envelope`).  Let B be the fastest point with
+    miss <= ``target``.  If a faster envelope point A misses by more than ``target``, the
+    two bracket it and the time is interpolated linearly in (log seconds, log miss)
+    between them: log s = log s_A + (log target - log m_A) / (log m_B - log m_A)
+    (log s_B - log s_A), which lies between s_A and s_B and equals s_B when B's miss is
+    exactly ``target``.  That is the straight segment of the log-log work-precision
+    curve, the usual reading of these diagrams: the time an intermediate setting would
+    take if time and miss followed a power law between the two settings measured.
+    Without a faster bracketing point (the fastest point already reaches ``target``) the
+    time is B's own: extrapolating below the fastest setting measured would not be
+    sound.  A method none of whose points reaches ``target`` gives None.
+
+    Parameters
+    ----------
+    points : iterable of (float, float or None)
+        (seconds, miss_km) of one method.
+    target : float
+        Miss, km, > 0.
+
+    Returns
+    -------
+    float or None
+        Seconds.
+    """
+    front = envelope(points)
+    for i, (s_b, m_b) in enumerate(front):
+        if m_b > target:
+            continue
+        if i == 0 or m_b <= 0.0:
+            return s_b
+        s_a, m_a = front[i - 1]
+        frac = (math.log(target) - math.log(m_a)) / (math.log(m_b) - math.log(m_a))
+        return math.exp(math.log(s_a) + frac * (math.log(s_b) - math.log(s_a)))
+    return None
+
+
+def at_miss(points, names=REPORTED):
+    """The ``at_miss_km`` entry of one case: each method's seconds at each target miss
+    and each other method's ratio to :data:`BASELINE` (None where either is None)."""
+    names = list(dict.fromkeys(list(names) + [p["method"] for p in points]))
+    curves = {name: [(p["seconds"], p["miss_km"]) for p in points if p["method"] == name]
+              for name in names}
+    out = {}
+    for key, target in MISSES_KM.items():
+        row = {f"{name}_seconds": seconds_at_miss(curves[name], target) for name in names}
+        base = row[f"{BASELINE}_seconds"]
+        for name in names:
+            if name != BASELINE:
+                other = row[f"{name}_seconds"]
+                row[f"ratio_{name}_over_{BASELINE}"] = (
+                    None if other is None or base is None else other / base)
+        out[key] = row
+    return out
+
+
+# ------------------------------------------------------------------ running
+
+
+def _warm_up():
+    """Load Ipopt's and CVODES's plugins and the closed form's Functions before any
+    timing, so that the first point timed does not pay for the process's start-up."""
+    import casadi as ca
+
+    from esail_opt.propagation.simulate import simulate
+
+    x = ca.MX.sym("x")
+    ca.nlpsol("warm_up", "ipopt", {"x": x, "f": (x - 1) ** 2},
+              {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False})(x0=0)
+    simulate([1.0, 0.0, 0.0, 1.0], [0.5], [0.1], 1e-3, independent="theta")
+
+
+def _label(settings):
+    return ", ".join(f"{k} {v}" for k, v in settings.items() if v is not None)
+
+
+def run_point(problem, method, runs):
+    """Solve with ``method`` ``runs`` times (median wall time), verify the last result,
+    and print one progress line to stderr.
+
+    Returns
+    -------
+    dict
+        ``{"method", "segments", "steps", "seconds", "miss_km", "status"}``: seconds is
+        the median wall time of ``method.solve``; miss_km the CVODES flight's distance to
+        the target orbit, km, or None when Ipopt did not converge (Solve_Succeeded) or
+        the flight failed; status Ipopt's return status, or what failed.
+    """
+    from esail_opt.optimisation.verify import verify
+    from esail_opt.physics import constants as units
+
+    times, result, status = [], None, None
+    for _ in range(runs):
+        start = time.perf_counter()
+        try:
+            result = method.solve(problem)
+        except Exception as err:  # a setting that cannot be built or solved is a point too
+            times.append(time.perf_counter() - start)
+            result, status = None, f"error: {type(err).__name__}: {err}".splitlines()[0]
+            break
+        times.append(time.perf_counter() - start)
+    miss, detail = None, ""
+    segments = method.settings.get("segments")
+    if result is not None:
+        status = result.status
+        segments = int(result.alpha.size)
+        detail = (f", {result.iterations} it, tof "
+                  f"{units.time_to_days(float(sum(result.durations))):.2f} d")
+        if result.converged:
+            check = verify(problem, result, samples=1)
+            if check.error is not None:
+                status = check.error
+            else:
+                miss = check.misses["target_miss_r_km"]
+    point = {"method": method.name, "segments": segments,
+             "steps": method.settings.get("steps"),
+             "seconds": statistics.median(times), "miss_km": miss, "status": status}
+    text = "failed" if miss is None else f"{miss:.3g} km"
+    print(f"bench precision: {problem.name}: {method.name} ({_label(method.settings)}, "
+          f"N = {segments}): {point['seconds']:.3g} s, miss {text}, {status}{detail}",
+          file=sys.stderr, flush=True)
+    return point
+
+
+def run_case(case, runs, folder):
+    """All methods of one case; returns its JSON entry (``problem``, ``ac_mm_s2``,
+    ``points``, ``at_miss_km``)."""
+    from esail_opt.optimisation.problem_file import load_problem
+
+    problem = load_problem(folder / case.file)
+    problem = dataclasses.replace(
+        problem, segments=dataclasses.replace(problem.segments, equal=True))
+    points = [run_point(problem, method, runs) for method in case.methods]
+    return {"problem": problem.name, "ac_mm_s2": problem.sail.ac_mm_s2, "points": points,
+            "at_miss_km": at_miss(points)}
+
+
+def precision_figure(cases):
+    """Log-log work-precision diagram, one panel per case: every point, each method's
+    envelope as a line, and the target misses as horizontal lines."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only: never needs a display
+    import matplotlib.pyplot as plt
+
+    styles = {"closed_form": ("o", "C0"), "rk4": ("s", "C1"), "cvodes": ("^", "C2")}
+    fig, axes = plt.subplots(1, len(cases), figsize=(6.0 * len(cases), 4.8), squeeze=False)
+    for ax, case in zip(axes[0], cases):
+        names = list(dict.fromkeys(p["method"] for p in case["points"]))
+        for i, name in enumerate(names):
+            marker, colour = styles.get(name, ("D", f"C{3 + i}"))
+            mine = [p for p in case["points"] if p["method"] == name]
+            ok = [(p["seconds"], p["miss_km"]) for p in mine if p["miss_km"] is not None]
+            failed = len(mine) - len(ok)
+            label = f"{name} ({failed} of {len(mine)} failed)" if failed else name
+            if ok:
+                ax.plot(*zip(*ok), marker, color=colour, alpha=0.45, ms=5)
+            front = envelope(ok)
+            if front:
+                ax.plot(*zip(*front), "-", marker=marker, color=colour, label=label)
+            else:
+                ax.plot([], [], marker, color=colour, label=label)
+        for key, miss in MISSES_KM.items():
+            ax.axhline(miss, color="0.5", lw=0.8, ls="--")
+            ax.annotate(f"{key} km", (1.0, miss), xycoords=("axes fraction", "data"),
+                        ha="right", va="bottom", fontsize=8, color="0.4")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("solve time [s] (seed + NLP construction + Ipopt)")
+        ax.set_ylabel("verified target miss [km] (CVODES flight)")
+        ax.set_title(f"{case['problem']}, a_c = {case['ac_mm_s2']:g} mm/s^2")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    return fig
+
+
+def precision(out, repeats):
+    """Work-precision benchmark of the shooting NLP: closed form, RK4 and CVODES arcs.
+
+    For each case in :data:`CASES` every method is solved at each of its settings
+    (median wall time of ``min(repeats, 3)`` runs of the whole ``solve_problem``:
+    seed, NLP construction and Ipopt), then its schedule is flown by CVODES and the
+    distance of the flight's end from the target orbit recorded.  Each method's seconds
+    at misses of 1e6, 1e5 and 1e4 km are read on its curve by :func:`seconds_at_miss`
+    (interpolated log-log between the envelope points that bracket the miss, else the
+    fastest point reaching it, None if none does); ratios are each method's seconds over
+    the closed form's.  Writes ``<out>/precision.json`` and ``<out>/precision.png``.
+    One progress line per point goes to stderr.
+    """
+    from esail_opt.bench.timings import print_table
+    from esail_opt.files import json_ready, save_figure, write_json
+
+    folder = Path(__file__).resolve().parents[2] / "problems"
+    runs = max(1, min(repeats, 3))
+    _warm_up()
+    cases = [run_case(case, runs, folder) for case in CASES]
+    for case in cases:
+        rows = []
+        for key, row in case["at_miss_km"].items():
+            for name, value in row.items():
+                if value is None:
+                    rows.append((f"{key} km: {name}", "never", ""))
+                else:
+                    rows.append((f"{key} km: {name}", float(value),
+                                 "s" if name.endswith("_seconds") else ""))
+        print_table(f"bench precision: {case['problem']}, a_c = {case['ac_mm_s2']:g} mm/s^2, "
+                    f"median of {runs}", rows)
+    path = Path(out) / "precision.json"
+    write_json(path, json_ready({"cases": cases}))
+    save_figure(precision_figure(cases), Path(out) / "precision.png")
+    return path
