@@ -1,7 +1,9 @@
-"""The timing benchmarks (``esail_opt.bench`` merges their ``BENCHES``).  Each one times its subject against a baseline measured in the same run
-(machines are shared and noisy, so only ratios mean anything), prints a table and
-writes ``<out>/<name>.json``.  ``BENCHES`` maps a name to ``fn(out_dir, repeats)``,
-which returns the path it wrote."""
+"""The timing benchmarks (``esail_opt.bench`` merges their ``BENCHES`` with the others).
+
+Each one times its subject against a baseline measured in the same run (machines are
+shared and noisy, so only ratios mean anything), prints a table and writes
+``<out>/<name>.json``.  ``BENCHES`` maps a name to ``fn(out_dir, repeats)``, which
+returns the path it wrote."""
 
 import statistics
 import time
