@@ -1,13 +1,22 @@
 """Sweeps: parameter parsing, a failed member kept in its row, and the same numbers from a
-local process pool, a real Dask LocalCluster on loopback and a direct in-process solve.
+local process pool, a real Dask LocalCluster on loopback and a direct in-process solve;
+then the faults: a worker killed mid-run, Ctrl-C and --resume, the journal, and members
+that converge without verifying.
 
-The family is a cheap Earth-Mars variant (6 segments of one closed-form arc each; under a
-second per member), written to tmp_path as a user would write a problem file.
+The families are cheap Earth-Mars and Earth-Venus variants (6 to 16 closed-form arcs; a
+second or two per member), written to tmp_path as a user would write a problem file,
+with a tolerance loose enough that the first-order closed form always verifies.
 """
 
 import dataclasses
 import json
 import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
 
 import pytest
 
@@ -24,6 +33,7 @@ problem = eo.Problem(
     segments=eo.Segments(count=6, sub_arcs=1),
     objective=eo.MinTime(),
     target=eo.CircularOrbit(radius_au=1.524),
+    tolerance=eo.Tolerance(position_km=1e8, velocity_m_s=1e5),
 )
 '''
 # a_c = 0 is outside Sail's (0, 100] mm/s^2: that member must fail in its row alone.
@@ -56,7 +66,7 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
     pool = json.loads((out / "sweep.json").read_text())
     assert (out / "sweep.png").stat().st_size > 10_000
     csv_lines = (out / "sweep.csv").read_text().splitlines()
-    assert csv_lines[0].startswith("index,ac_mm_s2,converged,status,tof_days")
+    assert csv_lines[0].startswith("index,ac_mm_s2,converged,verified,status,tof_days")
     assert len(csv_lines) == 1 + len(GRID)
 
     # Rows in grid order whatever finished first, the failed one kept and explained.
@@ -68,6 +78,7 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
     for row in others:
         assert row["converged"] and row["error"] is None
         assert row["status"] == "Solve_Succeeded"
+        assert row["verified"] in (None, True)  # None from a solve that gives no verdict
         # A 1 au -> 1.524 au transfer at 0.5-1.5 mm/s^2 takes roughly 1.5-3 years.
         assert 400 < row["tof_days"] < 1200
         assert row["target_miss_r_km"] is not None and math.isfinite(row["target_miss_r_km"])
@@ -162,3 +173,312 @@ def test_polished_member_is_exact_and_cannot_beat_the_continuous_optimum(tiny):
     plain = sweep.solve_member(0, "ac_mm_s2", 1.0, tiny.read_text(), tiny.name)
     assert plain["tof_days_exact"] is None and plain["exact_verified"] is None
     assert plain["tof_days"] == row["tof_days"]
+
+
+# ---------------------------------------------------------------- faults
+
+# Earth-Venus at 8 segments x 2 sub-arcs: one to two seconds a member.  Each time a
+# process loads it, it leaves an empty file named "<pid>-<ns>" in MARKS, so a test can
+# see which worker process has just started a member.
+VENUS = '''
+import os
+import pathlib
+import time
+
+import esail_opt as eo
+
+pathlib.Path(r"{marks}", f"{{os.getpid()}}-{{time.time_ns()}}").touch()
+
+problem = eo.Problem(
+    name="tiny_earth_venus",
+    departure=eo.ParkingOrbit(a_au=1.0),
+    sail=eo.Sail(ac_mm_s2=1.0),
+    segments=eo.Segments(count=8, sub_arcs=2),
+    objective=eo.MinTime(),
+    target=eo.CircularOrbit(radius_au=0.723),
+    tolerance=eo.Tolerance(position_km=1e8, velocity_m_s=1e5),
+)
+'''
+
+
+@pytest.fixture()
+def venus(tmp_path):
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    path = tmp_path / "tiny_earth_venus.py"
+    path.write_text(VENUS.format(marks=marks))
+    return path, marks
+
+
+def _journal(out):
+    """Header and rows of the journal in ``out`` (every line must be whole JSON)."""
+    header, *rows = [json.loads(line) for line in (out / sweep.JOURNAL).read_text().splitlines()]
+    return header, rows
+
+
+def _worker_marks(marks):
+    """(ns, pid) of every member start by a process other than this one, oldest first."""
+    found = []
+    for mark in marks.iterdir():
+        pid, ns = (int(part) for part in mark.name.split("-"))
+        if pid != os.getpid():
+            found.append((ns, pid))
+    return sorted(found)
+
+
+@pytest.mark.slow
+def test_killed_worker_costs_only_its_own_member(venus, tmp_path):
+    """SIGKILL one of two pool workers while it solves: the pool breaks and fails every
+    unfinished future, yet all four members end converged -- the killed worker's member
+    run again on a fresh pool and charged with one lost worker, the members of the
+    healthy worker not charged at all."""
+    path, marks = venus
+    killed = []
+
+    def kill_a_busy_worker():
+        deadline = time.monotonic() + 100
+        while time.monotonic() < deadline:
+            started = _worker_marks(marks)
+            if len({pid for _, pid in started}) >= 2:
+                # The newest start is a member certainly still solving 0.2 s later.
+                pid = started[-1][1]
+                time.sleep(0.2)
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+                return
+            time.sleep(0.02)
+
+    killer = threading.Thread(target=kill_a_busy_worker, daemon=True)
+    killer.start()
+    out = tmp_path / "out"
+    result = sweep.run(path, "ac_mm_s2=0.5:2:4", workers=2, out_dir=out)
+    killer.join(timeout=5)
+    print("killed worker", killed, "lost", result["lost"], "solved", result["solved"])
+
+    assert len(killed) == 1
+    assert [row["value"] for row in result["rows"]] == [0.5, 1.0, 1.5, 2.0]
+    for row in result["rows"]:
+        assert row["converged"] and row["error"] is None, row
+        assert row["status"] == "Solve_Succeeded"
+    assert result["failed"] == 0
+    # Exactly one member was charged, once, and it is the killed worker's.
+    assert len(result["lost"]) == 1
+    lost = result["lost"][0]
+    assert lost["losses"] == 1
+    assert f"worker pid {killed[0]} ended by SIGKILL" in lost["cause"]
+    assert sorted(result["solved"]) == [0, 1, 2, 3]
+    # The journal holds each member once, as it finished.
+    header, rows = _journal(out)
+    assert header["values"] == [0.5, 1.0, 1.5, 2.0] and header["problem"] == "tiny_earth_venus"
+    assert sorted(row["index"] for row in rows) == [0, 1, 2, 3]
+    assert [row["index"] for row in rows] == result["solved"]
+
+
+@pytest.mark.slow
+def test_member_lost_every_time_gets_its_own_row(venus, tmp_path, monkeypatch):
+    """A member whose worker dies on every attempt ends with "worker lost 3 times" in its
+    own row (not journaled, so --resume would try it again); the other member converges."""
+    path, _ = venus
+    # Submitted by name, so the spawned workers import this test module to run it.
+    monkeypatch.setattr(sweep, "_pool_member", _crashing_pool_member)
+    out = tmp_path / "out"
+    result = sweep.run(path, "ac_mm_s2=0.5:1:2", workers=1, out_dir=out, retries=2)
+    first, second = result["rows"]
+    assert first["converged"] and first["error"] is None
+    assert second["converged"] is False and second["tof_days"] is None
+    assert second["error"].startswith("worker lost 3 times: worker pid ")
+    assert second["error"].endswith("ended by SIGKILL")
+    assert result["failed"] == 1
+    assert result["lost"] == [{"index": 1, "value": 1.0, "losses": 3,
+                               "cause": second["error"].split(": ", 1)[1]}]
+    _, rows = _journal(out)
+    assert [row["index"] for row in rows] == [0]
+
+
+def _crashing_pool_member(started, index, *args):
+    """Pool member that kills its own worker for index 1 (after saying it started)."""
+    from pathlib import Path
+
+    Path(started, str(index)).write_text(str(os.getpid()))
+    if index == 1:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return sweep.solve_member(index, *args)
+
+
+def _sweep_command(path, param, out, *extra):
+    return [sys.executable, "-m", "esail_opt.cli", "sweep", str(path), "--param", param,
+            "--workers", "2", "--out", str(out), *extra]
+
+
+@pytest.mark.slow
+def test_interrupt_keeps_the_journal_and_resume_runs_only_the_rest(venus, tmp_path, capsys):
+    """Ctrl-C (SIGINT) on ``esail-opt sweep`` once a member has finished: exit 130, the
+    workers gone, the journal keeping the finished members, no sweep.csv.  Then
+    ``--resume`` solves exactly the missing members and leaves the journaled ones as
+    they were; a --resume with another grid is refused in one line."""
+    import psutil
+
+    path, _ = venus
+    out = tmp_path / "out"
+    param = "ac_mm_s2=0.5:2:6"
+    values = [0.5, 0.8, 1.1, 1.4, 1.7, 2.0]
+    proc = subprocess.Popen(_sweep_command(path, param, out), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 100
+        journal = out / sweep.JOURNAL
+        while time.monotonic() < deadline and proc.poll() is None:
+            if journal.exists() and len(journal.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, "the sweep ended before it could be interrupted"
+        workers = [child for child in psutil.Process(proc.pid).children(recursive=True)
+                   if "spawn_main" in " ".join(child.cmdline())]
+        assert workers
+        proc.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        _, stderr = proc.communicate(timeout=10)
+        stopped_after = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130
+    assert stderr.rstrip().splitlines()[-1] == (
+        "esail-opt sweep: interrupted; nothing half-done was written")
+    # The pool's workers were terminated, not left solving on their own.
+    gone, alive = psutil.wait_procs(workers, timeout=5)
+    assert not alive
+    for name in ("sweep.csv", "sweep.json", "sweep.png"):
+        assert not (out / name).exists()
+    before = journal.read_text()
+    header, rows = _journal(out)
+    assert header["values"] == values
+    kept = sorted(row["index"] for row in rows)
+    assert 1 <= len(kept) < len(values) and len(set(kept)) == len(kept)
+    assert all(row["converged"] and row["value"] == values[row["index"]] for row in rows)
+    missing = [i for i in range(len(values)) if i not in kept]
+
+    # --resume, as a user would run it after the interrupt.
+    assert cli.main(_sweep_command(path, param, out, "--resume")[3:]) == 0
+    err = capsys.readouterr().err
+    ran = [line for line in err.splitlines() if line.startswith("esail-opt sweep: [")]
+    with capsys.disabled():
+        print(f"\nSIGINT to exit: {stopped_after:.2f} s; journal kept {kept}, resume ran "
+              f"{missing}:\n" + "\n".join(ran))
+    assert len(ran) == len(missing)
+    result = json.loads((out / "sweep.json").read_text())
+    assert result["resumed"] == kept
+    assert sorted(result["solved"]) == missing
+    assert [row["value"] for row in result["rows"]] == values
+    assert all(row["converged"] and row["error"] is None for row in result["rows"])
+    # The journaled rows are untouched, byte for byte; the new ones follow them.
+    after = journal.read_text()
+    assert after.startswith(before)
+    _, rows = _journal(out)
+    assert sorted(row["index"] for row in rows) == list(range(len(values)))
+    by_index = {row["index"]: row for row in rows}
+    for row in result["rows"]:
+        assert row["tof_days"] == by_index[row["index"]]["tof_days"]
+
+    # A journal of one grid does not resume another: one line, exit 2, nothing changed.
+    assert cli.main(_sweep_command(path, "ac_mm_s2=0.5:2:5", out, "--resume")[3:]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "belongs to another sweep: its values is" in err
+    assert journal.read_text() == after
+
+
+def test_journal_resumes_on_index_and_value_and_refuses_another_sweep(tmp_path):
+    """The journal: a torn last line and rows of another grid are not kept; a fresh
+    start replaces it; another problem file, param, grid or tolerance is refused."""
+    path = tmp_path / sweep.JOURNAL
+    header = {"journal": "esail-opt sweep", "problem": "p", "source_sha256": "abc",
+              "param": "ac_mm_s2", "values": [0.5, 1.0, 1.5], "polish": False,
+              "tolerance": {"position_km": 1e4, "velocity_m_s": 10.0}}
+    journal = sweep.Journal(path, header)
+    assert journal.open(resume=True) == {}  # nothing to resume: a fresh journal
+    journal.append({**sweep._empty_row(2, 1.5), "converged": True, "tof_days": 300.0})
+    journal.append({**sweep._empty_row(1, 0.75), "converged": True})  # not this grid's
+    with open(path, "a") as f:
+        f.write('{"index": 0, "value": 0.5, "conv')  # torn by a crash mid-append
+    kept = sweep.Journal(path, header).open(resume=True)
+    assert list(kept) == [2]
+    assert kept[2]["tof_days"] == 300.0 and set(kept[2]) == set(sweep.CSV_FIELDS)
+
+    for key, value, message in (
+            ("source_sha256", "def", "the problem file changed since it was written"),
+            ("param", "segments", "its param is 'ac_mm_s2', not 'segments'"),
+            ("values", [0.5, 1.0], "its values is [0.5, 1.0, 1.5], not [0.5, 1.0]"),
+            ("tolerance", {"position_km": 1.0, "velocity_m_s": 10.0}, "its tolerance is")):
+        with pytest.raises(InputError, match="belongs to another sweep") as err:
+            sweep.Journal(path, {**header, key: value}).open(resume=True)
+        assert message in str(err.value) and "\n" not in str(err.value)
+
+    # Without resume the old journal is replaced by a bare header.
+    assert sweep.Journal(path, {**header, "values": [9.0]}).open(resume=False) == {}
+    assert [json.loads(line) for line in path.read_text().splitlines()] == [
+        {**header, "values": [9.0]}]
+    path.write_text("not json\n")
+    with pytest.raises(InputError, match="is not a sweep journal"):
+        sweep.Journal(path, header).open(resume=True)
+
+
+class _Unverified:
+    """Stands in for a Solution that converged but whose flight missed the tolerance."""
+
+    converged = True
+
+    def __init__(self, problem, note=None):
+        self.problem = problem
+        self.data = {"status": "Solve_Succeeded", "tof_days": 300.0, "objective": 5.0,
+                     "iterations": 20, "verified": False,
+                     "verification": {"target_miss_r_km": 1234.5, "target_miss_v_m_s": 6.5,
+                                      "error": None}}
+        if note:
+            self.data["verification_note"] = note
+
+    def __getitem__(self, key):
+        return self.data[key]
+
+
+def test_converged_but_not_verified_member_fails_in_its_row(tiny, monkeypatch):
+    """--tol-km/--tol-m-s reach the member's problem, and a converged member whose flight
+    misses them is a failure with its reason; the solve's own note wins when it has one."""
+    from esail_opt import solution
+
+    seen = []
+
+    def fake_solve(problem, polish=False, note=None):
+        seen.append(problem)
+        return _Unverified(problem, note)
+
+    monkeypatch.setattr(solution, "solve", fake_solve)
+    row = sweep.solve_member(0, "ac_mm_s2", 1.0, tiny.read_text(), tiny.name,
+                             tol_km=1000.0, tol_m_s=5.0)
+    assert seen[-1].tolerance.position_km == 1000.0 and seen[-1].tolerance.velocity_m_s == 5.0
+    assert seen[-1].sail.ac_mm_s2 == 1.0
+    assert row["converged"] is True and row["verified"] is False
+    assert row["error"] == ("not verified: position miss 1234 km (tolerance 1000 km); "
+                            "velocity miss 6.5 m/s (tolerance 5 m/s)")
+    # Only the bound given is replaced; the other stays the problem file's (1e5 m/s).
+    sweep.solve_member(0, "ac_mm_s2", 1.0, tiny.read_text(), tiny.name, tol_km=2.0)
+    assert seen[-1].tolerance.position_km == 2.0 and seen[-1].tolerance.velocity_m_s == 1e5
+
+    monkeypatch.setattr(solution, "solve",
+                        lambda problem, polish=False: _Unverified(problem, "miss 2 au > 1 au"))
+    row = sweep.solve_member(0, "ac_mm_s2", 1.0, tiny.read_text(), tiny.name)
+    assert row["error"] == "not verified: miss 2 au > 1 au"
+    result = {"rows": [row], "param": "ac_mm_s2"}
+    assert sweep.table_csv(result).splitlines()[1].split(",")[3] == "False"
+
+
+def test_bad_tolerance_is_one_line_exit_2_nothing_written(tiny, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(tiny), "--param", PARAM, "--tol-km", "0",
+                     "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tolerance.position_km = 0.0 km is outside" in err
+    assert cli.main(["sweep", str(tiny), "--param", PARAM, "--tol-m-s", "nan",
+                     "--out", str(out)]) == 2
+    assert "tolerance.velocity_m_s = nan m/s is outside" in capsys.readouterr().err
+    assert not out.exists()
