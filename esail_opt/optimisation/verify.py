@@ -2,10 +2,14 @@
 
 The schedule is flown from the departure state with the pitch switching at the NLP's
 segment start times and each segment lasting the NLP's own duration (the closed form's
-clock), at CVODES tolerances of 1e-12 (``esail_opt.propagation.simulate``).  The final
-state is compared twice: with the NLP's final node (how far the closed form drifted from
-the true dynamics) and with the target (how far the flown trajectory ends from where the
-mission wanted to be).
+clock).  The final state is compared twice: with the NLP's final node (how far the
+closed form drifted from the true dynamics) and with the target (how far the flown
+trajectory ends from where the mission wanted to be).
+
+The verifier is itself an integrator with an error, so it flies every schedule twice,
+at CVODES tolerances of 3e-16 and 1e-15 (``simulate.VERIFY_TOLERANCE`` and
+``CHECK_TOLERANCE``), and reports the difference of the two final states as its own
+error.  :func:`judge` counts a bound as met only when the miss plus that error is below it.
 """
 
 import math
@@ -18,7 +22,7 @@ from esail_opt.optimisation import problem as pb
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
 from esail_opt.propagation.rectified import propagate
-from esail_opt.propagation.simulate import simulate
+from esail_opt.propagation.simulate import CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate
 
 
 def cartesian(x):
@@ -84,6 +88,78 @@ class Verification:
     misses: dict
     error: Optional[str] = None
 
+    def judge(self, problem, tolerance=None, against_nlp=False):
+        """:func:`judge` of this flight's misses."""
+        return judge(problem, self.misses, self.error,
+                     problem.tolerance if tolerance is None else tolerance, against_nlp)
+
+
+def _exceeded(r, v, r_err, v_err, tolerance):
+    """The bounds a miss (km, m/s or None) plus the verifier's error exceeds, as text."""
+    out = []
+    if not r + r_err <= tolerance.position_km:
+        out.append(f"{r:.4g} km (+ {r_err:.2g} km verifier error), bound "
+                   f"{tolerance.position_km:g} km")
+    if v is not None and not v + v_err <= tolerance.velocity_m_s:
+        out.append(f"{v:.4g} m/s (+ {v_err:.2g} m/s verifier error), bound "
+                   f"{tolerance.velocity_m_s:g} m/s")
+    return out
+
+
+def within(misses, tolerance, against="target"):
+    """Whether the flight, its verifier's error included, is within ``tolerance`` of the
+    target (``against="target"``) or of the NLP's final state (``"nlp"``)."""
+    if misses.get("verifier_error_r_km") is None:
+        return False
+    prefix = "target_" if against == "target" else ""
+    r, v = misses[prefix + "miss_r_km"], misses[prefix + "miss_v_m_s"]
+    return not _exceeded(r, v, misses["verifier_error_r_km"], misses["verifier_error_v_m_s"],
+                         tolerance)
+
+
+def judge(problem, misses, error, tolerance, against_nlp=False):
+    """Whether a flight meets a tolerance, and one line that says so.
+
+    Parameters
+    ----------
+    problem : Problem
+    misses : dict
+        :func:`verify`'s misses (km and m/s).
+    error : str or None
+        Why the flight failed, if it did.
+    tolerance : Tolerance
+        Bounds in km and m/s.
+    against_nlp : bool
+        Hold the flight to the NLP's final state as well as to the target (the polish
+        does: its nodes are its answer).  Without a target the NLP's final state is the
+        only reference, so it is used either way.
+
+    Returns
+    -------
+    (bool, str)
+        Met or not, and a line naming each missed bound with the miss, the verifier's
+        error and the bound.
+    """
+    if error is not None:
+        return False, f"NOT verified: {error}"
+    r_err, v_err = misses["verifier_error_r_km"], misses["verifier_error_v_m_s"]
+    checks = []
+    if problem.target is not None:
+        r, v = misses["target_miss_r_km"], misses["target_miss_v_m_s"]
+        if misses.get("target_miss_e") is not None:
+            # An (a, e) target: an error of e moves the orbit by about a de.
+            r = max(r, units.length_to_km(misses["target_miss_e"] * problem.target.a_au))
+        checks.append(("the target", r, v))
+    if against_nlp or problem.target is None:
+        checks.append(("the NLP's final state", misses["miss_r_km"], misses["miss_v_m_s"]))
+    failed = []
+    for what, r, v in checks:
+        failed += [f"misses {what} by {text}" for text in _exceeded(r, v, r_err, v_err, tolerance)]
+    if failed:
+        return False, "NOT verified: the flight on Eqs. 1-2 " + "; ".join(failed)
+    return True, (f"verified: the flight on Eqs. 1-2 is within {tolerance.position_km:g} km "
+                  f"and {tolerance.velocity_m_s:g} m/s of " + " and ".join(c[0] for c in checks))
+
 
 def verify(problem, result, samples=16):
     """Fly ``result``'s schedule with CVODES and with the rectified closed form.
@@ -124,7 +200,10 @@ def verify(problem, result, samples=16):
     error = None
     try:
         flown = simulate(x0, result.alpha, result.durations, ac, throttles=kappa,
-                         samples=samples, independent="time", coefficients=coeff)
+                         samples=samples, independent="time", coefficients=coeff,
+                         tol=VERIFY_TOLERANCE)
+        check = simulate(x0, result.alpha, result.durations, ac, throttles=kappa,
+                         independent="time", coefficients=coeff, tol=CHECK_TOLERANCE)
     except Exception as err:  # CVODES gave up (e.g. an escaping orbit): report, do not hide
         error = f"CVODES failed: {err}"
         flown = np.full((5, 1), np.nan)
@@ -133,10 +212,13 @@ def verify(problem, result, samples=16):
     if error is None:
         dr, dv, dth = state_miss(xf_cv, xf_nlp)
         misses = {"miss_r_km": dr, "miss_v_m_s": dv, "miss_theta_deg": dth}
+        err_r, err_v, _ = state_miss(check[:4, -1], xf_cv)
+        misses.update(verifier_error_r_km=err_r, verifier_error_v_m_s=err_v)
         misses.update(target_miss(problem.target, xf_cv, flown[4, -1]))
         nlp_target = target_miss(problem.target, xf_nlp, float(np.sum(result.durations)))
         misses["nlp_target_miss_r_km"] = nlp_target["target_miss_r_km"]
     else:
         misses = {"miss_r_km": None, "miss_v_m_s": None, "miss_theta_deg": None,
-                  "target_miss_r_km": None, "target_miss_v_m_s": None}
+                  "target_miss_r_km": None, "target_miss_v_m_s": None,
+                  "verifier_error_r_km": None, "verifier_error_v_m_s": None}
     return Verification(flown, closed, misses, error)
