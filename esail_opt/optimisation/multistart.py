@@ -203,6 +203,19 @@ def rendezvous_starts(problem, classes):
     return starts
 
 
+def fallback_starts(problem, guess):
+    """Other starts for a solve whose first start did not converge, free of any window:
+    for a rendezvous the turn counts around ``guess``'s (one below, one and two above),
+    for an orbit transfer the other constant-pitch seeds of :func:`seed_pitches`."""
+    if isinstance(problem.target, pb.Rendezvous):
+        k = guess.revolutions_k
+        return rendezvous_starts(problem, [c for c in (k + 1, k - 1, k + 2) if c >= 0])
+    seeds = constant_pitch_seeds(problem)
+    own = guess_alpha(problem)
+    return [Start(f"constant pitch {math.degrees(a):.4g} deg", 0, g)
+            for a, g in seeds.items() if a != own]
+
+
 def _on_edge(result, window):
     if window is None:
         return False

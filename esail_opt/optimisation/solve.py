@@ -5,6 +5,8 @@ read from ``stats()['return_status']`` instead: only "Solve_Succeeded" counts as
 """
 
 import dataclasses
+import signal
+import threading
 import time
 from dataclasses import dataclass
 
@@ -34,6 +36,9 @@ def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
         "ipopt.tol": 1e-9,
         "ipopt.constr_viol_tol": 1e-10,
         "print_time": False,
+        # Trial steps into the closed form's invalid region give NaN, which Ipopt
+        # rejects and backs off from; CasADi's warning for each is only noise.
+        "show_eval_warnings": False,
     }
     if hessian != "exact":
         opts["ipopt.hessian_approximation"] = "limited-memory"
@@ -63,10 +68,20 @@ class NLPResult:
     nu0: float
     stages: list = None  # [(status, iterations)] of a staged solve, first stage first
     throttle: np.ndarray = None  # kappa per segment (all 1 without a throttle)
+    # Ipopt's primal and dual point in the NLP's own layout, for a warm re-solve.
+    w: np.ndarray = None
+    lam_x: np.ndarray = None
+    lam_g: np.ndarray = None
 
     @property
     def converged(self):
         return self.outcome == "converged"
+
+
+def wrap_pitch(alpha):
+    """Pitch (rad) in [-pi/2, pi/2): the thrust depends on 2 alpha only, so this is the
+    same attitude as an unwrapped NLP variable."""
+    return (np.asarray(alpha, float) + np.pi / 2) % np.pi - np.pi / 2
 
 
 def outcome_of(status):
@@ -79,32 +94,168 @@ def outcome_of(status):
     return "failed"
 
 
-def solve_transcription(tr, options=None):
-    """Run Ipopt on a transcription from its initial guess and unpack the result."""
-    opts = ipopt_options() if options is None else options
+#: Seconds between two progress lines of one Ipopt solve.
+PROGRESS_SECONDS = 2.0
+
+
+class _Monitor(ca.Callback):
+    """Ipopt's iteration callback: a progress line every few seconds, and a clean stop.
+
+    Ipopt runs in C++, where Python's KeyboardInterrupt cannot reach it; CasADi's own
+    check stopped only the running solve and the next stage went on from there.  So
+    while a solve runs, SIGINT only raises a flag, the callback asks Ipopt to stop at
+    the next iteration, and :func:`solve_transcription` raises KeyboardInterrupt once
+    Ipopt has returned.
+    """
+
+    def __init__(self, tr, progress):
+        ca.Callback.__init__(self)
+        self.nx, self.ng = tr.lbx.size, tr.lbg.size
+        self.lbg, self.ubg = tr.lbg, tr.ubg
+        self.scale, self.unit = tr.objective_unit
+        self.progress = progress
+        self.iteration = 0
+        self.last = time.monotonic()
+        self.interrupted = False
+        self.construct("monitor", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "stop"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.dense(1)
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        if name in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.ng)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, args):
+        self.iteration += 1
+        now = time.monotonic()
+        if self.progress is not None and now - self.last >= PROGRESS_SECONDS:
+            self.last = now
+            g = np.array(args[2]).ravel()
+            violation = float(np.max(np.r_[0.0, self.lbg - g, g - self.ubg]))
+            self.progress(f"Ipopt iteration {self.iteration}: objective "
+                          f"{float(args[1]) * self.scale:.6g}{self.unit}, "
+                          f"constraint violation {violation:.2g}")
+        return [1 if self.interrupted else 0]
+
+    def __enter__(self):
+        self.saved = None
+        if threading.current_thread() is threading.main_thread():
+            self.saved = signal.signal(signal.SIGINT, self._on_interrupt)
+        return self
+
+    def _on_interrupt(self, signum, frame):
+        self.interrupted = True
+
+    def __exit__(self, *exc):
+        if self.saved is not None:
+            signal.signal(signal.SIGINT, self.saved)
+        return False
+
+
+def warm_options(options):
+    """Ipopt options for a re-solve from a nearby optimum: start from its primal and
+    dual point with a small barrier parameter, so Ipopt does not first walk back into
+    the interior (a default restart took as many iterations as a cold solve)."""
+    opts = dict(options)
+    opts.update({"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-7,
+                 "ipopt.warm_start_bound_push": 1e-9, "ipopt.warm_start_mult_bound_push": 1e-9,
+                 "ipopt.warm_start_slack_bound_push": 1e-9})
+    return opts
+
+
+def build_solver(tr, options=None, warm=False, progress=None):
+    """An Ipopt solver for ``tr`` with its :class:`_Monitor` (``solver.monitor``).
+
+    ``warm`` chooses :func:`warm_options`; ``progress(text)`` receives the iteration
+    lines.  Building takes seconds for the closed form, so a refinement builds once and
+    re-solves.
+    """
+    opts = dict(ipopt_options() if options is None else options)
+    if warm:
+        opts = warm_options(opts)
+    monitor = _Monitor(tr, progress)
+    opts["iteration_callback"] = monitor
     solver = ca.nlpsol("esail", "ipopt", tr.nlp, opts)
+    return solver, monitor
+
+
+def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
+                        progress=None):
+    """Run Ipopt on a transcription and unpack the result.
+
+    Parameters
+    ----------
+    tr : Transcription
+    options : dict, optional
+        Ipopt options; default :func:`ipopt_options`.
+    defects : numpy.ndarray, optional
+        5 x N segment defects of the defect correction (``optimisation.refine``).
+    warm : NLPResult, optional
+        Start from this result's primal and dual point (same NLP layout) with
+        :func:`warm_options`, instead of from ``tr.x0``.
+    solver : (casadi.Function, _Monitor), optional
+        :func:`build_solver`'s pair, already built for ``tr`` (a refinement re-solves
+        one NLP several times; building it again costs seconds).
+    progress : callable, optional
+        ``progress(text)`` gets a line on Ipopt's iterations every few seconds.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        If SIGINT arrived during the solve (Ipopt is stopped at its next iteration).
+    """
+    if solver is None:
+        solver = build_solver(tr, options, warm is not None, progress)
+    solver, monitor = solver
+    monitor.progress = progress
+    p = np.zeros(5 * tr.segments) if defects is None else np.ravel(defects, order="F")
     start = time.perf_counter()
-    sol = solver(x0=tr.x0, lbx=tr.lbx, ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
+    with monitor:
+        if warm is None:
+            sol = solver(x0=tr.x0, p=p, lbx=tr.lbx, ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
+        else:
+            sol = solver(x0=warm.w, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=tr.lbx,
+                         ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
+    if monitor.interrupted:
+        raise KeyboardInterrupt
     seconds = time.perf_counter() - start
     stats = solver.stats()
     status = stats.get("return_status", "unknown")
     # Ipopt may leave a variable past its bound by its bound_relax_factor (1e-8): clip,
     # so that a pitch bound of 90 deg is never reported as 90.0000001.
     w = np.clip(np.array(sol["x"]).ravel(), tr.lbx, tr.ubx)
-    g = np.array(tr.nlp_g(w)).ravel()
+    g = tr.constraints(w, p)
     violation = float(np.max(np.r_[0.0, tr.lbg - g, g - tr.ubg]))
     parts = [np.array(v) for v in tr.unpack(w)]
     return NLPResult(
         status=status, outcome=outcome_of(status), objective=float(sol["f"]),
         iterations=int(stats.get("iter_count", -1)), solve_seconds=seconds,
-        alpha=parts[0].ravel(), lengths=parts[1].ravel(), nodes=parts[2],
+        alpha=wrap_pitch(parts[0].ravel()), lengths=parts[1].ravel(), nodes=parts[2],
         durations=parts[3].ravel(), x_start=parts[4].ravel(), q3=parts[5].ravel(),
         constraint_violation=violation, nu0=float(parts[6].ravel()[0]),
         stages=[(status, int(stats.get("iter_count", -1)))], throttle=parts[7].ravel(),
+        w=w, lam_x=np.array(sol["lam_x"]).ravel(), lam_g=np.array(sol["lam_g"]).ravel(),
     )
 
 
-def solve_problem(problem, segment=None, options=None, guess=None, theta_window=None):
+def solve_problem(problem, segment=None, options=None, guess=None, theta_window=None,
+                  progress=None):
     """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
 
     ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, and
@@ -127,13 +278,13 @@ def solve_problem(problem, segment=None, options=None, guess=None, theta_window=
     if not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
         tr1 = transcribe(equal, segment, guess, theta_window=theta_window)
-        first = solve_transcription(tr1, options)
+        first = solve_transcription(tr1, options, progress=progress)
         if first.outcome in ("converged", "acceptable"):
             nodes = np.vstack([first.nodes, np.cumsum(first.durations)])
             guess = Guess(first.alpha, first.lengths, nodes, first.nu0,
                           tr1.guess.revolutions_k, first.throttle)
     tr = transcribe(problem, segment, guess, theta_window=theta_window)
-    result = solve_transcription(tr, options)
+    result = solve_transcription(tr, options, progress=progress)
     if first is not None:
         result.iterations += first.iterations
         result.solve_seconds += first.solve_seconds

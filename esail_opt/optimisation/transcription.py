@@ -24,6 +24,7 @@ end, positive segment durations, r >= r_min at the nodes (a variable bound), the
 the last node, and the time of flight when the objective fixes it.
 """
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -32,9 +33,10 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.propagation.rectified import extrapolated_function, propagate, rectified_function
-from esail_opt.propagation.simulate import segment_integrator
+from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.errors import InputError
 from esail_opt.optimisation import problem as pb
+from esail_opt.physics import constants as units
 
 #: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
 #: a_c = 1 mm/s^2 (PHYSICS-NOTES: sub-arcs of about a tenth of a radian).
@@ -45,6 +47,35 @@ GUESS_STEP = 0.05
 QUAD_NODES = 4
 #: Guess steps per call of the (cached) rectified propagator.
 GUESS_CHUNK = 200
+#: Largest a~_c dtheta of one closed-form sub-arc: the arc's first-order error grows as
+#: (a~_c dtheta)^2, and an optimiser left free stretches single arcs far past where the
+#: closed form means anything (a 0.1 au spiral swung one arc out to 4 au).  It is kept
+#: by adding sub-arcs -- to the seed before the first solve, and to any optimum that
+#: breaks it (``optimisation.refine``) -- never as a constraint of the NLP: as one it made
+#: a 4-segment hop to 1.3 au infeasible, deciding the answer instead of the accuracy.
+STRAIN_CAP = 0.05
+
+
+def strain(problem, r_starts, lengths, throttle=None):
+    """a~_c dtheta of each segment's sub-arcs as a fraction of :data:`STRAIN_CAP`
+    (a~_c = kappa ac r0 with r_E = 1 au; numpy arrays of the segments' start radii,
+    angles and throttles)."""
+    kappa = 1.0 if throttle is None else np.asarray(throttle, float)
+    return (problem.sail.ac * kappa * np.asarray(r_starts, float) * np.asarray(lengths, float)
+            / problem.segments.sub_arcs / STRAIN_CAP)
+
+
+def sub_arcs_within_cap(problem, guess, most):
+    """The problem with enough sub-arcs (at most ``most``) that ``guess`` keeps the cap
+    on a~_c dtheta per sub-arc: the cap is kept by adding sub-arcs, not by shortening
+    the segments the seed chose."""
+    r_starts = np.r_[problem.x0()[0], guess.nodes[0, :-1]]
+    worst = float(np.max(strain(problem, r_starts, guess.lengths, guess.throttle)))
+    if worst <= 1:
+        return problem
+    sub = min(most, math.ceil(problem.segments.sub_arcs * worst))
+    return dataclasses.replace(problem, segments=dataclasses.replace(problem.segments,
+                                                                     sub_arcs=sub))
 
 
 @functools.lru_cache(maxsize=None)
@@ -109,14 +140,16 @@ def cvodes_time_segment(coefficients=pb.EXACT):
     """One constant-pitch segment of Eqs. 1-2 integrated by CVODES in time: the exact arc.
 
     ``(x0[5], ac, alpha, duration) -> (x1[5], q3[0])``: one CVODES integration over the
-    segment's duration (TU) at tolerances 1e-12 (``simulate.segment_integrator``), which
+    segment's duration (TU) at tolerances 1e-15 (``simulate.segment_integrator``), which
     CasADi differentiates through forward and adjoint sensitivities.  The state's t row
     advances by the duration itself.  An exact arc has no first-order validity margin, so
     q3 is empty and :func:`transcribe` (``independent="time"``) adds no q3 rows.  Time,
     not theta, is the independent variable: the verification flies the schedule in time,
     so the polished NLP and its check integrate the same equations the same way.
     """
-    seg = segment_integrator(1, "time", coefficients)
+    # As tight as the verifier's check: at 1e-12 the polished optimum itself was 2-10 m
+    # off where an independent DOP853 flight ended, so it could not meet a 1 m bound.
+    seg = segment_integrator(1, "time", coefficients, CHECK_TOLERANCE)
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, duration = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("duration")
     x1 = seg(x0, ac, alpha, duration)[:, -1]
@@ -263,7 +296,7 @@ class Transcription:
     """The NLP and the maps from its flat variable vector back to the schedule."""
 
     nlp: dict
-    nlp_g: ca.Function  # w -> g, to re-check the constraints at a returned point
+    nlp_g: ca.Function  # (w, defects) -> g, to re-check the constraints at a returned point
     x0: np.ndarray  # scaled initial guess
     lbx: np.ndarray
     ubx: np.ndarray
@@ -273,6 +306,17 @@ class Transcription:
     unpack: ca.Function
     guess: Guess
     names: dict
+    objective_unit: tuple = (1.0, "")  # (factor, unit) that shows the objective to a user
+
+    @property
+    def segments(self):
+        return self.guess.alpha.size
+
+    def constraints(self, w, defects=None):
+        """The constraint values g at the flat point ``w`` (numpy), with the segment
+        defects of the defect correction (5 x N; default none)."""
+        d = np.zeros(5 * self.segments) if defects is None else np.ravel(defects, order="F")
+        return np.array(self.nlp_g(w, d)).ravel()
 
 
 def _target_constraints(target, xf, tf, k):
@@ -385,6 +429,11 @@ def transcribe(problem, segment=None, guess=None, independent="theta", theta_win
     # so a throttle simply scales it.
     ac = problem.sail.ac if kappa_bounds is None else problem.sail.ac * w_kappa.T
     ends, q3 = segment.map(n)(starts, ac, w_alpha.T, (w_len * len_scale).T)
+    # The defect correction (optimisation.refine): a constant per segment, added to the
+    # segment's end, that makes the closed-form chain land where Eqs. 1-2 do.  A
+    # parameter, so one solver serves every round of the refinement.
+    defects = sym.sym("defects", 5, n)
+    ends = ends + defects
     if in_time:
         durations = w_len * len_scale
         lengths = (nodes[1, :] - starts[1, :]).T
@@ -430,6 +479,12 @@ def transcribe(problem, segment=None, guess=None, independent="theta", theta_win
     # Bounds.  r >= r_min at the nodes is a bound; v_theta > 0 keeps the orbit prograde,
     # as the closed form (q3 = 1/h) assumes.
     a_lo, a_hi = problem.alpha_bounds()
+    if problem.sail.alpha_min_deg == -90 and problem.sail.alpha_max_deg == 90:
+        # R and T depend on 2 alpha only, so -90 and +90 deg are one attitude and the
+        # full box is a wall that optima stopped against (578.04-578.23 d on Earth-Mars
+        # from different seeds).  Unbounded, the pitch crosses it; results report it
+        # wrapped into [-90, 90) deg.
+        a_lo, a_hi = -np.inf, np.inf
     max_sweep = 2 * math.pi * problem.max_revolutions
     node_lo = np.array([max(problem.path.r_min_au, 1e-3), -np.inf, -10.0, 1e-2, 0.0]) / node_scale
     node_hi = np.array([100.0, np.inf, 10.0, 20.0, np.inf]) / node_scale
@@ -462,6 +517,9 @@ def transcribe(problem, segment=None, guess=None, independent="theta", theta_win
                          ["w"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
                                  "nu0", "throttle"])
     g = ca.vertcat(*g)
-    return Transcription({"x": w, "f": f, "g": g}, ca.Function("g", [w], [g]), x_init, lbx, ubx,
+    return Transcription({"x": w, "p": ca.vec(defects), "f": f, "g": g},
+                         ca.Function("g", [w, ca.vec(defects)], [g], ["w", "defects"], ["g"]),
+                         x_init, lbx, ubx,
                          np.concatenate([np.ravel(v) for v in lbg]),
-                         np.concatenate([np.ravel(v) for v in ubg]), unpack, guess, names)
+                         np.concatenate([np.ravel(v) for v in ubg]), unpack, guess, names,
+                         (units.TU_DAYS, " d") if tof is None else (1.0, ""))
