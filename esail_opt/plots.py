@@ -3,8 +3,10 @@
 ``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
 the departure and target orbits and the segment boundaries.  ``timeline.png``: r, v_r,
 v_theta, alpha_n (with the throttle kappa on a second axis when the problem has one) and
-the osculating a and e against time.  A polished solution adds the CVODES flight of its
-polished schedule to both, and the pitch panel shows that schedule.
+the osculating a and e against time, then the closed form's local error per segment
+(where it is strained) and the flown miss of each refinement round against the tolerance.
+A polished solution adds the CVODES flight of its polished schedule to both, and the
+pitch panel shows that schedule.
 """
 
 from pathlib import Path
@@ -93,7 +95,9 @@ def timeline_figure(solution):
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = exact is not None
     sched = d["polish"]["schedule"] if polished else d["schedule"]
-    fig, axes = plt.subplots(3, 2, figsize=(10, 8), sharex=True)
+    fig, axes = plt.subplots(4, 2, figsize=(10, 10.5))
+    for ax in axes[:3].ravel():
+        ax.sharex(axes[0, 0])
     panels = [("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"), ("vtheta_km_s", "v_theta (km/s)"),
               (None, "alpha (deg)"), ("a_au", "osculating a (au)"), ("e", "osculating e")]
     for ax, (key, label) in zip(axes.ravel(), panels):
@@ -123,13 +127,49 @@ def timeline_figure(solution):
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7)
-    for ax in axes[-1]:
+    for ax in axes[2]:
         ax.set_xlabel("t (days)")
-    fig.suptitle(f"{d['problem']['name']}: {d['status']}"
+    _local_error_panel(axes[3, 0], d)
+    _refinement_panel(axes[3, 1], d)
+    verdict = "verified" if d.get("verified") else "NOT verified"
+    fig.suptitle(f"{d['problem']['name']}: {d['status']}, {verdict}"
                  + (f"; polished {d['polish']['status']} (pitch: polished schedule)"
                     if polished else ""))
     fig.tight_layout()
     return fig
+
+
+def _local_error_panel(ax, d):
+    """The closed form's position error over each segment from its own start node."""
+    sched = d["schedule"]
+    errors = [row.get("local_error_km") for row in sched]
+    if not sched or any(e is None for e in errors):
+        ax.text(0.5, 0.5, "no local errors (not refined)", ha="center", transform=ax.transAxes)
+        return
+    t = [row["t_days"] for row in sched] + [d["tof_days"]]
+    ax.step(t, errors + errors[-1:], where="post", color="tab:green")
+    ax.set_yscale("log")
+    ax.set_xlabel("t (days)")
+    ax.set_ylabel("closed-form local error (km)")
+    ax.set_title(f"per segment, {d['problem']['sub_arcs']} sub-arcs each", fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+
+
+def _refinement_panel(ax, d):
+    """The flown miss after each refinement round, against the tolerance."""
+    rounds = d["refinement"]["rounds"]
+    key = "target_miss_r_km" if d["problem"]["target"] is not None else "miss_r_km"
+    misses = [r[key] for r in rounds if r[key] is not None]
+    if not misses:
+        ax.text(0.5, 0.5, "no flight to judge", ha="center", transform=ax.transAxes)
+        return
+    ax.semilogy(range(len(misses)), misses, "o-", color="tab:red", label="flown miss")
+    ax.axhline(d["tolerance"]["position_km"], color="k", ls="--", lw=0.8, label="tolerance")
+    ax.set_xlabel("refinement round")
+    ax.set_ylabel("position miss (km)")
+    ax.set_xticks(range(len(misses)))
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
 
 
 def write_plots(solution, out_dir):

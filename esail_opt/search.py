@@ -26,8 +26,9 @@ FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous
 
 
 def _rank_key(row):
+    """Verified optima first; among them the exact (polished) time where there is one."""
     exact = row["tof_days_exact"] if row["verified"] else None
-    return (exact is None, exact if exact is not None else row["tof_days_closed_form"])
+    return (not row["verified"], exact if exact is not None else row["tof_days_closed_form"])
 
 
 def run(problem, extra_revolutions=2, polish=True, progress=None):
@@ -57,7 +58,8 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
     for i, c in enumerate(candidates, 1):
         say(f"{problem.name}: optimum {i}/{len(candidates)} ({c.revolutions:.2f} rev): "
             f"verifying{' and polishing' if polish else ''}")
-        sol = solution_of(problem, c.result, c.revolutions_k, polish=polish,
+        sol = solution_of(problem, c.result, revolutions_k=c.revolutions_k, polish=polish,
+                          progress=progress,
                           theta_window=c.theta_window)
         p = sol.data.get("polish") or {}
         rows.append({
@@ -67,7 +69,7 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
             "rendezvous_k": c.revolutions_k,
             "tof_days_closed_form": sol["tof_days"],
             "tof_days_exact": p.get("tof_days"),
-            "verified": bool(p.get("verified", False)),
+            "verified": sol.verified,
             "polish_status": p.get("status"),
             "closed_form_target_miss_km": sol["verification"].get("target_miss_r_km"),
             "polished_target_miss_m": (p.get("verification") or {}).get("target_miss_r_m"),

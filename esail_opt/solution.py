@@ -19,8 +19,10 @@ import numpy as np
 from esail_opt.files import atomic_path, json_ready, write_json
 from esail_opt.optimisation import problem as pb
 from esail_opt.optimisation import polish as exact_refinement
+from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
+from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
 from esail_opt.optimisation.solve import solve_problem
-from esail_opt.optimisation.verify import verify
+from esail_opt.optimisation.verify import verify, within
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
 
@@ -28,6 +30,8 @@ SCHEDULE_FIELDS = ("t_days", "theta_deg", "alpha_deg", "duration_days", "dtheta_
 #: The column a throttled problem adds: kappa per segment, in [0, 1].  Unthrottled
 #: schedules leave it out, so their files stay as they were.
 THROTTLE_FIELD = "throttle"
+#: The closed form's local error per segment, km (absent from polished schedules).
+LOCAL_ERROR_FIELD = "local_error_km"
 
 
 @functools.lru_cache(maxsize=None)
@@ -94,6 +98,13 @@ class Solution:
         return bool(self.data["converged"])
 
     @property
+    def verified(self):
+        """Converged, and the flight on Eqs. 1-2 meets the tolerance (and, after a
+        polish, the polish's 1 m and 1 mm/s as well)."""
+        polished = self.data.get("polish")
+        return bool(self.data["verified"]) and (polished is None or bool(polished["verified"]))
+
+    @property
     def tof_days(self):
         return self.data["tof_days"]
 
@@ -110,8 +121,8 @@ class Solution:
         """The schedule as CSV text, one row per segment (same rows as ``schedule``, or
         with ``polished`` as ``polish["schedule"]``)."""
         rows = self.data["polish"]["schedule"] if polished else self.data["schedule"]
-        fields = SCHEDULE_FIELDS + ((THROTTLE_FIELD,) if rows and THROTTLE_FIELD in rows[0]
-                                    else ())
+        fields = SCHEDULE_FIELDS + tuple(f for f in (THROTTLE_FIELD, LOCAL_ERROR_FIELD)
+                                         if rows and f in rows[0])
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
         writer.writeheader()
@@ -144,9 +155,11 @@ class Solution:
     def summary(self):
         d = self.data
         v = d["verification"]
+        rounds = d["refinement"]["rounds"]
         lines = [
             f"{d['problem']['name']}: {d['status']} ({'converged' if d['converged'] else 'NOT converged'}), "
-            f"{d['iterations']} iterations, {d['solve_seconds']:.2f} s",
+            f"{d['iterations']} iterations, {d['solve_seconds']:.2f} s, "
+            f"{max(len(rounds) - 1, 0)} refinement round(s)",
             f"  tof {d['tof_days']:.3f} d (closed form), {len(d['schedule'])} segments x "
             f"{d['problem']['sub_arcs']} sub-arcs",
             "  final (closed form): r {r_au:.6f} au, theta {theta_deg:.3f} deg, a {a_au:.6f} au, "
@@ -163,6 +176,7 @@ class Solution:
                 extra = (f", {v['target_miss_v_m_s']:.4g} m/s"
                          if v.get("target_miss_v_m_s") is not None else "")
                 lines.append(f"  CVODES miss vs target: {v['target_miss_r_km']:.4g} km{extra}")
+        lines.append(f"  {d['verification_note']}")
         lines += self._polish_lines()
         return "\n".join(lines)
 
@@ -222,58 +236,47 @@ def _metres(km):
     return None if km is None else 1e3 * km
 
 
+#: The polish's stricter bounds: 1 m and 1 mm/s, against the target and the polished
+#: NLP's own final state.
+POLISH_TOLERANCE = pb.Tolerance(position_km=1e-3, velocity_m_s=1e-3)
+
+
 def _polish_data(problem, exact, check):
     """The ``polish`` object of solution.json: the exact optimum and its verification.
 
     Misses are in metres and mm/s, the scale of the bounds (1 m, 1 mm/s) they are held
-    to; ``verified`` is True only when Ipopt converged and both the miss against the
-    polished NLP's final state and the miss against the target are within them.
+    to; ``verified`` is True only when Ipopt converged and the flight, its verifier's
+    error included, is within them of both the target and the polished NLP's final state.
     """
     m = check.misses
-    vs_nlp = {"position_m": _metres(m["miss_r_km"]),
-              "velocity_mm_s": _metres(m["miss_v_m_s"])}
-    vs_target = {"position_m": _metres(m["target_miss_r_km"]),
-                 "velocity_mm_s": _metres(m["target_miss_v_m_s"])}
-    verification = {"miss_r_m": vs_nlp["position_m"], "miss_v_mm_s": vs_nlp["velocity_mm_s"],
+    verification = {"miss_r_m": _metres(m["miss_r_km"]), "miss_v_mm_s": _metres(m["miss_v_m_s"]),
                     "miss_theta_deg": m["miss_theta_deg"],
-                    "target_miss_r_m": vs_target["position_m"],
-                    "target_miss_v_mm_s": vs_target["velocity_mm_s"], "error": check.error}
+                    "target_miss_r_m": _metres(m["target_miss_r_km"]),
+                    "target_miss_v_mm_s": _metres(m["target_miss_v_m_s"]),
+                    "verifier_error_r_m": _metres(m["verifier_error_r_km"]),
+                    "verifier_error_v_mm_s": _metres(m["verifier_error_v_m_s"]),
+                    "error": check.error}
     if "target_miss_e" in m:
         verification["target_miss_e"] = m["target_miss_e"]
     if check.error is None:
         verification["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
         verification["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
-    within_nlp = exact_refinement.meets_bounds(vs_nlp)
-    # No target: nothing to miss.  An (a, e) target's position miss is the error of a.
-    within_target = problem.target is None or exact_refinement.meets_bounds(vs_target)
-    verified = exact.converged and within_nlp and within_target
-    problems = []
+    within_all, note = check.judge(problem, POLISH_TOLERANCE, against_nlp=True)
+    verified = exact.converged and within_all
     if not exact.converged:
-        problems.append(f"Ipopt did not converge ({exact.status})")
-    if check.error is not None:
-        problems.append(check.error)
-    else:
-        if not within_nlp:
-            problems.append("the CVODES flight misses the polished NLP's final state by "
-                            f"{vs_nlp['position_m']:.3g} m, {vs_nlp['velocity_mm_s']:.3g} mm/s")
-        if not within_target:
-            extra = (f", {vs_target['velocity_mm_s']:.3g} mm/s"
-                     if vs_target["velocity_mm_s"] is not None else "")
-            problems.append(f"the CVODES flight misses the target by "
-                            f"{vs_target['position_m']:.3g} m{extra}")
-    bounds = (f"{exact_refinement.MISS_BOUND_M:g} m and "
-              f"{exact_refinement.MISS_BOUND_MM_S:g} mm/s")
-    note = (f"exact: verified miss below {bounds}" if verified else
-            f"NOT exact to {bounds}: " + "; ".join(problems))
+        note = f"NOT verified: Ipopt did not converge ({exact.status}); {note}"
+    elif verified:
+        note = f"exact: {note}"
     return {
         "status": exact.status, "converged": exact.converged, "outcome": exact.outcome,
         "iterations": exact.iterations, "seconds": exact.solve_seconds,
         "constraint_violation": exact.constraint_violation,
         "objective": exact.objective,
         "tof_days": units.time_to_days(float(np.sum(exact.durations))),
-        "bounds": {"position_m": exact_refinement.MISS_BOUND_M,
-                   "velocity_mm_s": exact_refinement.MISS_BOUND_MM_S},
-        "within_bounds_vs_nlp": within_nlp, "within_bounds_vs_target": within_target,
+        "bounds": {"position_m": 1e3 * POLISH_TOLERANCE.position_km,
+                   "velocity_mm_s": 1e3 * POLISH_TOLERANCE.velocity_m_s},
+        "within_bounds_vs_nlp": within(m, POLISH_TOLERANCE, "nlp"),
+        "within_bounds_vs_target": problem.target is None or within(m, POLISH_TOLERANCE),
         "verified": verified, "note": note,
         "schedule": _schedule(exact, problem.sail.throttle),
         "final_state": _polar_dict(exact.nodes[:, -1]),
@@ -282,7 +285,8 @@ def _polish_data(problem, exact, check):
 
 
 def solve(problem, segments=None, progress=None, samples=16, polish=False):
-    """Solve ``problem`` and verify it on CVODES: the whole data path of one run.
+    """Solve ``problem``, refine it until its flight on Eqs. 1-2 meets the problem's
+    tolerance, and verify it: the whole data path of one run.
 
     Parameters
     ----------
@@ -290,42 +294,45 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     segments : int, optional
         Override the problem's number of control segments N (>= 1).
     progress : callable, optional
-        ``progress(text)`` is called at each stage (the CLI shows it on stderr).
+        ``progress(text)`` is called at each stage and every few seconds of Ipopt.
     samples : int
         Plot samples per segment.
     polish : bool
-        Then refine the closed-form optimum on exact CVODES arcs in time
+        Then refine the optimum on exact CVODES arcs in time
         (:func:`esail_opt.optimisation.polish.polish`) and verify that schedule too.
 
     Returns
     -------
     Solution
         Its ``data`` has: ``problem`` (name and settings; ``segments`` is the count N
-        used, also when ``segments_per_revolution`` set it), ``status`` (Ipopt's return
-        status), ``converged`` (True only for "Solve_Succeeded"), ``acceptable`` (True for
-        "Solved_To_Acceptable_Level", which is *not* counted as converged), ``outcome``
-        ("converged", "acceptable", "infeasible" or "failed"), ``objective`` and
-        ``objective_meaning``, ``tof_days``, ``iterations``, ``solve_seconds``,
-        ``constraint_violation``, ``schedule`` (per segment ``t_days`` and ``theta_deg``
-        at its start, ``alpha_deg``, ``duration_days``, ``dtheta_deg``, and with
-        ``Sail(throttle=True)`` ``throttle``, kappa in [0, 1]), ``final_state``
-        (closed form: ``r_au``, ``theta_deg``, ``vr_km_s``, ``vtheta_km_s``, ``a_au``,
-        ``e``), ``verification`` (``miss_r_km``, ``miss_v_m_s``, ``miss_theta_deg`` of
-        CVODES against the NLP's final state; ``target_miss_r_km``/``target_miss_v_m_s``
-        of CVODES against the target; ``cvodes_final_state``), and ``trajectory``
-        (closed-form and CVODES samples for the plots).
+        used, ``sub_arcs`` the count the error control ended with and
+        ``sub_arcs_requested`` the problem's), ``status`` (Ipopt's return status of the
+        last solve), ``converged`` (True only for "Solve_Succeeded"), ``acceptable``,
+        ``outcome`` ("converged", "acceptable", "infeasible" or "failed"), ``verified``
+        (converged, and the CVODES flight meets the tolerance, the verifier's own error
+        included), ``verification_note`` (one line: which bound was missed and by how
+        much), ``tolerance`` (``position_km``, ``velocity_m_s``), ``objective`` and
+        ``objective_meaning``, ``tof_days``, ``iterations``, ``solve_seconds`` (both
+        summed over every solve of the run), ``constraint_violation``, ``schedule`` (per
+        segment ``t_days`` and ``theta_deg`` at its start, ``alpha_deg`` in [-90, 90),
+        ``duration_days``, ``dtheta_deg``, ``local_error_km``: the closed form's position
+        error over that segment against Eqs. 1-2 from the same start node, and with
+        ``Sail(throttle=True)`` ``throttle``), ``final_state`` (the NLP's: ``r_au``,
+        ``theta_deg``, ``vr_km_s``, ``vtheta_km_s``, ``a_au``, ``e``), ``verification``
+        (``miss_r_km``, ``miss_v_m_s``, ``miss_theta_deg`` of CVODES against the NLP's
+        final state; ``target_miss_r_km``/``target_miss_v_m_s`` against the target;
+        ``verifier_error_r_km``/``verifier_error_v_m_s``, the difference of two CVODES
+        flights at 3e-16 and 1e-15; ``cvodes_final_state``), ``refinement`` (``rounds``:
+        per round the sub-arcs, time of flight and misses; ``starts``: the other starts
+        tried when the first did not converge), and ``trajectory`` (closed-form and
+        CVODES samples for the plots).
 
         With ``polish``, also ``objective_closed_form`` (= ``objective``),
-        ``objective_exact``, ``tof_days_exact``, ``trajectory["polished"]`` (the CVODES
-        flight of the polished schedule) and ``polish``: ``status``, ``converged``,
-        ``outcome``, ``iterations``, ``seconds``, ``constraint_violation``,
-        ``objective``, ``tof_days``, ``schedule``, ``final_state`` (the polished NLP's),
-        ``verification`` (``miss_r_m``, ``miss_v_mm_s`` against the polished NLP's final
-        state, ``target_miss_r_m``, ``target_miss_v_mm_s`` against the target, of the
-        schedule flown from the departure in one CVODES chain), ``bounds`` (1 m,
-        1 mm/s), ``within_bounds_vs_nlp``, ``within_bounds_vs_target``, ``verified``
-        and ``note`` (says plainly when the polished schedule is not exact).  The other
-        fields stay those of the closed-form optimum.
+        ``objective_exact``, ``tof_days_exact``, ``trajectory["polished"]`` and
+        ``polish``: ``status``, ``converged``, ``outcome``, ``iterations``,
+        ``seconds``, ``constraint_violation``, ``objective``, ``tof_days``,
+        ``schedule``, ``final_state``, ``verification`` (in m and mm/s, with the
+        verifier's error), ``bounds`` (1 m, 1 mm/s), ``verified`` and ``note``.
     """
     from esail_opt.errors import InputError
 
@@ -337,27 +344,81 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     seg = problem.segments
     count = (f"{seg.count} segments" if seg.per_revolution is None
              else f"{seg.per_revolution} segments per revolution")
-    say(f"{problem.name}: building the NLP ({count} x {seg.sub_arcs} sub-arcs)")
-    result, tr = solve_problem(problem)
-    say(f"{problem.name}: {result.status} after {result.iterations} iterations; verifying on CVODES")
-    return solution_of(problem, result, tr.guess.revolutions_k, samples, polish, say)
+    guess = initial_guess(problem)
+    problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
+    say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
+    result, tr = solve_problem(problem, guess=guess, progress=say)
+    starts = []
+    if result.outcome not in ("converged", "acceptable"):
+        result, tr, starts = _other_starts(problem, result, tr, say)
+    say(f"{problem.name}: {result.status} after {result.iterations} iterations; "
+        "refining until the flight meets the tolerance")
+    return solution_of(problem, result, tr, samples=samples, polish=polish, progress=say,
+                       starts=starts, sub_arcs_requested=seg.sub_arcs)
 
 
-def solution_of(problem, result, revolutions_k=0, samples=16, polish=False, progress=None,
-                theta_window=None):
-    """The :class:`Solution` of a closed-form optimum already found: its CVODES
-    verification and, with ``polish``, its exact refinement (see :func:`solve`, which
-    is this after the solve; the global search calls it for each optimum it keeps).
+def _other_starts(problem, result, tr, say):
+    """Ipopt's "infeasible" from one start is a local statement: before giving up, try
+    the starts the global search would (other turn counts on a rendezvous body, other
+    constant-pitch seeds of an orbit transfer), and keep the first that converges.
 
-    ``revolutions_k`` is the rendezvous turn count of the NLP (``Transcription.guess``),
-    and ``theta_window`` the final-angle box (rad) it was solved in, which the polish keeps.
+    Returns the (result, transcription) to go on with and one record per start tried.
     """
+    from esail_opt.optimisation import multistart
+
+    records = [{"label": "the problem's own seed", "status": result.status,
+                "iterations": result.iterations}]
+    if problem.target is None or getattr(problem.departure, "free_anomaly", False):
+        return result, tr, records
+    for start in multistart.fallback_starts(problem, tr.guess):
+        say(f"{problem.name}: {result.status}; trying {start.label}")
+        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
+        records.append({"label": start.label, "status": other.status,
+                        "iterations": other.iterations})
+        if other.outcome in ("converged", "acceptable"):
+            other.iterations += sum(r["iterations"] for r in records[:-1])
+            return other, other_tr, records
+    return result, tr, records
+
+
+def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=False,
+                progress=None, theta_window=None, starts=None, sub_arcs_requested=None):
+    """The :class:`Solution` of a closed-form optimum already found: its error control
+    (``optimisation.refine``), its CVODES verification and, with ``polish``, its exact
+    refinement (see :func:`solve`, which is this after the solve; the global search
+    calls it for each optimum it keeps).
+
+    ``tr`` is the optimum's NLP (the refinement re-solves it warm; without it a new one
+    is built), ``revolutions_k`` the rendezvous turn count when ``tr`` is not given,
+    ``theta_window`` the final-angle box (rad) it was solved in, which the refinement and
+    the polish keep, ``starts`` the records of the starts tried before this one, and
+    ``sub_arcs_requested`` the problem file's sub-arcs when the seed already raised them.
+    """
+    requested = sub_arcs_requested or problem.segments.sub_arcs
     say = progress or (lambda text: None)
+    refined = None
+    if result.outcome in ("converged", "acceptable"):
+        refined = refine(problem, result, tr, revolutions_k, theta_window, say)
+        iterations = result.iterations + sum(r["iterations"] for r in refined.history[1:])
+        seconds = result.solve_seconds + refined.history[-1]["seconds"]
+        problem, result, tr = refined.problem, refined.result, refined.transcription
+        revolutions_k = tr.guess.revolutions_k
+        result.iterations, result.solve_seconds = iterations, seconds
     seg = problem.segments
     # The count actually used: with a per-revolution rule the seed propagation fixed it.
     n, sub = result.alpha.size, seg.sub_arcs
     check = verify(problem, result, samples)
+    verified, note = check.judge(problem)
+    verified = verified and result.converged
+    if not result.converged:
+        note = f"NOT verified: Ipopt ended {result.status}" + (
+            "" if result.outcome != "infeasible" else
+            f" from {len(starts or [1])} start(s); no start found a feasible point, which "
+            "does not prove the target unreachable")
     schedule = _schedule(result, problem.sail.throttle)
+    if refined is not None:
+        for row, err in zip(schedule, refined.local_error_km):
+            row["local_error_km"] = float(err)
     verification = {k: v for k, v in check.misses.items()}
     verification["error"] = check.error
     if check.error is None:
@@ -370,7 +431,7 @@ def solution_of(problem, result, revolutions_k=0, samples=16, polish=False, prog
             "ac_mm_s2": problem.sail.ac_mm_s2, "coefficients": list(problem.sail.coefficients),
             "alpha_bounds_deg": [problem.sail.alpha_min_deg, problem.sail.alpha_max_deg],
             "segments": n, "segments_per_revolution": seg.per_revolution,
-            "sub_arcs": sub, "equal_segments": seg.equal,
+            "sub_arcs": sub, "sub_arcs_requested": requested, "equal_segments": seg.equal,
             "objective": type(problem.objective).__name__,
             "target": _target_dict(problem.target),
             "departure": {"kind": type(dep).__name__,
@@ -382,6 +443,10 @@ def solution_of(problem, result, revolutions_k=0, samples=16, polish=False, prog
         "converged": result.converged,
         "acceptable": result.outcome == "acceptable",
         "outcome": result.outcome,
+        "verified": verified,
+        "verification_note": note,
+        "tolerance": {"position_km": problem.tolerance.position_km,
+                      "velocity_m_s": problem.tolerance.velocity_m_s},
         "objective": result.objective,
         "objective_meaning": _objective_meaning(problem.objective),
         "tof_days": units.time_to_days(float(np.sum(result.durations))),
@@ -393,6 +458,8 @@ def solution_of(problem, result, revolutions_k=0, samples=16, polish=False, prog
         "schedule": schedule,
         "final_state": _polar_dict(result.nodes[:, -1]),
         "verification": verification,
+        "refinement": {"rounds": [] if refined is None else refined.history,
+                       "starts": starts or []},
         "trajectory": {
             "closed_form": _trajectory(check.closed_form),
             "cvodes": _trajectory(check.cvodes) if check.error is None else None,
@@ -420,4 +487,3 @@ def solution_of(problem, result, revolutions_k=0, samples=16, polish=False, prog
         data["polish"] = {"status": None, "converged": False, "verified": False,
                           "note": f"NOT polished: the closed-form solve ended {result.status}"}
     return Solution(json_ready(data))
-

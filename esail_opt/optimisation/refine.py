@@ -1,0 +1,238 @@
+"""Error control: the closed-form optimum refined until its flight on Eqs. 1-2 meets the
+problem's tolerance.
+
+The closed form is first order, and an optimum found on it alone misses once flown: by
+11,590 km on the shipped Earth-Mars transfer, and by 1.6e7 km on a 20-segment spiral to
+0.1 au whose optimiser stretched single arcs far past their validity.  Each round here:
+
+1. **Judge.** Fly the schedule on Eqs. 1-2 (``verify``) and hold the flight to the
+   tolerance (``verify.judge``).  Met: stop, verified.
+2. **Local errors.** From every segment's own start node, fly the segment on Eqs. 1-2
+   (CVODES in theta, no sensitivities: N short integrations) and on the closed form.
+   Their difference is the segment's *defect*; its position part is the local error
+   the solution reports per segment.
+3. **Re-mesh where the closed form is strained.** If a segment breaks the cap on
+   a~_c dtheta per sub-arc (``transcription.STRAIN_CAP``), every segment gets enough
+   sub-arcs to keep it; if the last round did not at least halve the flown miss, the
+   sub-arcs double (the segment Function is mapped over all segments, so they share one
+   count).  The cap is kept by adding sub-arcs, never by shortening segments: it bounds
+   the closed form's error, not the trajectory.
+4. **Defect correction.** Re-solve with every segment's end shifted by its defect, a
+   constant of the NLP (``transcribe``'s parameter), warm from the last optimum.  At a
+   fixed point the shifted closed-form chain lands exactly where Eqs. 1-2 do, so the
+   flown miss falls towards the verifier's own error; the closed form still supplies the
+   derivatives, so the optimum moves only by the difference of its gradients from the
+   true ones (on Earth-Mars: 578.0454 d against the exact polish's 578.044 d).
+
+Why this algorithm (measured on the shipped Earth-Mars transfer, 60 segments): the
+first correction round took the flown miss from 11,590 km to 88 km in 20 warm
+iterations (7 s) and the third to 0.6 km; refining the mesh alone gains only a factor
+(m'/m)^2 in m sub-arcs per round at the price of a cold solve of a larger NLP.  Sub-arcs
+are still added where the closed form is strained, because a defect correction built on
+an arc far outside its first-order regime has wrong derivatives and converges slowly or
+not at all (60 x 1 sub-arc without Richardson: 7 rounds to reach 705 km).
+"""
+
+import dataclasses
+import functools
+import math
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.optimisation.solve import build_solver, solve_transcription
+from esail_opt.optimisation.transcription import (
+    Guess, closed_form_segment, strain, transcribe)
+from esail_opt.optimisation.verify import Verification, state_miss, verify
+from esail_opt.physics import constants as units
+from esail_opt.propagation.simulate import (
+    VERIFY_TOLERANCE, SimulationError, quiet_stderr, segment_integrator)
+
+#: Rounds of defect correction after the first solve.
+MAX_ROUNDS = 8
+#: The sub-arcs never grow past this (the NLP's cost grows with them).
+MAX_SUB_ARCS = 24
+#: A round that does not bring the flown miss below this fraction of the last one
+#: doubles the sub-arcs: the correction is converging too slowly on this mesh.
+STALL = 0.5
+
+
+@dataclass
+class Refinement:
+    """The outcome of :func:`refine`.
+
+    Attributes
+    ----------
+    problem : Problem
+        The problem as last solved (its ``segments.sub_arcs`` may have grown).
+    result : NLPResult
+        The last optimum.
+    transcription : Transcription
+    check : Verification
+        The flight of ``result``'s schedule.
+    verified : bool
+        Ipopt converged and the flight meets the tolerance.
+    note : str
+        One line: verified, or which bound was missed and by how much.
+    history : list of dict
+        One row per round (boundary units).
+    local_error_km : numpy.ndarray
+        Per segment, the closed form's position error against Eqs. 1-2 over that
+        segment from its own start node, km.
+    defects : numpy.ndarray
+        5 x N defects the last solve used.
+    """
+
+    problem: object
+    result: object
+    transcription: object
+    check: Verification
+    verified: bool
+    note: str
+    history: list
+    local_error_km: np.ndarray
+    defects: np.ndarray
+
+
+@functools.lru_cache(maxsize=None)
+def _exact_segments(n, coefficients):
+    """N exact segments in theta, each from its own start: (starts[5 x N], ac[1 x N],
+    alpha[1 x N], dtheta[1 x N]) -> ends[5 x N]."""
+    seg = segment_integrator(1, "theta", coefficients, VERIFY_TOLERANCE)
+    return seg.map(n)
+
+
+def start_nodes(result):
+    """Each segment's start state [5 x N] with time: the departure, then the nodes."""
+    nodes = np.vstack([result.nodes, np.cumsum(result.durations)])
+    return np.column_stack([np.r_[result.x_start, 0.0], nodes[:, :-1]])
+
+
+def segment_ends(problem, result):
+    """(exact, closed form) ends [5 x N] of every segment flown from its own start node.
+
+    Raises
+    ------
+    SimulationError
+        If CVODES cannot fly a segment (an escaping arc).
+    """
+    n = result.alpha.size
+    seg = problem.segments
+    args = (start_nodes(result), problem.sail.ac * result.throttle[None, :],
+            result.alpha[None, :], result.lengths[None, :])
+    closed = closed_form_segment(seg.sub_arcs, problem.sail.coefficients, seg.extrapolate)
+    plain = np.array(closed.map(n)(*args)[0])
+    try:
+        with quiet_stderr():
+            exact = np.array(_exact_segments(n, problem.sail.coefficients)(*args))
+    except RuntimeError as err:
+        raise SimulationError(str(err).strip().splitlines()[-1]) from None
+    return exact, plain
+
+
+def guess_of(result, revolutions_k):
+    """A start for a new NLP at ``result``'s optimum (any mesh)."""
+    nodes = np.vstack([result.nodes, np.cumsum(result.durations)])
+    return Guess(result.alpha, result.lengths, nodes, result.nu0, revolutions_k,
+                 result.throttle)
+
+
+def _row(rnd, problem, result, check, local_km, seconds):
+    m = check.misses
+    return {"round": rnd, "segments": int(result.alpha.size),
+            "sub_arcs": problem.segments.sub_arcs, "status": result.status,
+            "iterations": result.iterations, "objective": result.objective,
+            "tof_days": units.time_to_days(float(np.sum(result.durations))),
+            "target_miss_r_km": m.get("target_miss_r_km"),
+            "target_miss_v_m_s": m.get("target_miss_v_m_s"),
+            "miss_r_km": m.get("miss_r_km"), "miss_v_m_s": m.get("miss_v_m_s"),
+            "max_local_error_km": None if local_km is None else float(np.max(local_km)),
+            "seconds": seconds}
+
+
+def _flown_miss(problem, check):
+    """The miss the tolerance is judged on, km (target, or NLP's end without one)."""
+    m = check.misses
+    value = m.get("target_miss_r_km") if problem.target is not None else m.get("miss_r_km")
+    return np.inf if value is None else value
+
+
+def refine(problem, result, tr=None, revolutions_k=0, theta_window=None, progress=None,
+           max_rounds=MAX_ROUNDS):
+    """Refine a closed-form optimum until its flight meets ``problem.tolerance``.
+
+    Parameters
+    ----------
+    problem : Problem
+    result : NLPResult
+        The closed-form optimum (``solve.solve_problem``).
+    tr : Transcription, optional
+        Its NLP; without it a new one is built at ``result`` (and the first correction
+        starts cold, since a new NLP scales its variables differently).
+    revolutions_k : int
+        The rendezvous turn count, when ``tr`` is not given.
+    theta_window : (float, float), optional
+        The final-angle box it was solved in, which every round keeps.
+    progress : callable, optional
+        ``progress(text)``: a line per round and Ipopt's iteration lines.
+    max_rounds : int
+        Rounds of correction at most.
+
+    Returns
+    -------
+    Refinement
+    """
+    say = progress or (lambda text: None)
+    fresh = tr is None
+    if fresh:
+        tr = transcribe(problem, guess=guess_of(result, revolutions_k), theta_window=theta_window)
+    k = tr.guess.revolutions_k
+    history, solver, last_miss = [], None, None
+    defects = np.zeros((5, result.alpha.size))
+    local_km = np.full(result.alpha.size, np.nan)
+    started = time.perf_counter()
+    for rnd in range(max_rounds + 1):
+        check = verify(problem, result, samples=1)
+        verified, note = check.judge(problem)
+        verified = verified and result.converged
+        try:
+            exact, plain = segment_ends(problem, result)
+            local_km = np.array([state_miss(a, b)[0] for a, b in zip(exact.T, plain.T)])
+        except SimulationError as err:
+            exact = None
+            note = f"{note}; a segment cannot be flown on Eqs. 1-2 ({err})"
+        history.append(_row(rnd, problem, result, check, local_km,
+                            time.perf_counter() - started))
+        miss = _flown_miss(problem, check)
+        say(f"refinement round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
+            f"{miss:.4g} km (tolerance {problem.tolerance.position_km:g} km)")
+        if (verified or rnd == max_rounds or exact is None
+                or result.outcome not in ("converged", "acceptable")):
+            break
+        sub = problem.segments.sub_arcs
+        worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,
+                                    result.throttle)))
+        strained = worst > 1
+        stalled = last_miss is not None and miss > STALL * last_miss
+        last_miss = miss
+        if fresh or ((strained or stalled) and sub < MAX_SUB_ARCS):
+            if not fresh:
+                grown = math.ceil(sub * worst) if strained else 2 * sub
+                problem = dataclasses.replace(problem, segments=dataclasses.replace(
+                    problem.segments, sub_arcs=min(grown, MAX_SUB_ARCS)))
+                tr = transcribe(problem, guess=guess_of(result, k), theta_window=theta_window)
+                plain = segment_ends(problem, result)[1]
+                say(f"refinement: {'strained' if strained else 'slow'} closed form; "
+                    f"{problem.segments.sub_arcs} sub-arcs per segment")
+            defects = exact - plain
+            result = solve_transcription(tr, defects=defects, progress=progress)
+            solver, last_miss, fresh = None, None, False
+        else:
+            defects = exact - plain
+            if solver is None:
+                solver = build_solver(tr, warm=True, progress=progress)
+            result = solve_transcription(tr, defects=defects, warm=result, solver=solver,
+                                         progress=progress)
+    return Refinement(problem, result, tr, check, verified, note, history, local_km, defects)
