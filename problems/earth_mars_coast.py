@@ -2,7 +2,7 @@
 circular 1.524 au, each segment's throttle kappa in [0, 1] free.
 
 At 2 mm/s^2 a sail that is always on cannot make this transfer faster than at 1 mm/s^2
-(PHYSICS-NOTES, "Optimal transfers": its permanent outward thrust pushes the final state
+(THEORY.md §1.4: its permanent outward thrust pushes the final state
 off the Keplerian target).  With the throttle free the optimum is bang-bang: thrust,
 coast for about half the transfer, thrust.  Measured (polished, exact on Eqs. 1-2,
 30 equal segments x 3 sub-arcs): 461.9 d throttled, against 878.3 d for the same

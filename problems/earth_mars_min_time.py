@@ -1,7 +1,7 @@
 """Earth to Mars, orbit to orbit, in minimum time: a_c = 1 mm/s^2, circular 1 au to
 circular 1.524 au (coplanar, circular approximation of both orbits).
 
-At a_c = 1 mm/s^2 the first-order arc needs short arcs (PHYSICS-NOTES: about a tenth of a
+At a_c = 1 mm/s^2 the first-order arc needs short arcs (THEORY.md §5.2: about a tenth of a
 radian), so each of the 60 segments is flown as 3 rectified sub-arcs.
 """
 

@@ -4,7 +4,7 @@ year at a_c = 0.1 mm/s^2, with the departure point on the parking orbit left fre
 
 a0 = 0.308 au is the value the paper prints; Mercury's real semimajor axis is 0.387 au
 (0.308 au is nearly its perihelion radius).  We use the printed value, as the paper's
-Fig. 4 does (PHYSICS-NOTES).  The paper's nu0 = 0 is the initial guess of the free
+Fig. 4 does (THEORY.md §6.5).  The paper's nu0 = 0 is the initial guess of the free
 departure anomaly.
 """
 

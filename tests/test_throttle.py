@@ -2,7 +2,7 @@
 
 References: Keplerian motion (a coasting arc keeps its osculating a and e exactly), the
 unthrottled NLP itself (a throttle fixed at 1 must reproduce it bit for bit), and the
-physics of PHYSICS-NOTES "Optimal transfers": with a sail that cannot be switched off the
+physics of THEORY.md §1.4: with a sail that cannot be switched off the
 minimum time need not fall as a_c grows, and coasting removes this.  Measured on
 problems/earth_mars_coast.py (a_c = 2 mm/s^2, 30 equal segments x 3 sub-arcs), polished
 and exact on Eqs. 1-2: 461.9 d throttled, 878.3 d always on with the same segments, and

@@ -358,7 +358,7 @@ class PathConstraints:
         Smallest solar distance allowed at the segment nodes, au, >= 0.
     q3_margin : float
         Smallest q3 allowed at every closed-form arc's end, (0, 1): the first-order
-        solution is only meaningful while q3 > 0 (PHYSICS-NOTES, theta_max).
+        solution is only meaningful while q3 > 0 (THEORY.md §3.7).
     """
 
     r_min_au: float = 0.1

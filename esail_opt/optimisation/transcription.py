@@ -39,7 +39,7 @@ from esail_opt.optimisation import problem as pb
 from esail_opt.physics import constants as units
 
 #: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
-#: a_c = 1 mm/s^2 (PHYSICS-NOTES: sub-arcs of about a tenth of a radian).
+#: a_c = 1 mm/s^2 (THEORY.md §5.2: sub-arcs of about a tenth of a radian).
 GUESS_STEP = 0.05
 #: Gauss-Legendre points of each sub-arc's time quadrature.  Sub-arcs are short (a tenth
 #: to a third of a radian), where 4 points already give the 8-point tof to 1e-11 days on
@@ -92,7 +92,7 @@ def closed_form_segment(sub_arcs, coefficients=pb.EXACT, extrapolate=True):
         Richardson-extrapolate the segment (``rectified.extrapolated_function``: its
         chain of sub-arcs flown as it is and with every sub-arc halved, combined as
         2 x_halves - x_whole at the segment's end; every segment restarts from its node).  The rectified closed
-        form's error falls only like 1/N with N arcs (PHYSICS-NOTES); extrapolation
+        form's error falls only like 1/N with N arcs (THEORY.md §5.2); extrapolation
         cancels that leading term at three times the arcs.  On Earth-Venus at 1 mm/s^2,
         30 x 3 extrapolated sub-arcs miss the CVODES flight by 6e3 km, where 30 x 12
         plain ones miss by 2e5 km.

@@ -17,7 +17,7 @@ import numpy as np
 from esail_opt.physics.dynamics import rhs, rhs_in_theta
 from esail_opt.physics.thrust import EXACT, radial_transverse
 
-#: Tight enough that the reference is not the error being measured (PHYSICS-NOTES.md).
+#: Tight enough that the reference is not the error being measured (THEORY.md §5.5).
 TOLERANCE = 1e-12
 #: The verifier's tolerances: it flies every schedule twice and reports the difference as
 #: its own error.  Final positions of CVODES (Adams) against scipy's DOP853 at rtol 1e-13
