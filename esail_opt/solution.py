@@ -236,11 +236,6 @@ def _metres(km):
     return None if km is None else 1e3 * km
 
 
-#: The polish's stricter bounds: 1 m and 1 mm/s, against the target and the polished
-#: NLP's own final state.
-POLISH_TOLERANCE = pb.Tolerance(position_km=1e-3, velocity_m_s=1e-3)
-
-
 def _polish_data(problem, exact, check):
     """The ``polish`` object of solution.json: the exact optimum and its verification.
 
@@ -261,7 +256,7 @@ def _polish_data(problem, exact, check):
     if check.error is None:
         verification["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
         verification["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
-    within_all, note = check.judge(problem, POLISH_TOLERANCE, against_nlp=True)
+    within_all, note = check.judge(problem, exact_refinement.TOLERANCE, against_nlp=True)
     verified = exact.converged and within_all
     if not exact.converged:
         note = f"NOT verified: Ipopt did not converge ({exact.status}); {note}"
@@ -273,10 +268,10 @@ def _polish_data(problem, exact, check):
         "constraint_violation": exact.constraint_violation,
         "objective": exact.objective,
         "tof_days": units.time_to_days(float(np.sum(exact.durations))),
-        "bounds": {"position_m": 1e3 * POLISH_TOLERANCE.position_km,
-                   "velocity_mm_s": 1e3 * POLISH_TOLERANCE.velocity_m_s},
-        "within_bounds_vs_nlp": within(m, POLISH_TOLERANCE, "nlp"),
-        "within_bounds_vs_target": problem.target is None or within(m, POLISH_TOLERANCE),
+        "bounds": {"position_m": 1e3 * exact_refinement.TOLERANCE.position_km,
+                   "velocity_mm_s": 1e3 * exact_refinement.TOLERANCE.velocity_m_s},
+        "within_bounds_vs_nlp": within(m, exact_refinement.TOLERANCE, "nlp"),
+        "within_bounds_vs_target": problem.target is None or within(m, exact_refinement.TOLERANCE),
         "verified": verified, "note": note,
         "schedule": _schedule(exact, problem.sail.throttle),
         "final_state": _polar_dict(exact.nodes[:, -1]),

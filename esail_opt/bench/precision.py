@@ -97,6 +97,27 @@ def closed_form(segments=None, sub_arcs=3, per_revolution=None):
                                   "per_revolution": per_revolution}, solve)
 
 
+def corrected(segments=None, sub_arcs=3, per_revolution=None, rounds=1):
+    """The closed-form NLP followed by ``rounds`` rounds of the error control's defect
+    correction (``optimisation.refine``), asked for 1 m so that it never stops early:
+    the closed form as ``esail-opt solve`` uses it."""
+
+    def solve(problem):
+        from esail_opt.optimisation.problem import Tolerance
+        from esail_opt.optimisation.refine import refine
+        from esail_opt.optimisation.solve import solve_problem
+
+        variant = dataclasses.replace(_with_count(problem, segments, per_revolution, sub_arcs),
+                                      tolerance=Tolerance(position_km=1e-3))
+        result, tr = solve_problem(variant)
+        if result.outcome not in ("converged", "acceptable"):
+            return result
+        return refine(variant, result, tr, max_rounds=rounds).result
+
+    return Method("corrected", {"segments": segments, "steps": sub_arcs,
+                                "per_revolution": per_revolution, "rounds": rounds}, solve)
+
+
 def rk4(segments=None, steps=1, per_revolution=None):
     """The same NLP with RK4 segments of ``steps`` steps each."""
 
@@ -140,11 +161,13 @@ def cvodes(segments=None, per_revolution=None):
 CASES = (
     Case("earth_mars_min_time.py", (
         *(closed_form(segments=n, sub_arcs=s) for n in (20, 40, 60) for s in (1, 3)),
+        *(corrected(segments=n, sub_arcs=3, rounds=k) for n in (20, 40) for k in (1, 2)),
         *(rk4(segments=n, steps=m) for n in (10, 20, 30, 60, 100) for m in (1, 2, 4)),
         cvodes(segments=20), cvodes(segments=40),
     )),
     Case("earth_mars_low_thrust.py", (
         *(closed_form(per_revolution=k, sub_arcs=s) for k in (8, 16, 24) for s in (1, 2)),
+        *(corrected(per_revolution=k, sub_arcs=2, rounds=r) for k in (8, 16) for r in (1, 2)),
         *(rk4(per_revolution=k, steps=m) for k in (4, 8, 16, 24) for m in (1, 2, 4)),
         cvodes(per_revolution=4), cvodes(per_revolution=8),
     )),

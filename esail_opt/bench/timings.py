@@ -294,14 +294,14 @@ COLD_MAX_ITER = 1000
 
 def _flown_success(problem, result):
     """Converged, and the schedule flown on CVODES reaches the target to 1 m and 1 mm/s."""
-    from esail_opt.optimisation.polish import meets_bounds
-    from esail_opt.optimisation.verify import verify
+    from esail_opt.optimisation.polish import TOLERANCE
+    from esail_opt.optimisation.verify import verify, within
 
     misses = verify(problem, result, samples=1).misses
     r, v = misses.get("target_miss_r_km"), misses.get("target_miss_v_m_s")
     metres = {"position_m": None if r is None else 1e3 * r,
               "velocity_mm_s": None if v is None else 1e3 * v}
-    return result.converged and meets_bounds(metres), metres
+    return result.converged and within(misses, TOLERANCE), metres
 
 
 def _polish_case(problem_file):

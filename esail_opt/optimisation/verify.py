@@ -109,10 +109,10 @@ def _exceeded(r, v, r_err, v_err, tolerance):
 def within(misses, tolerance, against="target"):
     """Whether the flight, its verifier's error included, is within ``tolerance`` of the
     target (``against="target"``) or of the NLP's final state (``"nlp"``)."""
-    if misses.get("verifier_error_r_km") is None:
-        return False
     prefix = "target_" if against == "target" else ""
-    r, v = misses[prefix + "miss_r_km"], misses[prefix + "miss_v_m_s"]
+    r, v = misses.get(prefix + "miss_r_km"), misses.get(prefix + "miss_v_m_s")
+    if r is None or misses.get("verifier_error_r_km") is None:
+        return False
     return not _exceeded(r, v, misses["verifier_error_r_km"], misses["verifier_error_v_m_s"],
                          tolerance)
 
