@@ -257,7 +257,7 @@ def search(problem, extra_revolutions=2, progress=None):
     say = progress or (lambda text: None)
     rendezvous = isinstance(problem.target, pb.Rendezvous)
     say(f"{problem.name}: start 1, the problem's own seed (free)")
-    first, tr = solve_problem(problem)
+    first, tr = solve_problem(problem, progress=progress)
     base_k = tr.guess.revolutions_k
     if first.outcome == "converged":
         centre = base_k if rendezvous else int(sweep(first) // (2 * math.pi))
@@ -275,7 +275,8 @@ def search(problem, extra_revolutions=2, progress=None):
     outcomes = [(Start("the problem's own seed (free)", centre, tr.guess), first, base_k)]
     for i, start in enumerate(starts, 2):
         say(f"{problem.name}: start {i}/{len(starts) + 1}, {start.label}")
-        result, tr = solve_problem(problem, guess=start.guess, theta_window=start.window)
+        result, tr = solve_problem(problem, guess=start.guess, theta_window=start.window,
+                                   progress=progress)
         outcomes.append((start, result, tr.guess.revolutions_k))
 
     candidates, records = [], []

@@ -39,13 +39,12 @@ import math
 import time
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from esail_opt.optimisation.solve import build_solver, solve_transcription
 from esail_opt.optimisation.transcription import (
     Guess, closed_form_segment, strain, transcribe)
-from esail_opt.optimisation.verify import Verification, state_miss, verify
+from esail_opt.optimisation.verify import state_miss, verify
 from esail_opt.physics import constants as units
 from esail_opt.propagation.simulate import (
     VERIFY_TOLERANCE, SimulationError, quiet_stderr, segment_integrator)
@@ -61,7 +60,7 @@ STALL = 0.5
 
 @dataclass
 class Refinement:
-    """The outcome of :func:`refine`.
+    """The outcome of :func:`refine`; the caller judges its final flight.
 
     Attributes
     ----------
@@ -70,30 +69,18 @@ class Refinement:
     result : NLPResult
         The last optimum.
     transcription : Transcription
-    check : Verification
-        The flight of ``result``'s schedule.
-    verified : bool
-        Ipopt converged and the flight meets the tolerance.
-    note : str
-        One line: verified, or which bound was missed and by how much.
     history : list of dict
-        One row per round (boundary units).
+        One row per round (boundary units), the last one ``result``'s.
     local_error_km : numpy.ndarray
         Per segment, the closed form's position error against Eqs. 1-2 over that
-        segment from its own start node, km.
-    defects : numpy.ndarray
-        5 x N defects the last solve used.
+        segment from its own start node, km (NaN where a segment could not be flown).
     """
 
     problem: object
     result: object
     transcription: object
-    check: Verification
-    verified: bool
-    note: str
     history: list
     local_error_km: np.ndarray
-    defects: np.ndarray
 
 
 @functools.lru_cache(maxsize=None)
@@ -190,19 +177,17 @@ def refine(problem, result, tr=None, revolutions_k=0, theta_window=None, progres
         tr = transcribe(problem, guess=guess_of(result, revolutions_k), theta_window=theta_window)
     k = tr.guess.revolutions_k
     history, solver, last_miss = [], None, None
-    defects = np.zeros((5, result.alpha.size))
     local_km = np.full(result.alpha.size, np.nan)
     started = time.perf_counter()
     for rnd in range(max_rounds + 1):
         check = verify(problem, result, samples=1)
-        verified, note = check.judge(problem)
-        verified = verified and result.converged
+        verified = check.judge(problem)[0] and result.converged
         try:
             exact, plain = segment_ends(problem, result)
             local_km = np.array([state_miss(a, b)[0] for a, b in zip(exact.T, plain.T)])
         except SimulationError as err:
             exact = None
-            note = f"{note}; a segment cannot be flown on Eqs. 1-2 ({err})"
+            say(f"refinement: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")
         history.append(_row(rnd, problem, result, check, local_km,
                             time.perf_counter() - started))
         miss = _flown_miss(problem, check)
@@ -235,4 +220,4 @@ def refine(problem, result, tr=None, revolutions_k=0, theta_window=None, progres
                 solver = build_solver(tr, warm=True, progress=progress)
             result = solve_transcription(tr, defects=defects, warm=result, solver=solver,
                                          progress=progress)
-    return Refinement(problem, result, tr, check, verified, note, history, local_km, defects)
+    return Refinement(problem, result, tr, history, local_km)
