@@ -181,7 +181,7 @@ def rectified_function(segments, samples=1, length_in="theta", coefficients=EXAC
 
 
 def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="theta",
-              coefficients=EXACT):
+              coefficients=EXACT, nodes=NODES):
     """Rectified closed-form propagation of a piecewise-constant pitch schedule.
 
     Parameters
@@ -198,6 +198,8 @@ def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="the
     samples : int
         Points per segment, equally spaced in theta; they also set the time
         quadrature's panels.
+    nodes : int
+        Gauss-Legendre points per panel of the time quadrature.
 
     Returns
     -------
@@ -212,7 +214,7 @@ def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="the
     lengths = np.atleast_1d(np.asarray(lengths, float))
     n = alphas.size
     kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = rectified_function(n, samples, length_in, coefficients)
+    fun = rectified_function(n, samples, length_in, coefficients, nodes)
     start = np.r_[np.asarray(x0, float), 0.0]
     xs, q3 = fun(start, ac * kappa, alphas, lengths)
     return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
@@ -248,11 +250,11 @@ def extrapolated_function(segments, length_in="theta", coefficients=EXACT, nodes
 
 
 def propagate_extrapolated(x0, alphas, lengths, ac, throttles=None, length_in="theta",
-                           coefficients=EXACT):
+                           coefficients=EXACT, nodes=NODES):
     """Richardson-extrapolated rectified propagation (see :func:`extrapolated_function`).
 
     Parameters are those of :func:`propagate` (without samples: only the segment
-    ends are extrapolated).
+    ends are extrapolated; ``nodes`` as there).
 
     Returns
     -------
@@ -267,7 +269,7 @@ def propagate_extrapolated(x0, alphas, lengths, ac, throttles=None, length_in="t
     lengths = np.atleast_1d(np.asarray(lengths, float))
     n = alphas.size
     kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = extrapolated_function(n, length_in, coefficients)
+    fun = extrapolated_function(n, length_in, coefficients, nodes)
     start = np.r_[np.asarray(x0, float), 0.0]
     xs, q3 = fun(start, ac * kappa, alphas, lengths)
     return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
