@@ -399,9 +399,6 @@ def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=Fa
         problem, result, tr = refined.problem, refined.result, refined.transcription
         revolutions_k = tr.guess.revolutions_k
         result.iterations, result.solve_seconds = iterations, seconds
-    seg = problem.segments
-    # The count actually used: with a per-revolution rule the seed propagation fixed it.
-    n, sub = result.alpha.size, seg.sub_arcs
     check = verify(problem, result, samples)
     verified, note = check.judge(problem)
     verified = verified and result.converged
@@ -419,21 +416,8 @@ def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=Fa
     if check.error is None:
         verification["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
         verification["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
-    dep = problem.departure
     data = {
-        "problem": {
-            "name": problem.name, "description": problem.description,
-            "ac_mm_s2": problem.sail.ac_mm_s2, "coefficients": list(problem.sail.coefficients),
-            "alpha_bounds_deg": [problem.sail.alpha_min_deg, problem.sail.alpha_max_deg],
-            "segments": n, "segments_per_revolution": seg.per_revolution,
-            "sub_arcs": sub, "sub_arcs_requested": requested, "equal_segments": seg.equal,
-            "objective": type(problem.objective).__name__,
-            "target": _target_dict(problem.target),
-            "departure": {"kind": type(dep).__name__,
-                          **{k: getattr(dep, k) for k in dep.__dataclass_fields__}},
-            "departure_state": _polar_dict(result.x_start),
-            "r_min_au": problem.path.r_min_au, "q3_margin": problem.path.q3_margin,
-        },
+        "problem": _problem_data(problem, result, requested),
         "status": result.status,
         "converged": result.converged,
         "acceptable": result.outcome == "acceptable",
@@ -460,25 +444,51 @@ def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=Fa
             "cvodes": _trajectory(check.cvodes) if check.error is None else None,
         },
     }
+    if polish:
+        _add_polish(data, problem, result, revolutions_k, theta_window, samples, say)
+    return Solution(json_ready(data))
+
+
+def _problem_data(problem, result, sub_arcs_requested):
+    """The ``problem`` object of solution.json: the settings as solved (``segments`` is
+    the count used, also when a per-revolution rule set it; ``sub_arcs`` the count the
+    error control ended with)."""
+    seg, dep = problem.segments, problem.departure
+    out = {
+        "name": problem.name, "description": problem.description,
+        "ac_mm_s2": problem.sail.ac_mm_s2, "coefficients": list(problem.sail.coefficients),
+        "alpha_bounds_deg": [problem.sail.alpha_min_deg, problem.sail.alpha_max_deg],
+        "segments": int(result.alpha.size), "segments_per_revolution": seg.per_revolution,
+        "sub_arcs": seg.sub_arcs, "sub_arcs_requested": sub_arcs_requested,
+        "equal_segments": seg.equal, "objective": type(problem.objective).__name__,
+        "target": _target_dict(problem.target),
+        "departure": {"kind": type(dep).__name__,
+                      **{k: getattr(dep, k) for k in dep.__dataclass_fields__}},
+        "departure_state": _polar_dict(result.x_start),
+        "r_min_au": problem.path.r_min_au, "q3_margin": problem.path.q3_margin,
+    }
     if problem.sail.throttle:
         # Only a throttled problem names its bounds: an unthrottled solution.json is
         # exactly what it was before throttles existed.
-        data["problem"]["throttle_bounds"] = [problem.sail.throttle_min, problem.sail.throttle_max]
+        out["throttle_bounds"] = [problem.sail.throttle_min, problem.sail.throttle_max]
+    return out
+
+
+def _add_polish(data, problem, result, revolutions_k, theta_window, samples, say):
+    """Polish ``result`` on exact arcs and add what it found to ``data``."""
     # A closed form that found no optimum has nothing worth refining.
-    if polish and result.outcome in ("converged", "acceptable"):
-        say(f"{problem.name}: polishing on exact CVODES arcs in time ({n} segments)")
-        exact, _ = exact_refinement.polish(problem, result, revolutions_k,
-                                           theta_window=theta_window)
-        say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
-            "verifying on CVODES")
-        exact_check = verify(problem, exact, samples)
-        data["objective_closed_form"] = result.objective
-        data["objective_exact"] = exact.objective
-        data["tof_days_exact"] = units.time_to_days(float(np.sum(exact.durations)))
-        data["polish"] = _polish_data(problem, exact, exact_check)
-        data["trajectory"]["polished"] = (_trajectory(exact_check.cvodes)
-                                          if exact_check.error is None else None)
-    elif polish:
+    if result.outcome not in ("converged", "acceptable"):
         data["polish"] = {"status": None, "converged": False, "verified": False,
                           "note": f"NOT polished: the closed-form solve ended {result.status}"}
-    return Solution(json_ready(data))
+        return
+    say(f"{problem.name}: polishing on exact CVODES arcs in time ({result.alpha.size} segments)")
+    exact, _ = exact_refinement.polish(problem, result, revolutions_k, theta_window=theta_window)
+    say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
+        "verifying on CVODES")
+    exact_check = verify(problem, exact, samples)
+    data["objective_closed_form"] = result.objective
+    data["objective_exact"] = exact.objective
+    data["tof_days_exact"] = units.time_to_days(float(np.sum(exact.durations)))
+    data["polish"] = _polish_data(problem, exact, exact_check)
+    data["trajectory"]["polished"] = (_trajectory(exact_check.cvodes)
+                                      if exact_check.error is None else None)
