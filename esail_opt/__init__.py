@@ -17,7 +17,7 @@ def __getattr__(name):
     # The application layer (matplotlib, Ipopt) loads only when asked for, so that
     # ``import esail_opt`` in a problem file stays cheap.
     if name in ("solve", "Solution"):
-        from esail_opt import solution
+        from esail_opt.app import solution
 
         return getattr(solution, name)
     raise AttributeError(f"module 'esail_opt' has no attribute {name!r}")

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 import esail_opt as eo
-from esail_opt import cli
+from esail_opt.app import cli
 from esail_opt.errors import InputError
 from esail_opt.optimisation import transcription as tr
-from esail_opt.optimisation.solve import outcome_of, solve_problem
+from esail_opt.optimisation.ipopt import outcome_of, solve_problem
 from esail_opt.physics import constants as units
 from esail_opt.propagation.rectified import propagate, propagate_extrapolated
 

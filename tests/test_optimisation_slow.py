@@ -142,7 +142,7 @@ def test_rendezvous_meets_the_body():
 
 
 def test_cli_writes_a_solution_that_loads_back(tmp_path, capsys):
-    from esail_opt import cli
+    from esail_opt.app import cli
 
     out = tmp_path / "venus"
     code = cli.main(["solve", str(REPO / "problems" / "earth_venus_min_time.py"),

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from esail_opt import reproduce
+from esail_opt.app import reproduce
 
 
 def test_fig3_eps_below_4_percent():

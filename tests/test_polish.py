@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import esail_opt as eo
-from esail_opt.optimisation import polish as exact_refinement
+from esail_opt.optimisation import exact as exact_refinement
 from esail_opt.optimisation.verify import within
 from esail_opt.optimisation.problem_file import load_problem
-from esail_opt.optimisation.solve import solve_problem
+from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.transcription import cvodes_time_segment, transcribe
 
 REPO = Path(__file__).resolve().parents[1]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from esail_opt.cli import main
+from esail_opt.app.cli import main
 from esail_opt.physics import constants as units
 from esail_opt.physics.thrust import radial_transverse
 from esail_opt.propagation.simulate import simulate

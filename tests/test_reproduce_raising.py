@@ -5,7 +5,8 @@ import json
 
 import pytest
 
-from esail_opt import bench, reproduce
+from esail_opt import bench
+from esail_opt.app import reproduce
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import esail_opt as eo
-from esail_opt import cli, search
+from esail_opt.app import cli, search
 from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
 from esail_opt.optimisation.problem_file import load_problem

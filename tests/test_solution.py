@@ -7,8 +7,8 @@ import pytest
 
 import esail_opt as eo
 from esail_opt.physics import constants as units
-from esail_opt.files import json_ready
-from esail_opt.solution import Solution
+from esail_opt.app.files import json_ready
+from esail_opt.app.solution import Solution
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ import time
 
 import pytest
 
-from esail_opt import cli, sweep
+from esail_opt.app import cli, sweep
 from esail_opt.errors import InputError
 
 TINY = '''
@@ -306,7 +306,7 @@ def _crashing_pool_member(started, index, *args):
 
 
 def _sweep_command(path, param, out, *extra):
-    return [sys.executable, "-m", "esail_opt.cli", "sweep", str(path), "--param", param,
+    return [sys.executable, "-m", "esail_opt.app.cli", "sweep", str(path), "--param", param,
             "--workers", "2", "--out", str(out), *extra]
 
 
@@ -444,7 +444,7 @@ class _Unverified:
 def test_converged_but_not_verified_member_fails_in_its_row(tiny, monkeypatch):
     """--tol-km/--tol-m-s reach the member's problem, and a converged member whose flight
     misses them is a failure with its reason; the solve's own note wins when it has one."""
-    from esail_opt import solution
+    from esail_opt.app import solution
 
     seen = []
 

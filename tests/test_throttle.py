@@ -19,9 +19,9 @@ import pytest
 
 import esail_opt as eo
 from esail_opt.errors import InputError
-from esail_opt.optimisation import polish as exact_refinement
+from esail_opt.optimisation import exact as exact_refinement
 from esail_opt.optimisation.problem_file import load_problem
-from esail_opt.optimisation.solve import solve_problem, solve_transcription
+from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
 from esail_opt.optimisation.transcription import closed_form_segment, transcribe
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar

@@ -61,7 +61,7 @@ def test_tolerance_is_checked_on_input():
 
 
 def _solve_cli(path, out, *extra):
-    return subprocess.run([sys.executable, "-m", "esail_opt.cli", "solve", str(path), "--out",
+    return subprocess.run([sys.executable, "-m", "esail_opt.app.cli", "solve", str(path), "--out",
                            str(out), *extra], capture_output=True, text=True, timeout=3000)
 
 
@@ -152,7 +152,7 @@ def test_every_verified_polish_holds_under_dop853(path):
 def test_sigint_stops_a_solve_within_seconds_and_writes_nothing(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "esail_opt.cli", "solve", str(PROBLEMS / "earth_mars_min_time.py"),
+        [sys.executable, "-m", "esail_opt.app.cli", "solve", str(PROBLEMS / "earth_mars_min_time.py"),
          "--out", str(out)], stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
     try:
         # Wait until Ipopt is iterating: the interrupt must reach the C++ solver.

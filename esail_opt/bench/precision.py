@@ -88,7 +88,7 @@ def closed_form(segments=None, sub_arcs=3, per_revolution=None):
     """The package's own closed-form NLP (default segment) at one setting."""
 
     def solve(problem):
-        from esail_opt.optimisation.solve import solve_problem
+        from esail_opt.optimisation.ipopt import solve_problem
 
         variant = _with_count(problem, segments, per_revolution, sub_arcs)
         return solve_problem(variant)[0]
@@ -105,7 +105,7 @@ def corrected(segments=None, sub_arcs=3, per_revolution=None, rounds=1):
     def solve(problem):
         from esail_opt.optimisation.problem import Tolerance
         from esail_opt.optimisation.refine import refine
-        from esail_opt.optimisation.solve import solve_problem
+        from esail_opt.optimisation.ipopt import solve_problem
 
         variant = dataclasses.replace(_with_count(problem, segments, per_revolution, sub_arcs),
                                       tolerance=Tolerance(position_km=1e-3))
@@ -123,7 +123,7 @@ def rk4(segments=None, steps=1, per_revolution=None):
 
     def solve(problem):
         from esail_opt.bench.rk4 import rk4_segment
-        from esail_opt.optimisation.solve import solve_problem
+        from esail_opt.optimisation.ipopt import solve_problem
 
         variant = _with_count(problem, segments, per_revolution)
         segment = rk4_segment(steps, problem.sail.coefficients)
@@ -141,7 +141,7 @@ def cvodes(segments=None, per_revolution=None):
     """
 
     def solve(problem):
-        from esail_opt.optimisation.solve import solve_problem
+        from esail_opt.optimisation.ipopt import solve_problem
         from esail_opt.optimisation.transcription import cvodes_segment
 
         variant = _with_count(problem, segments, per_revolution)
@@ -396,7 +396,7 @@ def precision(out, repeats):
     One progress line per point goes to stderr.
     """
     from esail_opt.bench.timings import print_table
-    from esail_opt.files import json_ready, save_figure, write_json
+    from esail_opt.app.files import json_ready, save_figure, write_json
 
     folder = Path(__file__).resolve().parents[2] / "problems"
     runs = max(1, min(repeats, 3))

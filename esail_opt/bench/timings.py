@@ -54,7 +54,7 @@ def propagate(out, repeats):
 
     import numpy as np
 
-    from esail_opt.files import write_json
+    from esail_opt.app.files import write_json
     from esail_opt.physics import constants as units
     from esail_opt.physics.thrust import radial_transverse
     from esail_opt.propagation.rectified import rectified_function
@@ -178,9 +178,9 @@ def _timed_nlps(problem, guess, segments, runs):
     dict
         Name -> {"seconds", "iterations", "status", "objective", "result"}: the median
         wall time of ``nlpsol`` construction plus the Ipopt solve (MUMPS, exact Hessian),
-        and the last run's :class:`~esail_opt.optimisation.solve.NLPResult`.
+        and the last run's :class:`~esail_opt.optimisation.ipopt.NLPResult`.
     """
-    from esail_opt.optimisation.solve import solve_transcription
+    from esail_opt.optimisation.ipopt import solve_transcription
     from esail_opt.optimisation.transcription import transcribe
 
     out = {}
@@ -257,7 +257,7 @@ def solve(out, repeats):
     """
     from pathlib import Path
 
-    from esail_opt.files import write_json
+    from esail_opt.app.files import write_json
 
     folder = Path(__file__).resolve().parents[2] / "problems"
     cases = [_solve_case(folder / name, repeats) for name in SOLVE_PROBLEMS]
@@ -294,7 +294,7 @@ COLD_MAX_ITER = 1000
 
 def _flown_success(problem, result):
     """Converged, and the schedule flown on CVODES reaches the target to 1 m and 1 mm/s."""
-    from esail_opt.optimisation.polish import TOLERANCE
+    from esail_opt.optimisation.exact import TOLERANCE
     from esail_opt.optimisation.verify import verify, within
 
     misses = verify(problem, result, samples=1).misses
@@ -308,9 +308,9 @@ def _polish_case(problem_file):
     """Closed form + polish against cold exact shooting, both from the same seed."""
     import numpy as np
 
-    from esail_opt.optimisation.polish import exact_guess, polish, polish_options
+    from esail_opt.optimisation.exact import exact_guess, polish, polish_options
     from esail_opt.optimisation.problem_file import load_problem
-    from esail_opt.optimisation.solve import solve_problem, solve_transcription
+    from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
     from esail_opt.optimisation.transcription import (
         cvodes_time_segment, initial_guess, transcribe)
     from esail_opt.physics import constants as units
@@ -370,7 +370,7 @@ def polish_bench(out, repeats):
     """
     from pathlib import Path
 
-    from esail_opt.files import write_json
+    from esail_opt.app.files import write_json
 
     folder = Path(__file__).resolve().parents[2] / "problems"
     cases = []
@@ -467,7 +467,7 @@ def lowthrust(out, repeats):
     import math
     from pathlib import Path
 
-    from esail_opt.files import write_json
+    from esail_opt.app.files import write_json
     from esail_opt.optimisation.problem_file import load_problem
     from esail_opt.optimisation.transcription import initial_guess
     from esail_opt.optimisation.verify import verify
@@ -641,8 +641,8 @@ def sweep(out, repeats):
     import tempfile
     from pathlib import Path
 
-    from esail_opt import sweep as family
-    from esail_opt.files import write_json
+    from esail_opt.app import sweep as family
+    from esail_opt.app.files import write_json
 
     runs = max(1, min(repeats, 3))
     seconds = {1: [], 2: []}
@@ -680,7 +680,7 @@ def sweep(out, repeats):
         "load_average_1_5_15_after": list(os.getloadavg()),
         "converged": sum(1 for r in rows[1] if r["converged"]),
         "identical_rows": rows[1] == rows[2],
-        "how": "wall time of esail_opt.sweep.run (spawned process pool start, all members, "
+        "how": "wall time of esail_opt.app.sweep.run (spawned process pool start, all members, "
                "shutdown), median over alternating runs, same machine and run; ratio = "
                "one_worker_seconds / two_workers_seconds (2 would be perfect scaling)",
     }

@@ -34,7 +34,7 @@ import numpy as np
 
 from esail_opt.errors import InputError
 from esail_opt.optimisation import problem as pb
-from esail_opt.optimisation.solve import NLPResult, solve_problem
+from esail_opt.optimisation.ipopt import NLPResult, solve_problem
 from esail_opt.optimisation.transcription import (
     Guess, flown_segments, guess_alpha, initial_guess)
 

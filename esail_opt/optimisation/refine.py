@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esail_opt.optimisation.solve import build_solver, solve_transcription
+from esail_opt.optimisation.ipopt import build_solver, solve_transcription
 from esail_opt.optimisation.transcription import (
     Guess, closed_form_segment, strain, transcribe)
 from esail_opt.optimisation.verify import state_miss, verify

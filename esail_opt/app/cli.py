@@ -44,8 +44,8 @@ def _add_propagate(sub):
 
 
 def _run_propagate(args):
-    from esail_opt import fixed_attitude
-    from esail_opt.files import write_json
+    from esail_opt.app import fixed_attitude
+    from esail_opt.app.files import write_json
 
     case = fixed_attitude.FixedAttitudeCase(args.a0, args.e0, args.nu0, args.ac, args.alpha, args.years)
     if args.samples is not None and args.samples < 1:
@@ -77,7 +77,7 @@ def _add_reproduce(sub):
 
 
 def _figures():
-    from esail_opt import reproduce
+    from esail_opt.app import reproduce
 
     return reproduce.FIGURES
 
@@ -178,7 +178,7 @@ def _add_solve(sub):
 def _run_solve(args):
     from pathlib import Path
 
-    from esail_opt import solution
+    from esail_opt.app import solution
 
     problem = _load(args)
     progress = progress_printer("solve")
@@ -221,7 +221,7 @@ def _add_search(sub):
 def _run_search(args):
     from pathlib import Path
 
-    from esail_opt import search
+    from esail_opt.app import search
 
     problem = _load(args)
     progress = progress_printer("search")
@@ -273,7 +273,7 @@ def _add_sweep(sub):
 
 
 def _sweepable():
-    from esail_opt.sweep import SWEEPABLE
+    from esail_opt.app.sweep import SWEEPABLE
 
     return SWEEPABLE
 
@@ -281,7 +281,7 @@ def _sweepable():
 def _run_sweep(args):
     from pathlib import Path
 
-    from esail_opt import sweep
+    from esail_opt.app import sweep
 
     name = args.param.partition("=")[0].strip()
     # The folder first: the journal goes there while the members run.
@@ -313,6 +313,10 @@ def build_parser():
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    # The command line only writes files; library callers keep whatever backend they chose.
+    import matplotlib
+
+    matplotlib.use("Agg")
     try:
         return args.run(args)
     except InputError as err:

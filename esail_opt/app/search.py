@@ -2,7 +2,7 @@
 
 ``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`
 (one start per revolution class), then verifies every distinct optimum on CVODES and
-polishes it on exact arcs (:func:`esail_opt.solution.solution_of`), and ranks them on
+polishes it on exact arcs (:func:`esail_opt.app.solution.solution_of`), and ranks them on
 the exact time of flight of the polished schedules that fly to within 1 m and 1 mm/s
 (then, for any that do not, on the closed-form time).  It writes ``search.json`` and
 ``search.csv`` (one row per optimum, all kept), ``search.png`` (revolutions against
@@ -14,10 +14,10 @@ import csv
 import io
 from pathlib import Path
 
-from esail_opt.files import atomic_path, json_ready, save_figure, write_json
+from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
 from esail_opt.optimisation import multistart
 from esail_opt.physics import constants as units
-from esail_opt.solution import solution_of
+from esail_opt.app.solution import solution_of
 
 FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous_k",
           "tof_days_closed_form", "tof_days_exact", "verified", "polish_status",

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from esail_opt import fixed_attitude
-from esail_opt.files import save_figure, write_json
+from esail_opt.app import fixed_attitude
+from esail_opt.app.files import save_figure, write_json
 from esail_opt.physics import constants as units
 from esail_opt.physics.closed_form import theta_max_circular
 from esail_opt.physics.elements import ac_tilde

@@ -17,7 +17,7 @@ schedule, so continuity holds at the start and Ipopt only has to remove the fina
 import numpy as np
 
 from esail_opt.optimisation.problem import Tolerance
-from esail_opt.optimisation.solve import ipopt_options, solve_transcription
+from esail_opt.optimisation.ipopt import ipopt_options, solve_transcription
 from esail_opt.optimisation.transcription import Guess, cvodes_time_segment, transcribe
 from esail_opt.propagation.simulate import SimulationError, simulate
 

@@ -1,4 +1,4 @@
-"""Plots of a :class:`~esail_opt.solution.Solution`, drawn from its JSON data alone.
+"""Plots of a :class:`~esail_opt.app.solution.Solution`, drawn from its JSON data alone.
 
 ``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
 the departure and target orbits and the segment boundaries.  ``timeline.png``: r, v_r,
@@ -17,7 +17,7 @@ matplotlib.use("Agg")  # files only: never needs a display
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from esail_opt.files import save_figure  # noqa: E402
+from esail_opt.app.files import save_figure  # noqa: E402
 
 
 def _orbit_xy(a, e, omega_rad=0.0, points=361):

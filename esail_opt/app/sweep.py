@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from esail_opt.errors import InputError
-from esail_opt.files import atomic_path, json_ready, save_figure, write_json
+from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
 
 
 @dataclasses.dataclass(frozen=True)
@@ -252,7 +252,7 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
         ``exact_verified`` (the polished schedule flies to within 1 m and 1 mm/s) and
         ``exact_target_miss_m``; None without.
     """
-    from esail_opt import solution
+    from esail_opt.app import solution
     from esail_opt.optimisation.problem_file import load_problem
 
     row = _empty_row(index, value)

@@ -16,12 +16,12 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from esail_opt.files import atomic_path, json_ready, write_json
+from esail_opt.app.files import atomic_path, json_ready, write_json
 from esail_opt.optimisation import problem as pb
-from esail_opt.optimisation import polish as exact_refinement
+from esail_opt.optimisation import exact as exact_refinement
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
-from esail_opt.optimisation.solve import solve_problem
+from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.verify import verify, within
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
@@ -146,7 +146,7 @@ class Solution:
             with atomic_path(written[-1]) as tmp:
                 tmp.write_text(self.schedule_csv(polished=True))
         if plots:
-            from esail_opt import plots as plotting
+            from esail_opt.app import plots as plotting
 
             written += plotting.write_plots(self, out)
         return written
@@ -207,7 +207,7 @@ class Solution:
 
     def plot(self, out_dir=None):
         """Draw trajectory.png and timeline.png figures; write them if ``out_dir`` is given."""
-        from esail_opt import plots as plotting
+        from esail_opt.app import plots as plotting
 
         if out_dir is not None:
             return plotting.write_plots(self, out_dir)
@@ -294,7 +294,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         Plot samples per segment.
     polish : bool
         Then refine the optimum on exact CVODES arcs in time
-        (:func:`esail_opt.optimisation.polish.polish`) and verify that schedule too.
+        (:func:`esail_opt.optimisation.exact.polish`) and verify that schedule too.
 
     Returns
     -------
