@@ -11,7 +11,6 @@ turn counts k are disjoint pieces of the feasible set.
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,9 +21,8 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
 from esail_opt.optimisation.problem_file import load_problem
 
-from conftest import fly_dop853, independent_target_miss
+from conftest import PROBLEMS, REPO, fly_dop853, independent_target_miss
 
-REPO = Path(__file__).resolve().parents[1]
 REFERENCE = json.loads((REPO / "tests" / "reference" / "collocation_min_time.json").read_text())
 #: A verified exact schedule cannot beat the continuous optimum by more than the polish's
 #: own convergence tolerance (the reference's meshes agree to 2e-9 d).
@@ -32,7 +30,7 @@ BEAT_SLACK_DAYS = 1e-3
 
 
 def _load(name, segments=None):
-    problem = load_problem(REPO / "problems" / f"{name}.py")
+    problem = load_problem(PROBLEMS / f"{name}.py")
     return problem if segments is None else problem.with_segments(segments)
 
 
@@ -84,11 +82,11 @@ def test_search_refuses_problems_it_cannot_count():
 
 def test_search_command_rejects_bad_input_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "out"
-    code = cli.main(["search", str(REPO / "problems" / "orbit_raising_10yr.py"),
+    code = cli.main(["search", str(PROBLEMS / "orbit_raising_10yr.py"),
                      "--out", str(out)])
     assert code == 2
     assert "objective = MaxEnergy" in capsys.readouterr().err
-    assert cli.main(["search", str(REPO / "problems" / "earth_mars_min_time.py"),
+    assert cli.main(["search", str(PROBLEMS / "earth_mars_min_time.py"),
                      "--segments", "0", "--out", str(out)]) == 2
     assert not out.exists()
 

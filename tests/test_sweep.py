@@ -20,8 +20,10 @@ import time
 
 import pytest
 
-from esail_opt.app import cli, sweep
+from esail_opt.app import cli, parallel, sweep
 from esail_opt.errors import InputError
+
+from conftest import REPO
 
 TINY = '''
 import esail_opt as eo
@@ -161,9 +163,7 @@ def test_polished_member_is_exact_and_cannot_beat_the_continuous_optimum(tiny):
     flown on Eqs. 1-2 reaches the target (verified to 1 m) and is no shorter than the
     independent continuous-pitch collocation optimum (578.006 d), which any piecewise-
     constant schedule can only approach."""
-    from pathlib import Path
-
-    reference = json.loads((Path(__file__).parent / "reference" /
+    reference = json.loads((REPO / "tests" / "reference" /
                             "collocation_min_time.json").read_text())["earth_mars"]["tof_days"]
     row = sweep.solve_member(0, "ac_mm_s2", 1.0, tiny.read_text(), tiny.name, polish=True)
     assert row["error"] is None and row["converged"]
@@ -280,7 +280,7 @@ def test_member_lost_every_time_gets_its_own_row(venus, tmp_path, monkeypatch):
     own row (not journaled, so --resume would try it again); the other member converges."""
     path, _ = venus
     # Submitted by name, so the spawned workers import this test module to run it.
-    monkeypatch.setattr(sweep, "_pool_member", _crashing_pool_member)
+    monkeypatch.setattr(parallel, "_pool_member", _crashing_pool_member)
     out = tmp_path / "out"
     result = sweep.run(path, "ac_mm_s2=0.5:1:2", workers=1, out_dir=out, retries=2)
     first, second = result["rows"]
@@ -295,14 +295,14 @@ def test_member_lost_every_time_gets_its_own_row(venus, tmp_path, monkeypatch):
     assert [row["index"] for row in rows] == [0]
 
 
-def _crashing_pool_member(started, index, *args):
+def _crashing_pool_member(started, function, index, *args):
     """Pool member that kills its own worker for index 1 (after saying it started)."""
     from pathlib import Path
 
     Path(started, str(index)).write_text(str(os.getpid()))
     if index == 1:
         os.kill(os.getpid(), signal.SIGKILL)
-    return sweep.solve_member(index, *args)
+    return function(index, *args)
 
 
 def _sweep_command(path, param, out, *extra):

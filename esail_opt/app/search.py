@@ -58,9 +58,7 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
     for i, c in enumerate(candidates, 1):
         say(f"{problem.name}: optimum {i}/{len(candidates)} ({c.revolutions:.2f} rev): "
             f"verifying{' and polishing' if polish else ''}")
-        sol = solution_of(problem, c.result, revolutions_k=c.revolutions_k, polish=polish,
-                          progress=progress,
-                          theta_window=c.theta_window)
+        sol = solution_of(problem, c.result, polish=polish, progress=progress)
         p = sol.data.get("polish") or {}
         rows.append({
             "revolutions": c.revolutions,
@@ -121,15 +119,26 @@ def table_csv(data):
     return buf.getvalue()
 
 
-def figure(data):
+def figure(data, ax=None):
     """Revolutions against time of flight: free local optima filled, window-bound
-    results hollow, the best ringed; exact (polished) times where verified."""
-    import matplotlib
+    results hollow, the best ringed; exact (polished) times where verified.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Parameters
+    ----------
+    data : dict
+        The search's table, as :func:`run` returns it.
+    ax : matplotlib Axes, optional
+        Where to draw; by default on a new Figure.
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fresh = ax is None
+    if fresh:
+        from matplotlib.figure import Figure
+
+        ax = Figure(figsize=(6.4, 4.4)).subplots()
     for free, style in ((True, dict(color="tab:blue", label="free local optimum")),
                         (False, dict(facecolors="none", edgecolors="tab:orange",
                                      label="best in its revolution window (bound active)"))):
@@ -157,11 +166,13 @@ def figure(data):
     ax.set_title(f"{data['problem']}: optima by revolutions ({exact})", fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+    if fresh:
+        ax.figure.tight_layout()
+    return ax.figure
 
 
 def _tof(row):
+    """The time of flight a row is plotted at: exact where verified, else closed form."""
     return row["tof_days_exact"] if row["verified"] else row["tof_days_closed_form"]
 
 

@@ -2,10 +2,10 @@
 
 ``esail-opt sweep PROBLEM.py --param ac_mm_s2=0.2:2:10`` solves ten copies of the
 problem, each with ``sail.ac_mm_s2`` replaced, and writes ``sweep.csv``,
-``sweep.json`` and ``sweep.png``.  The members run on a :mod:`concurrent.futures`
-executor: a local process pool by default, or Dask distributed's executor when a
-scheduler address is given -- the same code path either way, so moving a sweep to a
-cluster changes one option and no numbers.
+``sweep.json`` and ``sweep.png``.  The members run through
+:mod:`esail_opt.app.parallel`: a local process pool by default, or Dask distributed's
+executor when a scheduler address is given -- the same code path either way, so moving
+a sweep to a cluster changes one option and no numbers.
 
 Each member is independent and returns a plain dict row.  A member that raises, does
 not converge, or converges to a schedule whose CVODES flight misses the problem's
@@ -14,10 +14,9 @@ are ordered by parameter value, whatever order the members finish in.
 
 A sweep survives its faults.  Every finished member is appended at once to the journal
 ``sweep.jsonl`` in the output folder, so ``--resume`` runs only the members it lacks.  A
-member whose worker process dies (killed, out of memory, a crash in native code) is run
-again on a fresh pool a bounded number of times; the members on healthy workers keep or
-redo their work without being charged for it.  Ctrl-C stops the workers within
-seconds, keeps the journal and writes nothing else.
+member whose worker process dies is run again a bounded number of times, without
+charging the members on healthy workers.  Ctrl-C stops the workers within seconds,
+keeps the journal and writes nothing else.
 
 Only the names in :data:`SWEEPABLE` can be swept; each maps to one field of the
 :class:`~esail_opt.optimisation.problem.Problem` tree, so the mapping is explicit
@@ -31,18 +30,17 @@ import io
 import json
 import math
 import os
-import signal
 import sys
 import tempfile
-import threading
 import time
-from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, wait
 from pathlib import Path
 
 import numpy as np
 
-from esail_opt.errors import InputError
+from esail_opt.app import parallel
 from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
+from esail_opt.app.parallel import first_line
+from esail_opt.errors import InputError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,11 +78,6 @@ CSV_FIELDS = ("index", "value", "converged", "verified", "status", "tof_days", "
 
 #: The journal of finished members, in the sweep's output folder.
 JOURNAL = "sweep.jsonl"
-#: Times a member lost with its worker is run again before its row says so.
-RETRIES = 2
-#: Longest wait on the futures between two looks at the pool: a Ctrl-C is acted on
-#: within this, whatever the executor's own waiting does with signals.
-POLL_SECONDS = 0.25
 
 
 # ---------------------------------------------------------------- input
@@ -189,12 +182,6 @@ def _empty_row(index, value):
     return row
 
 
-def _first_line(err):
-    """``Type: first line of the message`` of an exception, for a row's ``error``."""
-    detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
-    return f"{type(err).__name__}: {detail}".rstrip(": ")
-
-
 def _not_verified(sol, tolerance):
     """Why a converged member is not verified, in one line."""
     note = sol.data.get("verification_note")
@@ -283,23 +270,9 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
         elif verified is not None and not verified:
             row["error"] = _not_verified(sol, problem.tolerance)
     except Exception as err:  # a member may fail in any way; its row says how
-        row["error"] = _first_line(err)
+        row["error"] = first_line(err)
     row["seconds"] = time.perf_counter() - start
     return row
-
-
-def _worker_init():
-    """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
-    the whole process group) reaches only the parent, which decides what stops."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _pool_member(started, index, *args):
-    """:func:`solve_member` in a local pool worker, first leaving ``started/<index>``
-    with this worker's pid: when the pool breaks, the parent uses it to tell the member
-    whose worker died from the ones whose healthy workers the pool terminated."""
-    Path(started, str(index)).write_text(str(os.getpid()))
-    return solve_member(index, *args)
 
 
 # ---------------------------------------------------------------- journal
@@ -408,128 +381,6 @@ class Journal:
         return kept
 
 
-# ---------------------------------------------------------------- executors
-
-
-def _lost_worker_errors():
-    """Exception types that mean "the worker went away", not "the member failed".
-
-    A broken process pool fails every unfinished future with BrokenProcessPool (a
-    BrokenExecutor).  Dask reports a member whose workers kept dying as KilledWorker,
-    and cancels the futures of a lost client or worker (CancelledError, whose
-    subclass FutureCancelledError is Dask's).  The sweep never cancels a future it
-    still waits on, so a cancelled one was lost.
-    """
-    kinds = [BrokenExecutor, CancelledError]
-    try:
-        from distributed.scheduler import KilledWorker
-        kinds.append(KilledWorker)
-    except ImportError:
-        pass
-    try:
-        from distributed.client import FutureCancelledError
-        kinds.append(FutureCancelledError)
-    except ImportError:
-        pass
-    return tuple(kinds)
-
-
-def _connect(scheduler):
-    """A Dask client on ``scheduler`` (one line of InputError if it cannot be)."""
-    try:
-        from dask.distributed import Client
-    except ImportError:
-        raise InputError("--scheduler needs Dask: pip install 'esail_opt[dask]'") from None
-    try:
-        return Client(scheduler, timeout=30)
-    except (OSError, TimeoutError) as err:
-        raise InputError(f"scheduler {scheduler!r} cannot be reached: {err}") from None
-
-
-def _new_pool(workers):
-    """A fresh local process pool whose workers ignore SIGINT."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    # spawn, not fork: the parent has CasADi and maybe threads loaded, and a forked
-    # child of a threaded process can deadlock; spawn costs one import per worker.
-    return ProcessPoolExecutor(max_workers=workers,
-                               mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_worker_init)
-
-
-def _pool_processes(pool, known):
-    """Add the pool's worker processes (pid -> Process) to ``known``.
-
-    ProcessPoolExecutor has no public list of its workers; its ``_processes`` has been
-    there since Python 3.2.  Without it the sweep still works, but cannot attribute a
-    break to one member or kill running solves on an interrupt.
-    """
-    try:
-        known.update(dict(getattr(pool, "_processes", None) or {}))
-    except RuntimeError:  # the pool's thread changed it while we copied; next poll
-        pass
-    return known
-
-
-def _stop_pool(pool, processes):
-    """Stop a pool now: cancel what has not started, terminate running solves."""
-    pool.shutdown(wait=False, cancel_futures=True)
-    for proc in processes.values():
-        if proc.is_alive():
-            proc.terminate()
-    for proc in processes.values():
-        proc.join(timeout=2)
-        if proc.is_alive():  # SIGTERM not honoured within 2 s: no more waiting
-            proc.kill()
-            proc.join(timeout=1)
-
-
-def _ended(code):
-    """How a worker process ended, in words, from its exit code."""
-    if code is None:
-        return "still running"
-    if code < 0:
-        try:
-            return f"ended by {signal.Signals(-code).name}"
-        except ValueError:
-            return f"ended by signal {-code}"
-    return f"exited with status {code}"
-
-
-def _blame(lost, started_dir, processes):
-    """Which of the members lost in one pool break to charge with the loss, and why.
-
-    When one worker dies, the pool fails every unfinished future and terminates its
-    other workers (SIGTERM).  A member that had started (``started_dir/<index>`` holds
-    its worker's pid) on a worker that ended any other way is the one whose worker
-    died.  If no member can be singled out, every started member is charged; if none
-    had started, every lost member is -- so the retries stay bounded either way.
-
-    Returns
-    -------
-    dict
-        Index -> one-line cause, for the members charged.
-    """
-    started = {}
-    for i in lost:
-        try:
-            started[i] = int(Path(started_dir, str(i)).read_text())
-        except (OSError, ValueError):
-            pass
-    culprits = {}
-    for i, pid in started.items():
-        proc = processes.get(pid)
-        code = proc.exitcode if proc is not None else None
-        if code is not None and code != -signal.SIGTERM:
-            culprits[i] = f"worker pid {pid} {_ended(code)}"
-    if culprits:
-        return culprits
-    cause = "a worker of the process pool died"
-    return {i: f"{cause} (worker pid {pid})" for i, pid in started.items()} or \
-        dict.fromkeys(lost, cause)
-
-
 # ---------------------------------------------------------------- the family
 
 
@@ -548,14 +399,13 @@ def default_out_dir(problem_file, param):
 
 
 def run(problem_file, param, workers=None, scheduler=None, progress=None, polish=False,
-        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=RETRIES):
+        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES):
     """Solve the family of ``problem_file`` over ``param`` and return the table.
 
-    Members are journaled to ``out_dir/sweep.jsonl`` as they finish.  A member whose
-    worker dies is run again on a fresh pool, up to ``retries`` times; the others keep
-    their rows.  On KeyboardInterrupt the pool is stopped at once (pending members
-    cancelled, running solves terminated), the journal keeps what finished, and the
-    interrupt propagates.
+    Members are journaled to ``out_dir/sweep.jsonl`` as they finish.  The members run
+    through :func:`esail_opt.app.parallel.run`: one whose worker dies is run again on a
+    fresh pool, up to ``retries`` times, and on KeyboardInterrupt the workers are
+    stopped at once; the journal keeps what finished and the interrupt propagates.
 
     Parameters
     ----------
@@ -604,6 +454,66 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     KeyboardInterrupt
         After stopping the workers; the journal holds every member that finished.
     """
+    request = _check(problem_file, param, workers, retries, resume, out_dir, polish,
+                     tol_km, tol_m_s)
+    journal, kept = _open_journal(request, out_dir, resume)
+    rows = _Rows(request.values, kept, journal, progress)
+    executor = (f"dask distributed at {scheduler}" if scheduler is not None
+                else f"process pool, {request.workers} workers")
+    start = time.perf_counter()
+    lost = parallel.run(solve_member, {i: request.member(i) for i in rows.todo()},
+                        rows.finished, rows.unfinished, workers=request.workers,
+                        scheduler=scheduler, retries=retries)
+    return _result(request, rows, journal, executor, time.perf_counter() - start, lost)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Request:
+    """A checked sweep request: the grid and what every member needs.
+
+    Attributes
+    ----------
+    problem_file : str
+    name : str
+        Key of :data:`SWEEPABLE`.
+    values : list
+        The grid, from :func:`parse_param`.
+    workers : int
+        Local process-pool size.
+    problem : Problem
+        The file's problem with the request's tolerance.
+    source : str
+        Text of the problem file.
+    polish : bool
+    tol_km, tol_m_s : float or None
+        Tolerance overrides, passed on to every member.
+    """
+
+    problem_file: str
+    name: str
+    values: list
+    workers: int
+    problem: object
+    source: str
+    polish: bool
+    tol_km: object
+    tol_m_s: object
+
+    def member(self, i):
+        """The arguments of :func:`solve_member` after its index, for member ``i``."""
+        return (self.name, self.values[i], self.source, Path(self.problem_file).name,
+                self.polish, self.tol_km, self.tol_m_s)
+
+    def header(self):
+        """What identifies this sweep in its journal."""
+        return {"journal": "esail-opt sweep", "problem": self.problem.name,
+                "source_sha256": _source_digest(self.source), "param": self.name,
+                "values": self.values, "polish": bool(self.polish),
+                "tolerance": dataclasses.asdict(self.problem.tolerance)}
+
+
+def _check(problem_file, param, workers, retries, resume, out_dir, polish, tol_km, tol_m_s):
+    """The request of :func:`run`, checked before anything runs (InputError if bad)."""
     from esail_opt.optimisation.problem_file import load_problem
 
     name, values = parse_param(param)
@@ -619,181 +529,76 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     # is one line at once instead of COUNT identical failed rows.
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check_applicable(problem, name)
-    source = Path(problem_file).read_text()
-    filename = Path(problem_file).name
-    tolerance = dataclasses.asdict(problem.tolerance)
+    return _Request(str(problem_file), name, values, workers, problem,
+                    Path(problem_file).read_text(), polish, tol_km, tol_m_s)
 
-    journal = None
-    rows = [None] * len(values)
-    if out_dir is not None:
-        journal = Journal(Path(out_dir) / JOURNAL, {
-            "journal": "esail-opt sweep", "problem": problem.name,
-            "source_sha256": _source_digest(source), "param": name, "values": values,
-            "polish": bool(polish), "tolerance": tolerance})
-        for i, row in journal.open(resume).items():
-            rows[i] = row
-    resumed = [i for i, row in enumerate(rows) if row is not None]
 
-    client = _connect(scheduler) if scheduler is not None else None
-    described = (f"dask distributed at {scheduler}" if client is not None
-                 else f"process pool, {workers} workers")
-    lost_errors = _lost_worker_errors()
-    state = {"done": len(resumed), "solved": [], "losses": {}, "causes": {}}
-    start = time.perf_counter()
+def _open_journal(request, out_dir, resume):
+    """The journal in ``out_dir`` (None without a folder) and the rows it keeps."""
+    if out_dir is None:
+        return None, {}
+    journal = Journal(Path(out_dir) / JOURNAL, request.header())
+    return journal, journal.open(resume)
 
-    def finish(i, row, journaled=True):
-        rows[i] = row
-        if journaled and journal is not None:
-            journal.append(row)
-        state["done"] += 1
-        state["solved"].append(i)
-        if progress:
-            progress(row, state["done"], len(values))
 
-    def charge(i, cause):
-        """Count one lost worker against member ``i``; True if it may run again."""
-        state["losses"][i] = state["losses"].get(i, 0) + 1
-        state["causes"][i] = cause
-        if state["losses"][i] <= retries:
-            return True
-        row = _empty_row(i, values[i])
-        row["error"] = f"worker lost {state['losses'][i]} times: {cause}"
+class _Rows:
+    """The sweep's rows, in grid order, filled in as its members end.
+
+    Parameters
+    ----------
+    values : list
+        The grid.
+    kept : dict
+        Index -> row of the members taken from the journal.
+    journal : Journal or None
+        Where each solved member's row goes as it ends.
+    progress : callable or None
+        ``progress(row, done, total)`` after each member that ends in this run.
+    """
+
+    def __init__(self, values, kept, journal, progress):
+        self.values, self.journal, self.progress = values, journal, progress
+        self.rows = [kept.get(i) for i in range(len(values))]
+        self.resumed = sorted(kept)
+        self.solved = []  # indices ended in this run, in finishing order
+
+    def todo(self):
+        """Indices of the members without a row."""
+        return [i for i, row in enumerate(self.rows) if row is None]
+
+    def finished(self, i, row):
+        """Member ``i`` returned its row (which may still say it failed): journal it."""
+        if self.journal is not None:
+            self.journal.append(row)
+        self._end(i, row)
+
+    def unfinished(self, i, message):
+        """Member ``i`` did not finish (the executor failed it or lost its workers)."""
+        row = _empty_row(i, self.values[i])
+        row["error"] = message
         # Not journaled: it did not finish, so a resumed sweep runs it again.
-        finish(i, row, journaled=False)
-        return False
+        self._end(i, row)
 
-    def submit(executor, started, i):
-        member = (i, name, values[i], source, filename, polish, tol_km, tol_m_s)
-        if client is not None:
-            return executor.submit(solve_member, *member)
-        return executor.submit(_pool_member, str(started), *member)
+    def _end(self, i, row):
+        self.rows[i] = row
+        self.solved.append(i)
+        if self.progress:
+            self.progress(row, len(self.resumed) + len(self.solved), len(self.values))
 
-    def settle(future, i):
-        """Handle one finished future; return True if member ``i`` must run again."""
-        try:
-            row = future.result()
-        except lost_errors as err:
-            return charge(i, _first_line(err))
-        except Exception as err:  # solve_member never raises: the executor failed it
-            row = _empty_row(i, values[i])
-            row["error"] = _first_line(err)
-            finish(i, row, journaled=False)
-            return False
-        finish(i, row)
-        return False
 
-    todo = [i for i in range(len(values)) if rows[i] is None]
-    executor = started = None
-    processes = {}
-    active = {}
-    # The scratch folder outlives the try below: on an interrupt the workers are
-    # stopped before the folder they write into goes away.
-    with tempfile.TemporaryDirectory(prefix="esail_sweep_started_") as scratch:
-        try:
-            rounds = 0
-            while todo or active:
-                if todo:
-                    if executor is None:
-                        rounds += 1
-                        started = Path(scratch, str(rounds))
-                        started.mkdir()
-                        processes = {}
-                        # pure=False: a member run again must be a new task, not
-                        # Dask's remembered failure of the same arguments.
-                        executor = (client.get_executor(pure=False) if client is not None
-                                    else _new_pool(workers))
-                    submitted = []
-                    try:
-                        for i in todo:
-                            active[submit(executor, started, i)] = i
-                            submitted.append(i)
-                    except lost_errors:
-                        if client is not None:
-                            raise
-                        # The pool broke while being fed: the members not yet submitted
-                        # are lost in the same break (handled below).
-                    unsubmitted = [i for i in todo if i not in submitted]
-                    todo = []
-                else:
-                    unsubmitted = []
-                if client is None:
-                    _pool_processes(executor, processes)
-                done, _ = wait(list(active), timeout=POLL_SECONDS, return_when=FIRST_COMPLETED)
-                broken = client is None and (unsubmitted or any(
-                    isinstance(f.exception(), BrokenExecutor) for f in done
-                    if not f.cancelled()))
-                if not broken:
-                    for future in done:
-                        i = active.pop(future)
-                        if settle(future, i):
-                            todo.append(i)  # Dask lost its worker: submit it again
-                    continue
-                # One worker died and took the pool with it: wait for the pool to fail
-                # every other future and end its workers, then blame one member.
-                _pool_processes(executor, processes)
-                executor.shutdown(wait=True)
-                executor = None
-                lost = []
-                for future, i in list(active.items()):
-                    del active[future]
-                    if not future.done():  # cannot happen once the pool has shut down
-                        lost.append(i)
-                        continue
-                    try:
-                        row = future.result()
-                    except lost_errors:
-                        lost.append(i)
-                        continue
-                    except Exception as err:
-                        row = _empty_row(i, values[i])
-                        row["error"] = _first_line(err)
-                        finish(i, row, journaled=False)
-                        continue
-                    finish(i, row)
-                lost += unsubmitted
-                blamed = _blame(lost, started, processes)
-                for i in lost:
-                    if i not in blamed or charge(i, blamed[i]):
-                        todo.append(i)
-                todo.sort()
-        except BaseException:
-            _abort(executor, client, processes, active)
-            raise
-    if executor is not None:
-        executor.shutdown(wait=True)
-    if client is not None:
-        client.close()
-    spec = SWEEPABLE[name]
-    return {"problem": problem.name, "problem_file": str(problem_file), "param": name,
-            "field": spec.path, "unit": spec.unit, "values": values, "executor": described,
-            "wall_seconds": time.perf_counter() - start, "polished": polish,
-            "tolerance": tolerance,
-            "failed": sum(1 for r in rows if r["error"] is not None), "rows": rows,
+def _result(request, rows, journal, executor, seconds, lost):
+    """The table :func:`run` returns."""
+    spec = SWEEPABLE[request.name]
+    return {"problem": request.problem.name, "problem_file": request.problem_file,
+            "param": request.name, "field": spec.path, "unit": spec.unit,
+            "values": request.values, "executor": executor, "wall_seconds": seconds,
+            "polished": request.polish,
+            "tolerance": dataclasses.asdict(request.problem.tolerance),
+            "failed": sum(1 for r in rows.rows if r["error"] is not None), "rows": rows.rows,
             "journal": str(journal.path) if journal is not None else None,
-            "resumed": resumed, "solved": state["solved"],
-            "lost": [{"index": i, "value": values[i], "losses": n, "cause": state["causes"][i]}
-                     for i, n in sorted(state["losses"].items())]}
-
-
-def _abort(executor, client, processes, active):
-    """Stop everything after an interrupt or an error, without waiting for solves."""
-    # A second Ctrl-C must not cut the cleanup short and leave workers running.
-    previous = None
-    if threading.current_thread() is threading.main_thread():
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        for future in active:
-            future.cancel()
-        if executor is not None and client is None:
-            _pool_processes(executor, processes)
-            _stop_pool(executor, processes)
-        elif executor is not None:
-            executor.shutdown(wait=False)  # Dask: cancels its futures on the cluster
-        if client is not None:
-            client.close()
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+            "resumed": rows.resumed, "solved": rows.solved,
+            "lost": [{"index": i, "value": request.values[i], "losses": n, "cause": cause}
+                     for i, (n, cause) in lost.items()]}
 
 
 # ---------------------------------------------------------------- output
@@ -811,63 +616,90 @@ def table_csv(result):
     return buf.getvalue().replace("value", result["param"], 1)
 
 
-def figure(result):
+def figure(result, axes=None):
     """Time of flight, objective and verified target miss against the parameter; failed
-    members in red."""
-    import matplotlib
+    members in red.
 
-    matplotlib.use("Agg")  # files only: never needs a display
-    import matplotlib.pyplot as plt
+    Parameters
+    ----------
+    result : dict
+        A sweep's table, as :func:`run` returns it.
+    axes : sequence of three matplotlib Axes, optional
+        Where to draw the three panels, top to bottom; by default a new Figure.
 
-    rows = result["rows"]
-    label = result["param"] + (f" [{result['unit']}]" if result["unit"] else "")
-    fig, axes = plt.subplots(3, 1, figsize=(6.4, 8.0), sharex=True)
-    panels = ((axes[0], "tof_days", "time of flight [days]", "linear"),
-              (axes[1], "objective", "objective", "linear"),
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fresh = axes is None
+    if fresh:
+        from matplotlib.figure import Figure
+
+        axes = Figure(figsize=(6.4, 8.0)).subplots(3, 1, sharex=True)
+    panels = (("tof_days", "time of flight [days]", "linear"),
+              ("objective", "objective", "linear"),
               # The closed form is first order: how far its schedule, flown on Eqs. 1-2,
               # ends from the target belongs beside the optimum it claims.
-              (axes[2], "target_miss_r_km", "verified target miss [km]", "log"))
-    for ax, key, ylabel, scale in panels:
-        good = [(r["value"], r[key]) for r in rows if r["error"] is None and r[key] is not None]
-        bad = [(r["value"], r[key]) for r in rows if r["error"] is not None]
-        if good:
-            ax.plot(*zip(*good), "o-", color="C0",
-                    label="converged (closed form)" if result.get("polished") else "converged")
-        exact_key = {"tof_days": "tof_days_exact", "target_miss_r_km": "exact_target_miss_m"}
-        if result.get("polished") and key in exact_key:
-            # The polished schedule's numbers beside the closed form's (metres to km).
-            scale_by = 1e-3 if key == "target_miss_r_km" else 1.0
-            exact = [(r["value"], scale_by * r[exact_key[key]]) for r in rows
-                     if r["error"] is None and r[exact_key[key]] is not None]
-            if exact:
-                ax.plot(*zip(*exact), "s--", color="C2", ms=5,
-                        label="polished (exact; hollow: not verified)")
-                hollow = [(r["value"], scale_by * r[exact_key[key]]) for r in rows
-                          if r["error"] is None and r[exact_key[key]] is not None
-                          and not r["exact_verified"]]
-                if hollow:
-                    ax.plot(*zip(*hollow), "s", mfc="white", color="C2", ms=7)
-        shown = [(v, y) for v, y in bad if y is not None]
-        if shown:
-            ax.plot(*zip(*shown), "x", color="C3", ms=9, mew=2,
-                    label="not converged or not verified")
-        # A member with no number at all still gets a mark, on the bottom edge.
-        missing = [v for v, y in bad if y is None]
-        if missing:
-            ax.plot(missing, [0.02] * len(missing), "v", color="C3", ms=9,
-                    transform=ax.get_xaxis_transform(), label="failed (no solution)")
-        if scale == "log" and (good or shown):
-            ax.set_yscale("log")
+              ("target_miss_r_km", "verified target miss [km]", "log"))
+    for ax, (key, ylabel, scale) in zip(axes, panels):
+        _panel(ax, result, key, scale)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     if result.get("polished"):
         axes[2].legend(fontsize=8)
-    axes[-1].set_xlabel(label)
+    axes[-1].set_xlabel(result["param"] + (f" [{result['unit']}]" if result["unit"] else ""))
+    rows = result["rows"]
     axes[0].set_title(f"{result['problem']}: sweep of {result['field']} "
                       f"({len(rows) - result['failed']}/{len(rows)} ok)")
-    fig.tight_layout()
+    fig = axes[0].figure
+    if fresh:
+        fig.tight_layout()
     return fig
+
+
+#: The polished counterpart of a panel's closed-form column, and its scale to the
+#: panel's unit (metres to km for the miss).
+_EXACT = {"tof_days": ("tof_days_exact", 1.0),
+          "target_miss_r_km": ("exact_target_miss_m", 1e-3)}
+
+
+def _panel(ax, result, key, scale):
+    """One panel: column ``key`` of the converged members, then the failed ones."""
+    rows = result["rows"]
+    good = [(r["value"], r[key]) for r in rows if r["error"] is None and r[key] is not None]
+    bad = [(r["value"], r[key]) for r in rows if r["error"] is not None]
+    if good:
+        ax.plot(*zip(*good), "o-", color="C0",
+                label="converged (closed form)" if result.get("polished") else "converged")
+    if result.get("polished") and key in _EXACT:
+        _exact_points(ax, rows, *_EXACT[key])
+    shown = [(v, y) for v, y in bad if y is not None]
+    if shown:
+        ax.plot(*zip(*shown), "x", color="C3", ms=9, mew=2,
+                label="not converged or not verified")
+    # A member with no number at all still gets a mark, on the bottom edge.
+    missing = [v for v, y in bad if y is None]
+    if missing:
+        ax.plot(missing, [0.02] * len(missing), "v", color="C3", ms=9,
+                transform=ax.get_xaxis_transform(), label="failed (no solution)")
+    if scale == "log" and (good or shown):
+        ax.set_yscale("log")
+
+
+def _exact_points(ax, rows, key, scale_by):
+    """The polished schedules' numbers beside the closed form's; hollow where the
+    polish is not verified."""
+    points = [(r["value"], scale_by * r[key], r["exact_verified"]) for r in rows
+              if r["error"] is None and r[key] is not None]
+    if not points:
+        return
+    ax.plot([p[0] for p in points], [p[1] for p in points], "s--", color="C2", ms=5,
+            label="polished (exact; hollow: not verified)")
+    hollow = [p for p in points if not p[2]]
+    if hollow:
+        ax.plot([p[0] for p in hollow], [p[1] for p in hollow], "s", mfc="white",
+                color="C2", ms=7)
 
 
 def write(result, out_dir):
@@ -879,7 +711,6 @@ def write(result, out_dir):
     write_json(paths[1], json_ready(result))
     save_figure(figure(result), paths[2])
     return paths
-
 
 
 def progress_line(row, done, total, name, stream=None):

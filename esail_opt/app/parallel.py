@@ -1,0 +1,351 @@
+"""Independent jobs on a local process pool or a Dask cluster, surviving lost workers.
+
+:func:`run` calls ``function(index, *args)`` once per job on a
+:mod:`concurrent.futures` executor: a local process pool, or Dask distributed's
+executor when a scheduler address is given -- the same code path either way.  Results
+and failures are handed to the caller as each job ends, in finishing order.
+
+A job whose worker process dies (killed, out of memory, a crash in native code) is run
+again on a fresh pool a bounded number of times; the jobs on healthy workers keep or
+redo their work without being charged for it.  On Ctrl-C (or any error) the workers
+are stopped within seconds: pending jobs cancelled, running ones terminated.
+"""
+
+import os
+import signal
+import tempfile
+import threading
+from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, wait
+from pathlib import Path
+
+from esail_opt.errors import InputError
+
+#: Times a job lost with its worker is run again before it is reported failed.
+RETRIES = 2
+#: Longest wait on the futures between two looks at the pool: a Ctrl-C is acted on
+#: within this, whatever the executor's own waiting does with signals.
+POLL_SECONDS = 0.25
+
+
+def first_line(err):
+    """``Type: first line of the message`` of an exception, for a one-line report."""
+    detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
+    return f"{type(err).__name__}: {detail}".rstrip(": ")
+
+
+def run(function, jobs, on_result, on_failure, workers=1, scheduler=None, retries=RETRIES):
+    """Run ``function(i, *jobs[i])`` for every job, reporting each as it ends.
+
+    Parameters
+    ----------
+    function : callable
+        A module-level function (it is pickled by name), returning the job's result.
+    jobs : dict
+        Index -> tuple of the further arguments.
+    on_result : callable
+        ``on_result(i, value)`` when job ``i`` returned ``value``.
+    on_failure : callable
+        ``on_failure(i, message)`` when the executor failed job ``i`` or its worker was
+        lost more than ``retries`` times; ``message`` is one line.
+    workers : int
+        Local process-pool size, >= 1; ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+    retries : int
+        Times a job lost with its worker is run again.
+
+    Returns
+    -------
+    dict
+        Index -> (losses, cause of the last) for every job charged with a lost worker.
+
+    Raises
+    ------
+    InputError
+        Dask is missing or the scheduler cannot be reached (before any job runs).
+    KeyboardInterrupt
+        After stopping the workers.
+    """
+    client = _connect(scheduler) if scheduler is not None else None
+    runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries)
+    runner.run()
+    return {i: (n, runner.causes[i]) for i, n in sorted(runner.losses.items())}
+
+
+class _Runner:
+    """One :func:`run`: the executor of the current round, its futures and the losses.
+
+    A local pool that breaks is replaced by a fresh one (a new round); each round has
+    its own ``started`` folder, where a worker leaves its pid under the index of the
+    job it starts, so that a break is charged to the job whose worker died.
+    """
+
+    def __init__(self, function, jobs, on_result, on_failure, workers, client, retries):
+        self.function, self.jobs = function, jobs
+        self.on_result, self.on_failure = on_result, on_failure
+        self.workers, self.client, self.retries = workers, client, retries
+        self.lost_errors = _lost_worker_errors()
+        self.losses, self.causes = {}, {}
+        self.executor = self.started = None
+        self.processes = {}  # pid -> Process of the local pool's workers, this round
+        self.active = {}  # future -> job index
+        self.rounds = 0
+
+    def run(self):
+        """Run every job to its end (a result or a failure), then shut down."""
+        todo = sorted(self.jobs)
+        # The scratch folder outlives the try below: on an interrupt the workers are
+        # stopped before the folder they write into goes away.
+        with tempfile.TemporaryDirectory(prefix="esail_started_") as scratch:
+            try:
+                while todo or self.active:
+                    unsubmitted = self._submit(todo, scratch) if todo else []
+                    todo = self._step(unsubmitted)
+            except BaseException:
+                self._abort()
+                raise
+        if self.executor is not None:
+            self.executor.shutdown(wait=True)
+        if self.client is not None:
+            self.client.close()
+
+    def _submit(self, todo, scratch):
+        """Submit ``todo`` (opening a round if needed); return the jobs not submitted."""
+        if self.executor is None:
+            self.rounds += 1
+            self.started = Path(scratch, str(self.rounds))
+            self.started.mkdir()
+            self.processes = {}
+            # pure=False: a job run again must be a new task, not Dask's remembered
+            # failure of the same arguments.
+            self.executor = (self.client.get_executor(pure=False) if self.client is not None
+                             else _new_pool(self.workers))
+        submitted = []
+        try:
+            for i in todo:
+                args = (i, *self.jobs[i])
+                future = (self.executor.submit(self.function, *args) if self.client is not None
+                          else self.executor.submit(_pool_member, str(self.started),
+                                                    self.function, *args))
+                self.active[future] = i
+                submitted.append(i)
+        except self.lost_errors:
+            if self.client is not None:
+                raise
+            # The pool broke while being fed: the jobs not yet submitted are lost in
+            # the same break (handled by the next step).
+        return [i for i in todo if i not in submitted]
+
+    def _step(self, unsubmitted):
+        """Wait briefly, settle what ended; return the jobs to submit again."""
+        if self.client is None:
+            _pool_processes(self.executor, self.processes)
+        done, _ = wait(list(self.active), timeout=POLL_SECONDS, return_when=FIRST_COMPLETED)
+        broken = self.client is None and (unsubmitted or any(
+            isinstance(f.exception(), BrokenExecutor) for f in done if not f.cancelled()))
+        if broken:
+            return self._recover(unsubmitted)
+        again = []
+        for future in done:
+            i = self.active.pop(future)
+            lost = self._settle(future, i)
+            if lost is not None and self._charge(i, first_line(lost)):
+                again.append(i)  # Dask lost its worker: submit it again
+        return again
+
+    def _settle(self, future, i):
+        """Report an ended future; return its lost-worker exception instead, if that."""
+        try:
+            value = future.result()
+        except self.lost_errors as err:
+            return err
+        except Exception as err:  # the executor failed the job
+            self.on_failure(i, first_line(err))
+            return None
+        self.on_result(i, value)
+        return None
+
+    def _recover(self, unsubmitted):
+        """One worker died and took the pool with it: wait for the pool to fail every
+        other future and end its workers, blame one job; return the jobs to run again."""
+        _pool_processes(self.executor, self.processes)
+        self.executor.shutdown(wait=True)
+        self.executor = None
+        lost = []
+        for future, i in list(self.active.items()):
+            del self.active[future]
+            # A future not done cannot happen once the pool has shut down.
+            if not future.done() or self._settle(future, i) is not None:
+                lost.append(i)
+        lost += unsubmitted
+        blamed = _blame(lost, self.started, self.processes)
+        return sorted(i for i in lost if i not in blamed or self._charge(i, blamed[i]))
+
+    def _charge(self, i, cause):
+        """Count one lost worker against job ``i``; True if it may run again."""
+        self.losses[i] = self.losses.get(i, 0) + 1
+        self.causes[i] = cause
+        if self.losses[i] <= self.retries:
+            return True
+        self.on_failure(i, f"worker lost {self.losses[i]} times: {cause}")
+        return False
+
+    def _abort(self):
+        """Stop everything after an interrupt or an error, without waiting for jobs."""
+        # A second Ctrl-C must not cut the cleanup short and leave workers running.
+        previous = None
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            for future in self.active:
+                future.cancel()
+            if self.executor is not None and self.client is None:
+                _pool_processes(self.executor, self.processes)
+                _stop_pool(self.executor, self.processes)
+            elif self.executor is not None:
+                self.executor.shutdown(wait=False)  # Dask: cancels its futures on the cluster
+            if self.client is not None:
+                self.client.close()
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
+
+
+# ---------------------------------------------------------------- in the workers
+
+
+def _worker_init():
+    """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
+    the whole process group) reaches only the parent, which decides what stops."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _pool_member(started, function, index, *args):
+    """``function(index, *args)`` in a local pool worker, first leaving
+    ``started/<index>`` with this worker's pid: when the pool breaks, the parent uses it
+    to tell the job whose worker died from the ones whose healthy workers the pool
+    terminated."""
+    Path(started, str(index)).write_text(str(os.getpid()))
+    return function(index, *args)
+
+
+# ---------------------------------------------------------------- executors
+
+
+def _lost_worker_errors():
+    """Exception types that mean "the worker went away", not "the job failed".
+
+    A broken process pool fails every unfinished future with BrokenProcessPool (a
+    BrokenExecutor).  Dask reports a job whose workers kept dying as KilledWorker, and
+    cancels the futures of a lost client or worker (CancelledError, whose subclass
+    FutureCancelledError is Dask's).  The runner never cancels a future it still waits
+    on, so a cancelled one was lost.
+    """
+    kinds = [BrokenExecutor, CancelledError]
+    try:
+        from distributed.scheduler import KilledWorker
+        kinds.append(KilledWorker)
+    except ImportError:
+        pass
+    try:
+        from distributed.client import FutureCancelledError
+        kinds.append(FutureCancelledError)
+    except ImportError:
+        pass
+    return tuple(kinds)
+
+
+def _connect(scheduler):
+    """A Dask client on ``scheduler`` (one line of InputError if it cannot be)."""
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise InputError("--scheduler needs Dask: pip install 'esail_opt[dask]'") from None
+    try:
+        return Client(scheduler, timeout=30)
+    except (OSError, TimeoutError) as err:
+        raise InputError(f"scheduler {scheduler!r} cannot be reached: {err}") from None
+
+
+def _new_pool(workers):
+    """A fresh local process pool whose workers ignore SIGINT."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    # spawn, not fork: the parent has CasADi and maybe threads loaded, and a forked
+    # child of a threaded process can deadlock; spawn costs one import per worker.
+    return ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_worker_init)
+
+
+def _pool_processes(pool, known):
+    """Add the pool's worker processes (pid -> Process) to ``known``.
+
+    ProcessPoolExecutor has no public list of its workers; its ``_processes`` has been
+    there since Python 3.2.  Without it the runner still works, but cannot attribute a
+    break to one job or kill running jobs on an interrupt.
+    """
+    try:
+        known.update(dict(getattr(pool, "_processes", None) or {}))
+    except RuntimeError:  # the pool's thread changed it while we copied; next poll
+        pass
+    return known
+
+
+def _stop_pool(pool, processes):
+    """Stop a pool now: cancel what has not started, terminate running jobs."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes.values():
+        if proc.is_alive():
+            proc.terminate()
+    for proc in processes.values():
+        proc.join(timeout=2)
+        if proc.is_alive():  # SIGTERM not honoured within 2 s: no more waiting
+            proc.kill()
+            proc.join(timeout=1)
+
+
+def _ended(code):
+    """How a worker process ended, in words, from its exit code."""
+    if code is None:
+        return "still running"
+    if code < 0:
+        try:
+            return f"ended by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"ended by signal {-code}"
+    return f"exited with status {code}"
+
+
+def _blame(lost, started_dir, processes):
+    """Which of the jobs lost in one pool break to charge with the loss, and why.
+
+    When one worker dies, the pool fails every unfinished future and terminates its
+    other workers (SIGTERM).  A job that had started (``started_dir/<index>`` holds
+    its worker's pid) on a worker that ended any other way is the one whose worker
+    died.  If no job can be singled out, every started job is charged; if none had
+    started, every lost job is -- so the retries stay bounded either way.
+
+    Returns
+    -------
+    dict
+        Index -> one-line cause, for the jobs charged.
+    """
+    started = {}
+    for i in lost:
+        try:
+            started[i] = int(Path(started_dir, str(i)).read_text())
+        except (OSError, ValueError):
+            pass
+    culprits = {}
+    for i, pid in started.items():
+        proc = processes.get(pid)
+        code = proc.exitcode if proc is not None else None
+        if code is not None and code != -signal.SIGTERM:
+            culprits[i] = f"worker pid {pid} {_ended(code)}"
+    if culprits:
+        return culprits
+    cause = "a worker of the process pool died"
+    return {i: f"{cause} (worker pid {pid})" for i, pid in started.items()} or \
+        dict.fromkeys(lost, cause)
