@@ -6,9 +6,11 @@ from the names below (see :mod:`esail_opt.optimisation.problem`); ``eo.solve(pro
 runs it and returns a :class:`Solution`.
 """
 
+from esail_opt.optimisation.goals import (  # noqa: F401
+    CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius, MinTime, Orbit, Rendezvous,
+)
 from esail_opt.optimisation.problem import (  # noqa: F401
-    BEST_FIT, EXACT, CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius, MinTime,
-    Orbit, ParkingOrbit, PathConstraints, PolarState, Problem, Rendezvous, Sail, Segments,
+    BEST_FIT, EXACT, ParkingOrbit, PathConstraints, PolarState, Problem, Sail, Segments,
     Tolerance,
 )
 

@@ -64,12 +64,12 @@ def test_fixed_pitch_solve_reproduces_rectified_propagation():
     res, _ = solve_problem(p)
     assert res.status == "Solve_Succeeded"
     np.testing.assert_allclose(res.alpha, math.radians(30.0), atol=1e-12)
-    starts = np.column_stack([p.x0(), res.nodes[:, :-1]])
+    starts = np.column_stack([p.x0(), res.nodes[:4, :-1]])
     for k in range(6):
         ref, _ = propagate_extrapolated(starts[:, k], np.full(2, math.radians(30.0)),
                                         np.full(2, res.lengths[k] / 2), p.sail.ac,
                                         nodes=tr.QUAD_NODES)
-        np.testing.assert_allclose(res.nodes[:, k], ref[:4, -1], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(res.nodes[:4, k], ref[:4, -1], rtol=0, atol=1e-9)
         assert ref[4, -1] == pytest.approx(res.durations[k], abs=1e-9)
     assert units.time_to_days(res.durations.sum()) == pytest.approx(200.0, abs=1e-7)
 
@@ -104,7 +104,7 @@ def test_acceptable_level_is_not_converged():
 def test_small_transfer_converges_and_lands_on_target():
     res, _ = solve_problem(small_problem())
     assert res.converged
-    r, _, vr, vt = res.nodes[:, -1]
+    r, _, vr, vt = res.nodes[:4, -1]
     assert abs(r - 0.723) < 1e-9 and abs(vr) < 1e-9 and abs(vt - 0.723 ** -0.5) < 1e-9
     assert res.constraint_violation < 1e-9
     assert np.all(res.q3 >= 0.2 - 1e-9)
@@ -224,7 +224,7 @@ def test_orbit_target_with_free_apse_line():
     p = small_problem(segments=eo.Segments(10, 2), target=eo.Orbit(1.3, 0.1))
     res, _ = solve_problem(p)
     assert res.converged
-    r, _, vr, vt = res.nodes[:, -1]
+    r, _, vr, vt = res.nodes[:4, -1]
     energy = 0.5 * (vr**2 + vt**2) - 1 / r
     assert -0.5 / energy == pytest.approx(1.3, abs=1e-9)
     assert math.sqrt(1 - (r * vt) ** 2 / 1.3) == pytest.approx(0.1, abs=1e-8)

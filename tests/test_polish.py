@@ -109,9 +109,9 @@ def test_warm_start_satisfies_continuity_and_drops_q3():
     # the exact NLP has no q3 rows.
     problem = _problem("earth_venus", segments=4)
     result, tr = solve_problem(problem)
-    guess = exact_refinement.warm_start(problem, result, tr.guess.revolutions_k)
+    guess = exact_refinement.warm_start(problem, result)
     exact = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), guess,
-                       independent="time")
+                       length_in="time")
     assert "q3" not in exact.names and "q3" in tr.names
     g = exact.constraints(exact.x0)
     assert np.max(np.abs(g[: exact.names["continuity"]])) < 1e-9
@@ -119,8 +119,8 @@ def test_warm_start_satisfies_continuity_and_drops_q3():
 
 
 def test_transcribe_rejects_an_unknown_independent_variable():
-    with pytest.raises(ValueError, match="independent"):
-        transcribe(_problem("earth_venus", segments=2), independent="angle")
+    with pytest.raises(ValueError, match="length_in"):
+        transcribe(_problem("earth_venus", segments=2), length_in="angle")
 
 
 @pytest.mark.parametrize("miss, ok", [

@@ -110,7 +110,7 @@ def test_paper_scenario_radius_within_two_percent(paper_run):
 def test_paper_scenario_radius_at_same_theta(paper_run):
     xs, _, _ = paper_run
     flown = simulate(CIRCLE, np.full(ARCS * SAMPLES, ALPHA), np.diff(xs[1]), AC,
-                     independent="theta")
+                     length_in="theta")
     # Eq. 27's measure (same theta). Measured: 1.22 %.
     assert np.max(np.abs(xs[0] - flown[0])) / CIRCLE[0] < 0.02
 

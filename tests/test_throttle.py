@@ -116,7 +116,7 @@ def test_coasting_beats_the_always_on_sail_on_earth_mars():
         always_on, segments=dataclasses.replace(always_on.segments, equal=False))
     for problem in (always_on, free_on):
         result, tr = solve_problem(problem)
-        exact, _ = exact_refinement.polish(problem, result, tr.guess.revolutions_k)
+        exact, _ = exact_refinement.polish(problem, result)
         assert exact.converged, exact.status
         on_days = units.time_to_days(float(np.sum(exact.durations)))
         assert throttled < on_days - COAST_GAIN_DAYS, (throttled, on_days)

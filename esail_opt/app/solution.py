@@ -17,7 +17,6 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.app.files import atomic_path, json_ready, write_json
-from esail_opt.optimisation import problem as pb
 from esail_opt.optimisation import exact as exact_refinement
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
@@ -60,16 +59,6 @@ def _trajectory(xs):
     out = _polar_dict(xs[:4])
     out["t_days"] = units.time_to_days(np.asarray(xs[4])).tolist()
     return out
-
-
-def _objective_meaning(objective):
-    if isinstance(objective, pb.MinTime):
-        return "time of flight, TU (minimised)"
-    if isinstance(objective, pb.MaxRadius):
-        return "-(final r), au (minimised)"
-    if isinstance(objective, pb.MaxEnergy):
-        return "-(final energy v^2/2 - 1/r), canonical (minimised)"
-    return "user expression of the final state, canonical (minimised)"
 
 
 def _target_dict(target):
@@ -274,7 +263,7 @@ def _polish_data(problem, exact, check):
         "within_bounds_vs_target": problem.target is None or within(m, exact_refinement.TOLERANCE),
         "verified": verified, "note": note,
         "schedule": _schedule(exact, problem.sail.throttle),
-        "final_state": _polar_dict(exact.nodes[:, -1]),
+        "final_state": _polar_dict(exact.nodes[:4, -1]),
         "verification": verification,
     }
 
@@ -376,28 +365,26 @@ def _other_starts(problem, result, tr, say):
     return result, tr, records
 
 
-def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=False,
-                progress=None, theta_window=None, starts=None, sub_arcs_requested=None):
+def solution_of(problem, result, tr=None, samples=16, polish=False, progress=None,
+                starts=None, sub_arcs_requested=None):
     """The :class:`Solution` of a closed-form optimum already found: its error control
     (``optimisation.refine``), its CVODES verification and, with ``polish``, its exact
     refinement (see :func:`solve`, which is this after the solve; the global search
     calls it for each optimum it keeps).
 
     ``tr`` is the optimum's NLP (the refinement re-solves it warm; without it a new one
-    is built), ``revolutions_k`` the rendezvous turn count when ``tr`` is not given,
-    ``theta_window`` the final-angle box (rad) it was solved in, which the refinement and
-    the polish keep, ``starts`` the records of the starts tried before this one, and
+    is built; either way the refinement and the polish keep ``result``'s revolution
+    class), ``starts`` the records of the starts tried before this one, and
     ``sub_arcs_requested`` the problem file's sub-arcs when the seed already raised them.
     """
     requested = sub_arcs_requested or problem.segments.sub_arcs
     say = progress or (lambda text: None)
     refined = None
     if result.outcome in ("converged", "acceptable"):
-        refined = refine(problem, result, tr, revolutions_k, theta_window, say)
+        refined = refine(problem, result, tr, say)
         iterations = result.iterations + sum(r["iterations"] for r in refined.history[1:])
         seconds = result.solve_seconds + refined.history[-1]["seconds"]
         problem, result, tr = refined.problem, refined.result, refined.transcription
-        revolutions_k = tr.guess.revolutions_k
         result.iterations, result.solve_seconds = iterations, seconds
     check = verify(problem, result, samples)
     verified, note = check.judge(problem)
@@ -427,7 +414,7 @@ def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=Fa
         "tolerance": {"position_km": problem.tolerance.position_km,
                       "velocity_m_s": problem.tolerance.velocity_m_s},
         "objective": result.objective,
-        "objective_meaning": _objective_meaning(problem.objective),
+        "objective_meaning": problem.objective.meaning,
         "tof_days": units.time_to_days(float(np.sum(result.durations))),
         "iterations": result.iterations,
         "stages": [{"status": st, "iterations": it} for st, it in result.stages],
@@ -435,7 +422,7 @@ def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=Fa
         "constraint_violation": result.constraint_violation,
         "min_q3": float(np.min(result.q3)),
         "schedule": schedule,
-        "final_state": _polar_dict(result.nodes[:, -1]),
+        "final_state": _polar_dict(result.nodes[:4, -1]),
         "verification": verification,
         "refinement": {"rounds": [] if refined is None else refined.history,
                        "starts": starts or []},
@@ -445,7 +432,7 @@ def solution_of(problem, result, tr=None, revolutions_k=0, samples=16, polish=Fa
         },
     }
     if polish:
-        _add_polish(data, problem, result, revolutions_k, theta_window, samples, say)
+        _add_polish(data, problem, result, samples, say)
     return Solution(json_ready(data))
 
 
@@ -474,7 +461,7 @@ def _problem_data(problem, result, sub_arcs_requested):
     return out
 
 
-def _add_polish(data, problem, result, revolutions_k, theta_window, samples, say):
+def _add_polish(data, problem, result, samples, say):
     """Polish ``result`` on exact arcs and add what it found to ``data``."""
     # A closed form that found no optimum has nothing worth refining.
     if result.outcome not in ("converged", "acceptable"):
@@ -482,7 +469,7 @@ def _add_polish(data, problem, result, revolutions_k, theta_window, samples, say
                           "note": f"NOT polished: the closed-form solve ended {result.status}"}
         return
     say(f"{problem.name}: polishing on exact CVODES arcs in time ({result.alpha.size} segments)")
-    exact, _ = exact_refinement.polish(problem, result, revolutions_k, theta_window=theta_window)
+    exact, _ = exact_refinement.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")
     exact_check = verify(problem, exact, samples)

@@ -14,11 +14,11 @@ durations from the NLP's segment times, and the nodes from a CVODES flight of th
 schedule, so continuity holds at the start and Ipopt only has to remove the final miss.
 """
 
-import numpy as np
+import dataclasses
 
 from esail_opt.optimisation.problem import Tolerance
 from esail_opt.optimisation.ipopt import ipopt_options, solve_transcription
-from esail_opt.optimisation.transcription import Guess, cvodes_time_segment, transcribe
+from esail_opt.optimisation.transcription import cvodes_time_segment, transcribe
 from esail_opt.propagation.simulate import SimulationError, simulate
 
 #: Ipopt's bound on the final constraint violation (canonical units).  The verified miss
@@ -42,16 +42,15 @@ def polish_options(max_iter=200):
     return opts
 
 
-def warm_start(problem, result, revolutions_k=0):
+def warm_start(problem, result):
     """The polish NLP's starting point from a closed-form optimum.
 
     Parameters
     ----------
     problem : Problem
     result : NLPResult
-        The closed-form optimum: its pitch, segment durations, departure and nodes.
-    revolutions_k : int
-        The rendezvous revolution count of the closed-form NLP (its ``guess``).
+        The closed-form optimum: its pitch, segment durations, departure, nodes and
+        revolution class.
 
     Returns
     -------
@@ -60,46 +59,39 @@ def warm_start(problem, result, revolutions_k=0):
         :func:`exact_guess` flies them, or the closed form's own nodes if CVODES fails
         (an escaping flight, say), so a failed flight never blocks the polish.
     """
-    nodes = np.vstack([result.nodes, np.cumsum(result.durations)])
-    return exact_guess(problem, result.x_start, result.alpha, result.durations, nodes,
-                       result.nu0, revolutions_k, result.throttle)
+    return exact_guess(problem, result.x_start, result.as_guess(durations=True))
 
 
-def exact_guess(problem, x_start, alpha, durations, fallback_nodes, nu0=0.0, revolutions_k=0,
-                throttle=None):
+def exact_guess(problem, x_start, guess):
     """A start for the exact (CVODES-in-time) NLP from any schedule.
 
-    The nodes are the CVODES flight of the schedule (pitch, durations in TU, throttle)
-    from ``x_start``, so every continuity constraint holds at the start; if that flight
-    fails, ``fallback_nodes`` [5 x N] are used instead.  The polish passes a closed-form
-    optimum here; the benchmark passes the constant-pitch seed (a cold start).
+    ``guess`` holds the schedule (pitch, durations in TU, throttle) and its revolution
+    class.  The nodes become the CVODES flight of that schedule from ``x_start``, so
+    every continuity constraint holds at the start; if that flight fails, the guess's
+    own nodes stay.  The polish passes a closed-form optimum here; the benchmark passes
+    the constant-pitch seed (a cold start).
     """
-    durations = np.asarray(durations, float)
     try:
-        flown = simulate(x_start, alpha, durations, problem.sail.ac, throttles=throttle,
-                         samples=1, independent="time", coefficients=problem.sail.coefficients)
-        nodes = flown[:, 1:]
+        flown = simulate(x_start, guess.alpha, guess.lengths, problem.sail.ac,
+                         throttles=guess.throttle, samples=1, length_in="time",
+                         coefficients=problem.sail.coefficients)
     except SimulationError:
-        nodes = np.asarray(fallback_nodes, float)
-    return Guess(np.asarray(alpha, float), durations, nodes, nu0, revolutions_k, throttle)
+        return guess
+    return dataclasses.replace(guess, nodes=flown[:, 1:])
 
 
-def polish(problem, result, revolutions_k=0, options=None, theta_window=None):
+def polish(problem, result, options=None):
     """Re-solve ``problem`` on exact CVODES arcs in time, warm-started from ``result``.
 
     Parameters
     ----------
     problem : Problem
     result : NLPResult
-        The closed-form optimum (``solve.solve_problem``).
-    revolutions_k : int
-        The closed-form NLP's rendezvous revolution count (``Transcription.guess``).
+        The closed-form optimum (``ipopt.solve_problem``).  Its revolution class is
+        kept: a window optimum's polish that lost its final-angle box would slide out of
+        its window into another optimum.
     options : dict, optional
         Ipopt options; default :func:`polish_options`.
-    theta_window : (float, float), optional
-        The final-angle box (rad) of a revolution-window optimum
-        (``optimisation.multistart``): its polish keeps the box, or it would slide out
-        of its window into another optimum.
 
     Returns
     -------
@@ -108,8 +100,7 @@ def polish(problem, result, revolutions_k=0, options=None, theta_window=None):
         angles they sweep, ``nodes`` the exact node states, ``q3`` empty;
         ``solve_seconds`` covers building the solver and Ipopt (not the warm-start flight).
     """
-    guess = warm_start(problem, result, revolutions_k)
-    tr = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), guess,
-                    independent="time", theta_window=theta_window)
+    tr = transcribe(problem, cvodes_time_segment(problem.sail.coefficients),
+                    warm_start(problem, result), length_in="time")
     exact = solve_transcription(tr, polish_options() if options is None else options)
     return exact, tr

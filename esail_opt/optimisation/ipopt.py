@@ -50,7 +50,10 @@ class NLPResult:
     """What Ipopt returned, in canonical units, plus its bookkeeping.
 
     ``outcome`` is one of "converged", "acceptable" (Solved_To_Acceptable_Level: not
-    reported as converged), "infeasible" or "failed".
+    reported as converged), "infeasible" or "failed".  ``nodes`` are the 5 x N states
+    [r, theta, v_r, v_theta, t] at the segments' ends, as in a :class:`Guess`, and the
+    revolution class (``revolutions_k``, ``theta_window``) is the NLP's own, so that
+    any later NLP started here (:meth:`as_guess`) stays in it.
     """
 
     status: str
@@ -72,10 +75,19 @@ class NLPResult:
     w: np.ndarray = None
     lam_x: np.ndarray = None
     lam_g: np.ndarray = None
+    revolutions_k: int = 0
+    theta_window: tuple = None
 
     @property
     def converged(self):
         return self.outcome == "converged"
+
+    def as_guess(self, durations=False):
+        """A start for another NLP (any mesh or segment kind) at this optimum; with
+        ``durations`` its lengths are the segment durations (an NLP in time)."""
+        lengths = self.durations if durations else self.lengths
+        return Guess(self.alpha, lengths, self.nodes, self.nu0, self.revolutions_k,
+                     self.throttle, self.theta_window)
 
 
 def wrap_pitch(alpha):
@@ -251,16 +263,15 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         constraint_violation=violation, nu0=float(parts[6].ravel()[0]),
         stages=[(status, int(stats.get("iter_count", -1)))], throttle=parts[7].ravel(),
         w=w, lam_x=np.array(sol["lam_x"]).ravel(), lam_g=np.array(sol["lam_g"]).ravel(),
+        revolutions_k=tr.guess.revolutions_k, theta_window=tr.guess.theta_window,
     )
 
 
-def solve_problem(problem, segment=None, options=None, guess=None, theta_window=None,
-                  progress=None):
+def solve_problem(problem, segment=None, options=None, guess=None, progress=None):
     """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
 
-    ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, and
-    ``theta_window`` (rad) boxes the final polar angle (``transcribe``); the global
-    search (``optimisation.multistart``) uses both.
+    ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, with its
+    revolution class (the global search, ``optimisation.multistart``, sets it).
 
     Free segment lengths are solved in two stages: first with equal lengths (a smaller,
     better-conditioned NLP that converges in tens of iterations), then with the lengths
@@ -277,13 +288,11 @@ def solve_problem(problem, segment=None, options=None, guess=None, theta_window=
     guess = initial_guess(problem) if guess is None else guess
     if not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
-        tr1 = transcribe(equal, segment, guess, theta_window=theta_window)
-        first = solve_transcription(tr1, options, progress=progress)
+        first = solve_transcription(transcribe(equal, segment, guess), options,
+                                    progress=progress)
         if first.outcome in ("converged", "acceptable"):
-            nodes = np.vstack([first.nodes, np.cumsum(first.durations)])
-            guess = Guess(first.alpha, first.lengths, nodes, first.nu0,
-                          tr1.guess.revolutions_k, first.throttle)
-    tr = transcribe(problem, segment, guess, theta_window=theta_window)
+            guess = first.as_guess()
+    tr = transcribe(problem, segment, guess)
     result = solve_transcription(tr, options, progress=progress)
     if first is not None:
         result.iterations += first.iterations

@@ -7,7 +7,7 @@ one NLP per revolution class and keeps every result:
 * **the free start**: the problem as it is, from its own constant-pitch seed;
 * **orbit transfers** (circular or (a, e) target, final angle free): revolution
   windows.  Class k boxes the final polar angle into [theta0 + 2 pi k,
-  theta0 + 2 pi (k + 1)] (``transcribe(theta_window=...)``), seeded by a
+  theta0 + 2 pi (k + 1)] (``Guess.theta_window``), seeded by a
   constant-pitch spiral whose first crossing of the target radius lies in that window
   (pitches near +-90 deg have little transverse thrust and wind many times before
   they cross; see :func:`seed_pitches`);
@@ -33,7 +33,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from esail_opt.errors import InputError
-from esail_opt.optimisation import problem as pb
 from esail_opt.optimisation.ipopt import NLPResult, solve_problem
 from esail_opt.optimisation.transcription import (
     Guess, flown_segments, guess_alpha, initial_guess)
@@ -56,12 +55,17 @@ SEED_FRACTIONS = (0.0, 0.5, 0.75, 0.875, 0.9375, 0.96875, 0.984375, 0.9921875)
 
 @dataclass
 class Start:
-    """One start of the search: its label, revolution class and seed."""
+    """One start of the search: its label, revolution class and seed (which carries the
+    class into the NLP)."""
 
     label: str
     revolutions: int  # the class: the window's k, or the rendezvous k
     guess: Guess
-    window: tuple = None  # (lo, hi) final polar angle, rad, or None (free)
+
+    @property
+    def window(self):
+        """(lo, hi) final polar angle, rad, or None (free)."""
+        return self.guess.theta_window
 
 
 @dataclass
@@ -71,30 +75,30 @@ class Candidate:
     Attributes
     ----------
     result : NLPResult
-        The closed-form optimum (the best of the starts that reached it).
+        The closed-form optimum (the best of the starts that reached it).  Its
+        ``theta_window`` is kept only when the window's bound is active (a refinement
+        must keep it then); a free optimum carries none.
     revolutions : float
         Turns swept from departure to arrival, (theta_f - theta_0) / 2 pi.
-    revolutions_k : int
-        The rendezvous turn count its NLP used (0 for an orbit transfer).
     free : bool
         True for a local optimum of the problem as posed; False when a revolution
         window's bound is active, i.e. the best transfer confined to that window.
     window : list or None
         [k, k + 1] revolutions of its window, or None.
-    theta_window : tuple or None
-        That window as final polar angles, rad, when its bound is active (a refinement
-        must keep it); None for a free optimum.
     found_from : list of str
         The starts that reached it.
     """
 
     result: NLPResult
     revolutions: float
-    revolutions_k: int
     free: bool
     window: list = None
-    theta_window: tuple = None
     found_from: list = field(default_factory=list)
+
+    @property
+    def revolutions_k(self):
+        """The rendezvous turn count its NLP used (0 for an orbit transfer)."""
+        return self.result.revolutions_k
 
     @property
     def tof(self):
@@ -103,7 +107,7 @@ class Candidate:
 
 
 def _check(problem):
-    if not isinstance(problem.objective, pb.MinTime):
+    if problem.objective.fixed_time:
         raise InputError(f"objective = {type(problem.objective).__name__}: the revolution "
                          "search is for minimum-time problems (objective = MinTime)")
     if getattr(problem.departure, "free_anomaly", False):
@@ -111,8 +115,8 @@ def _check(problem):
                          "from a fixed departure angle; fix the departure anomaly")
 
 
-def sweep(result):
-    """Angle swept by a result, rad."""
+def swept_angle(result):
+    """Polar angle a result sweeps from departure to arrival, rad."""
     return float(result.nodes[1, -1] - result.x_start[1])
 
 
@@ -147,7 +151,7 @@ def _stretched(problem, guess, total):
     xs = flown_segments(problem, guess.alpha, lengths, problem.x0())
     if not np.all(np.isfinite(xs)):
         return None
-    return Guess(guess.alpha, lengths, xs[:, 1:], guess.nu0, guess.revolutions_k)
+    return dataclasses.replace(guess, lengths=lengths, nodes=xs[:, 1:])
 
 
 def window_starts(problem, classes):
@@ -180,7 +184,7 @@ def window_starts(problem, classes):
                 continue
             label = (f"window {k}-{k + 1} rev, constant pitch {math.degrees(alpha):.4g} deg "
                      f"stretched to {k + 0.5:g} rev")
-        starts.append(Start(label, k, guess, window))
+        starts.append(Start(label, k, dataclasses.replace(guess, theta_window=window)))
     return starts
 
 
@@ -207,7 +211,7 @@ def fallback_starts(problem, guess):
     """Other starts for a solve whose first start did not converge, free of any window:
     for a rendezvous the turn counts around ``guess``'s (one below, one and two above),
     for an orbit transfer the other constant-pitch seeds of :func:`seed_pitches`."""
-    if isinstance(problem.target, pb.Rendezvous):
+    if problem.tracks_body():
         k = guess.revolutions_k
         return rendezvous_starts(problem, [c for c in (k + 1, k - 1, k + 2) if c >= 0])
     seeds = constant_pitch_seeds(problem)
@@ -255,12 +259,12 @@ def search(problem, extra_revolutions=2, progress=None):
             or not 0 <= extra_revolutions <= 20:
         raise InputError(f"extra_revolutions = {extra_revolutions!r} is outside [0, 20]")
     say = progress or (lambda text: None)
-    rendezvous = isinstance(problem.target, pb.Rendezvous)
+    rendezvous = problem.tracks_body()
     say(f"{problem.name}: start 1, the problem's own seed (free)")
     first, tr = solve_problem(problem, progress=progress)
     base_k = tr.guess.revolutions_k
     if first.outcome == "converged":
-        centre = base_k if rendezvous else int(sweep(first) // (2 * math.pi))
+        centre = base_k if rendezvous else int(swept_angle(first) // (2 * math.pi))
     else:
         centre = base_k if rendezvous else int(float(tr.guess.nodes[1, -1]
                                                       - problem.x0()[1]) // (2 * math.pi))
@@ -272,15 +276,13 @@ def search(problem, extra_revolutions=2, progress=None):
     starts = (rendezvous_starts(problem, classes) if rendezvous
               else window_starts(problem, classes))
 
-    outcomes = [(Start("the problem's own seed (free)", centre, tr.guess), first, base_k)]
+    outcomes = [(Start("the problem's own seed (free)", centre, tr.guess), first)]
     for i, start in enumerate(starts, 2):
         say(f"{problem.name}: start {i}/{len(starts) + 1}, {start.label}")
-        result, tr = solve_problem(problem, guess=start.guess, theta_window=start.window,
-                                   progress=progress)
-        outcomes.append((start, result, tr.guess.revolutions_k))
+        outcomes.append((start, solve_problem(problem, guess=start.guess, progress=progress)[0]))
 
     candidates, records = [], []
-    for start, result, k in outcomes:
+    for start, result in outcomes:
         record = {"label": start.label, "revolutions": start.revolutions,
                   "status": result.status, "iterations": result.iterations,
                   "seconds": result.solve_seconds, "candidate": None,
@@ -291,8 +293,10 @@ def search(problem, extra_revolutions=2, progress=None):
         window = (None if start.window is None
                   else [start.revolutions, start.revolutions + 1])
         free = not _on_edge(result, start.window)
-        found = Candidate(result, sweep(result) / (2 * math.pi), k, free, window,
-                          None if free else start.window, [start.label])
+        if free:
+            result = dataclasses.replace(result, theta_window=None)
+        found = Candidate(result, swept_angle(result) / (2 * math.pi), free, window,
+                          [start.label])
         for other in candidates:
             if _same(found, other):
                 other.found_from.append(start.label)

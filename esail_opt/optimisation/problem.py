@@ -27,8 +27,12 @@ from typing import Callable, Optional, Union
 import numpy as np
 
 from esail_opt.errors import InputError, check_range
+from esail_opt.optimisation.goals import (
+    OBJECTIVES, TARGETS, CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius, MinTime,
+    Orbit, Rendezvous,
+)
 from esail_opt.physics import constants as units
-from esail_opt.physics.elements import polar_from_classical
+from esail_opt.physics.elements import orbital_energy, polar_from_classical
 from esail_opt.physics.thrust import BEST_FIT, EXACT
 
 __all__ = [
@@ -115,8 +119,7 @@ class PolarState:
         check_range("departure.vr_km_s", self.vr_km_s, unit="km/s")
         check_range("departure.vtheta_km_s", self.vtheta_km_s, 0, low_open=True, unit="km/s")
         x = self.state()
-        energy = 0.5 * (x[2] ** 2 + x[3] ** 2) - 1 / x[0]
-        if energy >= 0:
+        if orbital_energy(x) >= 0:
             v_esc = units.speed_to_km_s(math.sqrt(2 / x[0]))
             raise InputError(f"departure speed = {units.speed_to_km_s(math.hypot(x[2], x[3])):.4g} "
                              f"km/s is outside [0, {v_esc:.4g}) km/s (the escape speed: e < 1)")
@@ -236,115 +239,6 @@ class Segments:
         return max(1, math.ceil(self.per_revolution * sweep / (2 * math.pi) - 1e-9))
 
 
-# ---------------------------------------------------------------- objectives
-
-
-@dataclass(frozen=True)
-class MinTime:
-    """Minimise the time of flight (the target fixes the end)."""
-
-    fixed_time = False
-
-
-@dataclass(frozen=True)
-class _FixedTime:
-    tof_days: float
-
-    fixed_time = True
-
-    def __post_init__(self):
-        check_range("objective.tof_days", self.tof_days, 0, 36525, low_open=True, unit="days")
-
-
-@dataclass(frozen=True)
-class MaxRadius(_FixedTime):
-    """Maximise the final solar distance after ``tof_days`` days."""
-
-
-@dataclass(frozen=True)
-class MaxEnergy(_FixedTime):
-    """Maximise the final orbital energy v^2/2 - 1/r after ``tof_days`` days.
-
-    While the orbit stays bound, this is the same as maximising the final osculating
-    semimajor axis a = -1 / (2 E), without a's pole at E = 0.
-    """
-
-
-@dataclass(frozen=True)
-class FinalStateExpression(_FixedTime):
-    """Minimise a user expression of the final state after ``tof_days`` days.
-
-    Attributes
-    ----------
-    function : callable
-        ``function(x)`` with ``x`` the final polar state [r, theta, v_r, v_theta] as a
-        CasADi column (canonical units: au, rad, au/TU with mu = 1) returns a scalar
-        CasADi expression to *minimise*.  Use CasADi operations (``casadi.sqrt``,
-        ``casadi.cos``, ...) so that Ipopt gets exact derivatives; e.g. maximising the
-        angular momentum is ``lambda x: -x[0] * x[3]``.
-    tof_days : float
-        Fixed time of flight, days.
-    """
-
-    function: Callable = None
-    tof_days: float = 365.25
-
-    def __post_init__(self):
-        super().__post_init__()
-        if not callable(self.function):
-            raise InputError(f"objective.function = {self.function!r} is not callable")
-
-
-# ---------------------------------------------------------------- targets
-
-
-@dataclass(frozen=True)
-class CircularOrbit:
-    """End on the circular orbit of radius ``radius_au`` (r = R, v_r = 0, v_theta = sqrt(mu/R))."""
-
-    radius_au: float
-
-    def __post_init__(self):
-        check_range("target.radius_au", self.radius_au, 0.05, 100, unit="au")
-
-
-@dataclass(frozen=True)
-class Orbit:
-    """End on the orbit (a, e), anywhere and with any apse line.
-
-    The constraints are the energy -1/(2a) and the angular momentum sqrt(a (1 - e^2)),
-    which are smooth where the apse line is not (e = 0 included).
-    """
-
-    a_au: float
-    e: float
-
-    def __post_init__(self):
-        check_range("target.a_au", self.a_au, 0.05, 100, unit="au")
-        check_range("target.e", self.e, 0, 1, high_open=True)
-
-
-@dataclass(frozen=True)
-class Rendezvous:
-    """Meet a body on a circular orbit: position and velocity.
-
-    Attributes
-    ----------
-    radius_au : float
-        The body's orbit radius, au.
-    phase_deg : float
-        The body's polar angle at departure (t = 0), deg; it moves at the mean
-        motion n = sqrt(mu / R^3).
-    """
-
-    radius_au: float
-    phase_deg: float
-
-    def __post_init__(self):
-        check_range("target.radius_au", self.radius_au, 0.05, 100, unit="au")
-        check_range("target.phase_deg", self.phase_deg, -360, 360, unit="deg")
-
-
 # ---------------------------------------------------------------- path and problem
 
 
@@ -441,12 +335,12 @@ class Problem:
             raise InputError(f"name = {self.name!r} is not a non-empty file-name string")
         for attr, kinds in (("departure", (ParkingOrbit, PolarState)), ("sail", (Sail,)),
                             ("segments", (Segments,)),
-                            ("objective", (MinTime, MaxRadius, MaxEnergy, FinalStateExpression)),
+                            ("objective", OBJECTIVES),
                             ("path", (PathConstraints,)), ("tolerance", (Tolerance,))):
             if not isinstance(getattr(self, attr), kinds):
                 names = ", ".join(k.__name__ for k in kinds)
                 raise InputError(f"{attr} = {getattr(self, attr)!r} is not one of: {names}")
-        if self.target is not None and not isinstance(self.target, (CircularOrbit, Orbit, Rendezvous)):
+        if self.target is not None and not isinstance(self.target, TARGETS):
             raise InputError(f"target = {self.target!r} is not one of: CircularOrbit, Orbit, "
                              "Rendezvous, None")
         if self.target is None and not self.objective.fixed_time:
@@ -491,14 +385,13 @@ class Problem:
             return units.time_from_days(self.objective.tof_days)
         return None
 
-    def target_radius(self):
-        """Radius the initial guess aims at (a for an (a, e) orbit), au, or None."""
-        t = self.target
-        if isinstance(t, (CircularOrbit, Rendezvous)):
-            return t.radius_au
-        if isinstance(t, Orbit):
-            return t.a_au
-        return None
+    def tracks_body(self):
+        """Whether the final polar angle is tied to a moving body (a rendezvous)."""
+        return self.target is not None and self.target.tracks_body
+
+    def aim_radius_au(self):
+        """Radius the initial guess aims at, au, or None without a target."""
+        return None if self.target is None else self.target.aim_radius_au
 
 
 def _replace(obj, **changes):

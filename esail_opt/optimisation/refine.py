@@ -42,9 +42,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from esail_opt.optimisation.ipopt import build_solver, solve_transcription
-from esail_opt.optimisation.transcription import (
-    Guess, closed_form_segment, strain, transcribe)
-from esail_opt.optimisation.verify import state_miss, verify
+from esail_opt.optimisation.goals import state_miss
+from esail_opt.optimisation.transcription import closed_form_segment, strain, transcribe
+from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
 from esail_opt.propagation.simulate import (
     VERIFY_TOLERANCE, SimulationError, quiet_stderr, segment_integrator)
@@ -93,8 +93,7 @@ def _exact_segments(n, coefficients):
 
 def start_nodes(result):
     """Each segment's start state [5 x N] with time: the departure, then the nodes."""
-    nodes = np.vstack([result.nodes, np.cumsum(result.durations)])
-    return np.column_stack([np.r_[result.x_start, 0.0], nodes[:, :-1]])
+    return np.column_stack([np.r_[result.x_start, 0.0], result.nodes[:, :-1]])
 
 
 def segment_ends(problem, result):
@@ -119,13 +118,6 @@ def segment_ends(problem, result):
     return exact, plain
 
 
-def guess_of(result, revolutions_k):
-    """A start for a new NLP at ``result``'s optimum (any mesh)."""
-    nodes = np.vstack([result.nodes, np.cumsum(result.durations)])
-    return Guess(result.alpha, result.lengths, nodes, result.nu0, revolutions_k,
-                 result.throttle)
-
-
 def _row(rnd, problem, result, check, local_km, seconds):
     m = check.misses
     return {"round": rnd, "segments": int(result.alpha.size),
@@ -146,22 +138,18 @@ def _flown_miss(problem, check):
     return np.inf if value is None else value
 
 
-def refine(problem, result, tr=None, revolutions_k=0, theta_window=None, progress=None,
-           max_rounds=MAX_ROUNDS):
+def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS):
     """Refine a closed-form optimum until its flight meets ``problem.tolerance``.
 
     Parameters
     ----------
     problem : Problem
     result : NLPResult
-        The closed-form optimum (``solve.solve_problem``).
+        The closed-form optimum (``ipopt.solve_problem``); every round keeps its
+        revolution class.
     tr : Transcription, optional
         Its NLP; without it a new one is built at ``result`` (and the first correction
         starts cold, since a new NLP scales its variables differently).
-    revolutions_k : int
-        The rendezvous turn count, when ``tr`` is not given.
-    theta_window : (float, float), optional
-        The final-angle box it was solved in, which every round keeps.
     progress : callable, optional
         ``progress(text)``: a line per round and Ipopt's iteration lines.
     max_rounds : int
@@ -174,8 +162,7 @@ def refine(problem, result, tr=None, revolutions_k=0, theta_window=None, progres
     say = progress or (lambda text: None)
     fresh = tr is None
     if fresh:
-        tr = transcribe(problem, guess=guess_of(result, revolutions_k), theta_window=theta_window)
-    k = tr.guess.revolutions_k
+        tr = transcribe(problem, guess=result.as_guess())
     history, solver, last_miss = [], None, None
     local_km = np.full(result.alpha.size, np.nan)
     started = time.perf_counter()
@@ -207,7 +194,7 @@ def refine(problem, result, tr=None, revolutions_k=0, theta_window=None, progres
                 grown = math.ceil(sub * worst) if strained else 2 * sub
                 problem = dataclasses.replace(problem, segments=dataclasses.replace(
                     problem.segments, sub_arcs=min(grown, MAX_SUB_ARCS)))
-                tr = transcribe(problem, guess=guess_of(result, k), theta_window=theta_window)
+                tr = transcribe(problem, guess=result.as_guess())
                 plain = segment_ends(problem, result)[1]
                 say(f"refinement: {'strained' if strained else 'slow'} closed form; "
                     f"{problem.segments.sub_arcs} sub-arcs per segment")

@@ -16,8 +16,8 @@ Function is SX, expanded once, and ``map``-ped over the N segments inside an MX 
 the NLP holds one copy of the arc's graph however many segments there are.  The same
 builder accepts any segment Function of the same signature: the benchmark swaps in
 CVODES arcs (:func:`cvodes_segment`), and the exact refinement
-(``optimisation.polish``) CVODES arcs in time (:func:`cvodes_time_segment`, with the
-segment durations as the length variables: ``transcribe(..., independent="time")``).
+(``optimisation.exact``) CVODES arcs in time (:func:`cvodes_time_segment`, with the
+segment durations as the length variables: ``transcribe(..., length_in="time")``).
 
 Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
 end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
@@ -35,8 +35,7 @@ import numpy as np
 from esail_opt.propagation.rectified import extrapolated_function, propagate, rectified_function
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.errors import InputError
-from esail_opt.optimisation import problem as pb
-from esail_opt.physics import constants as units
+from esail_opt.physics.thrust import EXACT
 
 #: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
 #: a_c = 1 mm/s^2 (THEORY.md §5.2: sub-arcs of about a tenth of a radian).
@@ -83,7 +82,7 @@ def sub_arcs_within_cap(problem, guess, most):
 
 
 @functools.lru_cache(maxsize=None)
-def closed_form_segment(sub_arcs, coefficients=pb.EXACT, extrapolate=True):
+def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=True):
     """One constant-pitch segment of ``sub_arcs`` rectified closed-form arcs.
 
     Parameters
@@ -121,7 +120,7 @@ def closed_form_segment(sub_arcs, coefficients=pb.EXACT, extrapolate=True):
 
 
 @functools.lru_cache(maxsize=None)
-def cvodes_segment(sub_arcs, coefficients=pb.EXACT):
+def cvodes_segment(sub_arcs, coefficients=EXACT):
     """The same segment as :func:`closed_form_segment` with CVODES arcs on Eqs. 1-2.
 
     ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``: one CVODES integration in
@@ -140,14 +139,14 @@ def cvodes_segment(sub_arcs, coefficients=pb.EXACT):
 
 
 @functools.lru_cache(maxsize=None)
-def cvodes_time_segment(coefficients=pb.EXACT):
+def cvodes_time_segment(coefficients=EXACT):
     """One constant-pitch segment of Eqs. 1-2 integrated by CVODES in time: the exact arc.
 
     ``(x0[5], ac, alpha, duration) -> (x1[5], q3[0])``: one CVODES integration over the
     segment's duration (TU) at tolerances 1e-15 (``simulate.segment_integrator``), which
     CasADi differentiates through forward and adjoint sensitivities.  The state's t row
     advances by the duration itself.  An exact arc has no first-order validity margin, so
-    q3 is empty and :func:`transcribe` (``independent="time"``) adds no q3 rows.  Time,
+    q3 is empty and :func:`transcribe` (``length_in="time"``) adds no q3 rows.  Time,
     not theta, is the independent variable: the verification flies the schedule in time,
     so the polished NLP and its check integrate the same equations the same way.
     """
@@ -178,48 +177,55 @@ def flown_segments(problem, alpha, lengths, x_start, throttle=None):
 
 @dataclass
 class Guess:
-    """An initial guess in canonical units: pitch, segment angles, node states, nu0, and
-    the throttle per segment (None means full thrust, 1, everywhere)."""
+    """A start of the NLP in canonical units, and the revolution class it belongs to.
+
+    ``throttle`` None means full thrust (1) everywhere.  The revolution class is part of
+    the start because it is part of the NLP: ``revolutions_k`` fixes a rendezvous'
+    whole turns between the sail and the body, and ``theta_window`` (rad), when given,
+    boxes the final polar angle to confine a transfer to a number of revolutions
+    (``optimisation.multistart``).  Every NLP built from this start keeps both.
+    """
 
     alpha: np.ndarray
     lengths: np.ndarray
     nodes: np.ndarray  # 5 x N: [r, theta, v_r, v_theta, t] at each segment's end
     nu0: float
-    revolutions_k: int = 0  # rendezvous: whole turns between the sail and the body
+    revolutions_k: int = 0
     throttle: np.ndarray = None
+    theta_window: tuple = None
 
 
-def _sweep_to(problem, x0, alpha, stop, what):
+def _fly_until(problem, x0, alpha, stop, what):
     """Fly constant pitch from x0 in GUESS_STEP arcs until ``stop(xs)`` returns an index.
 
-    Returns the swept angle at the (linearly interpolated) stopping point.
+    Returns the angle flown to the (linearly interpolated) stopping point.
 
     Raises
     ------
     InputError
         If the propagation leaves the closed form's validity (an escaping orbit, q3 <= 0)
-        or sweeps ``max_revolutions`` before it stops: no seed can be built from it.
+        or flies ``max_revolutions`` before it stops: no seed can be built from it.
     """
     limit = 2 * math.pi * problem.max_revolutions
     ac = problem.sail.ac
     coeff = problem.sail.coefficients
-    state, swept, t0 = np.asarray(x0, float), 0.0, 0.0
+    state, flown, t0 = np.asarray(x0, float), 0.0, 0.0
     deg = math.degrees(alpha)
-    while swept < limit:
+    while flown < limit:
         xs, q3 = propagate(state, np.full(GUESS_CHUNK, alpha), np.full(GUESS_CHUNK, GUESS_STEP),
                            ac, samples=1, coefficients=coeff)
         xs[4] += t0
         hit = stop(xs)
         if hit is not None:
-            return swept + GUESS_STEP * hit
+            return flown + GUESS_STEP * hit
         bad = ~np.isfinite(xs[0, 1:]) | (xs[0, 1:] <= 0) | ~(q3 > 0)
         if bad.any():
-            left = swept + GUESS_STEP * np.flatnonzero(bad)[0]
+            left = flown + GUESS_STEP * np.flatnonzero(bad)[0]
             raise InputError(
                 f"guess_alpha_deg = {deg:g} deg: the seeding propagation at constant pitch "
                 f"leaves the closed form's validity (escape or q3 <= 0) after {left:.3g} rad "
                 f"without reaching {what}; choose another guess_alpha_deg")
-        swept += GUESS_STEP * GUESS_CHUNK
+        flown += GUESS_STEP * GUESS_CHUNK
         state, t0 = xs[:4, -1], xs[4, -1]
     raise InputError(f"max_revolutions = {problem.max_revolutions:g}: the seeding propagation "
                      f"at {deg:g} deg does not reach {what} within it")
@@ -249,7 +255,7 @@ def guess_alpha(problem):
     if problem.guess_alpha_deg is not None:
         deg = problem.guess_alpha_deg
     else:
-        radius = problem.target_radius()
+        radius = problem.aim_radius_au()
         deg = -45.0 if radius is not None and radius < problem.x0()[0] else 45.0
     lo, hi = problem.sail.alpha_min_deg, problem.sail.alpha_max_deg
     return math.radians(min(max(deg, lo), hi))
@@ -262,37 +268,27 @@ def initial_guess(problem):
     radius (minimum time) or the fixed time of flight; it is cut into N equal segments,
     and the nodes are the states the NLP's own segments reach from the departure, so
     every continuity constraint holds exactly at the start.  N is the problem's count,
-    or with ``Segments(per_revolution=K)`` ceil(K sweep / 2 pi) (``Segments.count_for``):
+    or with ``Segments(per_revolution=K)`` ceil(K angle / 2 pi) (``Segments.count_for``):
     the guess fixes the NLP's size, and :func:`transcribe` takes N from it.
     """
     x0 = problem.x0()
     alpha = guess_alpha(problem)
     tof = problem.fixed_tof()
     if tof is not None:
-        sweep = _sweep_to(problem, x0, alpha, lambda xs: _crossing(xs[4], tof),
-                          f"the time of flight ({problem.objective.tof_days:g} days)")
+        angle = _fly_until(problem, x0, alpha, lambda xs: _crossing(xs[4], tof),
+                           f"the time of flight ({problem.objective.tof_days:g} days)")
     else:
-        radius = problem.target_radius()
-        sweep = _sweep_to(problem, x0, alpha, lambda xs: _crossing(xs[0], radius),
-                          f"the target radius ({radius:g} au)")
-    n = problem.segments.count_for(sweep)
-    lengths = np.full(n, sweep / n)
+        radius = problem.aim_radius_au()
+        angle = _fly_until(problem, x0, alpha, lambda xs: _crossing(xs[0], radius),
+                           f"the target radius ({radius:g} au)")
+    n = problem.segments.count_for(angle)
+    lengths = np.full(n, angle / n)
     # The nodes come from the NLP's own segment map, so continuity holds exactly.
     xs = flown_segments(problem, np.full(n, alpha), lengths, x0)
     nodes = xs[:, 1:]
-    k = 0
-    if isinstance(problem.target, pb.Rendezvous):
-        body = _body_angle(problem.target, xs[4, -1])
-        # The sail arrives from an inner (faster) orbit, so it can gain angle on the body
-        # by waiting, not lose it: aim at the next whole turn ahead of the guess's lag.
-        k = int(math.ceil((nodes[1, -1] - body) / (2 * math.pi)))
+    k = problem.target.turns_behind(nodes[1, -1], nodes[4, -1]) if problem.tracks_body() else 0
     nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
     return Guess(np.full(n, alpha), lengths, nodes, nu0, k)
-
-
-def _body_angle(target, t):
-    """Polar angle of the rendezvous body at time t (TU): phase0 + n t, unwrapped."""
-    return math.radians(target.phase_deg) + t * target.radius_au ** -1.5
 
 
 @dataclass
@@ -306,7 +302,7 @@ class Transcription:
     ubx: np.ndarray
     lbg: np.ndarray
     ubg: np.ndarray
-    # w -> (alpha, lengths, nodes[4 x N], durations, x_start, q3, nu0, throttle)
+    # w -> (alpha, lengths, nodes[5 x N], durations, x_start, q3, nu0, throttle)
     unpack: ca.Function
     guess: Guess
     names: dict
@@ -323,46 +319,158 @@ class Transcription:
         return np.array(self.nlp_g(w, d)).ravel()
 
 
-def _target_constraints(target, xf, tf, k):
-    """Smooth equality constraints that put the final state xf on the target."""
-    r, th, vr, vt = xf[0], xf[1], xf[2], xf[3]
-    if target is None:
-        return []
-    if isinstance(target, pb.CircularOrbit):
-        radius = target.radius_au
-        return [r - radius, vr, vt - radius ** -0.5]
-    if isinstance(target, pb.Orbit):
-        # Energy and angular momentum: both are smooth, the apse line stays free, and
-        # e = 0 needs no special case.
-        energy = 0.5 * (vr**2 + vt**2) - 1 / r
-        return [energy + 0.5 / target.a_au, r * vt - math.sqrt(target.a_au * (1 - target.e**2))]
-    if isinstance(target, pb.Rendezvous):
-        radius = target.radius_au
-        # The revolution count k is fixed from the guess: matching the angle mod 2 pi
-        # by (cos, sin) pairs would give two parallel constraint gradients.
-        body = math.radians(target.phase_deg) + tf * radius ** -1.5 + 2 * math.pi * k
-        return [r - radius, th - body, vr, vt - radius ** -0.5]
-    raise TypeError(target)
+class _Blocks:
+    """Named blocks of a vector with their bounds, stacked in the order they are added:
+    the NLP's variables (with their start values) or its constraints."""
+
+    def __init__(self):
+        self.exprs, self.lo, self.hi, self.start, self.sizes = [], [], [], [], {}
+
+    def add(self, name, expr, lo, hi, start=None):
+        """Append block ``name``; ``lo``, ``hi`` and ``start`` are scalars or arrays of
+        its shape, flattened column-major as ``casadi.vec`` flattens the block."""
+        if expr.numel() == 0:
+            return
+
+        def flat(v):
+            v = np.asarray(v, float)
+            if v.size == expr.numel():
+                return v.ravel(order="F")
+            return np.broadcast_to(v, expr.shape).ravel(order="F")
+        self.exprs.append(ca.vec(expr))
+        self.lo.append(flat(lo))
+        self.hi.append(flat(hi))
+        self.start.append(flat(0.0 if start is None else start))
+        self.sizes[name] = expr.numel()
+
+    def stacked(self):
+        """(expression, lower bounds, upper bounds, start values), each flat."""
+        cat = lambda parts: np.concatenate(parts) if parts else np.zeros(0)
+        return (ca.vertcat(*self.exprs), cat(self.lo), cat(self.hi), cat(self.start))
 
 
-def _objective(objective, xf, tf):
-    if isinstance(objective, pb.MinTime):
-        return tf
-    if isinstance(objective, pb.MaxRadius):
-        return -xf[0]
-    if isinstance(objective, pb.MaxEnergy):
-        return -(0.5 * (xf[2] ** 2 + xf[3] ** 2) - 1 / xf[0])
-    if isinstance(objective, pb.FinalStateExpression):
-        value = objective.function(xf)
-        size = value.numel() if hasattr(value, "numel") else np.size(value)
-        if not isinstance(value, (ca.MX, ca.SX, ca.DM, float, int)) or size != 1:
-            raise pb.InputError("objective.function must return one scalar CasADi expression "
-                                f"of the final state, not {value!r}")
-        return value
-    raise TypeError(objective)
+@dataclass
+class _Scales:
+    """Order-one scales of the variables: the guess's segment length for lengths, its
+    whole angle for theta and its time of flight for t; radii and speeds are already of
+    order one in canonical units."""
+
+    length: float
+    node: np.ndarray  # per row of a node [r, theta, v_r, v_theta, t]
+
+    @classmethod
+    def of(cls, guess):
+        th = max(1.0, float(abs(guess.nodes[1, -1])))
+        t = max(1.0, float(guess.nodes[4, -1]))
+        return cls(float(np.mean(guess.lengths)), np.array([1.0, th, 1.0, 1.0, t]))
+
+    @property
+    def time(self):
+        return self.node[4]
 
 
-def transcribe(problem, segment=None, guess=None, independent="theta", theta_window=None):
+def _pitch_bounds(problem):
+    """Bounds of the pitch variables, rad."""
+    if problem.sail.alpha_min_deg == -90 and problem.sail.alpha_max_deg == 90:
+        # R and T depend on 2 alpha only, so -90 and +90 deg are one attitude and the
+        # full box is a wall that optima stopped against (578.04-578.23 d on Earth-Mars
+        # from different seeds).  Unbounded, the pitch crosses it; results report it
+        # wrapped into [-90, 90) deg.
+        return -np.inf, np.inf
+    return problem.alpha_bounds()
+
+
+def _node_bounds(problem, guess, scales, n):
+    """Bounds of the 5 x N scaled nodes.  r >= r_min is a bound; v_theta > 0 keeps the
+    orbit prograde, as the closed form (q3 = 1/h) assumes; the revolution window, if
+    any, boxes the last node's theta."""
+    lo = np.tile([[max(problem.path.r_min_au, 1e-3)], [-np.inf], [-10.0], [1e-2], [0.0]], n)
+    hi = np.tile([[100.0], [np.inf], [10.0], [20.0], [np.inf]], n)
+    if guess.theta_window is not None:
+        lo[1, -1], hi[1, -1] = guess.theta_window
+    return lo / scales.node[:, None], hi / scales.node[:, None]
+
+
+def _variables(problem, guess, scales, in_time):
+    """The decision variables, their bounds and start: pitch, segment lengths, nodes,
+    the free departure anomaly and the throttle.
+
+    MX: the segment Function is mapped over them, so the NLP holds one copy of the arc's
+    graph (inlining the SX arcs solves a little faster but takes ~30 s to build the
+    derivatives for 60 segments).  Every variable couples only neighbouring segments --
+    the node carries the elapsed time, and equal lengths are chained equalities rather
+    than one shared variable -- so the constraint Jacobian is banded and colours in a
+    handful of directions; a shared length column plus a sum-of-durations row made it
+    dense and cost 0.75 s per Jacobian on the 60-segment orbit raising, against 0.03 s.
+    """
+    n = guess.alpha.size
+    free_nu = bool(getattr(problem.departure, "free_anomaly", False))
+    kappa_bounds = problem.throttle_bounds()
+    v = {"alpha": ca.MX.sym("alpha", n), "length": ca.MX.sym("length", n),
+         "nodes": ca.MX.sym("nodes", 5, n), "nu0": ca.MX.sym("nu0", 1 if free_nu else 0),
+         "kappa": ca.MX.sym("kappa", 0 if kappa_bounds is None else n)}
+    blocks = _Blocks()
+    blocks.add("alpha", v["alpha"], *_pitch_bounds(problem), guess.alpha)
+    max_angle = 2 * math.pi * problem.max_revolutions
+    # An angle is bounded by the revolution limit; a duration is not.
+    len_hi = (np.inf if in_time else
+              (max_angle / n if problem.segments.equal else max_angle) / scales.length)
+    blocks.add("length", v["length"], 1e-4 / scales.length, len_hi, guess.lengths / scales.length)
+    blocks.add("nodes", v["nodes"], *_node_bounds(problem, guess, scales, n),
+               guess.nodes / scales.node[:, None])
+    blocks.add("nu0", v["nu0"], -4 * math.pi, 4 * math.pi, guess.nu0)
+    # The throttle comes last, so a throttled NLP only appends N columns to the layout.
+    k_lo, k_hi = (1.0, 1.0) if kappa_bounds is None else kappa_bounds
+    blocks.add("kappa", v["kappa"], k_lo, k_hi, 1.0 if guess.throttle is None else guess.throttle)
+    return v, blocks
+
+
+def _flight(problem, segment, v, scales, in_time):
+    """The segments flown from their start nodes: ends (with the defect parameter),
+    q3, the angles and durations of the segments, and the final state and time."""
+    n = v["alpha"].numel()
+    nodes = v["nodes"] * ca.DM(scales.node)
+    dep = problem.departure
+    x_start = dep.state(v["nu0"][0]) if v["nu0"].numel() else ca.DM(problem.x0())
+    starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
+    # The closed form (and Eqs. 1-2) take a_c per segment, so a throttle simply scales it.
+    ac = problem.sail.ac * (v["kappa"].T if v["kappa"].numel() else 1)
+    length = v["length"] * scales.length
+    ends, q3 = segment.map(n)(starts, ac, v["alpha"].T, length.T)
+    # The defect correction (optimisation.refine): a constant per segment, added to its
+    # end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter, so one
+    # solver serves every round of the refinement.
+    defects = ca.MX.sym("defects", 5, n)
+    swept = (nodes[1, :] - starts[1, :]).T
+    elapsed = (nodes[4, :] - starts[4, :]).T
+    return {"nodes": nodes, "x_start": x_start, "ends": ends + defects, "q3": ca.vec(q3),
+            "defects": defects, "lengths": swept if in_time else length,
+            "durations": length if in_time else elapsed,
+            "xf": nodes[:4, -1], "tf": nodes[4, -1]}
+
+
+def _constraints(problem, guess, v, flight, scales, in_time):
+    """Continuity, validity, the segments' shape, the time of flight and the target."""
+    n = v["alpha"].numel()
+    g = _Blocks()
+    g.add("continuity", (flight["ends"] - flight["nodes"]) / ca.DM(scales.node), 0, 0)
+    g.add("q3", flight["q3"], problem.path.q3_margin, np.inf)
+    if problem.segments.equal and n > 1:
+        # In time the variables are durations: equal segments still mean equal angles.
+        lengths = flight["lengths"] if in_time else v["length"]
+        g.add("equal_lengths", lengths[1:] - lengths[:-1], 0, 0)
+    # Durations positive: a segment running backwards in time is never physical.
+    g.add("durations", flight["durations"] / scales.time, 0, np.inf)
+    tof = problem.fixed_tof()
+    if tof is not None:
+        g.add("tof", (flight["tf"] - tof) / scales.time, 0, 0)
+    if problem.target is not None:
+        target = problem.target.constraints(flight["xf"], flight["tf"], guess.revolutions_k)
+        g.add("target", ca.vertcat(*target), 0, 0)
+    return g
+
+
+def transcribe(problem, segment=None, guess=None, length_in="theta"):
     """Build the multiple-shooting NLP of ``problem``.
 
     Parameters
@@ -371,159 +479,44 @@ def transcribe(problem, segment=None, guess=None, independent="theta", theta_win
     segment : casadi.Function, optional
         ``(x0[5], ac, alpha, length) -> (x1[5], q3[m])``; default the closed form's
         :func:`closed_form_segment`.  The benchmark passes CVODES arcs here, and the
-        exact refinement :func:`cvodes_time_segment` (with ``independent="time"``).
+        exact refinement :func:`cvodes_time_segment` (with ``length_in="time"``).
     guess : Guess, optional
-        Default :func:`initial_guess`.  Its size sets the number of segments N.  With
-        ``independent="time"`` its ``lengths`` are the segment durations (TU).
-    independent : {"theta", "time"}
+        Default :func:`initial_guess`.  Its size sets the number of segments N and its
+        revolution class (turns, final-angle window) is kept.  With
+        ``length_in="time"`` its ``lengths`` are the segment durations (TU).
+    length_in : {"theta", "time"}
         What the length variables measure: each segment's arc angle (rad), or its
         duration (TU).  In time, equal segments mean equal angles (a constraint on the
         nodes' theta), the segment lengths returned by ``unpack`` are still the angles
         swept, and a segment with an empty q3 output adds no q3 rows.
-    theta_window : (float, float), optional
-        Bounds on the final polar angle, rad: a box on the last node's theta, which
-        confines the transfer to a number of revolutions (``optimisation.multistart``).
 
     Returns
     -------
     Transcription
     """
-    if independent not in ("theta", "time"):
-        raise ValueError(f"independent must be 'theta' or 'time', not {independent!r}")
-    in_time = independent == "time"
+    if length_in not in ("theta", "time"):
+        raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
+    in_time = length_in == "time"
     if segment is None:
         segment = closed_form_segment(problem.segments.sub_arcs, problem.sail.coefficients,
                                       problem.segments.extrapolate)
     guess = initial_guess(problem) if guess is None else guess
-    # The guess fixes N: a per-revolution rule is only resolved by its propagation.
-    n = guess.alpha.size
-    equal = problem.segments.equal
-    dep = problem.departure
-    free_nu = bool(getattr(dep, "free_anomaly", False))
-
-    # Scales: the guess's segment angle for lengths, its whole sweep for theta and its
-    # time of flight for t; radii and speeds are already of order one in canonical units.
-    len_scale = float(np.mean(guess.lengths))
-    th_scale = max(1.0, float(abs(guess.nodes[1, -1])))
-    t_scale = max(1.0, float(guess.nodes[4, -1]))
-    node_scale = np.array([1.0, th_scale, 1.0, 1.0, t_scale])
-
-    # MX with the segment Function mapped: the NLP holds one copy of the arc's graph.
-    # (Inlining the SX arcs instead solves a little faster but takes ~30 s to build the
-    # derivatives for 60 segments.)  Every variable couples only neighbouring segments --
-    # the node carries the elapsed time, and equal lengths are chained equalities rather
-    # than one shared variable -- so the constraint Jacobian is banded and colours in a
-    # handful of directions; a shared length column plus a sum-of-durations row made it
-    # dense and cost 0.75 s per Jacobian on the 60-segment orbit raising, against 0.03 s.
-    sym = ca.MX
-    w_alpha = sym.sym("alpha", n)
-    w_len = sym.sym("length", n)
-    w_nodes = sym.sym("nodes", 5, n)
-    w_nu = sym.sym("nu0", 1 if free_nu else 0)
-    kappa_bounds = problem.throttle_bounds()
-    # The throttle variables come last, so that an unthrottled NLP keeps exactly its
-    # old layout and a throttled one only appends N columns.
-    w_kappa = sym.sym("kappa", 0 if kappa_bounds is None else n)
-    w = ca.vertcat(w_alpha, w_len, ca.vec(w_nodes), w_nu, w_kappa)
-
-    nodes = w_nodes * ca.DM(node_scale)
-    x_start = dep.state(w_nu[0]) if free_nu else ca.DM(problem.x0())
-    starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
-    # The closed form (and Eqs. 1-2) take the characteristic acceleration per segment,
-    # so a throttle simply scales it.
-    ac = problem.sail.ac if kappa_bounds is None else problem.sail.ac * w_kappa.T
-    ends, q3 = segment.map(n)(starts, ac, w_alpha.T, (w_len * len_scale).T)
-    # The defect correction (optimisation.refine): a constant per segment, added to the
-    # segment's end, that makes the closed-form chain land where Eqs. 1-2 do.  A
-    # parameter, so one solver serves every round of the refinement.
-    defects = sym.sym("defects", 5, n)
-    ends = ends + defects
-    if in_time:
-        durations = w_len * len_scale
-        lengths = (nodes[1, :] - starts[1, :]).T
-    else:
-        lengths = w_len * len_scale
-        durations = (nodes[4, :] - starts[4, :]).T
-    tf = nodes[4, -1]
-    xf = nodes[:4, -1]
-
-    g = [ca.vec((ends - nodes) / ca.DM(node_scale))]
-    lbg, ubg = [np.zeros(5 * n)], [np.zeros(5 * n)]
-    names = {"continuity": 5 * n}
-    q3 = ca.vec(q3)
-    if q3.numel():
-        g.append(q3)
-        lbg.append(np.full(q3.numel(), problem.path.q3_margin))
-        ubg.append(np.full(q3.numel(), np.inf))
-        names["q3"] = q3.numel()
-    if equal and n > 1:
-        # In time the variables are durations: equal segments still mean equal angles.
-        g.append(lengths[1:] - lengths[:-1] if in_time else w_len[1:] - w_len[:-1])
-        lbg.append(np.zeros(n - 1))
-        ubg.append(np.zeros(n - 1))
-        names["equal_lengths"] = n - 1
-    # Durations positive: a segment running backwards in time is never physical.
-    g.append(durations / t_scale)
-    lbg.append(np.zeros(n))
-    ubg.append(np.full(n, np.inf))
-    names["durations"] = n
-    tof = problem.fixed_tof()
-    if tof is not None:
-        g.append((tf - tof) / t_scale)
-        lbg.append([0.0])
-        ubg.append([0.0])
-        names["tof"] = 1
-    target = _target_constraints(problem.target, xf, tf, guess.revolutions_k)
-    if target:
-        g.append(ca.vertcat(*target))
-        lbg.append(np.zeros(len(target)))
-        ubg.append(np.zeros(len(target)))
-        names["target"] = len(target)
-
-    # Bounds.  r >= r_min at the nodes is a bound; v_theta > 0 keeps the orbit prograde,
-    # as the closed form (q3 = 1/h) assumes.
-    a_lo, a_hi = problem.alpha_bounds()
-    if problem.sail.alpha_min_deg == -90 and problem.sail.alpha_max_deg == 90:
-        # R and T depend on 2 alpha only, so -90 and +90 deg are one attitude and the
-        # full box is a wall that optima stopped against (578.04-578.23 d on Earth-Mars
-        # from different seeds).  Unbounded, the pitch crosses it; results report it
-        # wrapped into [-90, 90) deg.
-        a_lo, a_hi = -np.inf, np.inf
-    max_sweep = 2 * math.pi * problem.max_revolutions
-    node_lo = np.array([max(problem.path.r_min_au, 1e-3), -np.inf, -10.0, 1e-2, 0.0]) / node_scale
-    node_hi = np.array([100.0, np.inf, 10.0, 20.0, np.inf]) / node_scale
-    if in_time:
-        # The sweep limit bounds angles; a duration has no such bound.
-        len_hi = np.inf
-    else:
-        len_hi = max_sweep / n / len_scale if equal else max_sweep / len_scale
-    k_lo, k_hi = (1.0, 1.0) if kappa_bounds is None else kappa_bounds
-    k_init = np.ones(n) if guess.throttle is None else np.asarray(guess.throttle, float)
-    lbx = np.r_[np.full(n, a_lo), np.full(n, 1e-4 / len_scale),
-                np.tile(node_lo, n), np.full(w_nu.numel(), -4 * math.pi),
-                np.full(w_kappa.numel(), k_lo)]
-    ubx = np.r_[np.full(n, a_hi), np.full(n, len_hi),
-                np.tile(node_hi, n), np.full(w_nu.numel(), 4 * math.pi),
-                np.full(w_kappa.numel(), k_hi)]
-    if theta_window is not None:
-        last = 2 * n + 5 * (n - 1) + 1  # the final node's theta in w
-        lbx[last], ubx[last] = (v / th_scale for v in theta_window)
-    x_init = np.r_[guess.alpha, guess.lengths / len_scale,
-                   (guess.nodes / node_scale[:, None]).ravel(order="F"),
-                   np.full(w_nu.numel(), guess.nu0), k_init[: w_kappa.numel()]]
-    x_init = np.clip(x_init, lbx, ubx)
-
-    f = _objective(problem.objective, xf, tf)
-    nu0 = w_nu[0] if free_nu else sym(guess.nu0)
-    throttle = sym.ones(n, 1) if kappa_bounds is None else w_kappa
-    unpack = ca.Function("unpack", [w], [w_alpha, lengths, nodes[:4, :], durations, x_start, q3,
+    scales = _Scales.of(guess)
+    v, variables = _variables(problem, guess, scales, in_time)
+    flight = _flight(problem, segment, v, scales, in_time)
+    g = _constraints(problem, guess, v, flight, scales, in_time)
+    w, lbx, ubx, w0 = variables.stacked()
+    g_expr, lbg, ubg, _ = g.stacked()
+    p = ca.vec(flight["defects"])
+    f = problem.objective.cost(flight["xf"], flight["tf"])
+    nu0 = v["nu0"][0] if v["nu0"].numel() else ca.MX(guess.nu0)
+    throttle = v["kappa"] if v["kappa"].numel() else ca.MX.ones(guess.alpha.size, 1)
+    unpack = ca.Function("unpack", [w], [v["alpha"], flight["lengths"], flight["nodes"],
+                                         flight["durations"], flight["x_start"], flight["q3"],
                                          nu0, throttle],
                          ["w"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
                                  "nu0", "throttle"])
-    g = ca.vertcat(*g)
-    return Transcription({"x": w, "p": ca.vec(defects), "f": f, "g": g},
-                         ca.Function("g", [w, ca.vec(defects)], [g], ["w", "defects"], ["g"]),
-                         x_init, lbx, ubx,
-                         np.concatenate([np.ravel(v) for v in lbg]),
-                         np.concatenate([np.ravel(v) for v in ubg]), unpack, guess, names,
-                         (units.TU_DAYS, " d") if tof is None else (1.0, ""))
+    return Transcription({"x": w, "p": p, "f": f, "g": g_expr},
+                         ca.Function("g", [w, p], [g_expr], ["w", "defects"], ["g"]),
+                         np.clip(w0, lbx, ubx), lbx, ubx, lbg, ubg, unpack, guess, g.sizes,
+                         problem.objective.shown_as())

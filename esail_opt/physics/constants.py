@@ -45,6 +45,10 @@ def speed_to_km_s(v):
     return v * VU_KM_S
 
 
+def speed_to_m_s(v):
+    return v * VU_KM_S * 1e3
+
+
 def speed_from_km_s(v_km_s):
     return v_km_s / VU_KM_S
 

@@ -53,18 +53,22 @@ def eccentricity_vector(x):
     )
 
 
+def orbital_energy(x):
+    """Specific orbital energy v^2/2 - 1/r of a polar state, mu = 1 (negative while bound)."""
+    return 0.5 * (x[2] ** 2 + x[3] ** 2) - 1 / x[0]
+
+
 def classical_from_polar(x):
     """Osculating (a, e, omega, h, nu) of a polar state, mu = 1.
 
     omega and nu come from atan2 and have no derivative at e = 0; use
     :func:`eccentricity_vector` where derivatives are needed.
     """
-    r, th, vr, vt = x[0], x[1], x[2], x[3]
-    a = 1 / (2 / r - vr**2 - vt**2)
+    a = -0.5 / orbital_energy(x)
     ev = eccentricity_vector(x)
     e = ca.sqrt(ev[0] ** 2 + ev[1] ** 2)
     omega = ca.atan2(ev[1], ev[0])
-    return a, e, omega, r * vt, th - omega
+    return a, e, omega, x[0] * x[3], x[1] - omega
 
 
 def polar_from_classical(a, e, omega, nu):

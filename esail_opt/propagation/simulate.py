@@ -48,7 +48,7 @@ def quiet_stderr():
 
 
 @functools.lru_cache(maxsize=None)
-def segment_integrator(samples, independent="time", coefficients=EXACT, tol=TOLERANCE):
+def segment_integrator(samples, length_in="time", coefficients=EXACT, tol=TOLERANCE):
     """CVODES over one constant-attitude segment, sampled at tau = k / samples.
 
     Returns a Function ``(x0[5], ac, alpha, length) -> xs[5 x samples]``, where
@@ -58,18 +58,18 @@ def segment_integrator(samples, independent="time", coefficients=EXACT, tol=TOLE
     x = ca.SX.sym("x", 5)
     ac, alpha, length = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("length")
     R, T = radial_transverse(alpha, coefficients)
-    if independent == "time":
+    if length_in == "time":
         ode = ca.vertcat(rhs(x[:4], ac, R, T), 1) * length
-    elif independent == "theta":
+    elif length_in == "theta":
         ode = rhs_in_theta(x[:4], ac, R, T) * length
     else:
-        raise ValueError(f"independent must be 'time' or 'theta', not {independent!r}")
+        raise ValueError(f"length_in must be 'time' or 'theta', not {length_in!r}")
     grid = [k / samples for k in range(1, samples + 1)]
     # In theta, an escaping orbit's angle tends to a finite limit and dt/dtheta to
     # infinity: fail fast there instead of grinding through the time domain's budget.
     # Adams, as the paper's reference: on these non-stiff orbits it is ~50x more
     # accurate than CVODES's default BDF at the same tolerance, and faster.
-    opts = {"abstol": tol, "reltol": tol, "max_num_steps": MAX_STEPS[independent],
+    opts = {"abstol": tol, "reltol": tol, "max_num_steps": MAX_STEPS[length_in],
             "linear_multistep_method": "adams",
             "disable_internal_warnings": True, "show_eval_warnings": False}
     dae = {"x": x, "p": ca.vertcat(ac, alpha, length), "ode": ode}
@@ -81,9 +81,9 @@ def segment_integrator(samples, independent="time", coefficients=EXACT, tol=TOLE
 
 
 @functools.lru_cache(maxsize=None)
-def schedule_function(segments, samples, independent="time", coefficients=EXACT, tol=TOLERANCE):
+def schedule_function(segments, samples, length_in="time", coefficients=EXACT, tol=TOLERANCE):
     """All segments chained: ``(x0[5], ac[N], alpha[N], length[N]) -> xs[5 x N*samples]``."""
-    seg = segment_integrator(samples, independent, coefficients, tol)
+    seg = segment_integrator(samples, length_in, coefficients, tol)
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, length = (ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "length"))
     xs_sym = ca.MX.sym("xs0", 5)
@@ -95,7 +95,7 @@ def schedule_function(segments, samples, independent="time", coefficients=EXACT,
     return ca.Function("schedule", [x0, ac, alpha, length], [blocks])
 
 
-def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, independent="time",
+def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time",
              coefficients=EXACT, tol=TOLERANCE):
     """Fly Eqs. 1-2 from ``x0`` under a piecewise-constant pitch schedule.
 
@@ -104,7 +104,7 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, independent="ti
     x0 : array_like, shape (4,)
         Polar state [r, theta, v_r, v_theta], canonical units.
     alphas, lengths : array_like, shape (N,)
-        Pitch (rad) and length of each segment: duration (TU) if ``independent`` is
+        Pitch (rad) and length of each segment: duration (TU) if ``length_in`` is
         ``"time"``, angle (rad) if ``"theta"``.
     ac : float
         Characteristic acceleration, canonical units.
@@ -129,7 +129,7 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, independent="ti
     lengths = np.atleast_1d(np.asarray(lengths, float))
     n = alphas.size
     kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = schedule_function(n, samples, independent, coefficients, tol)
+    fun = schedule_function(n, samples, length_in, coefficients, tol)
     start = np.r_[np.asarray(x0, float), 0.0]
     try:
         with quiet_stderr():
