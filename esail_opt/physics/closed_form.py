@@ -211,6 +211,13 @@ class FirstOrderArc:
         """q(phi) = q0 + a~_c D(phi) [R, T]^T (Eqs. 12, 13; Eqs. 15-16 at e0 = 0)."""
         return self.q0 + self.actilde * ca.mtimes(self.matrix(phi), ca.vertcat(self.R, self.T))
 
+    def clock_rate(self, phi):
+        """dt/dphi = 1 / (q3 s^2) on the closed form, in units sqrt(r0^3 / mu), with
+        s = q1 cos(phi) + q2 sin(phi) + q3 (Eq. 9: r = 1 / (q3 s))."""
+        q = self.q(phi)
+        s = q[0] * ca.cos(phi) + q[1] * ca.sin(phi) + q[2]
+        return 1 / (q[2] * s**2)
+
     def time(self, phi_a, phi_b, nodes=8):
         """Time from phi_a to phi_b, in units sqrt(r0^3 / mu).
 
@@ -225,9 +232,7 @@ class FirstOrderArc:
         correction = 0
         for xk, wk in zip(xg, wg):
             phi = phi_a + width * xk
-            q = self.q(phi)
-            s = q[0] * ca.cos(phi) + q[1] * ca.sin(phi) + q[2]
-            correction += wk * (1 / (q[2] * s**2) - self.h0**3 / kep.w(phi) ** 2)
+            correction += wk * (self.clock_rate(phi) - self.h0**3 / kep.w(phi) ** 2)
         return exact + width * correction
 
 

@@ -134,14 +134,9 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES):
             for k in range(1, samples + 1)
         )
 
-    def rate(phi):
-        q = arc.q(phi)
-        s = q[0] * ca.cos(phi) + q[1] * ca.sin(phi) + q[2]
-        return time_unit / (q[2] * s**2)
-
     angle = kepler_angle(arc, duration / time_unit)
     for _ in range(NEWTON_STEPS):
-        angle = angle - (clock(angle) - duration) / rate(angle)
+        angle = angle - (clock(angle) - duration) / (time_unit * arc.clock_rate(angle))
     xs, q3 = arc_function(samples, coefficients, nodes).expand()(x0, ac, alpha, angle)
     # The expanded arc rebuilds the arc's constants that the Newton steps already
     # formed; eliminating common subexpressions saves 15 % of the instructions
@@ -210,13 +205,17 @@ def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="the
         Validity margin at each segment's end; non-positive means the
         first-order arc went past theta_max.
     """
+    n = np.size(alphas)
+    return _fly(rectified_function(n, samples, length_in, coefficients, nodes), x0, alphas,
+                lengths, ac, throttles)
+
+
+def _fly(fun, x0, alphas, lengths, ac, throttles):
+    """Call a schedule Function on numbers: (states with the start prepended, q3)."""
     alphas = np.atleast_1d(np.asarray(alphas, float))
-    lengths = np.atleast_1d(np.asarray(lengths, float))
-    n = alphas.size
-    kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = rectified_function(n, samples, length_in, coefficients, nodes)
+    kappa = np.ones(alphas.size) if throttles is None else np.asarray(throttles, float)
     start = np.r_[np.asarray(x0, float), 0.0]
-    xs, q3 = fun(start, ac * kappa, alphas, lengths)
+    xs, q3 = fun(start, ac * kappa, alphas, np.atleast_1d(np.asarray(lengths, float)))
     return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
 
 
@@ -265,11 +264,6 @@ def propagate_extrapolated(x0, alphas, lengths, ac, throttles=None, length_in="t
     q3 : numpy.ndarray, shape (N,)
         Smallest validity margin of the whole and half arcs of each segment.
     """
-    alphas = np.atleast_1d(np.asarray(alphas, float))
-    lengths = np.atleast_1d(np.asarray(lengths, float))
-    n = alphas.size
-    kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = extrapolated_function(n, length_in, coefficients, nodes)
-    start = np.r_[np.asarray(x0, float), 0.0]
-    xs, q3 = fun(start, ac * kappa, alphas, lengths)
-    return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
+    n = np.size(alphas)
+    return _fly(extrapolated_function(n, length_in, coefficients, nodes), x0, alphas, lengths,
+                ac, throttles)
