@@ -39,8 +39,8 @@ def _assert_exact(sol):
     assert p["converged"], p["status"]
     v = p["verification"]
     assert v["error"] is None
-    assert v["miss_r_m"] < 1.0 and v["miss_v_mm_s"] < 1.0, v
-    assert v["target_miss_r_m"] < 1.0 and v["target_miss_v_mm_s"] < 1.0, v
+    assert v["miss_r_km"] < 1e-3 and v["miss_v_m_s"] < 1e-3, v
+    assert v["target_miss_r_km"] < 1e-3 and v["target_miss_v_m_s"] < 1e-3, v
     assert p["verified"] and p["within_bounds_vs_nlp"] and p["within_bounds_vs_target"]
     assert p["note"].startswith("exact")
 

@@ -7,8 +7,10 @@ import pytest
 
 import esail_opt as eo
 from esail_opt.physics import constants as units
+from esail_opt.app import schema
 from esail_opt.app.files import json_ready
 from esail_opt.app.solution import Solution
+from esail_opt.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -60,3 +62,13 @@ def test_same_problem_gives_the_same_numbers(solution):
         for row in d["refinement"]["rounds"]:
             row.pop("seconds")
     assert json.dumps(first) == json.dumps(again)
+
+
+def test_a_file_of_another_schema_version_fails_with_one_clear_line(solution, tmp_path):
+    written = solution.write(tmp_path, plots=False)[0]
+    assert json.loads(written.read_text())["schema_version"] == schema.SCHEMA_VERSION
+    old = json.loads(written.read_text())
+    del old["schema_version"]  # as every file before versions existed
+    written.write_text(json.dumps(old))
+    with pytest.raises(InputError, match="schema version 1, but this esail_opt reads version 2"):
+        Solution.load(written)

@@ -22,7 +22,7 @@ from esail_opt.app.solution import solution_of
 FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous_k",
           "tof_days_closed_form", "tof_days_exact", "verified", "polish_status",
           "closed_form_target_miss_km",
-          "polished_target_miss_m", "found_from")
+          "polished_target_miss_km", "found_from")
 
 
 def _rank_key(row):
@@ -70,7 +70,7 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
             "verified": sol.verified,
             "polish_status": p.get("status"),
             "closed_form_target_miss_km": sol["verification"].get("target_miss_r_km"),
-            "polished_target_miss_m": (p.get("verification") or {}).get("target_miss_r_m"),
+            "polished_target_miss_km": (p.get("verification") or {}).get("target_miss_r_km"),
             "found_from": c.found_from,
             "candidate": i - 1,
         })

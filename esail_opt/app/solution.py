@@ -16,6 +16,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from esail_opt.app import schema
 from esail_opt.app.files import atomic_path, json_ready, write_json
 from esail_opt.optimisation import exact as exact_refinement
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
@@ -103,8 +104,11 @@ class Solution:
     # -- files
     @classmethod
     def load(cls, path):
-        """Read a ``solution.json`` back."""
-        return cls(json.loads(Path(path).read_text()))
+        """Read a ``solution.json`` back; one of another schema version is refused with
+        an InputError that says so."""
+        data = json.loads(Path(path).read_text())
+        schema.check(data, path)
+        return cls(data)
 
     def schedule_csv(self, polished=False):
         """The schedule as CSV text, one row per segment (same rows as ``schedule``, or
@@ -181,12 +185,13 @@ class Solution:
                  f"{p['tof_days']:.3f} d (closed form {self.data['tof_days']:.3f} d)"]
         v = p["verification"]
         if v.get("error") is None:
-            line = (f"  polished CVODES miss vs NLP {v['miss_r_m']:.3g} m, "
-                    f"{v['miss_v_mm_s']:.3g} mm/s")
-            if v.get("target_miss_r_m") is not None:
-                line += f"; vs target {v['target_miss_r_m']:.3g} m"
-                if v.get("target_miss_v_mm_s") is not None:
-                    line += f", {v['target_miss_v_mm_s']:.3g} mm/s"
+            # At the polish's scale a km reads better as metres.
+            line = (f"  polished CVODES miss vs NLP {1e3 * v['miss_r_km']:.3g} m, "
+                    f"{1e3 * v['miss_v_m_s']:.3g} mm/s")
+            if v.get("target_miss_r_km") is not None:
+                line += f"; vs target {1e3 * v['target_miss_r_km']:.3g} m"
+                if v.get("target_miss_v_m_s") is not None:
+                    line += f", {1e3 * v['target_miss_v_m_s']:.3g} mm/s"
             lines.append(line)
         lines.append(f"  polish: {p['note']}")
         return lines
@@ -221,30 +226,24 @@ def _schedule(result, throttled=False):
     return rows
 
 
-def _metres(km):
-    return None if km is None else 1e3 * km
+def _verification_data(check):
+    """The ``verification`` object of solution.json (closed form and polish alike)."""
+    out = dict(check.misses)
+    out["error"] = check.error
+    if check.error is None:
+        out["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
+        out["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
+    return out
 
 
 def _polish_data(problem, exact, check):
     """The ``polish`` object of solution.json: the exact optimum and its verification.
 
-    Misses are in metres and mm/s, the scale of the bounds (1 m, 1 mm/s) they are held
-    to; ``verified`` is True only when Ipopt converged and the flight, its verifier's
-    error included, is within them of both the target and the polished NLP's final state.
+    ``verified`` is True only when Ipopt converged and the flight, its verifier's error
+    included, is within the polish's bounds (1 m, 1 mm/s) of both the target and the
+    polished NLP's final state.
     """
     m = check.misses
-    verification = {"miss_r_m": _metres(m["miss_r_km"]), "miss_v_mm_s": _metres(m["miss_v_m_s"]),
-                    "miss_theta_deg": m["miss_theta_deg"],
-                    "target_miss_r_m": _metres(m["target_miss_r_km"]),
-                    "target_miss_v_mm_s": _metres(m["target_miss_v_m_s"]),
-                    "verifier_error_r_m": _metres(m["verifier_error_r_km"]),
-                    "verifier_error_v_mm_s": _metres(m["verifier_error_v_m_s"]),
-                    "error": check.error}
-    if "target_miss_e" in m:
-        verification["target_miss_e"] = m["target_miss_e"]
-    if check.error is None:
-        verification["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
-        verification["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
     within_all, note = check.judge(problem, exact_refinement.TOLERANCE, against_nlp=True)
     verified = exact.converged and within_all
     if not exact.converged:
@@ -257,14 +256,14 @@ def _polish_data(problem, exact, check):
         "constraint_violation": exact.constraint_violation,
         "objective": exact.objective,
         "tof_days": units.time_to_days(float(np.sum(exact.durations))),
-        "bounds": {"position_m": 1e3 * exact_refinement.TOLERANCE.position_km,
-                   "velocity_mm_s": 1e3 * exact_refinement.TOLERANCE.velocity_m_s},
+        "bounds": {"position_km": exact_refinement.TOLERANCE.position_km,
+                   "velocity_m_s": exact_refinement.TOLERANCE.velocity_m_s},
         "within_bounds_vs_nlp": within(m, exact_refinement.TOLERANCE, "nlp"),
         "within_bounds_vs_target": problem.target is None or within(m, exact_refinement.TOLERANCE),
         "verified": verified, "note": note,
         "schedule": _schedule(exact, problem.sail.throttle),
         "final_state": _polar_dict(exact.nodes[:4, -1]),
-        "verification": verification,
+        "verification": _verification_data(check),
     }
 
 
@@ -288,35 +287,8 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     Returns
     -------
     Solution
-        Its ``data`` has: ``problem`` (name and settings; ``segments`` is the count N
-        used, ``sub_arcs`` the count the error control ended with and
-        ``sub_arcs_requested`` the problem's), ``status`` (Ipopt's return status of the
-        last solve), ``converged`` (True only for "Solve_Succeeded"), ``acceptable``,
-        ``outcome`` ("converged", "acceptable", "infeasible" or "failed"), ``verified``
-        (converged, and the CVODES flight meets the tolerance, the verifier's own error
-        included), ``verification_note`` (one line: which bound was missed and by how
-        much), ``tolerance`` (``position_km``, ``velocity_m_s``), ``objective`` and
-        ``objective_meaning``, ``tof_days``, ``iterations``, ``solve_seconds`` (both
-        summed over every solve of the run), ``constraint_violation``, ``schedule`` (per
-        segment ``t_days`` and ``theta_deg`` at its start, ``alpha_deg`` in [-90, 90),
-        ``duration_days``, ``dtheta_deg``, ``local_error_km``: the closed form's position
-        error over that segment against Eqs. 1-2 from the same start node, and with
-        ``Sail(throttle=True)`` ``throttle``), ``final_state`` (the NLP's: ``r_au``,
-        ``theta_deg``, ``vr_km_s``, ``vtheta_km_s``, ``a_au``, ``e``), ``verification``
-        (``miss_r_km``, ``miss_v_m_s``, ``miss_theta_deg`` of CVODES against the NLP's
-        final state; ``target_miss_r_km``/``target_miss_v_m_s`` against the target;
-        ``verifier_error_r_km``/``verifier_error_v_m_s``, the difference of two CVODES
-        flights at 3e-16 and 1e-15; ``cvodes_final_state``), ``refinement`` (``rounds``:
-        per round the sub-arcs, time of flight and misses; ``starts``: the other starts
-        tried when the first did not converge), and ``trajectory`` (closed-form and
-        CVODES samples for the plots).
-
-        With ``polish``, also ``objective_closed_form`` (= ``objective``),
-        ``objective_exact``, ``tof_days_exact``, ``trajectory["polished"]`` and
-        ``polish``: ``status``, ``converged``, ``outcome``, ``iterations``,
-        ``seconds``, ``constraint_violation``, ``objective``, ``tof_days``,
-        ``schedule``, ``final_state``, ``verification`` (in m and mm/s, with the
-        verifier's error), ``bounds`` (1 m, 1 mm/s), ``verified`` and ``note``.
+        Its ``data`` is what ``solution.json`` holds, as :mod:`esail_opt.app.schema`
+        writes down.
     """
     from esail_opt.errors import InputError
 
@@ -398,12 +370,8 @@ def solution_of(problem, result, tr=None, samples=16, polish=False, progress=Non
     if refined is not None:
         for row, err in zip(schedule, refined.local_error_km):
             row["local_error_km"] = float(err)
-    verification = {k: v for k, v in check.misses.items()}
-    verification["error"] = check.error
-    if check.error is None:
-        verification["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
-        verification["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
     data = {
+        "schema_version": schema.SCHEMA_VERSION,
         "problem": _problem_data(problem, result, requested),
         "status": result.status,
         "converged": result.converged,
@@ -423,7 +391,7 @@ def solution_of(problem, result, tr=None, samples=16, polish=False, progress=Non
         "min_q3": float(np.min(result.q3)),
         "schedule": schedule,
         "final_state": _polar_dict(result.nodes[:4, -1]),
-        "verification": verification,
+        "verification": _verification_data(check),
         "refinement": {"rounds": [] if refined is None else refined.history,
                        "starts": starts or []},
         "trajectory": {

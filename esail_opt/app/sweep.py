@@ -74,7 +74,7 @@ SWEEPABLE = {
 
 CSV_FIELDS = ("index", "value", "converged", "verified", "status", "tof_days", "objective",
               "target_miss_r_km", "target_miss_v_m_s", "iterations", "tof_days_exact",
-              "exact_verified", "exact_target_miss_m", "seconds", "error")
+              "exact_verified", "exact_target_miss_km", "seconds", "error")
 
 #: The journal of finished members, in the sweep's output folder.
 JOURNAL = "sweep.jsonl"
@@ -261,8 +261,8 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
         exact = sol.data.get("polish")
         if exact is not None:
             row.update(tof_days_exact=exact.get("tof_days"), exact_verified=exact["verified"],
-                       exact_target_miss_m=(exact.get("verification") or {}).get(
-                           "target_miss_r_m"))
+                       exact_target_miss_km=(exact.get("verification") or {}).get(
+                           "target_miss_r_km"))
         if not sol.converged:
             row["error"] = f"not converged: Ipopt {sol['status']}"
         elif check.get("error"):
@@ -661,7 +661,7 @@ def figure(result, axes=None):
 #: The polished counterpart of a panel's closed-form column, and its scale to the
 #: panel's unit (metres to km for the miss).
 _EXACT = {"tof_days": ("tof_days_exact", 1.0),
-          "target_miss_r_km": ("exact_target_miss_m", 1e-3)}
+          "target_miss_r_km": ("exact_target_miss_km", 1e-3)}
 
 
 def _panel(ax, result, key, scale):

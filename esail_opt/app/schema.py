@@ -1,0 +1,80 @@
+"""The schema of ``solution.json``: its version, and what each field holds.
+
+This is the one place the file's layout is written down; the solution, plot, search
+and sweep modules read it by these keys.  Units are one per quantity everywhere in the
+file, the polish included: lengths and position misses in km (au for radii and
+semimajor axes), speeds and velocity misses in m/s (km/s for state velocities), times in
+days, angles in degrees.
+
+Version 2 (this one) added ``schema_version``, gave the polish's misses and bounds the
+same keys and units as the closed form's (km and m/s, where version 1 used m and mm/s),
+and made an (a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.
+
+Top level
+---------
+schema_version : int
+    :data:`SCHEMA_VERSION`.
+problem : object
+    The settings as solved: ``name``, ``description``, ``ac_mm_s2``, ``coefficients``,
+    ``alpha_bounds_deg``, ``segments`` (the count N used), ``segments_per_revolution``,
+    ``sub_arcs`` (what the error control ended with), ``sub_arcs_requested``,
+    ``equal_segments``, ``objective`` (its kind), ``target`` (``kind`` and fields, or
+    null), ``departure`` (``kind`` and fields), ``departure_state``, ``r_min_au``,
+    ``q3_margin``, and ``throttle_bounds`` for a throttled sail.
+status, outcome, converged, acceptable : str, str, bool, bool
+    Ipopt's return status of the last solve; "converged" / "acceptable" / "infeasible" /
+    "failed"; True only for "Solve_Succeeded"; True for "Solved_To_Acceptable_Level".
+verified, verification_note : bool, str
+    Converged, and the CVODES flight meets ``tolerance`` with the verifier's own error
+    added; one line naming each missed bound.
+tolerance : object
+    ``position_km``, ``velocity_m_s``.
+objective, objective_meaning : float, str
+    The NLP's objective (canonical units) and what it means.
+tof_days, iterations, stages, solve_seconds, constraint_violation, min_q3
+    Time of flight; Ipopt iterations and seconds summed over every solve of the run;
+    each stage's status and iterations; the final constraint violation; the smallest
+    closed-form validity margin q3.
+schedule : list of object
+    Per segment: ``t_days`` and ``theta_deg`` at its start, ``alpha_deg`` in [-90, 90),
+    ``duration_days``, ``dtheta_deg``, ``local_error_km`` (the closed form's position
+    error over the segment against Eqs. 1-2 from the same start node) and, for a
+    throttled sail, ``throttle``.
+final_state : object
+    The NLP's final state: ``r_au``, ``theta_deg``, ``vr_km_s``, ``vtheta_km_s``,
+    ``a_au``, ``e``.
+verification : object
+    The CVODES flight: ``miss_r_km``, ``miss_v_m_s``, ``miss_theta_deg`` against the NLP's
+    final state; ``target_miss_r_km``, ``target_miss_v_m_s`` against the target (an (a, e)
+    target adds ``target_miss_a_km`` and ``target_miss_e``); ``nlp_target_miss_r_km``;
+    ``verifier_error_r_km``, ``verifier_error_v_m_s`` (two CVODES flights at 3e-16 and
+    1e-15 apart); ``error``; ``cvodes_final_state``, ``cvodes_tof_days``.
+refinement : object
+    ``rounds`` (per round: sub-arcs, status, iterations, tof and misses) and ``starts``
+    (the other starts tried when the first did not converge).
+trajectory : object
+    ``closed_form`` and ``cvodes`` samples (``r_au``, ``theta_deg``, ``vr_km_s``,
+    ``vtheta_km_s``, ``a_au``, ``e``, ``t_days``), and ``polished`` after a polish.
+
+After a polish
+--------------
+objective_closed_form, objective_exact, tof_days_exact
+polish : object
+    ``status``, ``converged``, ``outcome``, ``iterations``, ``seconds``,
+    ``constraint_violation``, ``objective``, ``tof_days``, ``bounds`` (``position_km``,
+    ``velocity_m_s``: 1 m and 1 mm/s), ``within_bounds_vs_nlp``,
+    ``within_bounds_vs_target``, ``verified``, ``note``, ``schedule``, ``final_state`` and
+    ``verification`` (the keys of the top-level one).
+"""
+
+from esail_opt.errors import InputError
+
+SCHEMA_VERSION = 2
+
+
+def check(data, source):
+    """Raise InputError, naming ``source``, unless ``data`` is of this schema version."""
+    found = data.get("schema_version", 1) if isinstance(data, dict) else None
+    if found != SCHEMA_VERSION:
+        raise InputError(f"{source}: solution.json schema version {found}, but this esail_opt "
+                         f"reads version {SCHEMA_VERSION}; solve the problem again to rewrite it")
