@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from esail_opt.bench.precision import at_miss, envelope, seconds_at_miss
+from esail_opt.bench.precision import (
+    at_miss, draw_precision, envelope, precision_figure, seconds_at_miss)
 from esail_opt.bench.rk4 import rk4_segment
 from esail_opt.physics import constants as units
 from esail_opt.propagation.simulate import simulate
@@ -16,7 +17,7 @@ def test_rk4_segment_is_fourth_order_against_cvodes():
     # without thrust the state in theta would barely change, and any method looks exact.
     x0 = [1.0, 0.0, 0.1, 1.1]
     ac, alpha, dtheta = units.accel_from_mm_s2(1.0), math.radians(35.0), 1.0
-    truth = simulate(x0, [alpha], [dtheta], ac, independent="theta")[:, -1]
+    truth = simulate(x0, [alpha], [dtheta], ac, length_in="theta")[:, -1]
     errors = []
     for steps in (8, 16, 32):
         x1, q3 = rk4_segment(steps)(np.r_[x0, 0.0], ac, alpha, dtheta)
@@ -91,14 +92,36 @@ def test_rk4_segment_in_the_nlp_solves_and_verifies():
     # The NLP takes a segment with an empty q3 (no q3 rows); a coarse RK4 transcription of
     # Earth-Mars at 1 mm/s^2 (10 segments x 2 steps) converges in a fraction of a second
     # and its schedule, flown by CVODES, ends 4.3e3 km from the target orbit (measured).
-    from pathlib import Path
-
+    from esail_opt.bench.cases import earth_mars_min_time
     from esail_opt.bench.precision import Case, rk4, run_case
 
-    folder = Path(__file__).resolve().parents[1] / "problems"
-    case = run_case(Case("earth_mars_min_time.py", (rk4(segments=10, steps=2),)), 1, folder)
+    case = run_case(Case(earth_mars_min_time(), (rk4(segments=10, steps=2),)), 1)
     point = case["points"][0]
     assert point["status"] == "Solve_Succeeded"
     assert (point["segments"], point["steps"]) == (10, 2)
     assert 0.0 < point["miss_km"] < 2e4
     assert case["at_miss_km"]["1e5"]["rk4_seconds"] == point["seconds"]
+
+
+def test_precision_figure_draws_each_case_on_its_own_axes(tmp_path):
+    from matplotlib.figure import Figure
+
+    points = ([{"method": "closed_form", "seconds": s, "miss_km": m} for s, m in POINTS]
+              + [{"method": "rk4", "seconds": 0.5, "miss_km": None}])
+    case = {"problem": "synthetic", "ac_mm_s2": 1.0, "points": points}
+    fig = precision_figure([case, case])
+    assert isinstance(fig, Figure) and len(fig.axes) == 2
+    # The closed form's envelope is one line of its 3 undominated points (POINTS holds one
+    # failed point); rk4 only failed.
+    ax = fig.axes[0]
+    assert ax.get_xscale() == ax.get_yscale() == "log"
+    labels = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert labels == ["closed_form (1 of 6 failed)", "rk4 (1 of 1 failed)"]
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    assert list(lines["closed_form (1 of 6 failed)"].get_xdata()) == [1.0, 10.0, 20.0]
+    # Given axes are drawn on and returned; without, a new Figure's axes.
+    assert draw_precision(case, ax=fig.axes[1]) is fig.axes[1]
+    alone = draw_precision(case)
+    assert isinstance(alone.figure, Figure) and alone.figure is not fig
+    fig.savefig(tmp_path / "precision.png")
+    assert (tmp_path / "precision.png").stat().st_size > 0

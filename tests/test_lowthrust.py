@@ -8,20 +8,19 @@ files (a few seconds each) and fly the results on Eqs. 1-2 with CVODES.
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
 import esail_opt as eo
+from conftest import PROBLEMS, REPO
 from esail_opt.errors import InputError
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.transcription import initial_guess
 from esail_opt.physics import constants as units
 from esail_opt.propagation.simulate import simulate
 
-REPO = Path(__file__).resolve().parents[1]
 REFERENCE = REPO / "tests" / "reference" / "collocation_min_time.json"
 
 #: Shipped file -> (collocation reference case, N that 16 segments per revolution give).
@@ -35,7 +34,7 @@ SHIPPED = {
 
 
 def _shipped(name):
-    return load_problem(REPO / "problems" / f"{name}.py")
+    return load_problem(PROBLEMS / f"{name}.py")
 
 
 # ---------------------------------------------------------------- the per-revolution rule

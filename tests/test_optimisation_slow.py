@@ -80,7 +80,7 @@ def explained_days(sol, ref):
                                   "earth_mars_low"])
 def test_transfer_time_against_continuous_collocation_optimum(transfers, name):
     """The piecewise-constant schedule cannot beat the continuous-control optimum of the
-    same transfer (direct collocation of Eqs. 1-2, tests/reference/collocation.py) by more
+    same transfer (direct collocation of Eqs. 1-2, esail_opt.bench.collocation) by more
     than the closed form's verified error explains (:func:`explained_days`):
 
         tof >= tof_collocation - explained_days

@@ -55,7 +55,7 @@ def test_convergence_study(tmp_path):
 
 
 def test_bench_propagate_reports_speed_and_accuracy(tmp_path, capsys):
-    path = bench.propagate(tmp_path, repeats=3)
+    path = bench.propagate.run(tmp_path, repeats=3)
     data = json.loads(path.read_text())
     for key in ("closed_form_seconds", "cvodes_seconds", "ref10_seconds",
                 "ratio_cvodes_over_closed_form", "closed_form_final_err_km",

@@ -1,20 +1,28 @@
 """Benchmarks, and the reference solvers they time.
 
 ``BENCHES`` maps a name to ``fn(out_dir, repeats)``, which runs the benchmark, writes its
-files under ``out_dir`` and returns the path of its JSON (``esail-opt bench NAME``):
+files under ``out_dir`` and returns the path of its JSON (``esail-opt bench NAME``).
+Each is the ``run`` of its own module:
 
-* ``timings``: propagate, solve, polish, lowthrust and sweep, each timed against a
-  baseline measured in the same run;
-* ``precision``: solve time against verified accuracy for the closed form, RK4 and
-  CVODES segments (``bench.rk4`` is the RK4 segment).
+* ``propagate``, ``solve`` (:mod:`.solve_speed`), ``polish``, ``lowthrust`` and
+  ``sweep``: each timed against a baseline measured in the same run (:mod:`.timing`
+  holds what they share);
+* ``precision``: solve time against verified accuracy for the closed form, RK4
+  (:mod:`.rk4`) and CVODES segments.
+
+Their problems are built in :mod:`.cases`; :mod:`.collocation` is the independent
+collocation solver that ``lowthrust`` times and the tests' reference optima came from.
 """
 
-# The submodules keep their names here (bench.precision is the module, its bench is
-# bench.precision.precision); the timings' functions stay reachable as before the move.
-from esail_opt.bench import precision, rk4, timings
-from esail_opt.bench.timings import lowthrust, polish_bench, propagate, solve, sweep
+from esail_opt.bench import lowthrust, polish, precision, propagate, solve_speed, sweep
 
-BENCHES = {**timings.BENCHES, "precision": precision.precision}
+BENCHES = {
+    "propagate": propagate.run,
+    "solve": solve_speed.run,
+    "polish": polish.run,
+    "lowthrust": lowthrust.run,
+    "sweep": sweep.run,
+    "precision": precision.run,
+}
 
-__all__ = ["BENCHES", "lowthrust", "polish_bench", "precision", "propagate", "rk4", "solve",
-           "sweep", "timings"]
+__all__ = ["BENCHES"]

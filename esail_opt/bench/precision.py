@@ -33,6 +33,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from esail_opt.bench import cases as bench_cases
+from esail_opt.bench.timing import equal_lengths, print_table, runs_of
+
 #: Target misses at which the curves are read, km, with their JSON keys.
 MISSES_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
 #: The method every other one is compared with (the ratios' denominator).
@@ -66,9 +69,16 @@ class Method:
 
 @dataclass(frozen=True)
 class Case:
-    """A problem file (in ``problems/``) and the methods and settings run on it."""
+    """A problem and the methods and settings run on it.
 
-    file: str
+    Attributes
+    ----------
+    problem : Problem
+        Solved with equal segment lengths whatever its own setting (:func:`run_case`).
+    methods : tuple of Method
+    """
+
+    problem: object
     methods: tuple
 
 
@@ -153,19 +163,19 @@ def cvodes(segments=None, per_revolution=None):
 
 #: The two transfers.  At 1 mm/s^2 (about 1.2 revolutions) N is a total; at 0.1 mm/s^2
 #: (about 6.5 revolutions) it is per revolution, so N follows the seed's sweep as in the
-#: shipped problem file (16 per revolution x 2 sub-arcs there, N = 100).  RK4 also runs
+#: shipped problem (16 per revolution x 2 sub-arcs there, N = 100).  RK4 also runs
 #: at coarser settings than the closed form: at its coarsest usual one (30 x 1 at
 #: 1 mm/s^2) it already misses by under 1e4 km, and a curve must cross a miss to be read
 #: there rather than only bounded.  CVODES segments are exact to 1e-12 at any N and cost
 #: seconds per solve, so they run at one or two N.
 CASES = (
-    Case("earth_mars_min_time.py", (
+    Case(bench_cases.earth_mars_min_time(), (
         *(closed_form(segments=n, sub_arcs=s) for n in (20, 40, 60) for s in (1, 3)),
         *(corrected(segments=n, sub_arcs=3, rounds=k) for n in (20, 40) for k in (1, 2)),
         *(rk4(segments=n, steps=m) for n in (10, 20, 30, 60, 100) for m in (1, 2, 4)),
         cvodes(segments=20), cvodes(segments=40),
     )),
-    Case("earth_mars_low_thrust.py", (
+    Case(bench_cases.earth_mars_low_thrust(), (
         *(closed_form(per_revolution=k, sub_arcs=s) for k in (8, 16, 24) for s in (1, 2)),
         *(corrected(per_revolution=k, sub_arcs=2, rounds=r) for k in (8, 16) for r in (1, 2)),
         *(rk4(per_revolution=k, steps=m) for k in (4, 8, 16, 24) for m in (1, 2, 4)),
@@ -274,7 +284,7 @@ def _warm_up():
     x = ca.MX.sym("x")
     ca.nlpsol("warm_up", "ipopt", {"x": x, "f": (x - 1) ** 2},
               {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False})(x0=0)
-    simulate([1.0, 0.0, 0.0, 1.0], [0.5], [0.1], 1e-3, independent="theta")
+    simulate([1.0, 0.0, 0.0, 1.0], [0.5], [0.1], 1e-3, length_in="theta")
 
 
 def _label(settings):
@@ -329,60 +339,75 @@ def run_point(problem, method, runs):
     return point
 
 
-def run_case(case, runs, folder):
+def run_case(case, runs):
     """All methods of one case; returns its JSON entry (``problem``, ``ac_mm_s2``,
     ``points``, ``at_miss_km``)."""
-    from esail_opt.optimisation.problem_file import load_problem
-
-    problem = load_problem(folder / case.file)
-    problem = dataclasses.replace(
-        problem, segments=dataclasses.replace(problem.segments, equal=True))
+    problem = equal_lengths(case.problem)
     points = [run_point(problem, method, runs) for method in case.methods]
     return {"problem": problem.name, "ac_mm_s2": problem.sail.ac_mm_s2, "points": points,
             "at_miss_km": at_miss(points)}
 
 
-def precision_figure(cases):
-    """Log-log work-precision diagram, one panel per case: every point, each method's
-    envelope as a line, and the target misses as horizontal lines."""
-    import matplotlib
+def draw_precision(case, ax=None):
+    """Draw one case's log-log work-precision diagram: every point, each method's
+    envelope as a line, and the target misses as horizontal lines.
 
-    matplotlib.use("Agg")  # files only: never needs a display
-    import matplotlib.pyplot as plt
+    Parameters
+    ----------
+    case : dict
+        One entry of ``precision.json``'s ``cases`` (:func:`run_case`).
+    ax : matplotlib.axes.Axes, optional
+        Where to draw; by default the axes of a new :class:`~matplotlib.figure.Figure`.
 
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    if ax is None:
+        from matplotlib.figure import Figure
+
+        ax = Figure(figsize=(6.0, 4.8)).subplots()
     styles = {"closed_form": ("o", "C0"), "rk4": ("s", "C1"), "cvodes": ("^", "C2")}
-    fig, axes = plt.subplots(1, len(cases), figsize=(6.0 * len(cases), 4.8), squeeze=False)
-    for ax, case in zip(axes[0], cases):
-        names = list(dict.fromkeys(p["method"] for p in case["points"]))
-        for i, name in enumerate(names):
-            marker, colour = styles.get(name, ("D", f"C{3 + i}"))
-            mine = [p for p in case["points"] if p["method"] == name]
-            ok = [(p["seconds"], p["miss_km"]) for p in mine if p["miss_km"] is not None]
-            failed = len(mine) - len(ok)
-            label = f"{name} ({failed} of {len(mine)} failed)" if failed else name
-            if ok:
-                ax.plot(*zip(*ok), marker, color=colour, alpha=0.45, ms=5)
-            front = envelope(ok)
-            if front:
-                ax.plot(*zip(*front), "-", marker=marker, color=colour, label=label)
-            else:
-                ax.plot([], [], marker, color=colour, label=label)
-        for key, miss in MISSES_KM.items():
-            ax.axhline(miss, color="0.5", lw=0.8, ls="--")
-            ax.annotate(f"{key} km", (1.0, miss), xycoords=("axes fraction", "data"),
-                        ha="right", va="bottom", fontsize=8, color="0.4")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("solve time [s] (seed + NLP construction + Ipopt)")
-        ax.set_ylabel("verified target miss [km] (CVODES flight)")
-        ax.set_title(f"{case['problem']}, a_c = {case['ac_mm_s2']:g} mm/s^2")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend()
+    names = list(dict.fromkeys(p["method"] for p in case["points"]))
+    for i, name in enumerate(names):
+        marker, colour = styles.get(name, ("D", f"C{3 + i}"))
+        mine = [p for p in case["points"] if p["method"] == name]
+        ok = [(p["seconds"], p["miss_km"]) for p in mine if p["miss_km"] is not None]
+        failed = len(mine) - len(ok)
+        label = f"{name} ({failed} of {len(mine)} failed)" if failed else name
+        if ok:
+            ax.plot(*zip(*ok), marker, color=colour, alpha=0.45, ms=5)
+        front = envelope(ok)
+        if front:
+            ax.plot(*zip(*front), "-", marker=marker, color=colour, label=label)
+        else:
+            ax.plot([], [], marker, color=colour, label=label)
+    for key, miss in MISSES_KM.items():
+        ax.axhline(miss, color="0.5", lw=0.8, ls="--")
+        ax.annotate(f"{key} km", (1.0, miss), xycoords=("axes fraction", "data"),
+                    ha="right", va="bottom", fontsize=8, color="0.4")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("solve time [s] (seed + NLP construction + Ipopt)")
+    ax.set_ylabel("verified target miss [km] (CVODES flight)")
+    ax.set_title(f"{case['problem']}, a_c = {case['ac_mm_s2']:g} mm/s^2")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    return ax
+
+
+def precision_figure(cases):
+    """One :func:`draw_precision` panel per case, side by side, on a new Figure."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.0 * len(cases), 4.8))
+    for ax, case in zip(fig.subplots(1, len(cases), squeeze=False)[0], cases):
+        draw_precision(case, ax)
     fig.tight_layout()
     return fig
 
 
-def precision(out, repeats):
+def run(out, repeats):
     """Work-precision benchmark of the shooting NLP: closed form, RK4 and CVODES arcs.
 
     For each case in :data:`CASES` every method is solved at each of its settings
@@ -393,16 +418,14 @@ def precision(out, repeats):
     (interpolated log-log between the envelope points that bracket the miss, else the
     fastest point reaching it, None if none does); ratios are each method's seconds over
     the closed form's.  Writes ``<out>/precision.json`` and ``<out>/precision.png``.
-    One progress line per point goes to stderr.
+    One progress line per point goes to stderr.  Returns the JSON's path.
     """
-    from esail_opt.bench.timings import print_table
     from esail_opt.app.files import json_ready, save_figure, write_json
 
-    folder = Path(__file__).resolve().parents[2] / "problems"
-    runs = max(1, min(repeats, 3))
+    runs = runs_of(repeats)
     _warm_up()
-    cases = [run_case(case, runs, folder) for case in CASES]
-    for case in cases:
+    solved = [run_case(case, runs) for case in CASES]
+    for case in solved:
         rows = []
         for key, row in case["at_miss_km"].items():
             for name, value in row.items():
@@ -414,6 +437,6 @@ def precision(out, repeats):
         print_table(f"bench precision: {case['problem']}, a_c = {case['ac_mm_s2']:g} mm/s^2, "
                     f"median of {runs}", rows)
     path = Path(out) / "precision.json"
-    write_json(path, json_ready({"cases": cases}))
-    save_figure(precision_figure(cases), Path(out) / "precision.png")
+    write_json(path, json_ready({"cases": solved}))
+    save_figure(precision_figure(solved), Path(out) / "precision.png")
     return path

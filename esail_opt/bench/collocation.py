@@ -1,12 +1,14 @@
 """Independent reference optima: minimum-time circle-to-circle E-sail transfers by
 direct collocation of the full equations of motion (Eqs. 1-2).
 
-Run from the repository root::
+Run it as a module, naming the JSON file to write (the tests read theirs from
+``tests/reference/collocation_min_time.json``)::
 
-    python tests/reference/collocation.py            # all four cases
-    python tests/reference/collocation.py earth_mars # a subset
+    python -m esail_opt.bench.collocation --out collocation_min_time.json             # all
+    python -m esail_opt.bench.collocation --out collocation_min_time.json earth_mars  # a subset
 
-and it writes ``tests/reference/collocation_min_time.json``.
+A subset run keeps the other cases already in the file.  ``esail-opt bench lowthrust``
+times this module's path to one optimum (``esail_opt.bench.lowthrust``).
 
 Why this exists
 ---------------
@@ -97,10 +99,10 @@ sense is checked point by point from Ipopt's multipliers (see
 collocation point.
 """
 
+import argparse
 import datetime
 import json
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -111,9 +113,6 @@ from scipy.integrate import solve_ivp
 from esail_opt.physics import constants as units
 from esail_opt.physics.dynamics import rhs
 from esail_opt.physics.thrust import radial_transverse
-
-HERE = Path(__file__).resolve().parent
-OUTPUT = HERE / "collocation_min_time.json"
 
 CASES = {
     "earth_mars": {"ac_mm_s2": 1.0, "rf_au": 1.524},
@@ -134,7 +133,7 @@ INTERVALS_PER_REV_REPORT = 60
 MIN_INTERVALS_SEARCH = 24
 MIN_INTERVALS_REPORT = 200
 
-MAX_CPU_SECONDS = 30.0  # per Ipopt solve
+MAX_CPU_SECONDS = 30.0  # per Ipopt solve of the multistart (default of Transcription)
 
 DEGREE = 3
 RADAU = np.array(ca.collocation_points(DEGREE, "radau"))  # (c1, c2, c3 = 1)
@@ -201,9 +200,12 @@ class Transcription:
 
     Decision vector: states Z (4 x (3N+1), column-major), controls A (3N), tf.
     Grid point 3k + j (j = 0..3) of interval k sits at tau = (k + NODES[j]) / N.
+    ``max_cpu_seconds`` caps each Ipopt solve: the multistart gives up on a start that
+    grinds, a timing may lift the cap so that a slow solve is measured, not cut short.
     """
 
-    def __init__(self, N, ac, rf, print_level=0, rendezvous=None):
+    def __init__(self, N, ac, rf, print_level=0, rendezvous=None,
+                 max_cpu_seconds=MAX_CPU_SECONDS):
         self.N, self.ac, self.rf = N, ac, rf
         self.rendezvous = rendezvous
         npts = DEGREE * N + 1
@@ -251,7 +253,7 @@ class Transcription:
             "ipopt.max_iter": 3000,
             # A few starts far from any optimum (or boxed into an infeasible revolution
             # window) grind on for minutes; they are not worth it, other starts cover them.
-            "ipopt.max_cpu_time": MAX_CPU_SECONDS,
+            "ipopt.max_cpu_time": max_cpu_seconds,
         }
         self.solver = ca.nlpsol("radau_min_time", "ipopt", nlp, opts)
 
@@ -535,16 +537,16 @@ def miss_summary(ver):
     return {k: ver[k] for k in keys if k in ver}
 
 
-def run_case(name, spec):
-    ac = units.accel_from_mm_s2(spec["ac_mm_s2"])
-    rf = spec["rf_au"]
-    rv = ((math.radians(spec["phase_deg"]), spec["k"]) if "phase_deg" in spec else None)
-    lb = tof_lower_bound(ac, rf)
-    t_case = time.perf_counter()
-    log(f"{name}: a_c = {spec['ac_mm_s2']} mm/s^2, R = {rf} au, "
-        f"lower bound {units.time_to_days(lb):.3f} d")
+def _search(ac, rf, rv):
+    """Step 1: every start on the search mesh (sized for the longest guess), then the
+    revolution windows.
 
-    # 1. Multistart on the search mesh, sized for the longest guess.
+    Returns
+    -------
+    tuple
+        (runs, windows): the free solves, each with its ``start`` label, and the
+        record of each window solve.
+    """
     guesses = starts(ac, rf)
     n_search = intervals_for(max(g.tf for g in guesses), rf,
                              INTERVALS_PER_REV_SEARCH, MIN_INTERVALS_SEARCH)
@@ -559,18 +561,25 @@ def run_case(name, spec):
 
     for g in guesses:
         record(search.solve(g), f"{g.label} (tf0 {units.time_to_days(g.tf):.0f} d)")
+    # A rendezvous's turn count is fixed by its constraint: no windows to visit.
+    windows = [] if rv is not None else _revolution_windows(search, runs, ac, rf, record)
+    return runs, windows
 
-    # Revolution windows: force theta_f into [2 pi k, 2 pi (k + 1)] from the matching
-    # spiral, then release the box.  Free solves only visit the basins the unconstrained
-    # guesses lead to; this visits each revolution count on purpose, from one below the
-    # fewest found to two above the most found (far fewer revolutions are infeasible: the
-    # angular momentum gain needs time).
+
+def _revolution_windows(search, runs, ac, rf, record):
+    """Force theta_f into [2 pi k, 2 pi (k + 1)] from the matching spiral, then release
+    the box (the released solve goes to ``record``).
+
+    Free solves only visit the basins the unconstrained guesses lead to; this visits each
+    revolution count on purpose, from one below the fewest found to two above the most
+    found (far fewer revolutions are infeasible: the angular momentum gain needs time).
+    Returns the record of each boxed solve.
+    """
     free_revs = [revolutions(s) for s in runs if s["ok"]] or [0.0, 1.0]
     k_lo = max(0, int(math.floor(min(free_revs))) - 1)
     k_hi = int(math.floor(max(free_revs))) + 2
     windows = []
-    # A rendezvous's turn count is fixed by its constraint: no windows to visit.
-    for k in ([] if rv is not None else range(k_lo, k_hi + 1)):
+    for k in range(k_lo, k_hi + 1):
         window = (2 * math.pi * k, 2 * math.pi * (k + 1))
         boxed = search.solve(spiral_guess(ac, rf, k + 0.5), theta_window=window)
         windows.append({
@@ -584,14 +593,19 @@ def run_case(name, spec):
             log(f"  window {k}-{k + 1} rev: {boxed['status']}")
             continue
         record(search.solve(solution_guess(boxed)), f"window {k}-{k + 1} rev, released")
+    return windows
 
-    optima = distinct_optima(runs)
-    if not optima:
-        raise RuntimeError(f"{name}: no start converged")
 
-    # 2. Every distinct local optimum on the reporting mesh N (sized for that optimum),
-    #    each verified by re-integration: a discrete optimum that does not fly is an
-    #    artefact of the transcription, not a local optimum of the transfer.
+def _verified_optima(optima, ac, rf, rv):
+    """Step 2: every distinct local optimum on the reporting mesh N (sized for that
+    optimum), each verified by re-integration: a discrete optimum that does not fly is
+    an artefact of the transcription, not a local optimum of the transfer.
+
+    Returns
+    -------
+    tuple
+        (refined, rejected): the re-solved optima that fly, and those that do not.
+    """
     refined, rejected = [], []
     for o in optima:
         n_rep = intervals_for(o["tf"], rf, INTERVALS_PER_REV_REPORT, MIN_INTERVALS_REPORT)
@@ -601,14 +615,82 @@ def run_case(name, spec):
             log(f"  optimum from {o['start']}: N={n_rep} failed ({s['status']})")
             continue
         s["verification"] = verify(s, ac, rf, rv)
-        if flies(s["verification"]):
-            refined.append(s)
-        else:
-            rejected.append(s)
+        (refined if flies(s["verification"]) else rejected).append(s)
         log(f"  optimum from {o['start']:34s} N={n_rep}: tf {units.time_to_days(s['tf']):.6f} d "
             f"rev {revolutions(s):.4f}, miss {s['verification']['miss_r_km']:.2e} km "
             f"{s['verification']['miss_v_m_s']:.2e} m/s, PMP cosine "
             f"{s['verification']['minimum_principle_cosine_min_max'][0]:+.6f}")
+    return refined, rejected
+
+
+CONTROL_DESCRIPTION = (
+    "Pitch in degrees on the fine mesh's 3*intervals_fine + 1 grid points; point "
+    "3k + j of interval k (j = 0..3) is at t = tof * (k + nodes[j]) / "
+    "intervals_fine. Inside interval k alpha(t) is the cubic Lagrange polynomial "
+    "through points 3k..3k+3 at the nodes; point 0 is extrapolated (quadratic "
+    "through interval 0's collocation values). Values are the continuous "
+    "representative (unwrapped with period 180 deg, since Eqs. 3-4 depend on "
+    "2 alpha only); the physical pitch alpha_n is the value wrapped into "
+    "[-90, 90) deg, which gives the same R and T.")
+METHOD = (
+    "Direct collocation of Eqs. 1-2 (esail_opt.physics.dynamics.rhs, exact b1=3/4, "
+    "b2=1/4), 3-stage Legendre-Gauss-Radau (Radau IIA, order 5) on N equal intervals "
+    "of normalised time with free tf, pitch a decision variable at every collocation "
+    "point (continuous piecewise-cubic alpha(t)), sail always on, Ipopt+MUMPS tol "
+    "1e-10; multistart from constant-pitch forward integrations, k-revolution "
+    "spirals and revolution-window solves; distinct optima re-solved and verified "
+    "at N, the best re-solved at 2N; verification by DOP853 rtol=atol=1e-12.")
+
+
+def _optimum_entry(s):
+    """One verified (or rejected) optimum as the JSON lists it."""
+    return {"tof_days": units.time_to_days(s["tf"]), "revolutions": revolutions(s),
+            "intervals": s["N"], "found_from": s["start"],
+            "verification": miss_summary(s["verification"])}
+
+
+def _fine_entry(spec, best, fine, lb):
+    """The reported optimum's own fields: the fine (2N) solution, the refinement study
+    against ``best`` (N), its control and its Ipopt record."""
+    rf = spec["rf_au"]
+    tof_c, tof_f = units.time_to_days(best["tf"]), units.time_to_days(fine["tf"])
+    return {
+        "ac_mm_s2": spec["ac_mm_s2"], "r0_au": R0_AU, "rf_au": rf,
+        "tof_days": tof_f, "tof_days_coarse": tof_c, "tof_days_fine": tof_f,
+        "relative_change": abs(tof_f - tof_c) / tof_f,
+        "intervals": best["N"], "intervals_fine": fine["N"],
+        "intervals_per_shortest_period": best["N"] * shortest_period(rf) / best["tf"],
+        "revolutions": revolutions(fine),
+        "theta_f_rad": float(fine["Z"][1, -1]),
+        "tof_lower_bound_days": units.time_to_days(lb),
+        "ipopt": {"status": fine["status"], "iterations": fine["iterations"],
+                  "max_defect": fine["max_defect"], "tol": 1e-10},
+        "control": {"description": CONTROL_DESCRIPTION, "nodes": NODES.tolist(),
+                    "alpha_deg": np.degrees(control_at_points(fine["A"])).tolist()},
+        "final_state_collocation": {"r_au": float(fine["Z"][0, -1]),
+                                    "theta_rad": float(fine["Z"][1, -1]),
+                                    "v_r": float(fine["Z"][2, -1]),
+                                    "v_theta": float(fine["Z"][3, -1])},
+        "method": METHOD,
+    }
+
+
+def run_case(name, spec):
+    """Solve one case of :data:`CASES` (multistart, verified optima, refinement study)
+    and return its JSON entry."""
+    ac = units.accel_from_mm_s2(spec["ac_mm_s2"])
+    rf = spec["rf_au"]
+    rv = ((math.radians(spec["phase_deg"]), spec["k"]) if "phase_deg" in spec else None)
+    lb = tof_lower_bound(ac, rf)
+    t_case = time.perf_counter()
+    log(f"{name}: a_c = {spec['ac_mm_s2']} mm/s^2, R = {rf} au, "
+        f"lower bound {units.time_to_days(lb):.3f} d")
+
+    runs, windows = _search(ac, rf, rv)
+    optima = distinct_optima(runs)
+    if not optima:
+        raise RuntimeError(f"{name}: no start converged")
+    refined, rejected = _verified_optima(optima, ac, rf, rv)
     refined = distinct_optima(refined)
     if not refined:
         raise RuntimeError(f"{name}: no optimum survived verification")
@@ -619,109 +701,62 @@ def run_case(name, spec):
     fine = Transcription(2 * n, ac, rf, rendezvous=rv).solve(solution_guess(best))
     if not fine["ok"]:
         raise RuntimeError(f"{name}: fine mesh failed: {fine['status']}")
-    tof_c = units.time_to_days(best["tf"])
-    tof_f = units.time_to_days(fine["tf"])
-    rel = abs(tof_f - tof_c) / tof_f
-    log(f"  refinement: N={n} {tof_c:.8f} d, 2N={2 * n} {tof_f:.8f} d, rel change {rel:.2e}")
+    result = _fine_entry(spec, best, fine, lb)
+    log(f"  refinement: N={n} {result['tof_days_coarse']:.8f} d, 2N={2 * n} "
+        f"{result['tof_days_fine']:.8f} d, rel change {result['relative_change']:.2e}")
 
     ver = verify(fine, ac, rf, rv)
     log(f"  verification (2N): miss r {ver['miss_r_km']:.3e} km, v {ver['miss_v_m_s']:.3e} m/s, "
         f"along-track vs collocation {ver['theta_vs_collocation_km']:.3e} km")
-
-    alpha_pts = control_at_points(fine["A"])
-    result = {
-        "ac_mm_s2": spec["ac_mm_s2"],
-        "r0_au": R0_AU,
-        "rf_au": rf,
-        "tof_days": tof_f,
-        "tof_days_coarse": tof_c,
-        "tof_days_fine": tof_f,
-        "relative_change": rel,
-        "intervals": n,
-        "intervals_fine": 2 * n,
-        "intervals_per_shortest_period": n * shortest_period(rf) / best["tf"],
-        "revolutions": revolutions(fine),
-        "theta_f_rad": float(fine["Z"][1, -1]),
-        "tof_lower_bound_days": units.time_to_days(lb),
-        "local_optima": [
-            {"tof_days": units.time_to_days(s["tf"]), "revolutions": revolutions(s),
-             "intervals": s["N"], "found_from": s["start"],
-             "verification": miss_summary(s["verification"])}
-            for s in refined
-        ],
-        "rejected_discrete_optima": [
-            {"tof_days": units.time_to_days(s["tf"]), "revolutions": revolutions(s),
-             "intervals": s["N"], "found_from": s["start"],
-             "verification": miss_summary(s["verification"])}
-            for s in rejected
-        ],
+    result.update({
+        "local_optima": [_optimum_entry(s) for s in refined],
+        "rejected_discrete_optima": [_optimum_entry(s) for s in rejected],
         "revolution_window_solves": windows,
-        "starts": [
-            {"start": s["start"], "status": s["status"],
-             "tof_days": units.time_to_days(s["tf"]), "revolutions": revolutions(s),
-             "intervals": s["N"]}
-            for s in runs
-        ],
+        "starts": [{"start": s["start"], "status": s["status"],
+                    "tof_days": units.time_to_days(s["tf"]), "revolutions": revolutions(s),
+                    "intervals": s["N"]} for s in runs],
         "verification": ver,
-        "ipopt": {"status": fine["status"], "iterations": fine["iterations"],
-                  "max_defect": fine["max_defect"], "tol": 1e-10},
-        "control": {
-            "description": (
-                "Pitch in degrees on the fine mesh's 3*intervals_fine + 1 grid points; point "
-                "3k + j of interval k (j = 0..3) is at t = tof * (k + nodes[j]) / "
-                "intervals_fine. Inside interval k alpha(t) is the cubic Lagrange polynomial "
-                "through points 3k..3k+3 at the nodes; point 0 is extrapolated (quadratic "
-                "through interval 0's collocation values). Values are the continuous "
-                "representative (unwrapped with period 180 deg, since Eqs. 3-4 depend on "
-                "2 alpha only); the physical pitch alpha_n is the value wrapped into "
-                "[-90, 90) deg, which gives the same R and T."),
-            "nodes": NODES.tolist(),
-            "alpha_deg": np.degrees(alpha_pts).tolist(),
-        },
-        "final_state_collocation": {"r_au": float(fine["Z"][0, -1]),
-                                    "theta_rad": float(fine["Z"][1, -1]),
-                                    "v_r": float(fine["Z"][2, -1]),
-                                    "v_theta": float(fine["Z"][3, -1])},
-        "method": (
-            "Direct collocation of Eqs. 1-2 (esail_opt.physics.dynamics.rhs, exact b1=3/4, "
-            "b2=1/4), 3-stage Legendre-Gauss-Radau (Radau IIA, order 5) on N equal intervals "
-            "of normalised time with free tf, pitch a decision variable at every collocation "
-            "point (continuous piecewise-cubic alpha(t)), sail always on, Ipopt+MUMPS tol "
-            "1e-10; multistart from constant-pitch forward integrations, k-revolution "
-            "spirals and revolution-window solves; distinct optima re-solved and verified "
-            "at N, the best re-solved at 2N; verification by DOP853 rtol=atol=1e-12."),
         "runtime_seconds": time.perf_counter() - t_case,
-    }
+    })
     if rv is not None:
         result["rendezvous"] = {"phase_deg": spec["phase_deg"], "k": spec["k"]}
     return result
 
 
-def main(argv):
-    names = argv[1:] or list(CASES)
-    unknown = [n for n in names if n not in CASES]
+def main(argv=None):
+    """Solve the cases named on the command line (all by default) into ``--out``."""
+    parser = argparse.ArgumentParser(
+        prog="python -m esail_opt.bench.collocation",
+        description="Reference optima of minimum-time E-sail transfers by direct "
+                    "collocation of Eqs. 1-2.")
+    parser.add_argument("--out", required=True, type=Path,
+                        help="JSON file to write (cases already in it and not named are kept)")
+    parser.add_argument("cases", nargs="*", metavar="CASE",
+                        help=f"cases to solve (default all: {', '.join(CASES)})")
+    args = parser.parse_args(argv)
+    unknown = [n for n in args.cases if n not in CASES]
     if unknown:
-        raise SystemExit(f"unknown case(s) {unknown}; choose from {list(CASES)}")
-    # Keep cases computed earlier: a subset run updates only its own entries.
-    data = json.loads(OUTPUT.read_text()) if OUTPUT.exists() else {}
+        parser.error(f"unknown case(s) {unknown}; choose from {list(CASES)}")
+    names = args.cases or list(CASES)
+    data = json.loads(args.out.read_text()) if args.out.exists() else {}
     t0 = time.perf_counter()
     for name in names:
         data[name] = run_case(name, CASES[name])
-        command = " ".join(["python", "tests/reference/collocation.py", *argv[1:]])
+        command = " ".join(["python -m esail_opt.bench.collocation --out", str(args.out),
+                            *args.cases])
         stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         data["how"] = (
-            f"Written by `{command}` (tests/reference/collocation.py, run from the repository "
-            f"root) on {stamp}, {time.perf_counter() - t0:.0f} s of computing for the cases "
-            "of that run"
-            + ("" if not argv[1:] else "; cases not named in it were kept from earlier runs")
+            f"Written by `{command}` on {stamp}, {time.perf_counter() - t0:.0f} s of "
+            "computing for the cases of that run"
+            + ("" if not args.cases else "; cases not named in it were kept from earlier runs")
             + ". Continuous-pitch Radau collocation of Eqs. 1-2 with casadi + Ipopt; see the "
-            "script's docstring.")
+            "module's docstring.")
         data["units"] = ("tof in days (1 day = 86400 s), radii in au, canonical velocities in "
                          "sqrt(mu/au); TU_DAYS = %.10f" % units.TU_DAYS)
         # Written after every case, so that an interrupted run keeps what it finished.
-        OUTPUT.write_text(json.dumps(data, indent=1) + "\n")
-    log(f"done in {time.perf_counter() - t0:.0f} s -> {OUTPUT}")
+        args.out.write_text(json.dumps(data, indent=1) + "\n")
+    log(f"done in {time.perf_counter() - t0:.0f} s -> {args.out}")
 
 
 if __name__ == "__main__":
-    main(sys.argv)
+    main()

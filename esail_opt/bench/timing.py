@@ -1,0 +1,92 @@
+"""What every timing benchmark shares: the median of timed calls, the printed table,
+and the shooting NLP timed with one segment Function or another.
+
+Machines are shared and noisy, so each bench times its subject against a baseline
+measured in the same run, and only the ratios mean anything.
+"""
+
+import dataclasses
+import statistics
+import time
+
+
+def median_seconds(fn, repeats):
+    """Median wall time of ``repeats`` calls of ``fn()`` after one warm-up call."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def print_table(title, rows):
+    """Print ``rows`` of (label, value, unit) under a title, aligned."""
+    print(title)
+    width = max(len(label) for label, _, _ in rows)
+    for label, value, unit in rows:
+        text = f"{value:.4g}" if isinstance(value, float) else str(value)
+        print(f"  {label:<{width}}  {text} {unit}".rstrip())
+
+
+def runs_of(repeats):
+    """Timed runs of a whole solve: ``repeats`` capped at 3 (a solve takes seconds)."""
+    return max(1, min(repeats, 3))
+
+
+def equal_lengths(problem):
+    """One NLP, one start: a free-length problem is normally solved in two stages (equal
+    lengths, then free); the benchmarks time the single equal-length NLP."""
+    return dataclasses.replace(
+        problem, segments=dataclasses.replace(problem.segments, equal=True))
+
+
+def shooting_segments(problem):
+    """The closed-form and the CVODES-arc segment Functions of ``problem``'s NLP."""
+    from esail_opt.optimisation.transcription import closed_form_segment, cvodes_segment
+
+    seg = problem.segments
+    return {
+        "closed_form": closed_form_segment(seg.sub_arcs, problem.sail.coefficients,
+                                           seg.extrapolate),
+        "cvodes": cvodes_segment(seg.sub_arcs, problem.sail.coefficients),
+    }
+
+
+def timed_nlps(problem, guess, segments, runs):
+    """Solve the NLP of ``problem`` from ``guess`` once per segment Function, timed.
+
+    Parameters
+    ----------
+    problem : Problem
+    guess : transcription.Guess
+        Shared by every segment Function, so only the arcs differ.
+    segments : dict
+        Name -> segment Function (``transcription.closed_form_segment`` or
+        ``cvodes_segment``).
+    runs : int
+        Timed solves per Function; the median counts.
+
+    Returns
+    -------
+    dict
+        Name -> {"seconds", "iterations", "status", "objective", "result"}: the median
+        wall time of ``nlpsol`` construction plus the Ipopt solve (MUMPS, exact Hessian),
+        and the last run's :class:`~esail_opt.optimisation.ipopt.NLPResult`.
+    """
+    from esail_opt.optimisation.ipopt import solve_transcription
+    from esail_opt.optimisation.transcription import transcribe
+
+    out = {}
+    for name, segment in segments.items():
+        tr = transcribe(problem, segment, guess)
+        times = []
+        for _ in range(runs):
+            start = time.perf_counter()
+            result = solve_transcription(tr)
+            times.append(time.perf_counter() - start)
+        out[name] = {"seconds": statistics.median(times), "iterations": result.iterations,
+                     "status": result.status, "objective": result.objective,
+                     "result": result}
+    return out
