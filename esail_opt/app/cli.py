@@ -28,7 +28,9 @@ def _add_propagate(sub):
         help="fly one fixed attitude from a parking orbit (closed form and/or CVODES)",
         description="Fly one fixed pitch angle from a parking orbit with the paper's "
         "closed form (no rectification; it ends where its own clock reaches the "
-        "horizon) and/or CVODES on Eqs. 1-2, and write the samples as JSON.",
+        "horizon) and/or CVODES on Eqs. 1-2, and write the samples as JSON.  With both, "
+        "eps (Eq. 27) is taken over the closed form's arc; `reproduce fig3|fig4` take it "
+        "over the angle swept by CVODES in the horizon, as the paper does.",
     )
     p.add_argument("--a0", type=_number, default=1.0, help="parking orbit semimajor axis, au (default 1)")
     p.add_argument("--e0", type=_number, default=0.0, help="parking orbit eccentricity, [0, 1) (default 0)")
@@ -47,7 +49,9 @@ def _run_propagate(args):
     from esail_opt.app import fixed_attitude
     from esail_opt.app.files import write_json
 
-    case = fixed_attitude.FixedAttitudeCase(args.a0, args.e0, args.nu0, args.ac, args.alpha, args.years)
+    case = fixed_attitude.FixedAttitudeCase(a0_au=args.a0, e0=args.e0, nu0_deg=args.nu0,
+                                            ac_mm_s2=args.ac, alpha_deg=args.alpha,
+                                            years=args.years)
     if args.samples is not None and args.samples < 1:
         raise InputError(f"samples = {args.samples} is outside [1, inf)")
     print(f"propagating {args.years:g} years at alpha = {args.alpha:g} deg ({args.method}) ...",
@@ -60,8 +64,9 @@ def _run_propagate(args):
                   f"r = {last['r_au']:.6f} au, v_r = {last['vr_km_s']:.4f} km/s, "
                   f"v_theta = {last['vtheta_km_s']:.4f} km/s")
     if "eps" in result:
-        scope = "" if result["eps_over_whole_arc"] else " (over the angles CVODES reaches: it escapes)"
-        print(f"eps (Eq. 27) = {100 * result['eps']:.3f} %{scope}")
+        span = result["eps_theta_range"]
+        print(f"eps (Eq. 27) = {100 * result['eps']:.3f} % over theta = {span['from_deg']:.2f} .. "
+              f"{span['to_deg']:.2f} deg: {span['source']}")
     if args.out:
         write_json(args.out, result)
         print(f"wrote {args.out}")

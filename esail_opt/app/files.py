@@ -29,12 +29,14 @@ def write_json(path, data):
 
 
 def save_figure(fig, path, dpi=150):
-    """Save a matplotlib figure atomically and close it."""
-    import matplotlib.pyplot as plt
+    """Save a :class:`matplotlib.figure.Figure` atomically, in the format of ``path``'s
+    suffix (PNG without one).
 
+    The figure is made without pyplot, so nothing else holds it and there is
+    nothing to close.
+    """
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format=Path(path).suffix.lstrip(".") or "png")
-    plt.close(fig)
 
 
 def json_ready(obj):

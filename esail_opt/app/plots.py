@@ -7,17 +7,44 @@ the osculating a and e against time, then the closed form's local error per segm
 (where it is strained) and the flown miss of each refinement round against the tolerance.
 A polished solution adds the CVODES flight of its polished schedule to both, and the
 pitch panel shows that schedule.
+
+Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
+caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
 """
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")  # files only: never needs a display
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from esail_opt.app.files import save_figure
 
-from esail_opt.app.files import save_figure  # noqa: E402
+
+def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
+    """The figure of the caller's ``axes`` and those axes, or a new figure and its axes.
+
+    The new figure is a bare :class:`matplotlib.figure.Figure` with constrained
+    layout, made without pyplot: drawing it selects no backend and opens no
+    window, and nothing holds it once its last reference goes.
+
+    Parameters
+    ----------
+    axes : matplotlib.axes.Axes, array of Axes, or None
+        Where to draw; None for a new figure.
+    nrows, ncols, figsize, **subplots
+        The new figure's grid, size (inches) and ``Figure.subplots`` options.
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+        The top-level figure (the one to save).
+    axes : matplotlib.axes.Axes or numpy.ndarray
+        ``axes`` as given, or the new ones as ``Figure.subplots`` returns them.
+    """
+    if axes is not None:
+        return np.ravel(axes)[0].get_figure(root=True), axes
+    fig = Figure(figsize=figsize, layout="constrained")
+    return fig, fig.subplots(nrows, ncols, **subplots)
 
 
 def _orbit_xy(a, e, omega_rad=0.0, points=361):
@@ -32,11 +59,14 @@ def _xy(traj):
     return r * np.cos(th), r * np.sin(th)
 
 
-def trajectory_figure(solution):
-    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes."""
+def trajectory_figure(solution, ax=None):
+    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes.
+
+    Drawn into ``ax`` if given, else into a new figure; returns the figure.
+    """
     d = solution.data
     prob = d["problem"]
-    fig, ax = plt.subplots(figsize=(6.4, 6.4))
+    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4))
     dep = prob["departure"]
     if dep["kind"] == "ParkingOrbit":
         ax.plot(*_orbit_xy(dep["a_au"], dep["e"], np.radians(dep["omega_deg"])), color="0.6",
@@ -86,37 +116,47 @@ def trajectory_figure(solution):
     return fig
 
 
-def timeline_figure(solution):
-    """r, v_r, v_theta, alpha and osculating a and e against time (days)."""
+def _pitch_panel(ax, d, polished):
+    """The pitch schedule (the polished one when there is one) as steps against time,
+    with the throttle on a right-hand axis when the problem has one."""
+    sched = d["polish"]["schedule"] if polished else d["schedule"]
+    t = [row["t_days"] for row in sched]
+    alpha = [row["alpha_deg"] for row in sched]
+    t_end = d["tof_days_exact"] if polished else d["tof_days"]
+    ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
+            label="polished" if polished else None)
+    ax.set_ylim(-95, 95)
+    if sched and "throttle" in sched[0]:
+        # The throttle shares the pitch panel: it switches at the same times, and a
+        # coast (kappa = 0) explains a pitch that wanders.
+        kappa = [row["throttle"] for row in sched]
+        twin = ax.twinx()
+        twin.step(t + [t_end], kappa + kappa[-1:], where="post", color="tab:orange", lw=1.0)
+        twin.set_ylim(-0.05, 1.05)
+        twin.set_ylabel("throttle kappa", color="tab:orange")
+
+
+def timeline_figure(solution, axes=None):
+    """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
+    errors and the refinement rounds.
+
+    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into a new figure;
+    returns the figure.
+    """
     d = solution.data
     cf = d["trajectory"]["closed_form"]
     cv = d["trajectory"]["cvodes"]
     exact = d["trajectory"].get("polished")
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = exact is not None
-    sched = d["polish"]["schedule"] if polished else d["schedule"]
-    fig, axes = plt.subplots(4, 2, figsize=(10, 10.5))
+    fig, axes = axes_or_new(axes, 4, 2, figsize=(10, 10.5))
     for ax in axes[:3].ravel():
         ax.sharex(axes[0, 0])
     panels = [("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"), ("vtheta_km_s", "v_theta (km/s)"),
               (None, "alpha (deg)"), ("a_au", "osculating a (au)"), ("e", "osculating e")]
     for ax, (key, label) in zip(axes.ravel(), panels):
         if key is None:
-            t = [row["t_days"] for row in sched]
-            alpha = [row["alpha_deg"] for row in sched]
-            t_end = d["tof_days_exact"] if polished else d["tof_days"]
-            ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
-                    label="polished" if polished else None)
-            ax.set_ylim(-95, 95)
-            if sched and "throttle" in sched[0]:
-                # The throttle shares the pitch panel on a right-hand axis: it switches
-                # at the same times, and a coast (kappa = 0) explains a pitch that wanders.
-                kappa = [row["throttle"] for row in sched]
-                twin = ax.twinx()
-                twin.step(t + [t_end], kappa + kappa[-1:], where="post", color="tab:orange",
-                          lw=1.0)
-                twin.set_ylim(-0.05, 1.05)
-                twin.set_ylabel("throttle kappa", color="tab:orange")
+            _pitch_panel(ax, d, polished)
         else:
             ax.plot(cf["t_days"], cf[key], color="tab:blue", lw=1.4, label="closed form")
             if cv is not None:
@@ -135,7 +175,6 @@ def timeline_figure(solution):
     fig.suptitle(f"{d['problem']['name']}: {d['status']}, {verdict}"
                  + (f"; polished {d['polish']['status']} (pitch: polished schedule)"
                     if polished else ""))
-    fig.tight_layout()
     return fig
 
 

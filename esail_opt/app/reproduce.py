@@ -1,4 +1,9 @@
-"""Reproduction of the paper's figures: each writes a PNG and the JSON of its data."""
+"""Reproduction of the paper's figures: each writes a PNG and the JSON of its data.
+
+Each figure is computed into its JSON data, then drawn from that data alone by a
+figure function (``*_figure(data, ax=None)``, or ``axes=`` for several panels) that
+draws into the caller's axes or, given none, into a Figure of its own.
+"""
 
 import math
 import sys
@@ -8,6 +13,8 @@ import numpy as np
 
 from esail_opt.app import fixed_attitude
 from esail_opt.app.files import save_figure, write_json
+from esail_opt.app.plots import axes_or_new
+from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
 from esail_opt.physics.closed_form import theta_max_circular
 from esail_opt.physics.elements import ac_tilde
@@ -20,33 +27,67 @@ YEARS = 5.0
 #: Mercury as the paper prints it: 0.308 au is nearly Mercury's perihelion radius,
 #: not its semimajor axis (0.387 au); the printed value is kept (THEORY.md §6.5).
 MERCURY = {"a0": 0.308, "e0": 0.206, "nu0": 0.0}
+#: Where Eq. 27's maximum is taken in Figs. 3-4, as the JSON says it.
+SWEPT_SOURCE = ("the angle swept by CVODES on Eqs. 1-2 (tolerance 1e-12) in 5 years from "
+                "the departure, per cell; the closed form, a function of theta, is evaluated "
+                "at the same angles (32 per revolution, at least 200)")
 
 
-def _grid_plot(values, label, title, log=False, mark_max=True):
-    import matplotlib
+def _write(out, name, data, fig):
+    """Write ``<out>/<name>.json`` and ``.png`` atomically; return both paths."""
+    out = Path(out)
+    write_json(out / f"{name}.json", data)
+    save_figure(fig, out / f"{name}.png")
+    return [out / f"{name}.json", out / f"{name}.png"]
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def _contour_levels(data, log):
+    return np.logspace(np.log10(data.min()), np.log10(data.max()), 6) if log else 8
+
+
+def grid_figure(data, key, label, title, scale=1.0, log=False, mark_max=True, ax=None):
+    """A map of ``data[key]`` (times ``scale``) over pitch and a_c, as Figs. 2-4.
+
+    ``data[key][i][j]`` is at ``data["alpha_deg"][i]``, ``data["ac_mm_s2"][j]``; null
+    cells are grey.  Returns the figure.
+    """
     from matplotlib.colors import LogNorm
 
-    fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
-    data = np.ma.masked_invalid(values)
-    norm = LogNorm(vmin=data.min(), vmax=data.max()) if log else None
-    mesh = ax.pcolormesh(ALPHA_DEG, AC_MM_S2, data.T, shading="nearest", norm=norm, cmap="viridis")
+    fig, ax = axes_or_new(ax, figsize=(7, 4.5))
+    alpha, ac = np.asarray(data["alpha_deg"]), np.asarray(data["ac_mm_s2"])
+    values = scale * np.array(data[key], dtype=float)
+    masked = np.ma.masked_invalid(values)
+    norm = LogNorm(vmin=masked.min(), vmax=masked.max()) if log else None
+    mesh = ax.pcolormesh(alpha, ac, masked.T, shading="nearest", norm=norm, cmap="viridis")
     ax.set_facecolor("0.85")
-    cs = ax.contour(ALPHA_DEG, AC_MM_S2, data.T, colors="white", linewidths=0.7,
-                    levels=8 if not log else np.logspace(np.log10(data.min()), np.log10(data.max()), 6))
+    cs = ax.contour(alpha, ac, masked.T, colors="white", linewidths=0.7,
+                    levels=_contour_levels(masked, log))
     ax.clabel(cs, fontsize=7, fmt="%.3g")
-    fig.colorbar(mesh, ax=ax, label=label)
+    ax.figure.colorbar(mesh, ax=ax, label=label)
     if mark_max:
         i, j = np.unravel_index(np.nanargmax(values), values.shape)
-        ax.plot(ALPHA_DEG[i], AC_MM_S2[j], "r*", ms=10, label=f"max {values[i, j]:.3g}")
+        ax.plot(alpha[i], ac[j], "r*", ms=10, label=f"max {values[i, j]:.3g}")
         ax.legend(loc="upper left", fontsize=8)
     ax.set_xlabel(r"pitch angle $\alpha_n$ [deg]")
     ax.set_ylabel(r"characteristic acceleration $a_c$ [mm/s$^2$]")
     ax.set_title(title, fontsize=10)
     ax.set_xticks(np.arange(-90, 91, 30))
     return fig
+
+
+_FIG2_TITLE = (r"Fig. 2: $\theta_{max} = 1/(T\,\tilde a_c)$, circular orbit at 1 au "
+               r"(grey: T $\leq$ 0, unbounded)")
+
+
+def theta_max_figure(data, ax=None):
+    """Fig. 2 from its JSON data: theta_max on a log scale, grey where unbounded."""
+    return grid_figure(data, "theta_max_deg", r"$\theta_{max}$ [deg]", _FIG2_TITLE, log=True,
+                       mark_max=False, ax=ax)
+
+
+def eps_figure(data, ax=None):
+    """Fig. 3 or 4 from its JSON data: eps in percent, its maximum starred."""
+    return grid_figure(data, "eps", r"$\epsilon$ [%]", data["figure"], scale=100.0, ax=ax)
 
 
 def fig2(out):
@@ -61,45 +102,47 @@ def fig2(out):
         if T > 1e-12:
             actil = ac_tilde(units.accel_from_mm_s2(AC_MM_S2), 1.0)
             theta_max[i] = np.degrees(theta_max_circular(actil, T))
-    out = Path(out)
     data = {
-        "figure": "Fig. 2: maximum angle of the first-order solution, circular parking orbit, r0 = 1 au",
+        "figure": "Fig. 2: maximum angle of the first-order solution, circular parking orbit, "
+                  "r0 = 1 au",
         "alpha_deg": ALPHA_DEG.tolist(),
         "ac_mm_s2": AC_MM_S2.tolist(),
         "theta_max_deg": [[None if np.isnan(v) else float(v) for v in row] for row in theta_max],
         "max_theta_max_deg": float(np.nanmax(theta_max)),
+        "theta_range": {"from_deg": 0.0, "to_deg": None,
+                        "source": "none: theta_max is the closed form's own bound on theta; "
+                                  "no horizon and no integration enter"},
         "note": "theta_max_deg[i][j] is at alpha_deg[i], ac_mm_s2[j]; null where T <= 0 "
                 "(q3 never decreases, no limit)",
     }
-    fig = _grid_plot(theta_max, r"$\theta_{max}$ [deg]",
-                     r"Fig. 2: $\theta_{max} = 1/(T\,\tilde a_c)$, circular orbit at 1 au "
-                     "(grey: T $\\leq$ 0, unbounded)", log=True, mark_max=False)
-    write_json(out / "fig2.json", data)
-    save_figure(fig, out / "fig2.png")
-    return [out / "fig2.json", out / "fig2.png"]
+    return _write(out, "fig2", data, theta_max_figure(data))
 
 
 def eps_map(a0, e0, nu0, label):
-    """Eq. 27 over the grid, 5 years, closed form against CVODES."""
+    """Eq. 27 over the grid: the closed form against CVODES over CVODES's swept angle.
+
+    Returns
+    -------
+    eps, swept : numpy.ndarray, shape (ALPHA_DEG.size, AC_MM_S2.size)
+        eps, and the angle (rad) swept by CVODES in YEARS, over which it was taken.
+    """
     eps = np.empty((ALPHA_DEG.size, AC_MM_S2.size))
-    total = eps.size
+    swept = np.empty_like(eps)
     for i, alpha in enumerate(ALPHA_DEG):
         for j, ac in enumerate(AC_MM_S2):
             case = fixed_attitude.FixedAttitudeCase(a0, e0, nu0, float(ac), float(alpha), YEARS)
-            samples = fixed_attitude.samples_for(case)
-            closed = fixed_attitude.closed_form(case, samples)
-            eps[i, j], whole = fixed_attitude.relative_error(case, closed)
-            if not whole:
-                raise RuntimeError(f"{label}: CVODES escaped at alpha={alpha}, ac={ac}")
-        done = (i + 1) * AC_MM_S2.size
-        print(f"{label}: {done}/{total} cases, max eps so far {100 * eps[: i + 1].max():.2f} %",
-              file=sys.stderr, flush=True)
-    return eps
+            try:
+                eps[i, j], swept[i, j] = fixed_attitude.eps_over_swept_angle(case)
+            except InputError as err:
+                raise RuntimeError(f"{label}: at alpha = {alpha:g} deg, a_c = {ac:g} "
+                                   f"mm/s^2: {err}") from None
+        print(f"{label}: {(i + 1) * AC_MM_S2.size}/{eps.size} cases, max eps so far "
+              f"{100 * eps[: i + 1].max():.2f} %", file=sys.stderr, flush=True)
+    return eps, swept
 
 
 def _eps_figure(name, title, a0, e0, nu0, out):
-    eps = eps_map(a0, e0, nu0, name)
-    out = Path(out)
+    eps, swept = eps_map(a0, e0, nu0, name)
     data = {
         "figure": title,
         "a0_au": a0, "e0": e0, "nu0_deg": nu0, "years": YEARS,
@@ -107,26 +150,26 @@ def _eps_figure(name, title, a0, e0, nu0, out):
         "ac_mm_s2": AC_MM_S2.tolist(),
         "eps": eps.tolist(),
         "max_eps": float(eps.max()),
-        "note": "eps[i][j] is Eq. 27 at alpha_deg[i], ac_mm_s2[j]: max over theta of "
-                "|r_cvodes - r_closed_form| / r0, closed form without rectification",
+        "theta_range": {"from_deg": nu0, "to_deg": (nu0 + np.degrees(swept)).tolist(),
+                        "source": SWEPT_SOURCE},
+        "note": "eps[i][j] is Eq. 27 at alpha_deg[i], ac_mm_s2[j]: max over theta from "
+                "theta_range's from_deg to its to_deg[i][j] of |r_cvodes - r_closed_form| / r0, "
+                "closed form without rectification",
     }
-    fig = _grid_plot(100 * eps, r"$\epsilon$ [%]", title)
-    write_json(out / f"{name}.json", data)
-    save_figure(fig, out / f"{name}.png")
-    return [out / f"{name}.json", out / f"{name}.png"]
+    return _write(out, name, data, eps_figure(data))
 
 
 def fig3(out):
     """Fig. 3: eps over 5 years from the circular orbit at 1 au."""
-    return _eps_figure("fig3", "Fig. 3: relative error $\\epsilon$ (Eq. 27), 5 years, circular orbit at 1 au",
-                       1.0, 0.0, 0.0, out)
+    return _eps_figure("fig3", "Fig. 3: relative error $\\epsilon$ (Eq. 27) over the angle "
+                       "CVODES covers in 5 years, circular orbit at 1 au", 1.0, 0.0, 0.0, out)
 
 
 def fig4(out):
     """Fig. 4: eps over 5 years from the Mercury case as printed (a0 = 0.308 au)."""
-    return _eps_figure("fig4", "Fig. 4: relative error $\\epsilon$ (Eq. 27), 5 years, "
-                       "a0 = 0.308 au (as printed), e0 = 0.206, nu0 = 0",
-                       MERCURY["a0"], MERCURY["e0"], MERCURY["nu0"], out)
+    return _eps_figure("fig4", "Fig. 4: relative error $\\epsilon$ (Eq. 27) over the angle "
+                       "CVODES covers in 5 years,\na0 = 0.308 au (as printed), e0 = 0.206, "
+                       "nu0 = 0", MERCURY["a0"], MERCURY["e0"], MERCURY["nu0"], out)
 
 
 FIGURES = {"fig2": fig2, "fig3": fig3, "fig4": fig4}
@@ -228,42 +271,37 @@ def _raising_json(figure, curves, series):
     return data
 
 
-def _raising_axes(rows, ylabels, title):
-    """Stacked panels against time in days."""
-    import matplotlib
+def raising_panels(data, keys, ylabels, title, axes=None):
+    """Stacked panels of ``data``'s curves against time in days (Figs. 5-6).
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(rows, 1, figsize=(7, 2.4 * rows + 0.6), sharex=True,
-                             layout="constrained")
-    for ax, label in zip(np.atleast_1d(axes), ylabels):
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    np.atleast_1d(axes)[-1].set_xlabel("time [days]")
-    fig.suptitle(title, fontsize=9)
-    return fig, np.atleast_1d(axes)
-
-
-def _plot_series(axes, data, keys):
-    """The three curves in each panel, and the rectification points as squares."""
+    Each panel holds the three curves of ``keys[k]`` and the rectification points
+    (squares).  ``axes``, if given, holds one Axes per key.  Returns the figure.
+    """
+    fig, axes = axes_or_new(axes, len(keys), 1, figsize=(7, 2.4 * len(keys) + 0.6),
+                            sharex=True, squeeze=False)
+    axes = np.ravel(axes)
     for curve in CURVE_NAMES:
         color, style = _STYLES[curve]
         for ax, key in zip(axes, keys):
             ax.plot(data[curve]["t_days"], data[curve][key], color=color, ls=style, lw=1.1,
                     label=CURVE_NAMES[curve])
-    for ax, key in zip(axes, keys):
+    for ax, key, label in zip(axes, keys, ylabels):
         ax.plot(data["rectification_points"]["t_days"], data["rectification_points"][key],
                 "s", mfc="none", mec="tab:red", ms=4)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("time [days]")
     axes[0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=9)
+    return fig
 
 
-def _write(out, name, data, fig):
-    """Write ``<out>/<name>.json`` and ``.png`` atomically; return both paths."""
-    out = Path(out)
-    write_json(out / f"{name}.json", data)
-    save_figure(fig, out / f"{name}.png")
-    return [out / f"{name}.json", out / f"{name}.png"]
+def states_figure(data, axes=None):
+    """Fig. 5 from its JSON data: r, v_r and v_theta against time."""
+    return raising_panels(data, ["r_au", "vr_km_s", "vtheta_km_s"],
+                          ["r [au]", r"$v_r$ [km/s]", r"$v_\theta$ [km/s]"],
+                          "Fig. 5: " + _RAISING_TITLE + "\nclosed form: 19 rectifications "
+                          "(20 arcs, squares)", axes)
 
 
 def fig5(out):
@@ -273,14 +311,9 @@ def fig5(out):
         return {"r_au": xs[0].tolist(), "vr_km_s": units.speed_to_km_s(xs[2]).tolist(),
                 "vtheta_km_s": units.speed_to_km_s(xs[3]).tolist()}
 
-    curves = raising_curves()
     data = _raising_json("Fig. 5: " + _RAISING_TEXT + "; closed form with 19 "
-                         "rectifications (20 arcs)", curves, series)
-    fig, axes = _raising_axes(3, ["r [au]", r"$v_r$ [km/s]", r"$v_\theta$ [km/s]"],
-                              "Fig. 5: " + _RAISING_TITLE + "\nclosed form: 19 rectifications "
-                              "(20 arcs, squares)")
-    _plot_series(axes, data, ["r_au", "vr_km_s", "vtheta_km_s"])
-    return _write(out, "fig5", data, fig)
+                         "rectifications (20 arcs)", raising_curves(), series)
+    return _write(out, "fig5", data, states_figure(data))
 
 
 def osculating(xs):
@@ -298,35 +331,28 @@ def osculating(xs):
             "h_au2_day": (h / units.TU_DAYS).tolist()}
 
 
+def elements_figure(data, axes=None):
+    """Fig. 6 from its JSON data: osculating a, e, omega and h against time."""
+    return raising_panels(data, ["a_au", "e", "omega_deg", "h_au2_day"],
+                          ["a [au]", "e", r"$\omega$ [deg]", r"h [au$^2$/day]"],
+                          "Fig. 6: osculating elements, " + _RAISING_TITLE
+                          + "\nclosed form: 19 rectifications (20 arcs, squares)", axes)
+
+
 def fig6(out):
     """Fig. 6: osculating a, e, omega and h against time, the three models."""
-    curves = raising_curves()
     data = _raising_json("Fig. 6: osculating elements, " + _RAISING_TEXT
-                         + "; closed form with 19 rectifications (20 arcs)", curves, osculating)
+                         + "; closed form with 19 rectifications (20 arcs)", raising_curves(),
+                         osculating)
     data["note"] = ("omega is measured from the departure radius (the parking orbit has no "
                     "apse line); it is unwrapped, and meaningless while e is near 0")
-    fig, axes = _raising_axes(4, ["a [au]", "e", r"$\omega$ [deg]", r"h [au$^2$/day]"],
-                              "Fig. 6: osculating elements, " + _RAISING_TITLE
-                              + "\nclosed form: 19 rectifications (20 arcs, squares)")
-    _plot_series(axes, data, ["a_au", "e", "omega_deg", "h_au2_day"])
-    return _write(out, "fig6", data, fig)
+    return _write(out, "fig6", data, elements_figure(data))
 
 
-def fig7(out):
-    """Fig. 7: the polar trajectory with the rectification points (squares)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    def series(xs):
-        return {"x_au": (xs[0] * np.cos(xs[1])).tolist(), "y_au": (xs[0] * np.sin(xs[1])).tolist(),
-                "r_au": xs[0].tolist(), "theta_deg": np.degrees(xs[1]).tolist()}
-
-    curves = raising_curves()
-    data = _raising_json("Fig. 7: trajectory, " + _RAISING_TEXT
-                         + "; closed form with 19 rectifications (20 arcs)", curves, series)
-    fig, ax = plt.subplots(figsize=(6.5, 6.5), layout="constrained")
+def raising_trajectory_figure(data, ax=None):
+    """Fig. 7 from its JSON data: the three trajectories in the plane, and the
+    rectification points (squares)."""
+    fig, ax = axes_or_new(ax, figsize=(6.5, 6.5))
     for curve in CURVE_NAMES:
         color, style = _STYLES[curve]
         ax.plot(data[curve]["x_au"], data[curve]["y_au"], color=color, ls=style, lw=1,
@@ -341,7 +367,20 @@ def fig7(out):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower left")
     ax.set_title("Fig. 7: " + _RAISING_TITLE, fontsize=9)
-    return _write(out, "fig7", data, fig)
+    return fig
+
+
+def fig7(out):
+    """Fig. 7: the polar trajectory with the rectification points (squares)."""
+
+    def series(xs):
+        return {"x_au": (xs[0] * np.cos(xs[1])).tolist(), "y_au": (xs[0] * np.sin(xs[1])).tolist(),
+                "r_au": xs[0].tolist(), "theta_deg": np.degrees(xs[1]).tolist()}
+
+    data = _raising_json("Fig. 7: trajectory, " + _RAISING_TEXT
+                         + "; closed form with 19 rectifications (20 arcs)", raising_curves(),
+                         series)
+    return _write(out, "fig7", data, raising_trajectory_figure(data))
 
 
 #: Arc counts of the convergence study; each doubles the last.
@@ -366,8 +405,8 @@ def convergence_errors(arcs=CONVERGENCE_ARCS):
 
     * equal durations (10 years / N, lengths in time): the final time is exact by
       construction, and the errors in r and theta are taken at 10 years;
-    * equal angles (lengths in theta), the total being the angle CVODES sweeps in
-      10 years: theta is exact by construction, and the time-of-flight error is
+    * equal angles (lengths in theta), the total being the angle swept by CVODES
+      in 10 years: theta is exact by construction, and the time-of-flight error is
       the closed form's time at that angle minus 10 years (r there is kept too).
 
     Each also with Richardson extrapolation from N and 2N arcs (cost 3N arcs).
@@ -377,12 +416,12 @@ def convergence_errors(arcs=CONVERGENCE_ARCS):
 
     x0, alpha, ac, horizon = _raising_inputs()
     truth = simulate(x0, [alpha], [horizon], ac)[:, -1]
-    sweep = truth[1] - x0[1]
+    span = truth[1] - x0[1]
     rows = {key: [] for key in ("plain", "richardson")}
     for n in arcs:
         for key, run in (("plain", propagate), ("richardson", propagate_extrapolated)):
             timed, q3_t = run(x0, [alpha] * n, [horizon / n] * n, ac, length_in="time")
-            angled, q3_a = run(x0, [alpha] * n, [sweep / n] * n, ac, length_in="theta")
+            angled, q3_a = run(x0, [alpha] * n, [span / n] * n, ac, length_in="theta")
             if min(q3_t.min(), q3_a.min()) <= 0:
                 raise RuntimeError(f"{n} arcs: an arc went past theta_max")
             rows[key].append({
@@ -396,79 +435,82 @@ def convergence_errors(arcs=CONVERGENCE_ARCS):
     return truth, rows
 
 
-def convergence(out):
-    """Final errors after 10 years against the number of rectification arcs, log-log."""
-    import matplotlib
+#: The study's error columns: the field in ``convergence_errors``'s rows, the JSON name.
+_ERROR_COLUMNS = {"r": "err_r_au", "theta": "err_theta_deg", "tof": "err_tof_days",
+                  "r_same_theta": "err_r_same_theta_au"}
+#: The errors whose convergence order is fitted and plotted.
+_RATED = ("err_r_au", "err_theta_deg", "err_tof_days")
+_CONVERGENCE_DEFINITIONS = {
+    "err_r_au": "|r - r_cvodes| at 10 years, N arcs of equal duration (10 years / N)",
+    "err_theta_deg": "|theta - theta_cvodes| at 10 years, the same equal-duration arcs",
+    "err_tof_days": "|t - 10 years| where the closed form reaches the angle swept by CVODES "
+                    "in 10 years, N arcs of equal angle (with equal durations the time of "
+                    "flight is exact by construction)",
+    "err_r_same_theta_au": "|r - r_cvodes| at that same angle, equal-angle arcs",
+    "richardson": "2 x(2N arcs) - x(N arcs) at the end; cost 3N arcs evaluated",
+    "slope": f"least-squares slope of log(error) vs log(arcs) for arcs >= {FIT_FROM_ARCS}",
+}
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    truth, rows = convergence_errors()
-    arcs = np.array(CONVERGENCE_ARCS)
+def _convergence_rates(data, arcs):
+    """The fitted slopes, the 640-over-20 ratios and the equal-cost comparison."""
+    arcs = list(arcs)
+    i20, i640 = arcs.index(20), arcs.index(640)
+    richardson = data["richardson"]
+    return {
+        "slope": {key: {"plain": _slope(arcs, data[key]),
+                        "richardson": _slope(arcs, richardson[key])} for key in _RATED},
+        "err_640_over_err_20": {key: data[key][i640] / data[key][i20] for key in _RATED},
+        # Equal cost: Richardson from N and 2N (3N arcs) against plain with the arc count
+        # on the grid nearest above 3N (4N), which favours the plain scheme.
+        "equal_cost": {
+            "note": "Richardson at cost 3N against plain at 4N arcs (the next grid point above)",
+            "richardson_arcs_cost": [3 * n for n in arcs[:-2]],
+            "plain_arcs": [4 * n for n in arcs[:-2]],
+            "err_r_au_ratio_plain_over_richardson": [
+                data["err_r_au"][i + 2] / richardson["err_r_au"][i] for i in range(len(arcs) - 2)
+            ],
+        },
+    }
 
-    def column(key, name):
-        return [row[name] for row in rows[key]]
 
+def _convergence_json(truth, rows, arcs):
+    """The study's JSON: the case, the CVODES truth, the errors of both schemes, the rates."""
+
+    def columns(scheme):
+        return {name: [row[field] for row in rows[scheme]]
+                for field, name in _ERROR_COLUMNS.items()}
+
+    arcs = [int(n) for n in arcs]
     data = {
         "figure": "Convergence of the rectified closed form with the number of arcs: "
                   + _RAISING_TEXT,
         "case": dict(RAISING, b1=EXACT[0], b2=EXACT[1]),
         "truth_cvodes": {"r_au": float(truth[0]), "theta_deg": float(np.degrees(truth[1])),
                          "tof_days": float(units.time_to_days(truth[4]))},
-        "definitions": {
-            "err_r_au": "|r - r_cvodes| at 10 years, N arcs of equal duration (10 years / N)",
-            "err_theta_deg": "|theta - theta_cvodes| at 10 years, the same equal-duration arcs",
-            "err_tof_days": "|t - 10 years| where the closed form reaches the angle CVODES "
-                            "sweeps in 10 years, N arcs of equal angle (with equal durations "
-                            "the time of flight is exact by construction)",
-            "err_r_same_theta_au": "|r - r_cvodes| at that same angle, equal-angle arcs",
-            "richardson": "2 x(2N arcs) - x(N arcs) at the end; cost 3N arcs evaluated",
-            "slope": f"least-squares slope of log(error) vs log(arcs) for arcs >= {FIT_FROM_ARCS}",
-        },
-        "arcs": arcs.tolist(),
-        "err_r_au": column("plain", "r"),
-        "err_theta_deg": column("plain", "theta"),
-        "err_tof_days": column("plain", "tof"),
-        "err_r_same_theta_au": column("plain", "r_same_theta"),
-        "richardson": {
-            "arcs": arcs.tolist(),
-            "cost_arcs": (3 * arcs).tolist(),
-            "err_r_au": column("richardson", "r"),
-            "err_theta_deg": column("richardson", "theta"),
-            "err_tof_days": column("richardson", "tof"),
-            "err_r_same_theta_au": column("richardson", "r_same_theta"),
-        },
+        "definitions": _CONVERGENCE_DEFINITIONS,
+        "arcs": arcs,
+        **columns("plain"),
+        "richardson": {"arcs": arcs, "cost_arcs": [3 * n for n in arcs], **columns("richardson")},
     }
-    slopes = {}
-    for key in ("err_r_au", "err_theta_deg", "err_tof_days"):
-        slopes[key] = {"plain": _slope(arcs, data[key]),
-                       "richardson": _slope(arcs, data["richardson"][key])}
-    data["slope"] = slopes
-    data["err_640_over_err_20"] = {
-        key: data[key][CONVERGENCE_ARCS.index(640)] / data[key][CONVERGENCE_ARCS.index(20)]
-        for key in ("err_r_au", "err_theta_deg", "err_tof_days")
-    }
-    # Equal cost: Richardson from N and 2N (3N arcs) against plain with the arc count
-    # on the grid nearest above 3N (4N), which favours the plain scheme.
-    data["equal_cost"] = {
-        "note": "Richardson at cost 3N against plain at 4N arcs (the next grid point above)",
-        "richardson_arcs_cost": (3 * arcs[:-2]).tolist(),
-        "plain_arcs": (4 * arcs[:-2]).tolist(),
-        "err_r_au_ratio_plain_over_richardson": [
-            data["err_r_au"][i + 2] / data["richardson"]["err_r_au"][i]
-            for i in range(arcs.size - 2)
-        ],
-    }
-    fig, axes = plt.subplots(1, 3, figsize=(12, 4), layout="constrained")
+    data.update(_convergence_rates(data, arcs))
+    return data
+
+
+def convergence_figure(data, axes=None):
+    """The convergence study from its JSON data: three log-log panels (r, theta, time of
+    flight) of the plain and Richardson errors against the arcs evaluated."""
+    fig, axes = axes_or_new(axes, 1, 3, figsize=(12, 4))
+    arcs = np.asarray(data["arcs"], float)
     labels = {"err_r_au": "final |dr| [au]", "err_theta_deg": r"final |d$\theta$| [deg]",
               "err_tof_days": "time-of-flight error [days]"}
-    for ax, key in zip(axes, labels):
+    for ax, key in zip(np.ravel(axes), _RATED):
+        slope = data["slope"][key]
         ax.loglog(arcs, data[key], "o-", color="tab:red",
-                  label=f"plain (slope {slopes[key]['plain']:.2f})")
-        ax.loglog(3 * arcs, data["richardson"][key], "s--", color="tab:green",
-                  label=f"Richardson, N & 2N (slope {slopes[key]['richardson']:.2f})")
-        guide = data[key][-1] * arcs[-1] / arcs
-        ax.loglog(arcs, guide, ":", color="0.5", label="1/N")
+                  label=f"plain (slope {slope['plain']:.2f})")
+        ax.loglog(data["richardson"]["cost_arcs"], data["richardson"][key], "s--",
+                  color="tab:green", label=f"Richardson, N & 2N (slope {slope['richardson']:.2f})")
+        ax.loglog(arcs, data[key][-1] * arcs[-1] / arcs, ":", color="0.5", label="1/N")
         ax.set_xlabel("arcs evaluated (plain: N; Richardson: 3N)")
         ax.set_ylabel(labels[key])
         ax.grid(alpha=0.3, which="both")
@@ -476,7 +518,14 @@ def convergence(out):
     fig.suptitle("Rectified closed form vs CVODES after 10 years: " + _RAISING_TITLE
                  + "\n(r, theta: arcs of equal duration; time of flight: arcs of equal angle)",
                  fontsize=9)
-    return _write(out, "convergence", data, fig)
+    return fig
+
+
+def convergence(out):
+    """Final errors after 10 years against the number of rectification arcs, log-log."""
+    truth, rows = convergence_errors()
+    data = _convergence_json(truth, rows, CONVERGENCE_ARCS)
+    return _write(out, "convergence", data, convergence_figure(data))
 
 
 FIGURES.update({"fig5": fig5, "fig6": fig6, "fig7": fig7, "convergence": convergence})
