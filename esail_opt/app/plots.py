@@ -42,7 +42,9 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
         ``axes`` as given, or the new ones as ``Figure.subplots`` returns them.
     """
     if axes is not None:
-        return np.ravel(axes)[0].get_figure(root=True), axes
+        # An Axes' figure may be a SubFigure, whose .figure is the top-level Figure (a
+        # Figure's is itself); Artist.get_figure(root=True) would need matplotlib 3.10.
+        return np.ravel(axes)[0].figure.figure, axes
     fig = Figure(figsize=figsize, layout="constrained")
     return fig, fig.subplots(nrows, ncols, **subplots)
 
