@@ -157,9 +157,9 @@ def _stretched(problem, guess, total):
 def window_starts(problem, classes):
     """Starts of an orbit transfer's revolution windows ``classes`` (whole turns k).
 
-    Each window is seeded by the constant-pitch seed whose sweep lies in it (the pitch
+    Each window is seeded by the constant-pitch seed whose final angle lies in it (the pitch
     nearest the problem's own seed pitch, if several do); a window no seed reaches
-    takes the seed whose sweep is nearest, stretched to the window's middle, if that
+    takes the seed whose final angle is nearest, stretched to the window's middle, if that
     flight stays valid, and is otherwise skipped.
     """
     theta0 = float(problem.x0()[1])

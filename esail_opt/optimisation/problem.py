@@ -205,7 +205,7 @@ class Segments:
         times the arcs (see ``transcription.closed_form_segment``).
     per_revolution : int or None
         Segments per revolution K, >= 1, instead of a total: N is then
-        ceil(K sweep / 2 pi), with ``sweep`` the angle the constant-pitch seeding
+        ceil(K angle / 2 pi), with ``angle`` the one the constant-pitch seeding
         propagation flies to the target radius or the fixed time of flight
         (``transcription.initial_guess``).  For multi-revolution spirals, whose number
         of turns is not known before that propagation.  Exclusive with ``count``.
@@ -230,13 +230,13 @@ class Segments:
                                  f"= {self.per_revolution!r}: give one of them, not both")
         _check_finite_positive_int("segments.sub_arcs", self.sub_arcs)
 
-    def count_for(self, sweep):
-        """Number of segments for a seeding sweep of ``sweep`` rad: ``count`` if fixed,
-        else ceil(per_revolution * sweep / 2 pi), at least 1."""
+    def count_for(self, angle):
+        """Number of segments for a seed that flies ``angle`` rad: ``count`` if fixed,
+        else ceil(per_revolution * angle / 2 pi), at least 1."""
         if self.per_revolution is None:
             return self.count
         # The tiny tolerance keeps an exact whole number of turns from rounding up.
-        return max(1, math.ceil(self.per_revolution * sweep / (2 * math.pi) - 1e-9))
+        return max(1, math.ceil(self.per_revolution * angle / (2 * math.pi) - 1e-9))
 
 
 # ---------------------------------------------------------------- path and problem
