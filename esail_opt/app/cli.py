@@ -88,7 +88,9 @@ def _figures():
 
 
 def _run_reproduce(args):
-    written = _figures()[args.figure](args.out)
+    progress = progress_printer("reproduce")
+    written = _figures()[args.figure](args.out, progress)
+    progress.done()
     for path in written:
         print(f"wrote {path}")
     return 0
@@ -294,7 +296,7 @@ def _run_sweep(args):
     result = sweep.run(args.problem_file, args.param, workers=args.workers,
                        scheduler=args.scheduler, polish=args.polish, out_dir=out,
                        resume=args.resume, tol_km=args.tol_km, tol_m_s=args.tol_m_s,
-                       progress=lambda row, done, total: sweep.progress_line(row, done, total, name))
+                       progress=lambda row, done, total: _sweep_line(row, done, total, name))
     for path in sweep.write(result, out):
         print(f"wrote {path}")
     resumed = f", {len(result['resumed'])} kept from the journal" if result["resumed"] else ""
@@ -314,6 +316,22 @@ def build_parser():
     _add_search(sub)
     _add_sweep(sub)
     return parser
+
+
+def _sweep_line(row, done, total, name):
+    """One line on stderr per finished member of a sweep."""
+    if row["error"] is None:
+        what = f"converged, tof {row['tof_days']:.3f} d"
+        if row.get("verified"):
+            what += ", verified"
+        if row.get("tof_days_exact") is not None:
+            what += (f", exact {row['tof_days_exact']:.3f} d "
+                     f"({'verified' if row['exact_verified'] else 'NOT verified'})")
+    else:
+        what = f"FAILED ({row['error']})"
+    seconds = f" in {row['seconds']:.1f} s" if row["seconds"] is not None else ""
+    print(f"esail-opt sweep: [{done}/{total}] {name} = {row['value']:g}: {what}{seconds}",
+          file=sys.stderr, flush=True)
 
 
 def main(argv=None):

@@ -2,11 +2,12 @@
 
 Each figure is computed into its JSON data, then drawn from that data alone by a
 figure function (``*_figure(data, ax=None)``, or ``axes=`` for several panels) that
-draws into the caller's axes or, given none, into a Figure of its own.
+draws into the caller's axes or, given none, into a Figure of its own.  ``FIGURES``
+maps a name to ``fn(out, progress=None)``, which writes both files and returns their
+paths; ``progress(text)``, if given, hears how far a long figure has got.
 """
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -90,7 +91,7 @@ def eps_figure(data, ax=None):
     return grid_figure(data, "eps", r"$\epsilon$ [%]", data["figure"], scale=100.0, ax=ax)
 
 
-def fig2(out):
+def fig2(out, progress=None):
     """Fig. 2: theta_max = 1 / (T a~_c) for the circular parking orbit at r0 = 1 au.
 
     Where T <= 0, q3 never falls and there is no theta_max: such cells are null in
@@ -118,7 +119,7 @@ def fig2(out):
     return _write(out, "fig2", data, theta_max_figure(data))
 
 
-def eps_map(a0, e0, nu0, label):
+def eps_map(a0, e0, nu0, label, progress=None):
     """Eq. 27 over the grid: the closed form against CVODES over CVODES's swept angle.
 
     Returns
@@ -136,13 +137,14 @@ def eps_map(a0, e0, nu0, label):
             except InputError as err:
                 raise RuntimeError(f"{label}: at alpha = {alpha:g} deg, a_c = {ac:g} "
                                    f"mm/s^2: {err}") from None
-        print(f"{label}: {(i + 1) * AC_MM_S2.size}/{eps.size} cases, max eps so far "
-              f"{100 * eps[: i + 1].max():.2f} %", file=sys.stderr, flush=True)
+        if progress is not None:
+            progress(f"{label}: {(i + 1) * AC_MM_S2.size}/{eps.size} cases, max eps so far "
+                     f"{100 * eps[: i + 1].max():.2f} %")
     return eps, swept
 
 
-def _eps_figure(name, title, a0, e0, nu0, out):
-    eps, swept = eps_map(a0, e0, nu0, name)
+def _eps_figure(name, title, a0, e0, nu0, out, progress):
+    eps, swept = eps_map(a0, e0, nu0, name, progress)
     data = {
         "figure": title,
         "a0_au": a0, "e0": e0, "nu0_deg": nu0, "years": YEARS,
@@ -159,17 +161,18 @@ def _eps_figure(name, title, a0, e0, nu0, out):
     return _write(out, name, data, eps_figure(data))
 
 
-def fig3(out):
+def fig3(out, progress=None):
     """Fig. 3: eps over 5 years from the circular orbit at 1 au."""
     return _eps_figure("fig3", "Fig. 3: relative error $\\epsilon$ (Eq. 27) over the angle "
-                       "CVODES covers in 5 years, circular orbit at 1 au", 1.0, 0.0, 0.0, out)
+                       "CVODES covers in 5 years, circular orbit at 1 au", 1.0, 0.0, 0.0, out,
+                       progress)
 
 
-def fig4(out):
+def fig4(out, progress=None):
     """Fig. 4: eps over 5 years from the Mercury case as printed (a0 = 0.308 au)."""
     return _eps_figure("fig4", "Fig. 4: relative error $\\epsilon$ (Eq. 27) over the angle "
                        "CVODES covers in 5 years,\na0 = 0.308 au (as printed), e0 = 0.206, "
-                       "nu0 = 0", MERCURY["a0"], MERCURY["e0"], MERCURY["nu0"], out)
+                       "nu0 = 0", MERCURY["a0"], MERCURY["e0"], MERCURY["nu0"], out, progress)
 
 
 FIGURES = {"fig2": fig2, "fig3": fig3, "fig4": fig4}
@@ -304,7 +307,7 @@ def states_figure(data, axes=None):
                           "(20 arcs, squares)", axes)
 
 
-def fig5(out):
+def fig5(out, progress=None):
     """Fig. 5: r, v_r and v_theta against time, the three models."""
 
     def series(xs):
@@ -339,7 +342,7 @@ def elements_figure(data, axes=None):
                           + "\nclosed form: 19 rectifications (20 arcs, squares)", axes)
 
 
-def fig6(out):
+def fig6(out, progress=None):
     """Fig. 6: osculating a, e, omega and h against time, the three models."""
     data = _raising_json("Fig. 6: osculating elements, " + _RAISING_TEXT
                          + "; closed form with 19 rectifications (20 arcs)", raising_curves(),
@@ -370,7 +373,7 @@ def raising_trajectory_figure(data, ax=None):
     return fig
 
 
-def fig7(out):
+def fig7(out, progress=None):
     """Fig. 7: the polar trajectory with the rectification points (squares)."""
 
     def series(xs):
@@ -398,7 +401,7 @@ def _slope(arcs, errors, start=FIT_FROM_ARCS):
     return float(np.polyfit(np.log(arcs[keep]), np.log(errors[keep]), 1)[0])
 
 
-def convergence_errors(arcs=CONVERGENCE_ARCS):
+def convergence_errors(arcs=CONVERGENCE_ARCS, progress=None):
     """Final errors of the rectified closed form against CVODES after 10 years.
 
     Two schedules of N equal arcs, so that each error is measured where it exists:
@@ -430,8 +433,9 @@ def convergence_errors(arcs=CONVERGENCE_ARCS):
                 "tof": abs(units.time_to_days(angled[4, -1] - truth[4])),
                 "r_same_theta": abs(angled[0, -1] - truth[0]),
             })
-        print(f"convergence: {n} arcs, |dr| = {rows['plain'][-1]['r']:.3e} au plain, "
-              f"{rows['richardson'][-1]['r']:.3e} au Richardson", file=sys.stderr, flush=True)
+        if progress is not None:
+            progress(f"convergence: {n} arcs, |dr| = {rows['plain'][-1]['r']:.3e} au plain, "
+                     f"{rows['richardson'][-1]['r']:.3e} au Richardson")
     return truth, rows
 
 
@@ -521,9 +525,9 @@ def convergence_figure(data, axes=None):
     return fig
 
 
-def convergence(out):
+def convergence(out, progress=None):
     """Final errors after 10 years against the number of rectification arcs, log-log."""
-    truth, rows = convergence_errors()
+    truth, rows = convergence_errors(progress=progress)
     data = _convergence_json(truth, rows, CONVERGENCE_ARCS)
     return _write(out, "convergence", data, convergence_figure(data))
 

@@ -30,7 +30,6 @@ import io
 import json
 import math
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -711,19 +710,3 @@ def write(result, out_dir):
     write_json(paths[1], json_ready(result))
     save_figure(figure(result), paths[2])
     return paths
-
-
-def progress_line(row, done, total, name, stream=None):
-    """One line per finished member, for the command line (default on stderr)."""
-    if row["error"] is None:
-        what = f"converged, tof {row['tof_days']:.3f} d"
-        if row.get("verified"):
-            what += ", verified"
-        if row.get("tof_days_exact") is not None:
-            what += (f", exact {row['tof_days_exact']:.3f} d "
-                     f"({'verified' if row['exact_verified'] else 'NOT verified'})")
-    else:
-        what = f"FAILED ({row['error']})"
-    seconds = f" in {row['seconds']:.1f} s" if row["seconds"] is not None else ""
-    print(f"esail-opt sweep: [{done}/{total}] {name} = {row['value']:g}: {what}{seconds}",
-          file=stream or sys.stderr, flush=True)
