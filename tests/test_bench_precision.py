@@ -7,7 +7,7 @@ import pytest
 
 from esail_opt.bench.precision import (
     at_miss, draw_precision, envelope, precision_figure, seconds_at_miss)
-from esail_opt.bench.rk4 import rk4_segment
+from esail_opt.propagation.rk4 import rk4_segment
 from esail_opt.physics import constants as units
 from esail_opt.propagation.simulate import simulate
 

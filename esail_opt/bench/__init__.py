@@ -8,7 +8,7 @@ Each is the ``run`` of its own module:
   ``sweep``: each timed against a baseline measured in the same run (:mod:`.timing`
   holds what they share);
 * ``precision``: solve time against verified accuracy for the closed form, RK4
-  (:mod:`.rk4`) and CVODES segments.
+  (``propagation.rk4``) and CVODES segments.
 
 Their problems are built in :mod:`.cases`; :mod:`.collocation` is the independent
 collocation solver that ``lowthrust`` times and the tests' reference optima came from.

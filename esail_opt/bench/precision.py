@@ -15,7 +15,7 @@ The methods (a list of :class:`Method`; another entry is one more line in a case
 * ``closed_form``: the package's closed-form multiple shooting (Richardson-extrapolated
   rectified arcs) at several segment counts and sub-arc counts;
 * ``rk4``: the same NLP with each segment integrated by classic RK4 in theta
-  (``bench.rk4.rk4_segment``) at several segment counts and steps per segment;
+  (``propagation.rk4.rk4_segment``) at several segment counts and steps per segment;
 * ``cvodes``: the same NLP with each segment one CVODES integration at 1e-12
   (``transcription.cvodes_segment``), at one or two segment counts (it is slow).
 
@@ -132,7 +132,7 @@ def rk4(segments=None, steps=1, per_revolution=None):
     """The same NLP with RK4 segments of ``steps`` steps each."""
 
     def solve(problem):
-        from esail_opt.bench.rk4 import rk4_segment
+        from esail_opt.propagation.rk4 import rk4_segment
         from esail_opt.optimisation.ipopt import solve_problem
 
         variant = _with_count(problem, segments, per_revolution)

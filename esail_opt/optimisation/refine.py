@@ -34,7 +34,6 @@ not at all (60 x 1 sub-arc without Richardson: 7 rounds to reach 705 km).
 """
 
 import dataclasses
-import functools
 import math
 import time
 from dataclasses import dataclass
@@ -46,8 +45,7 @@ from esail_opt.optimisation.goals import state_miss
 from esail_opt.optimisation.transcription import closed_form_segment, strain, transcribe
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
-from esail_opt.propagation.simulate import (
-    VERIFY_TOLERANCE, SimulationError, quiet_stderr, segment_integrator)
+from esail_opt.propagation.simulate import VERIFY_TOLERANCE, SimulationError, fly_segments
 
 #: Rounds of defect correction after the first solve.
 MAX_ROUNDS = 8
@@ -83,39 +81,31 @@ class Refinement:
     local_error_km: np.ndarray
 
 
-@functools.lru_cache(maxsize=None)
-def _exact_segments(n, coefficients):
-    """N exact segments in theta, each from its own start: (starts[5 x N], ac[1 x N],
-    alpha[1 x N], dtheta[1 x N]) -> ends[5 x N]."""
-    seg = segment_integrator(1, "theta", coefficients, VERIFY_TOLERANCE)
-    return seg.map(n)
-
-
 def start_nodes(result):
     """Each segment's start state [5 x N] with time: the departure, then the nodes."""
     return np.column_stack([np.r_[result.x_start, 0.0], result.nodes[:, :-1]])
 
 
-def segment_ends(problem, result):
-    """(exact, closed form) ends [5 x N] of every segment flown from its own start node.
+def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TOLERANCE):
+    """(exact, model) ends [5 x N] of every segment flown from its own start node: by
+    CVODES on Eqs. 1-2 at ``tol``, and by the NLP's ``segment`` (default the problem's
+    closed-form segment), whose lengths are angles or, ``length_in="time"``, durations.
+    Their difference is each segment's defect.
 
     Raises
     ------
     SimulationError
         If CVODES cannot fly a segment (an escaping arc).
     """
-    n = result.alpha.size
-    seg = problem.segments
+    if segment is None:
+        seg = problem.segments
+        segment = closed_form_segment(seg.sub_arcs, problem.sail.coefficients, seg.extrapolate)
+    lengths = result.lengths if length_in == "theta" else result.durations
     args = (start_nodes(result), problem.sail.ac * result.throttle[None, :],
-            result.alpha[None, :], result.lengths[None, :])
-    closed = closed_form_segment(seg.sub_arcs, problem.sail.coefficients, seg.extrapolate)
-    plain = np.array(closed.map(n)(*args)[0])
-    try:
-        with quiet_stderr():
-            exact = np.array(_exact_segments(n, problem.sail.coefficients)(*args))
-    except RuntimeError as err:
-        raise SimulationError(str(err).strip().splitlines()[-1]) from None
-    return exact, plain
+            result.alpha[None, :], lengths[None, :])
+    model = np.array(segment.map(result.alpha.size)(*args)[0])
+    exact = fly_segments(*args, length_in, problem.sail.coefficients, tol)
+    return exact, model
 
 
 def _row(rnd, problem, result, check, local_km, seconds):

@@ -95,6 +95,34 @@ def schedule_function(segments, samples, length_in="time", coefficients=EXACT, t
     return ca.Function("schedule", [x0, ac, alpha, length], [blocks])
 
 
+@functools.lru_cache(maxsize=None)
+def _segments_function(segments, length_in, coefficients, tol):
+    return segment_integrator(1, length_in, coefficients, tol).map(segments)
+
+
+def fly_segments(starts, ac, alphas, lengths, length_in="time", coefficients=EXACT,
+                 tol=TOLERANCE):
+    """Every segment flown on Eqs. 1-2 from its own start, not chained.
+
+    ``starts`` is [5 x N] (canonical, with t), ``ac`` per segment (times the throttle),
+    ``alphas`` and ``lengths`` per segment.  Returns the ends [5 x N]; a defect
+    correction compares them with a cheaper model's ends from the same starts.
+
+    Raises
+    ------
+    SimulationError
+        If CVODES cannot fly a segment (an escaping arc).
+    """
+    n = np.shape(starts)[1]
+    fun = _segments_function(n, length_in, coefficients, tol)
+    try:
+        with quiet_stderr():
+            return np.array(fun(starts, np.reshape(ac, (1, -1)), np.reshape(alphas, (1, -1)),
+                                np.reshape(lengths, (1, -1))))
+    except RuntimeError as err:
+        raise SimulationError(str(err).strip().splitlines()[-1]) from None
+
+
 def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time",
              coefficients=EXACT, tol=TOLERANCE):
     """Fly Eqs. 1-2 from ``x0`` under a piecewise-constant pitch schedule.

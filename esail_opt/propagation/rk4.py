@@ -1,0 +1,71 @@
+"""A fixed-step Runge-Kutta segment of Eqs. 1-2, expanded into one SX graph.
+
+Two users need it.  The exact polish (``optimisation.exact``) transcribes Eqs. 1-2 with
+it and removes its truncation error by defect correction against CVODES, which is far
+cheaper per Ipopt iteration than differentiating CVODES itself.  The precision benchmark
+(``esail_opt.bench.precision``) uses it as the baseline a generic optimal-control tool
+gives: the classic RK4 at a fixed number of steps per shooting segment.  Either way it
+has the signature of ``transcription.closed_form_segment``, so the same multiple-shooting
+NLP takes it.
+"""
+
+import casadi as ca
+
+from esail_opt.physics.dynamics import rhs, rhs_in_theta
+from esail_opt.physics.thrust import EXACT, radial_transverse
+
+
+def rk4_segment(steps, coefficients=EXACT, length_in="theta"):
+    """One constant-pitch segment of Eqs. 1-2 by ``steps`` equal classic RK4 steps.
+
+    Parameters
+    ----------
+    steps : int
+        RK4 steps over the segment, >= 1.  The global error falls like steps^-4.
+    coefficients : tuple of float
+        (b1, b2) of Eqs. 3-4.
+    length_in : {"theta", "time"}
+        The independent variable and what the segment's length is: its angle (rad), with
+        time carried as the fifth state through dt/dtheta = r / v_theta
+        (``dynamics.rhs_in_theta``), or its duration (TU), with t advancing by it.
+
+    Returns
+    -------
+    casadi.Function
+        ``(x0[5], ac, alpha, length) -> (x1[5], q3[0])``, SX and expanded:
+        x = [r, theta, v_r, v_theta, t] canonical, ac the characteristic acceleration
+        (times the throttle), alpha the pitch in rad.  An integrator of the exact
+        equations has no first-order validity margin, so q3 is empty and
+        ``transcription.transcribe`` adds no q3 rows for it.
+    """
+    if int(steps) != steps or steps < 1:
+        raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
+    if length_in not in ("theta", "time"):
+        raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
+    steps = int(steps)
+    x = ca.SX.sym("x", 5)
+    ac, alpha, h = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("h")
+    R, T = radial_transverse(alpha, coefficients)
+
+    def f(y):
+        # The right-hand side depends on neither t nor theta, only on r, v_r, v_theta.
+        if length_in == "theta":
+            return rhs_in_theta(y[:4], ac, R, T)
+        return ca.vertcat(rhs(y[:4], ac, R, T), 1)
+
+    k1 = f(x)
+    k2 = f(x + h / 2 * k1)
+    k3 = f(x + h / 2 * k2)
+    k4 = f(x + h * k3)
+    step = ca.Function("rk4_step", [x, ac, alpha, h],
+                       [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+
+    x0 = ca.SX.sym("x0", 5)
+    ac, alpha, length = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("length")
+    x1 = x0
+    for _ in range(steps):
+        x1 = step(x1, ac, alpha, length / steps)
+    # expand() inlines the step calls: one flat SX graph, which the NLP maps over its N
+    # segments exactly as it maps the closed form's.
+    return ca.Function("segment_rk4", [x0, ac, alpha, length], [x1, ca.SX(0, 1)],
+                       ["x0", "ac", "alpha", "length"], ["x1", "q3"]).expand()
