@@ -178,7 +178,7 @@ def _add_solve(sub):
     _add_tolerance(p)
     p.add_argument("--out", default=None, help="output directory (default results/<problem name>)")
     p.add_argument("--polish", action="store_true",
-                   help="refine the optimum on exact CVODES arcs (Eqs. 1-2, in time)")
+                   help="refine the optimum on the exact Eqs. 1-2 (in time), held to 1 m and 1 mm/s")
     p.set_defaults(run=_run_solve)
 
 
@@ -208,7 +208,7 @@ def _add_search(sub):
         description="Solve the minimum-time problem in PROBLEM.py once per revolution class "
         "(the free start; then final-angle windows of whole revolutions for an orbit "
         "transfer, or the sail's whole turns on the body for a rendezvous), polish every "
-        "distinct optimum on exact CVODES arcs, rank them on the verified exact time of "
+        "distinct optimum on the exact Eqs. 1-2, rank them on the verified exact time of "
         "flight, and write search.json, search.csv, search.png and best/.  Exit status 0 "
         "when the best optimum's polish is verified to 1 m and 1 mm/s, 1 otherwise.",
     )
@@ -269,7 +269,7 @@ def _add_sweep(sub):
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on this Dask distributed scheduler instead (needs the dask extra)")
     p.add_argument("--polish", action="store_true",
-                   help="also polish every member on exact CVODES arcs (Eqs. 1-2, in time)")
+                   help="also polish every member on the exact Eqs. 1-2 (in time)")
     p.add_argument("--out", default=None,
                    help="output directory (default results/<problem name>_sweep_<NAME>)")
     p.add_argument("--resume", action="store_true",

@@ -41,7 +41,7 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
     extra_revolutions : int
         Revolution classes above the free optimum's (and one below).
     polish : bool
-        Polish every optimum on exact CVODES arcs; without it the ranking uses the
+        Polish every optimum on the exact Eqs. 1-2; without it the ranking uses the
         closed-form times, and ``verified`` is False throughout.
     progress : callable, optional
         ``progress(text)`` at each stage.

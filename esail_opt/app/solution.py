@@ -281,7 +281,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     samples : int
         Plot samples per segment.
     polish : bool
-        Then refine the optimum on exact CVODES arcs in time
+        Then refine the optimum on the exact Eqs. 1-2 in time
         (:func:`esail_opt.optimisation.exact.polish`) and verify that schedule too.
 
     Returns
@@ -436,7 +436,7 @@ def _add_polish(data, problem, result, samples, say):
         data["polish"] = {"status": None, "converged": False, "verified": False,
                           "note": f"NOT polished: the closed-form solve ended {result.status}"}
         return
-    say(f"{problem.name}: polishing on exact CVODES arcs in time ({result.alpha.size} segments)")
+    say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
     exact, _ = exact_refinement.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")

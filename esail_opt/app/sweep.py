@@ -220,7 +220,7 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
     filename : str
         Its file name, so load errors read as they would for ``esail-opt solve``.
     polish : bool
-        Also polish the member on exact CVODES arcs (``solution.solve(polish=True)``).
+        Also polish the member on the exact Eqs. 1-2 (``solution.solve(polish=True)``).
     tol_km, tol_m_s : float, optional
         Replace the problem's verification bounds (``Problem.with_tolerance``); None
         keeps the problem file's.
@@ -420,7 +420,7 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     progress : callable, optional
         ``progress(row, done, total)`` after each member finished in this run.
     polish : bool
-        Polish every member on exact CVODES arcs as well (see :func:`solve_member`).
+        Polish every member on the exact Eqs. 1-2 as well (see :func:`solve_member`).
     out_dir : str or Path, optional
         The sweep's output folder, for the journal; None keeps no journal.
     resume : bool

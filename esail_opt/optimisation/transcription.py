@@ -14,10 +14,10 @@ time by Gauss-Legendre quadrature of dt/dtheta) chained with rectification at ea
 sub-arc's start, all at one pitch, and by default Richardson-extrapolated.  The segment
 Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
 the NLP holds one copy of the arc's graph however many segments there are.  The same
-builder accepts any segment Function of the same signature: the benchmark swaps in
-CVODES arcs (:func:`cvodes_segment`), and the exact refinement
-(``optimisation.exact``) CVODES arcs in time (:func:`cvodes_time_segment`, with the
-segment durations as the length variables: ``transcribe(..., length_in="time")``).
+builder accepts any segment Function of the same signature: the benchmarks swap in
+CVODES arcs (:func:`cvodes_segment`, or :func:`cvodes_time_segment` in time), and the
+exact refinement (``optimisation.exact``) RK4 arcs in time (``propagation.rk4``), with
+the segment durations as the length variables: ``transcribe(..., length_in="time")``.
 
 Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
 end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
@@ -479,7 +479,7 @@ def transcribe(problem, segment=None, guess=None, length_in="theta"):
     segment : casadi.Function, optional
         ``(x0[5], ac, alpha, length) -> (x1[5], q3[m])``; default the closed form's
         :func:`closed_form_segment`.  The benchmark passes CVODES arcs here, and the
-        exact refinement :func:`cvodes_time_segment` (with ``length_in="time"``).
+        exact refinement RK4 arcs in time (with ``length_in="time"``).
     guess : Guess, optional
         Default :func:`initial_guess`.  Its size sets the number of segments N and its
         revolution class (turns, final-angle window) is kept.  With
