@@ -40,6 +40,9 @@ def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
         # rejects and backs off from; CasADi's warning for each is only noise.
         "show_eval_warnings": False,
     }
+    # The exact Hessian is the default by measurement: on Earth-Venus (30 x 3 closed-form
+    # segments) Ipopt converged in 67 iterations with it and had not converged after
+    # 3000 with limited-memory (objective 5.2597 against 5.2490 TU).
     if hessian != "exact":
         opts["ipopt.hessian_approximation"] = "limited-memory"
     return opts
