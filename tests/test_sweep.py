@@ -322,8 +322,11 @@ def test_interrupt_keeps_the_journal_and_resume_runs_only_the_rest(venus, tmp_pa
     out = tmp_path / "out"
     param = "ac_mm_s2=0.5:2:6"
     values = [0.5, 0.8, 1.1, 1.4, 1.7, 2.0]
+    # A shell that starts pytest in the background hands its children SIGINT ignored, and
+    # Python keeps an ignored SIGINT; give the sweep the default, as a terminal would.
     proc = subprocess.Popen(_sweep_command(path, param, out), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 100
         journal = out / sweep.JOURNAL
