@@ -12,7 +12,8 @@ against CVODES (:func:`polish`): Ipopt then differentiates a small expanded SX g
 rather than CVODES's forward and adjoint sensitivities, which made each iteration
 about 40 times cheaper at the same optimum (Earth-Mars at 1 and 0.1 mm/s^2).  CVODES
 arcs with sensitivities (:func:`~esail_opt.optimisation.transcription.cvodes_time_segment`)
-remain for the benchmark's cold exact shooting.
+remain the fallback when the RK4 NLP does not converge, and the benchmark's cold exact
+shooting.
 
 Every variable is warm-started from the closed-form optimum: the pitch as it is, the
 durations from the NLP's segment times, and the nodes from a CVODES flight of that
@@ -28,7 +29,7 @@ from esail_opt.optimisation.goals import state_miss
 from esail_opt.optimisation.ipopt import build_solver, ipopt_options, solve_transcription
 from esail_opt.optimisation.problem import Tolerance
 from esail_opt.optimisation.refine import segment_ends
-from esail_opt.optimisation.transcription import transcribe
+from esail_opt.optimisation.transcription import cvodes_time_segment, transcribe
 from esail_opt.propagation.rk4 import rk4_segment
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, SimulationError, simulate
 
@@ -121,7 +122,8 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
     :data:`LANDING_M_S` of the NLP's final node.
     The chain then follows Eqs. 1-2 from every node, so the optimum is the exact one,
     while each Ipopt iteration differentiates a small expanded SX graph instead of
-    CVODES's sensitivities.
+    CVODES's sensitivities.  If the RK4 NLP fails or its flight never lands, the polish
+    is solved again on CVODES arcs (:func:`~.transcription.cvodes_time_segment`).
 
     Parameters
     ----------
@@ -151,21 +153,31 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
     opts = polish_options() if options is None else options
     exact = solve_transcription(tr, opts)
     stages, iterations = list(exact.stages), exact.iterations
-    solver = None
-    for _ in range(max_rounds):
+    solver, landed = None, False
+    for round_ in range(max_rounds + 1):
         if exact.outcome not in ("converged", "acceptable"):
             break
         try:
-            if _lands(problem, exact):
+            landed = _lands(problem, exact)
+            if landed or round_ == max_rounds:
                 break
             flown, model = segment_ends(problem, exact, segment, "time", CHECK_TOLERANCE)
         except SimulationError:
-            break  # an arc CVODES cannot fly: keep this optimum, verification will say so
+            break  # an arc CVODES cannot fly: the fallback below tries CVODES arcs
         defects = flown - model
         solver = solver or build_solver(tr, opts, warm=True)
         exact = solve_transcription(tr, defects=defects, warm=exact, solver=solver)
         stages += exact.stages
         iterations += exact.iterations
+    if not landed:
+        # The RK4 NLP can wander off where the exact one would not: the 2-revolution
+        # window of the Earth-Mars search ran out of iterations 1.2e8 km from the target,
+        # and the k = 1 rendezvous converged to a schedule whose flight missed by 1.4e6
+        # km.  CVODES arcs are slower but steadier.
+        tr = transcribe(problem, cvodes_time_segment(problem.sail.coefficients),
+                        warm_start(problem, result), length_in="time")
+        exact = solve_transcription(tr, opts)
+        stages, iterations = stages + exact.stages, iterations + exact.iterations
     exact.stages, exact.iterations = stages, iterations
     exact.solve_seconds = time.perf_counter() - started
     return exact, tr
