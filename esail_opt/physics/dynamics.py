@@ -26,3 +26,12 @@ def rhs_in_theta(x, ac, R, T):
     """
     dt_dtheta = x[0] / x[3]
     return ca.vertcat(rhs(x, ac, R, T) * dt_dtheta, dt_dtheta)
+
+
+def angular_momentum(x0, ac, T, dt):
+    """Angular momentum r v_theta after ``dt`` (TU) of constant pitch from polar state ``x0``.
+
+    Eq. 2 is d(r v_theta)/dt = a_c r_E T, so with the pitch (and throttle) fixed,
+    h = r0 v_theta0 + ac T dt exactly (r_E = 1 au, canonical units; THEORY.md §2.4).
+    """
+    return x0[0] * x0[3] + ac * T * dt
