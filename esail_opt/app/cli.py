@@ -5,6 +5,7 @@ owns it.  Bad input ends in one line on stderr and exit status 2.
 """
 
 import argparse
+import logging
 import sys
 
 from esail_opt.errors import InputError
@@ -334,12 +335,24 @@ def _sweep_line(row, done, total, name):
           file=sys.stderr, flush=True)
 
 
+def _show_library_log():
+    """Print the package's log lines (a first compile, a fallback) on stderr, bare."""
+    logger = logging.getLogger("esail_opt")
+    if not logger.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
+
+
 def main(argv=None):
     args = build_parser().parse_args(argv)
     # The command line only writes files; library callers keep whatever backend they chose.
     import matplotlib
 
     matplotlib.use("Agg")
+    _show_library_log()
     try:
         return args.run(args)
     except InputError as err:
