@@ -44,13 +44,11 @@ def equal_lengths(problem):
 
 def shooting_segments(problem):
     """The closed-form and the CVODES-arc segment Functions of ``problem``'s NLP."""
-    from esail_opt.optimisation.transcription import closed_form_segment, cvodes_segment
+    from esail_opt.optimisation.transcription import cvodes_segment, problem_segment
 
-    seg = problem.segments
     return {
-        "closed_form": closed_form_segment(seg.sub_arcs, problem.sail.coefficients,
-                                           seg.extrapolate),
-        "cvodes": cvodes_segment(seg.sub_arcs, problem.sail.coefficients),
+        "closed_form": problem_segment(problem),
+        "cvodes": cvodes_segment(problem.segments.sub_arcs, problem.sail.coefficients),
     }
 
 

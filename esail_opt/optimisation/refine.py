@@ -42,7 +42,7 @@ import numpy as np
 
 from esail_opt.optimisation.ipopt import build_solver, solve_transcription
 from esail_opt.optimisation.goals import state_miss
-from esail_opt.optimisation.transcription import closed_form_segment, strain, transcribe
+from esail_opt.optimisation.transcription import problem_segment, strain, transcribe
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
 from esail_opt.propagation.simulate import VERIFY_TOLERANCE, SimulationError, fly_segments
@@ -98,8 +98,7 @@ def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TO
         If CVODES cannot fly a segment (an escaping arc).
     """
     if segment is None:
-        seg = problem.segments
-        segment = closed_form_segment(seg.sub_arcs, problem.sail.coefficients, seg.extrapolate)
+        segment = problem_segment(problem)
     lengths = result.lengths if length_in == "theta" else result.durations
     args = (start_nodes(result), problem.sail.ac * result.throttle[None, :],
             result.alpha[None, :], lengths[None, :])

@@ -1,18 +1,22 @@
-"""Segment Functions compiled to C once, cached on disk, and loaded by name.
+"""CasADi Functions compiled to C once, cached on disk, and loaded by name.
 
 Why: on the closed-form NLP nearly all of Ipopt's time is spent evaluating the
 constraint Jacobian and the Hessian of the Lagrangian, and CasADi's virtual machine
 runs about 8 ns per SX instruction.  The same instructions compiled by gcc -O1 ran
-10 to 20 times faster on the segment's derivatives, and a whole Earth-Venus solve ran
-4.3 times faster (2.35 s against 10.08 s, 259-280 iterations to the same optimum).
+10 to 20 times faster on a segment's derivatives.
 
-What is compiled is one segment Function and the three derivatives the NLP asks of it
-through its ``map``: the Jacobian (constraint Jacobian), the first reverse derivative
-(gradient of the Lagrangian) and that one's Jacobian (Hessian of the Lagrangian).
-CasADi's ``external`` finds them in the library by the names CasADi gives them
-(``jac_<name>``, ``adj1_<name>``, ``jac_adj1_<name>``), so the NLP around the segment
-is built exactly as before.  The segment's graph does not depend on the problem, so one
-library serves every problem with the same segment kind.
+What is compiled is one small SX Function, the closed form's arc between two angles
+(``rectified.panel_function``, about 1,100 instructions), with the three derivatives
+an NLP asks of it through a ``map``: its Jacobian (constraint Jacobian), its first
+reverse derivative (gradient of the Lagrangian) and that one's Jacobian (Hessian of
+the Lagrangian).  CasADi's ``external`` finds them in the library by the names CasADi
+gives them (``jac_<name>``, ``adj1_<name>``, ``jac_adj1_<name>``), and the segments
+are chained from it in MX as before.  Compiling whole segments instead was measured
+and rejected: a Richardson segment of 3 sub-arcs has a 382,000-instruction Hessian
+block that took gcc 146 s, where the arc's library takes 15-20 s and serves every
+segment count, sub-arc count and extrapolation setting.  On Earth-Venus (30 x 3,
+equal lengths) the compiled arcs solved in 0.82 s against 3.71 s for the expanded SX
+segment, in the same 35 iterations to the same optimum.
 
 The cache is a directory of shared libraries named by a hash of the Function's
 serialised graph, the CasADi version, the compiler's own version line and the flags.
@@ -50,8 +54,8 @@ except ImportError:  # pragma: no cover - not POSIX: parallel workers may compil
 
 log = logging.getLogger("esail_opt")
 
-#: -O1 by measurement: -O0 halved the compile time but ran the Hessian block at a
-#: third of -O1's speed; -O2 compiled longer for no gain the benches could see.
+#: -O1 by measurement on a 3-sub-arc segment's Hessian block: -O0 compiled it in 10.9 s
+#: against 23.8 s but ran it at 186 against 60 us a call (-O2 was not tried).
 FLAGS = ("-O1", "-fPIC")
 #: Raised whenever what is written into a library changes, so old libraries are ignored.
 RECIPE = "segment+jac+adj1+jac_adj1 v1"
