@@ -178,8 +178,12 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS):
         strained = worst > 1
         stalled = last_miss is not None and miss > STALL * last_miss
         last_miss = miss
-        if fresh or ((strained or stalled) and sub < MAX_SUB_ARCS):
-            if not fresh:
+        grow = (strained or stalled) and sub < MAX_SUB_ARCS
+        if fresh or grow:
+            # A fresh start is no reason to keep a strained mesh: a defect correction on
+            # arcs far past the cap moved the 2-3 revolution Earth-Mars optimum (one
+            # 3.2 rad segment from 0.58 au, 3.6e6 km local error) out to escape.
+            if grow:
                 grown = math.ceil(sub * worst) if strained else 2 * sub
                 problem = dataclasses.replace(problem, segments=dataclasses.replace(
                     problem.segments, sub_arcs=min(grown, MAX_SUB_ARCS)))

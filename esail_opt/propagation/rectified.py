@@ -23,9 +23,9 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.physics.closed_form import arc_frame, arc_state
-from esail_opt.propagation.compiled import compiled
 from esail_opt.physics.dynamics import angular_momentum
 from esail_opt.physics.thrust import EXACT, radial_transverse
+from esail_opt.propagation.compiled import compiled
 
 #: Gauss-Legendre points per sample interval for the time of flight.
 NODES = 8
@@ -56,9 +56,9 @@ def native_panel(coefficients=EXACT, nodes=NODES):
 
 
 #: Options of the MX Functions built over compiled panels.  Inlined, an NLP segment is
-#: one flat MX graph of panel calls: on Earth-Mars (60 x 3, Richardson) its Hessian
-#: cost 24 ms against 37 ms through the nested map and mapaccum Functions, and the
-#: Jacobian 9 ms against 16 ms.
+#: one flat MX graph of panel calls: on Earth-Mars (60 x 3, Richardson; one run) its
+#: Hessian cost 24 ms against 37 ms through the nested map and mapaccum Functions, and
+#: the Jacobian 9 ms against 16 ms.
 FLAT = {"always_inline": True}
 
 
