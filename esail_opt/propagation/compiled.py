@@ -189,8 +189,8 @@ def compiled(fun):
         folder.mkdir(parents=True, exist_ok=True)
         with _locked(folder / f"{key}.lock"):
             if not target.exists():
-                log.info("esail-opt: compiling the %s Function and its derivatives to C, "
-                         "once (cache: %s) ...", fun.name(), folder)
+                log.info("esail-opt: compiling %r and its derivatives to C, once per "
+                         "machine; about 20 s (cache: %s) ...", fun.name(), folder)
                 start = time.perf_counter()
                 _build(fun, identity[0], target)
                 log.info("esail-opt: compiled in %.1f s", time.perf_counter() - start)
