@@ -12,7 +12,7 @@ AC_MM_S2, ALPHA_DEG, YEARS, ARCS = 0.1, 45.0, 10.0, 20
 
 
 def _functions():
-    """The compiled Functions and their arguments, keyed as the timings are.
+    """The CasADi Functions and their arguments, keyed as the timings are.
 
     Returns
     -------
@@ -89,7 +89,7 @@ def _accuracy(states):
 def _print(data, repeats):
     print_table("bench propagate: 10-year orbit raising, 20 arcs (19 rectifications), "
                 f"median of {repeats}", [
-                    ("closed form (rectified, compiled)", 1e6 * data["closed_form_seconds"], "us"),
+                    ("closed form (rectified, one CasADi call)", 1e6 * data["closed_form_seconds"], "us"),
                     ("closed form, same arcs given by angle",
                      1e6 * data["closed_form_theta_lengths_seconds"], "us"),
                     ("CVODES 1e-12", 1e6 * data["cvodes_seconds"], "us"),
@@ -107,7 +107,7 @@ def _print(data, repeats):
 def run(out, repeats):
     """The 10-year orbit raising three ways, timed in one run; writes ``propagate.json``.
 
-    * the rectified closed form: 20 arcs of six months on its own clock, one compiled
+    * the rectified closed form: 20 arcs of six months on its own clock, one CasADi
       Function call returning the 20 states at the rectification points;
     * CVODES at 1e-12 on Eqs. 1-2, the same schedule, the same 20 states;
     * Ref. [10]'s model at the same 20 times;
