@@ -261,3 +261,24 @@ def test_a_seed_that_cannot_reach_the_target_is_a_clear_input_error():
     # +25 deg raises the orbit, which escapes long before it could reach 0.723 au.
     with pytest.raises(InputError, match=r"guess_alpha_deg = 25 deg: .*target radius \(0.723 au\)"):
         tr.initial_guess(small_problem(guess_alpha_deg=25.0))
+
+
+def test_segment_threads_do_not_change_the_optimum(monkeypatch):
+    """The segments evaluated on one thread and on two: the same optimum, in the same
+    iterations (each segment depends only on its own inputs)."""
+    p = small_problem()
+    results = {}
+    for threads in ("1", "2"):
+        monkeypatch.setenv("ESAIL_OPT_THREADS", threads)
+        results[threads] = solve_problem(p)[0]
+    one, two = results["1"], results["2"]
+    assert one.status == two.status == "Solve_Succeeded"
+    assert one.iterations == two.iterations
+    assert two.objective == pytest.approx(one.objective, rel=1e-12)
+
+
+@pytest.mark.parametrize("value", ["0", "two", "-1", "65"])
+def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value):
+    monkeypatch.setenv("ESAIL_OPT_THREADS", value)
+    with pytest.raises(InputError, match=r"ESAIL_OPT_THREADS = .* \[1, 64\]"):
+        tr.transcribe(small_problem())

@@ -214,10 +214,12 @@ class _Runner:
 # ---------------------------------------------------------------- in the workers
 
 
-def _worker_init():
+def _worker_init(threads):
     """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
-    the whole process group) reaches only the parent, which decides what stops."""
+    the whole process group) reaches only the parent, which decides what stops; and it
+    evaluates its NLP's segments on its share of the cores (``ESAIL_OPT_THREADS``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
 
 
 def _pool_member(started, function, index, *args):
@@ -274,9 +276,11 @@ def _new_pool(workers):
 
     # spawn, not fork: the parent has CasADi and maybe threads loaded, and a forked
     # child of a threaded process can deadlock; spawn costs one import per worker.
+    cores = os.cpu_count() or 1
     return ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_worker_init)
+                               initializer=_worker_init,
+                               initargs=(max(1, cores // workers),))
 
 
 def _pool_processes(pool, known):

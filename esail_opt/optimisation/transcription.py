@@ -27,6 +27,7 @@ the last node, and the time of flight when the objective fixes it.
 import dataclasses
 import functools
 import math
+import os
 from dataclasses import dataclass
 
 import casadi as ca
@@ -59,6 +60,25 @@ GUESS_CHUNK = 200
 #: breaks it (``optimisation.refine``) -- never as a constraint of the NLP: as one it made
 #: a 4-segment hop to 1.3 au infeasible, deciding the answer instead of the accuracy.
 STRAIN_CAP = 0.05
+
+
+def segment_threads():
+    """Threads that evaluate the segments and their derivatives (CasADi's threaded map).
+
+    Segments are independent of one another given their start nodes, so they split
+    across cores: on Earth-Venus (30 x 3, 2 cores) a solve took 0.57-0.62 s on two
+    threads against 0.79-0.96 s on one, in the same 32 iterations to the same optimum.
+    ``ESAIL_OPT_THREADS`` sets the count (the sweep's workers share the cores this way);
+    the default is the cores this process may use, at most 4.
+    """
+    text = os.environ.get("ESAIL_OPT_THREADS", "").strip()
+    if text:
+        if not text.isdigit() or not 1 <= int(text) <= 64:
+            raise InputError(f"ESAIL_OPT_THREADS = {text!r} is not a whole number in [1, 64]")
+        return int(text)
+    cores = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+             else os.cpu_count() or 1)
+    return max(1, min(4, cores))
 
 
 def strain(problem, r_starts, lengths, throttle=None):
@@ -461,7 +481,9 @@ def _flight(problem, segment, v, scales, in_time):
     # The closed form (and Eqs. 1-2) take a_c per segment, so a throttle simply scales it.
     ac = problem.sail.ac * (v["kappa"].T if v["kappa"].numel() else 1)
     length = v["length"] * scales.length
-    ends, q3 = segment.map(n)(starts, ac, v["alpha"].T, length.T)
+    threads = min(segment_threads(), n)
+    mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
+    ends, q3 = mapped(starts, ac, v["alpha"].T, length.T)
     # The defect correction (optimisation.refine): a constant per segment, added to its
     # end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter, so one
     # solver serves every round of the refinement.
