@@ -92,3 +92,15 @@ def polar_of(state):
     """A solution.json state (r_au, theta_deg, vr_km_s, vtheta_km_s) in canonical units."""
     return [state["r_au"], math.radians(state["theta_deg"]),
             units.speed_from_km_s(state["vr_km_s"]), units.speed_from_km_s(state["vtheta_km_s"])]
+
+
+def solved_under(monkeypatch, variable, values, problem):
+    """``problem`` solved once with the environment ``variable`` set to each of
+    ``values``: {value: NLPResult}, for checks that a switch leaves the optimum alone."""
+    from esail_opt.optimisation.ipopt import solve_problem
+
+    results = {}
+    for value in values:
+        monkeypatch.setenv(variable, value)
+        results[value] = solve_problem(problem)[0]
+    return results

@@ -11,6 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from conftest import solved_under
 from esail_opt.propagation import compiled as cc
 from esail_opt.propagation.rectified import panel_function
 
@@ -149,15 +150,11 @@ def test_both_paths_solve_one_small_case_alike(monkeypatch):
     """One small transfer solved on compiled arcs and on CasADi's virtual machine:
     the same optimum, in the same iterations."""
     import esail_opt as eo
-    from esail_opt.optimisation.ipopt import solve_problem
 
     problem = eo.Problem(
         name="small", departure=eo.ParkingOrbit(1.0), sail=eo.Sail(1.0),
         segments=eo.Segments(8, 2), objective=eo.MinTime(), target=eo.CircularOrbit(0.8))
-    results = {}
-    for switch in ("1", "0"):
-        monkeypatch.setenv("ESAIL_OPT_COMPILE", switch)
-        results[switch] = solve_problem(problem)[0]
+    results = solved_under(monkeypatch, "ESAIL_OPT_COMPILE", ("1", "0"), problem)
     fast, slow = results["1"], results["0"]
     assert fast.status == slow.status == "Solve_Succeeded"
     assert fast.iterations == slow.iterations

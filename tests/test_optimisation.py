@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import esail_opt as eo
+from conftest import solved_under
 from esail_opt.app import cli
 from esail_opt.errors import InputError
 from esail_opt.optimisation import transcription as tr
@@ -266,11 +267,7 @@ def test_a_seed_that_cannot_reach_the_target_is_a_clear_input_error():
 def test_segment_threads_do_not_change_the_optimum(monkeypatch):
     """The segments evaluated on one thread and on two: the same optimum, in the same
     iterations (each segment depends only on its own inputs)."""
-    p = small_problem()
-    results = {}
-    for threads in ("1", "2"):
-        monkeypatch.setenv("ESAIL_OPT_THREADS", threads)
-        results[threads] = solve_problem(p)[0]
+    results = solved_under(monkeypatch, "ESAIL_OPT_THREADS", ("1", "2"), small_problem())
     one, two = results["1"], results["2"]
     assert one.status == two.status == "Solve_Succeeded"
     assert one.iterations == two.iterations

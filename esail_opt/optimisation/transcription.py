@@ -69,16 +69,14 @@ def segment_threads():
     across cores: on Earth-Venus (30 x 3, 2 cores) a solve took 0.57-0.62 s on two
     threads against 0.79-0.96 s on one, in the same 32 iterations to the same optimum.
     ``ESAIL_OPT_THREADS`` sets the count (the sweep's workers share the cores this way);
-    the default is the cores this process may use, at most 4.
+    the default is the machine's cores, at most 4 (as the sweep counts them).
     """
     text = os.environ.get("ESAIL_OPT_THREADS", "").strip()
     if text:
         if not text.isdigit() or not 1 <= int(text) <= 64:
             raise InputError(f"ESAIL_OPT_THREADS = {text!r} is not a whole number in [1, 64]")
         return int(text)
-    cores = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-             else os.cpu_count() or 1)
-    return max(1, min(4, cores))
+    return max(1, min(4, os.cpu_count() or 1))
 
 
 def strain(problem, r_starts, lengths, throttle=None):
