@@ -109,7 +109,7 @@ def test_warm_start_satisfies_continuity_and_drops_q3():
     # the exact NLP has no q3 rows.
     problem = _problem("earth_venus", segments=4)
     result, tr = solve_problem(problem)
-    guess = exact_refinement.warm_start(problem, result)
+    guess = exact_refinement.exact_guess(problem, result.x_start, result.as_guess(durations=True))
     exact = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), guess,
                        length_in="time")
     assert "q3" not in exact.names and "q3" in tr.names
@@ -171,3 +171,33 @@ def test_low_thrust_transfer_polished_within_0_3_percent(name, reference_key, se
     tof = sol["tof_days_exact"]
     assert abs(tof - reference) < 0.003 * reference
     assert tof >= reference - BEAT_SLACK_DAYS
+
+
+def test_polish_steps_are_the_fewest_whose_defects_are_small():
+    # Four long segments (about 1.3 rad each): 4 RK4 steps are far from Eqs. 1-2 there,
+    # so the polish must take more.  Each count's defects are judged here by CVODES
+    # flights from every node (refine.segment_ends), not by the polish's own flight.
+    from types import SimpleNamespace
+
+    from esail_opt.optimisation.refine import segment_ends
+    from esail_opt.propagation.rk4 import rk4_segment
+
+    problem = _problem("earth_venus", segments=4)
+    result, _ = solve_problem(problem)
+    start = exact_refinement.exact_guess(problem, result.x_start,
+                                         result.as_guess(durations=True))
+    chain = SimpleNamespace(alpha=start.alpha, throttle=start.throttle, x_start=result.x_start,
+                            durations=start.lengths, nodes=start.nodes)
+    worst, ends = {}, {}
+    for count in exact_refinement.RK4_STEPS:
+        flown, model = segment_ends(problem, chain, rk4_segment(count, length_in="time"),
+                                    "time")
+        worst[count] = float(np.max(np.abs(flown - model)[:4]))
+        ends[count] = model
+    chosen = exact_refinement.rk4_polish_segment(problem, result.x_start, start)
+    _, model = segment_ends(problem, chain, chosen, "time")
+    count = next(k for k, m in ends.items() if np.array_equal(m, model))
+    steps = list(exact_refinement.RK4_STEPS)
+    assert worst[steps[0]] > exact_refinement.STEP_DEFECT, worst
+    assert count > steps[0] and worst[count] < exact_refinement.STEP_DEFECT, (count, worst)
+    assert worst[steps[steps.index(count) - 1]] >= exact_refinement.STEP_DEFECT, (count, worst)
