@@ -182,6 +182,23 @@ def test_bad_problem_file_gives_one_line_and_writes_nothing(case, tmp_path, caps
     assert not out.exists()
 
 
+def test_reproduce_names_its_figures_but_other_commands_do_not_import_them(capsys):
+    # The figure module pulls in scipy and the paper's cases (1.7 s of start-up), so
+    # the parser reads its names only when the reproduce command asks for them.
+    import subprocess
+    import sys
+
+    probe = ("import sys; from esail_opt.app import cli; cli.build_parser().parse_args("
+             "['solve', 'x.py']); print('esail_opt.app.reproduce' in sys.modules)")
+    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                            check=True).stdout.split()
+    assert loaded == ["False"]
+    with pytest.raises(SystemExit) as exit_info:
+        cli.build_parser().parse_args(["reproduce", "fig9"])
+    assert exit_info.value.code == 2
+    assert "choose from 'convergence', 'fig2'" in capsys.readouterr().err
+
+
 def test_missing_problem_gives_one_line(tmp_path, capsys):
     path = tmp_path / "empty.py"
     path.write_text("import esail_opt as eo\nproblme = None\n")
