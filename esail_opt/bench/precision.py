@@ -164,8 +164,9 @@ def cvodes(segments=None, per_revolution=None):
 #: The two transfers.  At 1 mm/s^2 (about 1.2 revolutions) N is a total; at 0.1 mm/s^2
 #: (about 6.5 revolutions) it is per revolution, so N follows the seed's sweep as in the
 #: shipped problem (16 per revolution x 2 sub-arcs there, N = 100).  Both run down to
-#: coarse settings (10 segments at 1 mm/s^2, 4 per revolution at 0.1 mm/s^2), where a
-#: curve must start above a miss to be read there rather than only bounded; 10 x 3 is
+#: coarse settings (10 segments at 1 mm/s^2, 2 per revolution at 0.1 mm/s^2), where a
+#: curve must start above a miss to be read there rather than only bounded, and where
+#: a method may stop converging at all (RK4 at 2 and 3 per revolution did not); 10 x 3 is
 #: the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break the strain cap
 #: (``transcription.STRAIN_CAP``) and the seed adds them back.  CVODES segments are exact to 1e-12 at any N and cost
 #: seconds per solve, so they run at one or two N.
@@ -178,9 +179,10 @@ CASES = (
         cvodes(segments=20), cvodes(segments=40),
     )),
     Case(bench_cases.earth_mars_low_thrust(), (
-        *(closed_form(per_revolution=k, sub_arcs=s) for k in (4, 8, 16, 24) for s in (1, 2)),
+        *(closed_form(per_revolution=k, sub_arcs=s) for k in (2, 3, 4, 8, 16, 24)
+          for s in (1, 2)),
         *(corrected(per_revolution=k, sub_arcs=2, rounds=r) for k in (8, 16) for r in (1, 2)),
-        *(rk4(per_revolution=k, steps=m) for k in (4, 8, 16, 24) for m in (1, 2, 4)),
+        *(rk4(per_revolution=k, steps=m) for k in (2, 3, 4, 8, 16, 24) for m in (1, 2, 4)),
         cvodes(per_revolution=4), cvodes(per_revolution=8),
     )),
 )
