@@ -130,20 +130,62 @@ def test_a_failed_compile_falls_back_and_leaves_no_library(monkeypatch, tmp_path
     assert not list((tmp_path / "cache").glob(".build-*"))
 
 
+#: A segment's input: an eccentric start, a~_c ~ 0.17, -34 deg pitch, 0.8 rad.
+SEGMENT_POINT = [np.array([0.9, 0.4, 0.08, 1.1, 3.0]), 0.17, -0.6, 0.8]
+
+
+def _segment_pairs(fast, slow):
+    """(fast, slow) pairs of a segment Function, its Jacobian and its Hessian block."""
+    return [(fast, slow), (fast.jacobian(), slow.jacobian()),
+            (fast.reverse(1).jacobian(), slow.reverse(1).jacobian())]
+
+
+def _agree(fast, slow, rtol):
+    rng = np.random.default_rng(5)
+    nominal = [np.array(v) for v in slow.call(SEGMENT_POINT)]
+    for f, s in _segment_pairs(fast, slow):
+        args = (SEGMENT_POINT + nominal)[:f.n_in()]
+        args += [rng.standard_normal(f.size_in(i)) for i in range(len(args), f.n_in())]
+        for a, b in zip(_numbers(f, args), _numbers(s, args)):
+            assert a.shape == b.shape
+            assert np.allclose(a, b, rtol=rtol, atol=1e-13), (f.name(), a, b)
+
+
 def test_compiled_segment_is_the_expanded_segment_with_its_derivatives():
-    """The NLP's segment over compiled arcs (MX, inlined) against the expanded SX one:
-    values and Jacobians on an eccentric start, Richardson and plain."""
+    """The NLP's segment over compiled arcs (its own graph compiled too) against the
+    expanded SX one: values, Jacobians and Hessian blocks on an eccentric start,
+    Richardson and plain."""
     from esail_opt.optimisation.transcription import closed_form_segment
 
-    point = [np.array([0.9, 0.4, 0.08, 1.1, 3.0]), 0.17, -0.6, 0.8]
     for extrapolate in (True, False):
         fast = closed_form_segment(3, extrapolate=extrapolate, native=True)
         slow = closed_form_segment(3, extrapolate=extrapolate, native=False)
-        assert fast.is_a("MXFunction") and slow.is_a("SXFunction")
-        for f, s in ((fast, slow), (fast.jacobian(), slow.jacobian())):
-            args = point + [np.array(v) for v in slow.call(point)] if f.n_in() > 4 else point
-            for a, b in zip(_numbers(f, args), _numbers(s, args)):
-                assert np.allclose(a, b, rtol=1e-11, atol=1e-13)
+        assert fast.class_name() == "External" and slow.is_a("SXFunction")
+        _agree(fast, slow, 1e-11)
+
+
+def _graph_on_the_virtual_machine(monkeypatch):
+    """Compile the arcs but leave the segment's graph of arc calls on the virtual
+    machine (what a failed compile of the graph leaves), with fresh segment caches."""
+    from esail_opt.optimisation import transcription
+
+    real = cc.compiled
+    monkeypatch.setattr(cc, "compiled", lambda fun, calls=(): fun if calls else real(fun))
+    transcription.closed_form_segment.cache_clear()
+    monkeypatch.setattr(transcription, "closed_form_segment",
+                        transcription.closed_form_segment.__wrapped__)
+
+
+def test_compiled_segment_graph_matches_its_virtual_machine_graph(monkeypatch):
+    """The segment's library (its graph of arc calls as C, linked against the arcs')
+    against the same graph run by CasADi's virtual machine."""
+    from esail_opt.optimisation import transcription
+
+    fast = transcription.closed_form_segment(2, native=True)
+    _graph_on_the_virtual_machine(monkeypatch)
+    slow = transcription.closed_form_segment(2, native=True)
+    assert fast.class_name() == "External" and slow.is_a("MXFunction")
+    _agree(fast, slow, 1e-12)
 
 
 def test_both_paths_solve_one_small_case_alike(monkeypatch):
@@ -160,3 +202,47 @@ def test_both_paths_solve_one_small_case_alike(monkeypatch):
     assert fast.iterations == slow.iterations
     assert fast.objective == pytest.approx(slow.objective, rel=1e-9)
     np.testing.assert_allclose(fast.alpha, slow.alpha, atol=1e-6)
+
+
+def test_compiled_segment_graph_solves_like_its_virtual_machine_graph(monkeypatch):
+    """The same small transfer with the segment's graph compiled and on the virtual
+    machine (arcs compiled in both): the same optimum in the same iterations."""
+    import esail_opt as eo
+    from esail_opt.optimisation.ipopt import solve_problem
+
+    problem = eo.Problem(
+        name="small", departure=eo.ParkingOrbit(1.0), sail=eo.Sail(1.0),
+        segments=eo.Segments(8, 2), objective=eo.MinTime(), target=eo.CircularOrbit(0.8))
+    monkeypatch.delenv("ESAIL_OPT_COMPILE", raising=False)
+    fast = solve_problem(problem)[0]
+    _graph_on_the_virtual_machine(monkeypatch)
+    slow = solve_problem(problem)[0]
+    assert fast.status == slow.status == "Solve_Succeeded"
+    assert fast.iterations == slow.iterations
+    assert fast.objective == pytest.approx(slow.objective, rel=1e-10)
+    np.testing.assert_allclose(fast.alpha, slow.alpha, atol=1e-7)
+
+
+def test_a_failed_compile_of_the_segment_graph_keeps_it_on_compiled_arcs(monkeypatch,
+                                                                         shared_cache, caplog):
+    """When the arcs compile but the segment's library does not link, the segment is its
+    MX graph over the compiled arcs, with one warning."""
+    from esail_opt.optimisation import transcription
+
+    _fresh(monkeypatch, shared_cache)
+    real = cc._build
+
+    def build(fun, compiler, target, links=()):
+        if links:
+            raise subprocess.CalledProcessError(1, compiler, stderr="ld: out of luck\n")
+        return real(fun, compiler, target, links)
+
+    monkeypatch.setattr(cc, "_build", build)
+    monkeypatch.setattr(transcription, "closed_form_segment",
+                        transcription.closed_form_segment.__wrapped__)
+    with caplog.at_level(logging.WARNING, logger="esail_opt"):
+        segment = transcription.closed_form_segment(1, native=True)
+    assert segment.is_a("MXFunction")
+    assert [r.getMessage() for r in caplog.records if "out of luck" in r.getMessage()]
+    assert not list(shared_cache.glob("segment-*.so"))
+    assert not list(shared_cache.glob(".build-*"))

@@ -18,8 +18,17 @@ segment count, sub-arc count and extrapolation setting.  On Earth-Venus (30 x 3,
 equal lengths) the compiled arcs solved in 0.82 s against 3.71 s for the expanded SX
 segment, in the same 35 iterations to the same optimum.
 
+The segment's own MX graph -- the arc calls and the chain rule between them, which on
+the virtual machine was still about 40 % of a Hessian of the Lagrangian and 65 % of a
+constraint Jacobian -- is compiled as well, with the arcs left as calls into their
+library (``compiled(segment, calls=(panel,))``): the segment's library is linked
+against the arc's, so gcc sees a few thousand small matrix operations, not the arcs'
+instructions again, and takes 6-12 s per sub-arc count and extrapolation setting
+(Linux only: the link uses GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).
+
 The cache is a directory of shared libraries named by a hash of the Function's
-serialised graph, the CasADi version, the compiler's own version line and the flags.
+serialised graph, the CasADi version, the compiler's own version line and the flags
+(and the names of the libraries it calls).
 A library is built under a temporary name and renamed into place, and a lock file per
 hash makes parallel workers (``esail-opt sweep``) wait for one compile instead of each
 running their own.  Without a C compiler, or when a compile fails, the Function stays
@@ -40,6 +49,7 @@ import logging
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -101,9 +111,13 @@ def derivatives(fun):
     return [fun, fun.jacobian(), adjoint, adjoint.jacobian()]
 
 
-def _key(fun, identity):
+def _key(fun, identity, links=()):
+    """The library's name: ``fun``'s name and a hash of all that shapes its code, the keys
+    of the libraries it calls included (``links``; none for a Function that calls none,
+    whose key is then what it always was)."""
     digest = hashlib.sha256()
-    for part in (RECIPE, ca.__version__, identity[1], " ".join(FLAGS), fun.serialize()):
+    for part in (RECIPE, ca.__version__, identity[1], " ".join(FLAGS), fun.serialize(),
+                 *links):
         digest.update(part.encode())
         digest.update(b"\0")
     return f"{fun.name()}-{digest.hexdigest()[:24]}"
@@ -122,11 +136,14 @@ def _locked(path):
                 fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _build(fun, compiler, target):
+def _build(fun, compiler, target, links=()):
     """Generate C for ``fun`` and its derivatives and link them into ``target``.
 
     Each Function is its own translation unit, compiled in parallel (the Hessian block
     is most of the time), and the library is renamed into place only when it is whole.
+    ``links`` are the keys of cached libraries (in ``target``'s folder) whose Functions
+    ``fun`` calls: the generated code calls their symbols, and the library finds them
+    beside itself when it is loaded (an rpath of ``$ORIGIN``).
     """
     with tempfile.TemporaryDirectory(dir=target.parent, prefix=".build-") as tmp:
         tmp = Path(tmp)
@@ -148,18 +165,27 @@ def _build(fun, compiler, target):
         with ThreadPoolExecutor(max(1, min(len(sources), os.cpu_count() or 1))) as pool:
             objects = list(pool.map(compile_one, sources[::-1]))
         partial = tmp / "lib.so"
-        subprocess.run([compiler, "-shared", "-o", str(partial), *map(str, objects), "-lm"],
-                       check=True, capture_output=True, text=True)
+        linked = [f"-L{target.parent}", *(f"-l:{key}.so" for key in links),
+                  "-Wl,-rpath,$ORIGIN"] if links else []
+        subprocess.run([compiler, "-shared", "-o", str(partial), *map(str, objects), *linked,
+                        "-lm"], check=True, capture_output=True, text=True)
         os.replace(partial, target)
 
 
-def compiled(fun):
+def compiled(fun, calls=()):
     """``fun`` backed by its cached C library, or ``fun`` itself on the virtual machine.
 
     Parameters
     ----------
     fun : casadi.Function
-        An SX Function (the NLP's segment); its name names the library's symbols.
+        An SX Function (the closed form's arc), or an MX Function over the compiled
+        versions of the Functions in ``calls`` (the NLP's segment over its arcs); its
+        name names the library's symbols.
+    calls : sequence of casadi.Function
+        The Functions, as given to this function, whose libraries ``fun``'s code calls
+        (each compiled first if it is not yet).  Its library is linked against theirs,
+        so their code is not compiled again.  If any of them stays on the virtual
+        machine, so does ``fun``.
 
     Returns
     -------
@@ -180,7 +206,16 @@ def compiled(fun):
                         "(ESAIL_OPT_COMPILE=0 silences this)", compiler)
         _loaded[compiler] = None
         return fun
-    key = _key(fun, identity)
+    if calls and not sys.platform.startswith("linux"):
+        # Its library finds theirs by an rpath of $ORIGIN and GNU ld's -l:name, which
+        # only Linux's toolchain is known here to take: elsewhere it stays on the VM.
+        return fun
+    links = []
+    for callee in calls:
+        if compiled(callee) is callee:
+            return fun  # its callees were reported; nothing to link against
+        links.append(_key(callee, identity))
+    key = _key(fun, identity, links)
     if key in _loaded:
         return _loaded[key]
     folder = cache_dir()
@@ -190,9 +225,10 @@ def compiled(fun):
         with _locked(folder / f"{key}.lock"):
             if not target.exists():
                 log.info("esail-opt: compiling %r and its derivatives to C, once per "
-                         "machine; about 20 s (cache: %s) ...", fun.name(), folder)
+                         "machine; about %d s (cache: %s) ...", fun.name(),
+                         10 if links else 20, folder)
                 start = time.perf_counter()
-                _build(fun, identity[0], target)
+                _build(fun, identity[0], target, links)
                 log.info("esail-opt: compiled in %.1f s", time.perf_counter() - start)
         loaded = ca.external(fun.name(), str(target))
     except (OSError, subprocess.CalledProcessError, RuntimeError) as err:
