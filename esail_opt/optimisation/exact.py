@@ -63,6 +63,13 @@ STEP_DEFECT = 1e-6
 #: 0.57 m from its final node on the 3e-16 flight, 1.2 m with the verifier's error added.
 MAX_ROUNDS = 8
 LANDING_KM, LANDING_M_S = 1e-4, 1e-4
+#: Ipopt's first barrier parameter in the polish's solves.  Their start is the closed-form
+#: optimum flown on Eqs. 1-2, already near the exact optimum, and Ipopt's default (0.1)
+#: first pushes it back into the interior.  With the default the first solve took 87
+#: iterations on Earth-Mars (14 with 1e-6), 62 on the search's 2-3 revolution window
+#: (15), and on the 0.1 mm/s^2 spiral anywhere from 89 to over 200 (the iteration limit)
+#: when the closed-form optimum moved by 1e-13 (28).  The exact times were the same.
+START_MU = 1e-6
 
 
 def polish_options(max_iter=200):
@@ -148,7 +155,8 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         kept: a window optimum's polish that lost its final-angle box would slide out of
         its window into another optimum.
     options : dict, optional
-        Ipopt options; default :func:`polish_options`.
+        Ipopt options; default :func:`polish_options`, starting from :data:`START_MU`
+        unless they set ``ipopt.mu_init``.
     steps : sequence of int
         RK4 steps per segment to choose from (:func:`rk4_polish_segment`).
     max_rounds : int
@@ -170,7 +178,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
     else:
         segment = rk4_polish_segment(problem, result.x_start, start, steps)
     tr = transcribe(problem, segment, start, length_in="time")
-    opts = polish_options() if options is None else options
+    opts = {"ipopt.mu_init": START_MU, **(polish_options() if options is None else options)}
     exact = solve_transcription(tr, opts)
     stages, iterations = list(exact.stages), exact.iterations
     solver, landed = None, False
