@@ -112,7 +112,10 @@ class Solution:
 
     def schedule_csv(self, polished=False):
         """The schedule as CSV text, one row per segment (same rows as ``schedule``, or
-        with ``polished`` as ``polish["schedule"]``)."""
+        with ``polished`` as ``polish["schedule"]``), every number to the digit, so that
+        flying the file reproduces the flight that was verified.  (At 10 significant
+        digits a polished 2500-day schedule, flown from the CSV, ended 3.5 m from its
+        target where the same schedule at full precision ends 8 mm from it.)"""
         rows = self.data["polish"]["schedule"] if polished else self.data["schedule"]
         fields = SCHEDULE_FIELDS + tuple(f for f in (THROTTLE_FIELD, LOCAL_ERROR_FIELD)
                                          if rows and f in rows[0])
@@ -120,7 +123,7 @@ class Solution:
         writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
         writer.writeheader()
         for row in rows:
-            writer.writerow({k: f"{row[k]:.10g}" for k in fields})
+            writer.writerow({k: repr(float(row[k])) for k in fields})
         return buf.getvalue()
 
     def write(self, out_dir, plots=True):
