@@ -166,10 +166,11 @@ def cvodes(segments=None, per_revolution=None):
 #: shipped problem (16 per revolution x 2 sub-arcs there, N = 100).  Both run down to
 #: coarse settings (10 segments at 1 mm/s^2, 2 per revolution at 0.1 mm/s^2), where a
 #: curve must start above a miss to be read there rather than only bounded, and where
-#: a method may stop converging at all (RK4 at 2 and 3 per revolution did not); 10 x 3 is
-#: the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break the strain cap
-#: (``transcription.STRAIN_CAP``) and the seed adds them back.  CVODES segments are exact to 1e-12 at any N and cost
-#: seconds per solve, so they run at one or two N.
+#: a method may stop converging at all (RK4 with one step at 2 and 3 per revolution did
+#: not); 10 x 3 is the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break
+#: the strain cap (``transcription.STRAIN_CAP``) and the seed adds them back.  CVODES
+#: segments are exact to 1e-12 at any N and cost seconds per solve, so they run at one or
+#: two N.
 CASES = (
     Case(bench_cases.earth_mars_min_time(), (
         closed_form(segments=10, sub_arcs=3),
