@@ -78,7 +78,8 @@ def _add_reproduce(sub):
     p = sub.add_parser("reproduce", help="reproduce the paper's figures",
                        description="Write a PNG and a JSON for one of the paper's figures.")
     # A metavar keeps argparse from listing the choices (and importing them) at start-up.
-    p.add_argument("figure", metavar="FIGURE", choices=_FigureNames(), help="one of %(choices)s")
+    p.add_argument("figure", metavar="FIGURE", choices=_FigureNames(),
+                   help="one of %(choices)s")
     p.add_argument("--out", default="results/paper", help="output directory (default results/paper)")
     p.set_defaults(run=_run_reproduce)
 
