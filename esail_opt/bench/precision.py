@@ -353,16 +353,21 @@ def run_case(case, runs):
             "at_miss_km": at_miss(points)}
 
 
-def draw_precision(case, ax=None):
+def draw_precision(case, ax=None,
+                   xlabel="solve time [s] (seed + NLP construction + Ipopt)",
+                   ylabel="verified target miss [km] (CVODES flight)"):
     """Draw one case's log-log work-precision diagram: every point, each method's
     envelope as a line, and the target misses as horizontal lines.
 
     Parameters
     ----------
     case : dict
-        One entry of ``precision.json``'s ``cases`` (:func:`run_case`).
+        One entry of ``precision.json``'s ``cases`` (:func:`run_case`), or any dict with
+        its ``problem``, ``ac_mm_s2`` and ``points`` (``bench propagate``'s curves).
     ax : matplotlib.axes.Axes, optional
         Where to draw; by default the axes of a new :class:`~matplotlib.figure.Figure`.
+    xlabel, ylabel : str
+        What the two axes measure.
 
     Returns
     -------
@@ -393,8 +398,8 @@ def draw_precision(case, ax=None):
                     ha="right", va="bottom", fontsize=8, color="0.4")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("solve time [s] (seed + NLP construction + Ipopt)")
-    ax.set_ylabel("verified target miss [km] (CVODES flight)")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     ax.set_title(f"{case['problem']}, a_c = {case['ac_mm_s2']:g} mm/s^2")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()

@@ -1,5 +1,6 @@
 """``esail-opt bench propagate``: the paper's 10-year orbit raising (Sec. 3) propagated
-by the closed form, by CVODES and by Ref. [10]'s model, timed in one run."""
+by the closed form, by CVODES and by Ref. [10]'s model, timed in one run; and the same
+ten years as a work-precision race, each method's call time against its final error."""
 
 import math
 from pathlib import Path
@@ -9,6 +10,11 @@ from esail_opt.bench.timing import median_seconds, print_table
 #: The case: a_c, fixed pitch, years from the circular 1 au orbit, arcs (20 arcs of six
 #: months: 19 rectifications).
 AC_MM_S2, ALPHA_DEG, YEARS, ARCS = 0.1, 45.0, 10.0, 20
+#: The race's settings: arcs of the closed form (equal durations over the ten years),
+#: CVODES's tolerances on the case's 20 arcs, and the final errors read off the curves.
+RACE_ARCS = (20, 40, 80, 160, 320)
+RACE_TOLERANCES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10, 1e-12)
+RACE_ERRORS_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
 
 
 def _functions():
@@ -32,9 +38,8 @@ def _functions():
 
     ac, alpha = units.accel_from_mm_s2(AC_MM_S2), math.radians(ALPHA_DEG)
     horizon = units.time_from_years(YEARS)
-    x0 = np.array([1.0, 0.0, 0.0, 1.0, 0.0])
-    row = np.ones((1, ARCS))
-    args = (x0, ac * row, alpha * row, horizon / ARCS * row)
+    args = _schedule(ARCS)
+    x0, row = args[0], np.ones((1, ARCS))
     closed = rectified_function(ARCS, 1, "time")
     # The arcs' angles come from the timed run, so the angle form flies the same 20 arcs.
     angles = np.diff(np.r_[0.0, np.array(closed(*args)[0])[1]])[None, :]
@@ -56,7 +61,10 @@ def _position_km(a, b):
     """Distance between the planar positions (r, theta) of two states, km."""
     from esail_opt.physics import constants as units
 
-    gap = math.sqrt(a[0] ** 2 + b[0] ** 2 - 2 * a[0] * b[0] * math.cos(a[1] - b[1]))
+    # Cartesian, not the law of cosines: that one rounds to the root of a negative
+    # number when the two positions are metres apart.
+    gap = math.hypot(a[0] * math.cos(a[1]) - b[0] * math.cos(b[1]),
+                     a[0] * math.sin(a[1]) - b[0] * math.sin(b[1]))
     return units.length_to_km(gap)
 
 
@@ -84,6 +92,113 @@ def _accuracy(states):
         0, "closed_form_theta_lengths", "closed_form")
     out["cvodes_single_call_max_diff_km"] = max_gap_km(0, "cvodes_single_call", "cvodes")
     return out
+
+
+def _schedule(arcs):
+    """The case's arguments for ``arcs`` equal arcs over the ten years, in time."""
+    import numpy as np
+
+    from esail_opt.physics import constants as units
+
+    row = np.ones((1, arcs))
+    return (np.array([1.0, 0.0, 0.0, 1.0, 0.0]), units.accel_from_mm_s2(AC_MM_S2) * row,
+            math.radians(ALPHA_DEG) * row, units.time_from_years(YEARS) / arcs * row)
+
+
+def race(repeats):
+    """Call time against final error for the ten years, each method at several settings.
+
+    * ``closed_form``: the closed form as the NLP flies it (every arc Richardson-
+      extrapolated and ending on the exact angular momentum, ``invariant_function``),
+      here in time, at :data:`RACE_ARCS` arcs;
+    * ``closed_form_plain``: the paper's rectification (``rectified_function``) at the
+      same arc counts;
+    * ``cvodes``: the case's 20 arcs at :data:`RACE_TOLERANCES`.
+
+    The error is the distance of the final position from CVODES at the verifier's own
+    tolerance (``simulate.VERIFY_TOLERANCE``).  Each method's seconds at final errors
+    of 1e6, 1e5 and 1e4 km are read on its curve as the precision bench reads its
+    curves (``precision.seconds_at_miss``).  Also measured: ``call_floor_seconds``, one
+    call of a Function that only doubles its input, with the case's arguments, which no
+    Function called from Python undercuts.
+
+    Returns
+    -------
+    dict
+        ``points`` ({"method", "setting", "seconds", "miss_km"}: miss_km is the final
+        error), ``at_error_km`` (per error, each method's seconds and
+        ``ratio_cvodes_over_closed_form``), ``call_floor_seconds`` and
+        ``ratio_cvodes_over_call_floor`` (CVODES at 1e-12 over that floor), and the
+        reference's final state [r, theta, v_r, v_theta, t] (``reference_final_state``).
+    """
+    import casadi as ca
+    import numpy as np
+
+    from esail_opt.bench.precision import seconds_at_miss
+    from esail_opt.bench.timing import median_seconds
+    from esail_opt.propagation.rectified import invariant_function, rectified_function
+    from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
+
+    truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE)(
+        *_schedule(ARCS)))[:, -1]
+    entries = [("closed_form", f"{n} arcs", invariant_function(n, "time"), _schedule(n))
+               for n in RACE_ARCS]
+    entries += [("closed_form_plain", f"{n} arcs", rectified_function(n, 1, "time"),
+                 _schedule(n)) for n in RACE_ARCS]
+    entries += [("cvodes", f"tol {tol:g}", schedule_function(ARCS, 1, "time", tol=tol),
+                 _schedule(ARCS)) for tol in RACE_TOLERANCES]
+    points = []
+    for method, setting, fun, args in entries:
+        value = fun(*args)
+        final = np.array(value[0] if isinstance(value, (tuple, list)) else value)[:, -1]
+        points.append({"method": method, "setting": setting,
+                       "seconds": median_seconds(lambda f=fun, a=args: f(*a), repeats),
+                       "miss_km": _position_km(final, truth)})
+    at_error = {}
+    for key, error in RACE_ERRORS_KM.items():
+        row = {f"{name}_seconds": seconds_at_miss(
+            [(p["seconds"], p["miss_km"]) for p in points if p["method"] == name], error)
+            for name in ("closed_form", "closed_form_plain", "cvodes")}
+        base, other = row["closed_form_seconds"], row["cvodes_seconds"]
+        row["ratio_cvodes_over_closed_form"] = (None if base is None or other is None
+                                                else other / base)
+        at_error[key] = row
+    args = _schedule(ARCS)
+    x, acs = ca.SX.sym("x", 5), ca.SX.sym("ac", 1, ARCS)
+    floor = ca.Function("floor", [x, acs, ca.SX.sym("alpha", 1, ARCS),
+                                  ca.SX.sym("length", 1, ARCS)], [2 * x])
+    floor_seconds = median_seconds(lambda: floor(*args), max(repeats, 100))
+    cvodes_tight = next(p["seconds"] for p in points
+                        if p["method"] == "cvodes" and p["setting"] == "tol 1e-12")
+    return {"points": points, "at_error_km": at_error, "call_floor_seconds": floor_seconds,
+            "ratio_cvodes_over_call_floor": cvodes_tight / floor_seconds,
+            "reference_tolerance": VERIFY_TOLERANCE, "reference_final_state": truth[:5]}
+
+
+def race_figure(curves):
+    """The race as a log-log work-precision diagram, on a new Figure."""
+    from esail_opt.bench.precision import draw_precision
+
+    ax = draw_precision({"problem": f"{YEARS:g}-year raising, alpha {ALPHA_DEG:g} deg",
+                         "ac_mm_s2": AC_MM_S2, "points": curves["points"]},
+                        xlabel="time of one propagation call [s]",
+                        ylabel="final position error [km] (vs CVODES at 3e-16)")
+    ax.figure.tight_layout()
+    return ax.figure
+
+
+def _print_race(curves):
+    rows = []
+    for key, row in curves["at_error_km"].items():
+        for name, value in row.items():
+            unit = "" if name.startswith("ratio") else "s"
+            rows.append((f"{key} km: {name}", "never" if value is None else float(value),
+                         "" if value is None else unit))
+    rows += [("one call of a Function that does nothing", 1e6 * curves["call_floor_seconds"],
+              "us"),
+             ("ratio CVODES 1e-12 / that call", curves["ratio_cvodes_over_call_floor"], "")]
+    print_table("bench propagate: work-precision, 10 years (call time at equal final error)",
+                rows)
 
 
 def _print(data, repeats):
@@ -119,11 +234,13 @@ def run(out, repeats):
     the Function takes, so only the evaluation is measured.  Accuracy is the distance
     between final positions against CVODES after 10 years (the closed form with 20 arcs
     runs about 11 deg ahead in theta; that dominates its km error), with the radial and
-    angular parts beside it.  Returns the path written.
+    angular parts beside it.  Then :func:`race` times the ten years at several arc
+    counts and tolerances (``race`` in the JSON, ``propagate.png``).  Returns the path
+    written.
     """
     import numpy as np
 
-    from esail_opt.app.files import write_json
+    from esail_opt.app.files import json_ready, save_figure, write_json
 
     functions = _functions()
     seconds = {name: median_seconds(lambda f=f, a=a: f(*a), repeats)
@@ -146,8 +263,12 @@ def run(out, repeats):
     data.update(_accuracy(states))
     data["note"] = ("medians of one Function call each, same run and machine; errors against "
                     "CVODES at the 20 rectification times; *_final_err_km is the distance "
-                    "between final positions")
+                    "between final positions; race: call time against final error, see "
+                    "bench.propagate.race")
+    data["race"] = race(repeats)
     _print(data, repeats)
+    _print_race(data["race"])
     path = Path(out) / "propagate.json"
-    write_json(path, data)
+    save_figure(race_figure(data["race"]), Path(out) / "propagate.png")
+    write_json(path, json_ready(data))
     return path
