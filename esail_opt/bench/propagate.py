@@ -172,7 +172,7 @@ def race(repeats):
                         if p["method"] == "cvodes" and p["setting"] == "tol 1e-12")
     return {"points": points, "at_error_km": at_error, "call_floor_seconds": floor_seconds,
             "ratio_cvodes_over_call_floor": cvodes_tight / floor_seconds,
-            "reference_tolerance": VERIFY_TOLERANCE, "reference_final_state": truth[:5]}
+            "reference_tolerance": VERIFY_TOLERANCE, "reference_final_state": truth[:5].tolist()}
 
 
 def race_figure(curves):
