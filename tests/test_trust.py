@@ -150,19 +150,29 @@ def test_every_verified_polish_holds_under_dop853(path):
     assert v_m_s is None or v_m_s * 1e3 < 1.0, v_m_s
 
 
+#: The CLI with a progress line at every Ipopt iteration: the test must see Ipopt
+#: iterating before it interrupts, and at the usual one line every 2 s a solve that now
+#: ends within 2 s would never say so (the signal then reached a finished process).
+EVERY_ITERATION = ("import sys; from esail_opt.optimisation import ipopt; "
+                   "ipopt.PROGRESS_SECONDS = 0.0; from esail_opt.app.cli import main; "
+                   "sys.exit(main(sys.argv[1:]))")
+
+
 def test_sigint_stops_a_solve_within_seconds_and_writes_nothing(tmp_path):
     out = tmp_path / "out"
-    # On CasADi's virtual machine the solve lasts long enough to be interrupted mid-way;
-    # compiled, it can end before the signal arrives.  The interrupt path is the same.
+    # On CasADi's virtual machine the solve lasts longer, so the signal lands mid-solve
+    # with room to spare; the interrupt path is the same compiled or not.
     env = dict(os.environ, ESAIL_OPT_COMPILE="0")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "esail_opt.app.cli", "solve", str(PROBLEMS / "earth_mars_min_time.py"),
-         "--out", str(out)], stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
-        env=env)
+        [sys.executable, "-c", EVERY_ITERATION, "solve",
+         str(PROBLEMS / "earth_mars_min_time.py"), "--out", str(out)],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
+    iterating = False
     try:
         # Wait until Ipopt is iterating: the interrupt must reach the C++ solver.
         for line in proc.stderr:
             if "Ipopt iteration" in line:
+                iterating = True
                 break
         sent = time.monotonic()
         proc.send_signal(signal.SIGINT)
@@ -171,6 +181,7 @@ def test_sigint_stops_a_solve_within_seconds_and_writes_nothing(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
+    assert iterating, "the solve ended without reporting an Ipopt iteration"
     assert code == 130
     assert waited < 10
     assert not out.exists() or not any(out.iterdir())

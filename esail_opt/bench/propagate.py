@@ -135,7 +135,6 @@ def race(repeats):
     import numpy as np
 
     from esail_opt.bench.precision import seconds_at_miss
-    from esail_opt.bench.timing import median_seconds
     from esail_opt.propagation.rectified import invariant_function, rectified_function
     from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
 
