@@ -181,7 +181,8 @@ def race_figure(curves):
     ax = draw_precision({"problem": f"{YEARS:g}-year raising, alpha {ALPHA_DEG:g} deg",
                          "ac_mm_s2": AC_MM_S2, "points": curves["points"]},
                         xlabel="time of one propagation call [s]",
-                        ylabel="final position error [km] (vs CVODES at 3e-16)")
+                        ylabel=("final position error [km] (vs CVODES at "
+                                f"{curves['reference_tolerance']:g})"))
     ax.figure.tight_layout()
     return ax.figure
 
