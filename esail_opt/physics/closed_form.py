@@ -212,11 +212,8 @@ class FirstOrderArc:
         return self.q0 + self.actilde * ca.mtimes(self.matrix(phi), ca.vertcat(self.R, self.T))
 
     def clock_rate(self, phi):
-        """dt/dphi = 1 / (q3 s^2) on the closed form, in units sqrt(r0^3 / mu), with
-        s = q1 cos(phi) + q2 sin(phi) + q3 (Eq. 9: r = 1 / (q3 s))."""
-        q = self.q(phi)
-        s = q[0] * ca.cos(phi) + q[1] * ca.sin(phi) + q[2]
-        return 1 / (q[2] * s**2)
+        """dt/dphi on the first-order q (:func:`clock_rate`)."""
+        return clock_rate(self.q(phi), phi)
 
     def time(self, phi_a, phi_b, nodes=8):
         """Time from phi_a to phi_b, in units sqrt(r0^3 / mu).
@@ -234,6 +231,83 @@ class FirstOrderArc:
             phi = phi_a + width * xk
             correction += wk * (self.clock_rate(phi) - self.h0**3 / kep.w(phi) ** 2)
         return exact + width * correction
+
+
+def clock_rate(q, phi):
+    """dt/dphi = 1 / (q3 s^2) at elements q, in units sqrt(r0^3 / mu), with
+    s = q1 cos(phi) + q2 sin(phi) + q3 (Eq. 9: r = 1 / (q3 s))."""
+    s = q[0] * ca.cos(phi) + q[1] * ca.sin(phi) + q[2]
+    return 1 / (q[2] * s**2)
+
+
+def element_rate(q, phi, R, T):
+    """dq/dtheta per unit a~_c on the exact motion (THEORY.md §2.3): (1/s^2) A [R, T]^T,
+    with s = q1 cos(phi) + q2 sin(phi) + q3 and elements, angle and lengths as in
+    :class:`FirstOrderArc`."""
+    c, s_phi = ca.cos(phi), ca.sin(phi)
+    s = q[0] * c + q[1] * s_phi + q[2]
+    return ca.vertcat(s * s_phi * R + (s + q[2]) * c * T,
+                      -s * c * R + (s + q[2]) * s_phi * T,
+                      -q[2] * T) / s**2
+
+
+def _node_integrals(nodes):
+    """W[k, j] = int_0^{x_k} L_j(x) dx on [0, 1], where L_j are the Lagrange polynomials
+    through 0 and the n Gauss-Legendre nodes x_k, for j over the nodes only (the value
+    interpolated is zero at 0).  So a function that vanishes at 0 and is known at the
+    nodes is integrated from 0 to each node, to the order of the interpolation."""
+    xg, _ = gauss_legendre(nodes)
+    points = np.r_[0.0, xg]
+    weights = np.zeros((nodes, nodes))
+    for j in range(nodes):
+        basis = np.poly1d([1.0])
+        for m, pm in enumerate(points):
+            if m != j + 1:
+                basis = basis * np.poly1d([1.0, -pm]) / (points[j + 1] - pm)
+        primitive = basis.integ()
+        weights[:, j] = primitive(xg) - primitive(0.0)
+    return weights
+
+
+class SecondOrderArc:
+    """One Picard sweep on :class:`FirstOrderArc`: the arc to second order in a~_c.
+
+    Eq. 12 freezes q at q0 on the right of dq/dtheta = a~_c (1/s^2) A [R, T]^T.  Here
+    the right side is evaluated on the first-order q instead, at the Gauss-Legendre
+    nodes of [0, phi], and only its difference from the frozen (Keplerian) one is
+    integrated numerically, since Eq. 12 integrates the frozen one exactly:
+
+        q(phi) = q_1(phi) + a~_c phi sum_k w_k [F(q_1(phi_k), phi_k) - F(q0, phi_k)].
+
+    The difference is O(a~_c) and vanishes at 0, so the error left is O(a~_c^3 phi^3)
+    from the first-order q in the integrand, plus the quadrature's (THEORY.md §3.8).
+    The clock needs q to second order at its nodes too: the same differences, known
+    at the nodes and zero at 0, are integrated from 0 to each node through their
+    interpolating polynomial (:func:`_node_integrals`).  The cost over the first-order
+    arc is a few dozen instructions a node, as q_1 at the nodes is the clock's anyway.
+    """
+
+    def __init__(self, arc, phi, nodes):
+        self.arc = arc
+        xg, wg = gauss_legendre(nodes)
+        phis = [phi * x for x in xg]
+        q0, eps, R, T = arc.q0, arc.actilde, arc.R, arc.T
+        firsts = [arc.q(p) for p in phis]
+        excess = [eps * (element_rate(q, p, R, T) - element_rate(q0, p, R, T))
+                  for q, p in zip(firsts, phis)]
+        #: The first-order elements at phi (whose q3 is the arc's validity margin), and
+        #: the second-order ones.
+        self.q_first = arc.q(phi)
+        self.q_end = self.q_first + phi * sum(w * d for w, d in zip(wg, excess))
+        weights = _node_integrals(nodes)
+        at_nodes = [q + phi * sum(weights[k, j] * excess[j] for j in range(nodes))
+                    for k, q in enumerate(firsts)]
+        kep = arc.kepler
+        exact = arc.h0**3 * (kep.i_c(phi) - kep.i_c(0))
+        rates = [clock_rate(q, p) - arc.h0**3 / kep.w(p) ** 2
+                 for q, p in zip(at_nodes, phis)]
+        #: Time from 0 to phi, in units sqrt(r0^3 / mu).
+        self.time = exact + phi * sum(w * r for w, r in zip(wg, rates))
 
 
 def q_of_theta(q0, theta0, theta, actilde, R, T):
@@ -272,10 +346,11 @@ def arc_frame(x0, ac, R, T):
     return FirstOrderArc(q0, ac_tilde(ac, r0), R, T)
 
 
-def arc_state(x0, arc, phi):
-    """Canonical polar state at angle phi along ``arc`` started at ``x0`` (Eqs. 9-11)."""
+def arc_state(x0, arc, phi, q=None):
+    """Canonical polar state at angle phi along ``arc`` started at ``x0`` (Eqs. 9-11), from
+    the arc's first-order elements there or from ``q`` (e.g. :class:`SecondOrderArc`'s)."""
     r0 = x0[0]
-    local = polar_from_q(arc.q(phi), phi, r0)
+    local = polar_from_q(arc.q(phi) if q is None else q, phi, r0)
     return ca.vertcat(local[0], x0[1] + phi, local[2], local[3])
 
 

@@ -22,7 +22,7 @@ import itertools
 import casadi as ca
 import numpy as np
 
-from esail_opt.physics.closed_form import arc_frame, arc_state
+from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
 from esail_opt.physics.dynamics import angular_momentum
 from esail_opt.physics.thrust import EXACT, radial_transverse
 from esail_opt.propagation.compiled import compiled
@@ -47,12 +47,37 @@ def panel_function(coefficients=EXACT, nodes=NODES):
     )
 
 
-def native_panel(coefficients=EXACT, nodes=NODES):
-    """The compiled :func:`panel_function` (``propagation.compiled``), or None when it
+def end_function(coefficients=EXACT, nodes=NODES):
+    """One second-order arc from its start to an angle (``closed_form.SecondOrderArc``):
+    ``(x0[5], ac, alpha, phi) -> (state at phi [4], time from 0 to phi, q3 at phi)``,
+    an SX Function; q3 is the first-order arc's validity margin."""
+    x0 = ca.SX.sym("x0", 5)
+    ac, alpha, phi = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("phi")
+    R, T = radial_transverse(alpha, coefficients)
+    arc = arc_frame(x0[:4], ac, R, T)
+    second = SecondOrderArc(arc, phi, nodes)
+    return ca.Function(
+        "arc_end", [x0, ac, alpha, phi],
+        [arc_state(x0[:4], arc, phi, second.q_end), x0[0] ** 1.5 * second.time,
+         second.q_first[2]],
+    )
+
+
+def piece_function(coefficients=EXACT, nodes=NODES, order=1):
+    """The Function an arc of ``order`` (1 or 2) is sampled with: :func:`panel_function`
+    (from one sample to the next) or :func:`end_function` (from the arc's start)."""
+    if order not in (1, 2):
+        raise ValueError(f"order must be 1 or 2, not {order!r}")
+    return panel_function(coefficients, nodes) if order == 1 else end_function(coefficients,
+                                                                               nodes)
+
+
+def native_panel(coefficients=EXACT, nodes=NODES, order=1):
+    """The compiled :func:`piece_function` (``propagation.compiled``), or None when it
     stays on CasADi's virtual machine (compiling off, no compiler, a failed compile)."""
-    panel = panel_function(coefficients, nodes)
-    fast = compiled(panel)
-    return None if fast is panel else fast
+    piece = piece_function(coefficients, nodes, order)
+    fast = compiled(piece)
+    return None if fast is piece else fast
 
 
 #: Options of the MX Functions built over compiled panels.  Inlined, an NLP segment is
@@ -63,7 +88,8 @@ FLAT = {"always_inline": True}
 
 
 @functools.lru_cache(maxsize=None)
-def arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, native=False):
+def arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, native=False,
+                 order=1):
     """One closed-form arc sampled at phi_k = dtheta k / samples, k = 1..samples.
 
     Returns a Function ``(x0[5], ac, alpha, dtheta) -> (xs[5 x samples], q3)``
@@ -77,22 +103,31 @@ def arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, nati
     the closed form's, and so does q3, which measures the first-order arc's validity.
     With ``native`` the panels are the compiled ones (:func:`native_panel`), called
     once per sample, and the arc is inlined wherever it is called (see :data:`FLAT`).
+    ``order`` 2 flies the second-order arc (:func:`end_function`): each sample is then
+    its own arc end from x0, with the nodes of its own quadratures.
     """
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, dtheta = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("dtheta")
     if native:
         # Angles and running times as plain expressions, not slices of a row: every
         # node of this graph is differentiated in every direction the NLP asks for.
-        panel = native_panel(coefficients, nodes)
+        piece = native_panel(coefficients, nodes, order)
         ends = [dtheta * (k / samples) for k in range(1, samples)] + [dtheta]
-        calls = [panel(x0, ac, alpha, a, b) for a, b in zip([0] + ends[:-1], ends)]
+        if order == 1:
+            calls = [piece(x0, ac, alpha, a, b) for a, b in zip([0] + ends[:-1], ends)]
+        else:
+            calls = [piece(x0, ac, alpha, b) for b in ends]
         states, dts, q3s = (ca.horzcat(*parts) for parts in zip(*calls))
-        elapsed = ca.horzcat(*itertools.accumulate(call[1] for call in calls))
+        elapsed = (ca.horzcat(*itertools.accumulate(call[1] for call in calls))
+                   if order == 1 else dts)
     else:
         phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
-        panel = panel_function(coefficients, nodes).map(samples)
-        states, dts, q3s = panel(x0, ac, alpha, phis[:, :-1], phis[:, 1:])
-        elapsed = ca.cumsum(dts, 1)
+        piece = piece_function(coefficients, nodes, order).map(samples)
+        if order == 1:
+            states, dts, q3s = piece(x0, ac, alpha, phis[:, :-1], phis[:, 1:])
+            elapsed = ca.cumsum(dts, 1)
+        else:
+            states, elapsed, q3s = piece(x0, ac, alpha, phis[:, 1:])
     times = x0[4] + elapsed
     if invariant:
         T = radial_transverse(alpha, coefficients)[1]
@@ -188,17 +223,19 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False
 
 @functools.lru_cache(maxsize=None)
 def rectified_function(segments, samples=1, length_in="theta", coefficients=EXACT,
-                       nodes=NODES, invariant=False, native=False):
+                       nodes=NODES, invariant=False, native=False, order=1):
     """The whole schedule as one Function.
 
     ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) -> (xs[5 x N*samples], q3[1 x N])``
     with ``ac`` per segment (characteristic acceleration times throttle).  With
     ``invariant`` each arc imposes the exact angular momentum, and with ``native`` its
     panels are compiled and the chain is unrolled and inlined (:func:`arc_function`;
-    in theta only).
+    in theta only).  ``order`` 2 flies second-order arcs (in theta only).
     """
     if length_in == "theta":
-        arc = arc_function(samples, coefficients, nodes, invariant, native)
+        arc = arc_function(samples, coefficients, nodes, invariant, native, order)
+    elif order != 1:
+        raise ValueError("second-order arcs take lengths in theta only")
     elif length_in == "time":
         arc = timed_arc_function(samples, coefficients, nodes, invariant)
     else:
@@ -227,7 +264,7 @@ def rectified_function(segments, samples=1, length_in="theta", coefficients=EXAC
 
 
 def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="theta",
-              coefficients=EXACT, nodes=NODES, invariant=False):
+              coefficients=EXACT, nodes=NODES, invariant=False, order=1):
     """Rectified closed-form propagation of a piecewise-constant pitch schedule.
 
     Parameters
@@ -248,6 +285,8 @@ def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="the
         Gauss-Legendre points per panel of the time quadrature.
     invariant : bool
         End every sample with the exact angular momentum (:func:`arc_function`).
+    order : int
+        1 for the paper's first-order arcs, 2 for second-order ones (in theta only).
 
     Returns
     -------
@@ -259,8 +298,8 @@ def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="the
         first-order arc went past theta_max.
     """
     n = np.size(alphas)
-    return _fly(rectified_function(n, samples, length_in, coefficients, nodes, invariant), x0,
-                alphas, lengths, ac, throttles)
+    return _fly(rectified_function(n, samples, length_in, coefficients, nodes, invariant,
+                                   order=order), x0, alphas, lengths, ac, throttles)
 
 
 def _fly(fun, x0, alphas, lengths, ac, throttles):
@@ -273,7 +312,8 @@ def _fly(fun, x0, alphas, lengths, ac, throttles):
 
 
 @functools.lru_cache(maxsize=None)
-def extrapolated_function(segments, length_in="theta", coefficients=EXACT, nodes=NODES):
+def extrapolated_function(segments, length_in="theta", coefficients=EXACT, nodes=NODES,
+                          order=1):
     """Richardson extrapolation of the schedule to infinitely many arcs, one Function.
 
     The rectified closed form's error at a fixed point of the trajectory falls like
@@ -283,12 +323,12 @@ def extrapolated_function(segments, length_in="theta", coefficients=EXACT, nodes
     The cost is 3N arcs.  ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) ->
     (xs[5 x N], q3[1 x N])``, xs at the segment ends.
     """
-    return _extrapolated(segments, length_in, coefficients, nodes, False)
+    return _extrapolated(segments, length_in, coefficients, nodes, False, order=order)
 
 
 @functools.lru_cache(maxsize=None)
 def invariant_function(segments, length_in="theta", coefficients=EXACT, nodes=NODES,
-                       native=False):
+                       native=False, order=1):
     """As :func:`extrapolated_function`, with the exact angular momentum imposed on every arc.
 
     Eq. 2 gives h = h0 + a_c r_E T (t - t0) exactly along a constant-pitch arc; the
@@ -339,7 +379,7 @@ def invariant_function(segments, length_in="theta", coefficients=EXACT, nodes=NO
     end state carries h only to the product of the two chains' differences, which is
     second order.
     """
-    return _extrapolated(segments, length_in, coefficients, nodes, True, native)
+    return _extrapolated(segments, length_in, coefficients, nodes, True, native, order)
 
 
 def _doubled(row):
@@ -348,11 +388,15 @@ def _doubled(row):
     return ca.horzcat(*[row[:, k] for k in range(row.shape[1]) for _ in range(2)])
 
 
-def _extrapolated(segments, length_in, coefficients, nodes, invariant, native=False):
-    """2 x_halves - x_whole at each segment's end, with the smallest q3 of either run."""
-    whole = rectified_function(segments, 1, length_in, coefficients, nodes, invariant, native)
+def _extrapolated(segments, length_in, coefficients, nodes, invariant, native=False,
+                  order=1):
+    """(2^p x_halves - x_whole) / (2^p - 1) at each segment's end, p the arcs' order of
+    convergence (1 for first-order arcs, 2 for second-order ones), with the smallest q3
+    of either run."""
+    whole = rectified_function(segments, 1, length_in, coefficients, nodes, invariant, native,
+                               order)
     halves = rectified_function(2 * segments, 1, length_in, coefficients, nodes, invariant,
-                                native)
+                                native, order)
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, length = (ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "length"))
     coarse, q3_coarse = whole(x0, ac, alpha, length)
@@ -361,20 +405,21 @@ def _extrapolated(segments, length_in, coefficients, nodes, invariant, native=Fa
     # The smallest validity margin met by either run: an extrapolation is only as
     # valid as the arcs it is built from.
     q3 = ca.fmin(q3_coarse, ca.fmin(q3_fine[:, 0::2], q3_fine[:, 1::2]))
+    combined = 2 * fine_ends - coarse if order == 1 else (4 * fine_ends - coarse) / 3
     name = "invariant" if invariant else "extrapolated"
     return ca.Function(
-        name, [x0, ac, alpha, length], [2 * fine_ends - coarse, q3],
+        name, [x0, ac, alpha, length], [combined, q3],
         ["x0", "ac", "alpha", "length"], ["xs", "q3"], FLAT if native else {},
     )
 
 
 def propagate_extrapolated(x0, alphas, lengths, ac, throttles=None, length_in="theta",
-                           coefficients=EXACT, nodes=NODES, invariant=False):
+                           coefficients=EXACT, nodes=NODES, invariant=False, order=1):
     """Richardson-extrapolated rectified propagation (see :func:`extrapolated_function`,
     and :func:`invariant_function` with ``invariant``).
 
     Parameters are those of :func:`propagate` (without samples: only the segment
-    ends are extrapolated; ``nodes`` and ``invariant`` as there).
+    ends are extrapolated; ``nodes``, ``invariant`` and ``order`` as there).
 
     Returns
     -------
@@ -387,4 +432,5 @@ def propagate_extrapolated(x0, alphas, lengths, ac, throttles=None, length_in="t
     """
     n = np.size(alphas)
     build = invariant_function if invariant else extrapolated_function
-    return _fly(build(n, length_in, coefficients, nodes), x0, alphas, lengths, ac, throttles)
+    return _fly(build(n, length_in, coefficients, nodes, order=order), x0, alphas, lengths, ac,
+                throttles)
