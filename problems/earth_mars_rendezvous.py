@@ -15,7 +15,7 @@ problem = eo.Problem(
                 "a_c = 1 mm/s^2",
     departure=eo.ParkingOrbit(a_au=1.0),
     sail=eo.Sail(ac_mm_s2=1.0),
-    segments=eo.Segments(count=60, sub_arcs=3, equal=False),
+    segments=eo.Segments(count=60, sub_arcs=2, equal=False),
     objective=eo.MinTime(),
     target=eo.Rendezvous(radius_au=1.524, phase_deg=44.0),
 )

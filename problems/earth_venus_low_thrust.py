@@ -13,7 +13,7 @@ problem = eo.Problem(
     description="Minimum-time transfer, circular 1 au -> circular 0.723 au, a_c = 0.1 mm/s^2",
     departure=eo.ParkingOrbit(a_au=1.0),
     sail=eo.Sail(ac_mm_s2=0.1),
-    segments=eo.Segments(per_revolution=16, sub_arcs=2),
+    segments=eo.Segments(per_revolution=16, sub_arcs=1),
     objective=eo.MinTime(),
     target=eo.CircularOrbit(radius_au=0.723),
 )

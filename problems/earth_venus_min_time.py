@@ -8,7 +8,7 @@ problem = eo.Problem(
     description="Minimum-time transfer, circular 1 au -> circular 0.723 au, a_c = 1 mm/s^2",
     departure=eo.ParkingOrbit(a_au=1.0),
     sail=eo.Sail(ac_mm_s2=1.0),
-    segments=eo.Segments(count=30, sub_arcs=3, equal=False),
+    segments=eo.Segments(count=30, sub_arcs=1, equal=False),
     objective=eo.MinTime(),
     target=eo.CircularOrbit(radius_au=0.723),
 )

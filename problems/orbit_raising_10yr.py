@@ -13,7 +13,7 @@ problem = eo.Problem(
     description="Maximum final semimajor axis after 10 years from 1 au, a_c = 0.1 mm/s^2",
     departure=eo.ParkingOrbit(a_au=1.0),
     sail=eo.Sail(ac_mm_s2=0.1),
-    segments=eo.Segments(count=60, sub_arcs=4),
+    segments=eo.Segments(count=60, sub_arcs=2),
     objective=eo.MaxEnergy(tof_days=10 * 365.25),
     target=None,
 )

@@ -34,7 +34,8 @@ def small_problem(**changes):
 
 @pytest.mark.parametrize("extrapolate", [False, True])
 def test_segment_chain_is_the_rectified_propagation(extrapolate):
-    """The NLP's segment map, chained, equals rectified.propagate over the same arcs."""
+    """The NLP's segment map, chained, equals rectified.propagate over the same
+    (second-order) arcs."""
     p = small_problem(segments=eo.Segments(5, 3, extrapolate=extrapolate),
                       departure=eo.ParkingOrbit(0.9, e=0.1, nu_deg=30.0))
     rng = np.random.default_rng(4)
@@ -43,14 +44,14 @@ def test_segment_chain_is_the_rectified_propagation(extrapolate):
     nodes = tr.flown_segments(p, alpha, lengths, p.x0())
     if not extrapolate:
         ref, _ = propagate(p.x0(), np.repeat(alpha, 3), np.repeat(lengths / 3, 3), p.sail.ac,
-                           nodes=tr.QUAD_NODES, invariant=True)
+                           nodes=tr.QUAD_NODES, invariant=True, order=2)
         np.testing.assert_allclose(nodes, ref[:, ::3], rtol=0, atol=1e-12)
     # Extrapolation combines each segment's whole and halved sub-arc chains, restarted at
     # every node: compare segment by segment from the NLP's own nodes.
     for k in range(5):
         fly = propagate_extrapolated if extrapolate else propagate
         ref, _ = fly(nodes[:4, k], np.full(3, alpha[k]), np.full(3, lengths[k] / 3), p.sail.ac,
-                     nodes=tr.QUAD_NODES, invariant=True)
+                     nodes=tr.QUAD_NODES, invariant=True, order=2)
         np.testing.assert_allclose(ref[:4, -1], nodes[:4, k + 1], rtol=0, atol=1e-12)
         assert ref[4, -1] == pytest.approx(nodes[4, k + 1] - nodes[4, k], abs=1e-12)
 
@@ -67,9 +68,9 @@ def test_fixed_pitch_solve_reproduces_rectified_propagation():
     np.testing.assert_allclose(res.alpha, math.radians(30.0), atol=1e-12)
     starts = np.column_stack([p.x0(), res.nodes[:4, :-1]])
     for k in range(6):
-        ref, _ = propagate_extrapolated(starts[:, k], np.full(2, math.radians(30.0)),
-                                        np.full(2, res.lengths[k] / 2), p.sail.ac,
-                                        nodes=tr.QUAD_NODES, invariant=True)
+        ref, _ = propagate(starts[:, k], np.full(2, math.radians(30.0)),
+                           np.full(2, res.lengths[k] / 2), p.sail.ac,
+                           nodes=tr.QUAD_NODES, invariant=True, order=2)
         np.testing.assert_allclose(res.nodes[:4, k], ref[:4, -1], rtol=0, atol=1e-9)
         assert ref[4, -1] == pytest.approx(res.durations[k], abs=1e-9)
     assert units.time_to_days(res.durations.sum()) == pytest.approx(200.0, abs=1e-7)
@@ -103,14 +104,16 @@ def test_acceptable_level_is_not_converged():
 
 
 def test_small_transfer_converges_and_lands_on_target():
-    res, _ = solve_problem(small_problem())
+    # 12 segments: with 8 the NLP also has a local optimum at 315.8 d, which Ipopt
+    # reaches from the seed with some arc models and not others.
+    res, _ = solve_problem(small_problem(segments=eo.Segments(12, 2)))
     assert res.converged
     r, _, vr, vt = res.nodes[:4, -1]
     assert abs(r - 0.723) < 1e-9 and abs(vr) < 1e-9 and abs(vt - 0.723 ** -0.5) < 1e-9
     assert res.constraint_violation < 1e-9
     assert np.all(res.q3 >= 0.2 - 1e-9)
     # Within 1.5 % of the continuous-control optimum (305.10 d, tests/reference): even
-    # 8 segments are close, and a much longer time would mean another basin.
+    # 12 segments are close, and a much longer time would mean another basin.
     assert 300.0 < units.time_to_days(res.objective) < 1.015 * 305.105
 
 

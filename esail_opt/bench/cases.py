@@ -25,35 +25,35 @@ def _circle_to_circle(name, ac_mm_s2, radius_au, segments):
 
 def earth_venus_min_time():
     """Earth to Venus in minimum time at 1 mm/s^2: circular 1 au -> 0.723 au, 30 free
-    segments x 3 sub-arcs (``problems/earth_venus_min_time.py``)."""
+    segments x 1 sub-arc (``problems/earth_venus_min_time.py``)."""
     return _circle_to_circle("earth_venus_min_time", 1.0, 0.723,
-                             eo.Segments(count=30, sub_arcs=3, equal=False))
+                             eo.Segments(count=30, sub_arcs=1, equal=False))
 
 
 def earth_mars_min_time():
     """Earth to Mars in minimum time at 1 mm/s^2: circular 1 au -> 1.524 au, 60 free
-    segments x 3 sub-arcs (``problems/earth_mars_min_time.py``)."""
+    segments x 2 sub-arcs (``problems/earth_mars_min_time.py``)."""
     return _circle_to_circle("earth_mars_min_time", 1.0, 1.524,
-                             eo.Segments(count=60, sub_arcs=3, equal=False))
+                             eo.Segments(count=60, sub_arcs=2, equal=False))
 
 
 def earth_mars_low_thrust():
     """Earth to Mars in minimum time at 0.1 mm/s^2 (about 6.5 revolutions), 16 segments
-    per revolution x 2 sub-arcs (``problems/earth_mars_low_thrust.py``)."""
+    per revolution x 1 sub-arc (``problems/earth_mars_low_thrust.py``)."""
     return _circle_to_circle("earth_mars_low_thrust", 0.1, 1.524,
-                             eo.Segments(per_revolution=16, sub_arcs=2))
+                             eo.Segments(per_revolution=16, sub_arcs=1))
 
 
 def orbit_raising_10yr():
     """The paper's orbit raising with free pitch: 10 years from 1 au at 0.1 mm/s^2,
-    maximising the final semimajor axis, 60 segments x 4 sub-arcs
+    maximising the final semimajor axis, 60 segments x 2 sub-arcs
     (``problems/orbit_raising_10yr.py``)."""
     return eo.Problem(
         name="orbit_raising_10yr",
         description="Maximum final semimajor axis after 10 years from 1 au, a_c = 0.1 mm/s^2",
         departure=eo.ParkingOrbit(a_au=1.0),
         sail=eo.Sail(ac_mm_s2=0.1),
-        segments=eo.Segments(count=60, sub_arcs=4),
+        segments=eo.Segments(count=60, sub_arcs=2),
         objective=eo.MaxEnergy(tof_days=10 * 365.25),
         target=None,
     )

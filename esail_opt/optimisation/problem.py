@@ -196,13 +196,15 @@ class Segments:
         ``per_revolution`` is given.
     sub_arcs : int
         Rectified closed-form arcs chained inside each segment, >= 1; more give
-        accuracy (the error per arc falls as its length squared) without more controls.
+        accuracy without more controls.  The arcs are second order in a~_c, so the
+        NLP's error against Eqs. 1-2 falls like 1/n^2 in the arc count n (THEORY.md
+        §3.8); one a segment is often enough at 20 or more segments a revolution.
     equal : bool
         Equal segment angles (one shared length) or free ones.
     extrapolate : bool
-        Richardson-extrapolate every sub-arc (whole and two halves): the NLP's error
-        against Eqs. 1-2 then falls like 1/n^2 instead of 1/n in the arc count, at three
-        times the arcs (see ``transcription.closed_form_segment``).
+        Richardson-extrapolate every sub-arc (whole and two halves, combined for a
+        second-order error) at three times the arcs.  Off by default: it gains about
+        what more sub-arcs do at the same cost (see ``transcription.closed_form_segment``).
     per_revolution : int or None
         Segments per revolution K, >= 1, instead of a total: N is then
         ceil(K angle / 2 pi), with ``angle`` the one the constant-pitch seeding
@@ -212,9 +214,9 @@ class Segments:
     """
 
     count: Optional[int] = None
-    sub_arcs: int = 3
+    sub_arcs: int = 2
     equal: bool = True
-    extrapolate: bool = True
+    extrapolate: bool = False
     per_revolution: Optional[int] = None
 
     def __post_init__(self):

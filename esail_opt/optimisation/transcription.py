@@ -9,9 +9,10 @@ Decision variables (each scaled to order one):
 * ``kappa[N]``: each segment's throttle in the sail's bounds, with ``Sail(throttle=True)``;
   the segment then flies at kappa a_c (the closed form scales a~_c by kappa).
 
-A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q, Eqs. 9-11 for the state, the
-time by Gauss-Legendre quadrature of dt/dtheta) chained with rectification at each
-sub-arc's start, all at one pitch, and by default Richardson-extrapolated.  The segment
+A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q with one Picard sweep that makes
+it second order in a~_c, Eqs. 9-11 for the state, the time by Gauss-Legendre quadrature
+of dt/dtheta) chained with rectification at each sub-arc's start, all at one pitch, and
+optionally Richardson-extrapolated.  The segment
 Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
 the NLP holds one copy of the arc's graph however many segments there are.  The same
 builder accepts any segment Function of the same signature: the benchmarks swap in
@@ -35,7 +36,7 @@ import numpy as np
 
 from esail_opt.propagation import compiled
 from esail_opt.propagation.rectified import (invariant_function, native_panel,
-                                             panel_function, propagate, rectified_function)
+                                             piece_function, propagate, rectified_function)
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.errors import InputError
 from esail_opt.physics.thrust import EXACT
@@ -102,8 +103,20 @@ def sub_arcs_within_cap(problem, guess, most):
 
 
 @functools.lru_cache(maxsize=None)
-def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=True, native=False):
+def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=False,
+                        order=2):
     """One constant-pitch segment of ``sub_arcs`` rectified closed-form arcs.
+
+    The arcs are second order in a~_c by default (``closed_form.SecondOrderArc``, one
+    Picard sweep on Eq. 12 over the clock's own quadrature nodes).  Measured on the
+    benchmarks' equal-length NLPs, each flown on CVODES (one run each): Earth-Venus
+    (30 segments) missed by 116 km in 0.046 s with one second-order arc a segment,
+    against 842 km in 0.101 s with today's 3 first-order sub-arcs extrapolated; Earth-Mars
+    (60) by 1,470 km in 0.077 s against 2,103 km in 0.163 s; Earth-Mars at 0.1 mm/s^2
+    (100) by 2.4 km in 0.044 s against 439 km in 0.078 s.  Extrapolating second-order
+    arcs (weights 4/3 and -1/3) gained about what a third sub-arc does at the same cost
+    (Earth-Venus: 6.6 km with one extrapolated sub-arc, 9.9 km with three plain ones),
+    so it is off by default.
 
     Every arc ends with the exact angular momentum, v_theta = h / r with
     h = h0 + a_c r_E T t (``rectified.invariant_function``): at the same cost it made
@@ -118,11 +131,13 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=True, native=F
     extrapolate : bool
         Richardson-extrapolate the segment (its chain of sub-arcs flown as it is and
         with every sub-arc halved, combined as 2 x_halves - x_whole at the segment's
-        end; every segment restarts from its node).  The rectified closed form's error
-        falls only like 1/N with N arcs (THEORY.md §5.2); extrapolation cancels that
-        leading term at three times the arcs.  On Earth-Venus at 1 mm/s^2, 30 x 3
-        extrapolated sub-arcs miss the CVODES flight by 6e3 km, where 30 x 12 plain
-        ones miss by 2e5 km (both without the invariant).
+        end; every segment restarts from its node).  The first-order rectified closed
+        form's error falls only like 1/N with N arcs (THEORY.md §5.2); extrapolation
+        cancels that leading term at three times the arcs.  On Earth-Venus at 1 mm/s^2,
+        30 x 3 extrapolated first-order sub-arcs miss the CVODES flight by 6e3 km, where
+        30 x 12 plain ones miss by 2e5 km (both without the invariant).
+    order : int
+        1 for the paper's first-order arcs, 2 for the second-order ones.
     native : bool
         Fly compiled arcs (``propagation.compiled``): the same arithmetic, with the
         derivatives Ipopt asks for run as C, and the segment's own graph of arc calls
@@ -139,12 +154,12 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=True, native=F
         smallest over its whole and half arcs).  SX and expanded, or an ``External``
         (or MX) over the compiled arcs.
     """
-    native = native and native_panel(coefficients, QUAD_NODES) is not None
+    native = native and native_panel(coefficients, QUAD_NODES, order) is not None
     if extrapolate:
-        chain = invariant_function(sub_arcs, "theta", coefficients, QUAD_NODES, native)
+        chain = invariant_function(sub_arcs, "theta", coefficients, QUAD_NODES, native, order)
     else:
         chain = rectified_function(sub_arcs, 1, "theta", coefficients, QUAD_NODES,
-                                   invariant=True, native=native)
+                                   invariant=True, native=native, order=order)
     sym = ca.MX if native else ca.SX
     if not native:
         chain = chain.expand()
@@ -164,7 +179,8 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=True, native=F
         # (Earth-Venus) and 0.21 s against 0.28 s (raising; medians of 7 alternated
         # runs in one process), each to the same optimum in the same iterations.  One
         # library per sub-arc count and extrapolation setting, 6-12 s of compiling each.
-        segment = compiled.compiled(segment, (panel_function(coefficients, QUAD_NODES),))
+        segment = compiled.compiled(segment, (piece_function(coefficients, QUAD_NODES,
+                                                             order),))
     return segment
 
 

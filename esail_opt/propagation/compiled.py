@@ -5,8 +5,8 @@ constraint Jacobian and the Hessian of the Lagrangian, and CasADi's virtual mach
 runs about 8 ns per SX instruction.  The same instructions compiled by gcc -O1 ran
 10 to 20 times faster on a segment's derivatives.
 
-What is compiled is one small SX Function, the closed form's arc between two angles
-(``rectified.panel_function``, about 1,100 instructions), with the three derivatives
+What is compiled is one small SX Function, the closed form's arc (the NLP's second-order
+``rectified.end_function``, about 1,200 instructions), with the three derivatives
 an NLP asks of it through a ``map``: its Jacobian (constraint Jacobian), its first
 reverse derivative (gradient of the Lagrangian) and that one's Jacobian (Hessian of
 the Lagrangian).  CasADi's ``external`` finds them in the library by the names CasADi
@@ -65,7 +65,8 @@ except ImportError:  # pragma: no cover - not POSIX: parallel workers may compil
 log = logging.getLogger("esail_opt")
 
 #: -O1 by measurement on a 3-sub-arc segment's Hessian block: -O0 compiled it in 10.9 s
-#: against 23.8 s but ran it at 186 against 60 us a call (-O2 was not tried).
+#: against 23.8 s but ran it at 186 against 60 us a call.  On the arc's Hessian block,
+#: -O2 and -O3 compiled in 14 s against 5 s and ran no faster (7.5-7.9 us a mapped call).
 FLAGS = ("-O1", "-fPIC")
 #: Raised whenever what is written into a library changes, so old libraries are ignored.
 RECIPE = "segment+jac+adj1+jac_adj1 v1"
