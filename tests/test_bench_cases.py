@@ -45,7 +45,7 @@ def test_differences_sees_a_nested_field():
     built = cases.earth_mars_min_time()
     other = dataclasses.replace(built, segments=dataclasses.replace(built.segments,
                                                                     sub_arcs=4))
-    assert _differences(built, other) == ["problem.segments.sub_arcs: 3 != 4"]
+    assert _differences(built, other) == ["problem.segments.sub_arcs: 2 != 4"]
 
 
 def test_every_bench_problem_is_checked():
@@ -69,3 +69,11 @@ def test_sweep_source_defines_its_problem(tmp_path):
     assert problem.name == "bench_sweep_earth_mars"
     assert cases.SWEEP_PARAM.split("=")[0] == "ac_mm_s2"
     assert problem.sail.ac_mm_s2 == 1.0 and problem.target.radius_au == 1.524
+
+
+def test_polish_ratio_needs_both_sides_to_succeed():
+    case = {"cold_seconds": 8.0, "warm_seconds": 0.2, "cold_success": True,
+            "warm_success": True}
+    assert polish.ratio(case) == pytest.approx(40.0)
+    assert polish.ratio({**case, "cold_success": False}) is None
+    assert polish.ratio({**case, "warm_success": False}) is None

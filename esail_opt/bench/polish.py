@@ -69,8 +69,16 @@ def _polish_case(problem):
     cold = solve_transcription(cold_tr, polish_options(max_iter=COLD_MAX_ITER))
     case["cold_iterations"] = cold.iterations
     _record(case, "cold", problem, cold, time.perf_counter() - start)
-    case["ratio"] = case["cold_seconds"] / case["warm_seconds"]
+    case["ratio"] = ratio(case)
     return case
+
+
+def ratio(case):
+    """cold_seconds / warm_seconds, or None when either side failed: a failed side has
+    no time to a solution, and the time it took to fail would flatter the other."""
+    if not (case["cold_success"] and case["warm_success"]):
+        return None
+    return case["cold_seconds"] / case["warm_seconds"]
 
 
 def _outcome(case, side):
@@ -89,7 +97,9 @@ def _print(case):
                     ("warm total", case["warm_seconds"], _outcome(case, "warm")),
                     ("cold CVODES shooting", case["cold_seconds"],
                      f"{_outcome(case, 'cold')}, {case['cold_iterations']} it"),
-                    ("ratio", case["ratio"], "(cold / warm)")])
+                    ("ratio", "n/a" if case["ratio"] is None else case["ratio"],
+                     "(cold / warm)" if case["ratio"] is not None
+                     else "(one side failed: no time to a solution to compare)")])
 
 
 def run(out, repeats):
@@ -108,7 +118,8 @@ def run(out, repeats):
     Success means Ipopt converged (Solve_Succeeded) and the schedule flown on CVODES
     reaches the target within 1 m and 1 mm/s.  Wall times cover building and solving
     (and, for the cold start, flying its seed); one run each (``repeats`` is not
-    used: a cold start takes minutes).  ``ratio`` is cold_seconds / warm_seconds.
+    used: a cold start takes minutes).  ``ratio`` is cold_seconds / warm_seconds, or
+    None when either side failed.
     Returns the path written.
     """
     from esail_opt.app.files import write_json
@@ -121,7 +132,7 @@ def run(out, repeats):
             "how": ("one run each, wall time of building + solving; warm = closed-form solve "
                     "+ polish, cold = exact CVODES-in-time NLP from the constant-pitch seed; "
                     "success = Solve_Succeeded and CVODES target miss < 1 m and 1 mm/s; "
-                    "ratio = cold_seconds / warm_seconds")}
+                    "ratio = cold_seconds / warm_seconds, null when either side failed")}
     for case in solved:
         _print(case)
     path = Path(out) / "polish.json"
