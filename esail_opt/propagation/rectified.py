@@ -184,16 +184,18 @@ def kepler_angle(arc, duration):
 
 
 @functools.lru_cache(maxsize=None)
-def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False):
-    """As :func:`arc_function` (``invariant`` as there), but the last input is a
-    duration (TU).
+def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, order=1):
+    """As :func:`arc_function` (``invariant`` and ``order`` as there), but the last input
+    is a duration (TU).
 
     The arc angle is the root of t(dtheta) = duration on the closed form's clock:
     a fixed number of Newton steps from the angle the osculating Keplerian orbit
     sweeps in that time (:func:`kepler_angle`), unrolled in SX so that the whole
     arc stays one flat expression.
-    dt/dtheta = r0^{3/2} / (q3 s^2) is exact on the closed form.  A third output
-    is the clock's remaining residual (TU).
+    dt/dtheta = r0^{3/2} / (q3 s^2) is exact on the first-order closed form; the
+    second-order clock's derivative differs from it by O(a~_c^2), which only slows
+    Newton's convergence to a rate of that size.  A third output is the clock's
+    remaining residual (TU).
     """
     x0 = ca.SX.sym("x0", 5)
     ac, alpha, duration = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("duration")
@@ -202,6 +204,8 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False
     time_unit = x0[0] ** 1.5
 
     def clock(phi):
+        if order == 2:  # the last sample's arc end is the arc's whole clock
+            return time_unit * SecondOrderArc(arc, phi, nodes).time
         return time_unit * sum(
             arc.time(phi * (k - 1) / samples, phi * k / samples, nodes)
             for k in range(1, samples + 1)
@@ -210,7 +214,7 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False
     angle = kepler_angle(arc, duration / time_unit)
     for _ in range(NEWTON_STEPS):
         angle = angle - (clock(angle) - duration) / (time_unit * arc.clock_rate(angle))
-    xs, q3 = arc_function(samples, coefficients, nodes, invariant).expand()(
+    xs, q3 = arc_function(samples, coefficients, nodes, invariant, order=order).expand()(
         x0, ac, alpha, angle)
     # The expanded arc rebuilds the arc's constants that the Newton steps already
     # formed; eliminating common subexpressions saves 15 % of the instructions
@@ -230,14 +234,12 @@ def rectified_function(segments, samples=1, length_in="theta", coefficients=EXAC
     with ``ac`` per segment (characteristic acceleration times throttle).  With
     ``invariant`` each arc imposes the exact angular momentum, and with ``native`` its
     panels are compiled and the chain is unrolled and inlined (:func:`arc_function`;
-    in theta only).  ``order`` 2 flies second-order arcs (in theta only).
+    in theta only).  ``order`` 2 flies second-order arcs.
     """
     if length_in == "theta":
         arc = arc_function(samples, coefficients, nodes, invariant, native, order)
-    elif order != 1:
-        raise ValueError("second-order arcs take lengths in theta only")
     elif length_in == "time":
-        arc = timed_arc_function(samples, coefficients, nodes, invariant)
+        arc = timed_arc_function(samples, coefficients, nodes, invariant, order)
     else:
         raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
     x0 = ca.MX.sym("x0", 5)
@@ -286,7 +288,7 @@ def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="the
     invariant : bool
         End every sample with the exact angular momentum (:func:`arc_function`).
     order : int
-        1 for the paper's first-order arcs, 2 for second-order ones (in theta only).
+        1 for the paper's first-order arcs, 2 for second-order ones.
 
     Returns
     -------
