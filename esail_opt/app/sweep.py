@@ -637,7 +637,7 @@ def figure(result, axes=None):
         axes = Figure(figsize=(6.4, 8.0)).subplots(3, 1, sharex=True)
     panels = (("tof_days", "time of flight [days]", "linear"),
               ("objective", "objective", "linear"),
-              # The closed form is first order: how far its schedule, flown on Eqs. 1-2,
+              # The closed form is approximate: how far its schedule, flown on Eqs. 1-2,
               # ends from the target belongs beside the optimum it claims.
               ("target_miss_r_km", "verified target miss [km]", "log"))
     for ax, (key, ylabel, scale) in zip(axes, panels):

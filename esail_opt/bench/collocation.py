@@ -12,7 +12,7 @@ times this module's path to one optimum (``esail_opt.bench.lowthrust``).
 
 Why this exists
 ---------------
-The project's optimiser flies piecewise-constant pitch arcs on a first-order closed form.
+The project's optimiser flies piecewise-constant pitch arcs on a closed form.
 To test it we need optima computed by a method that shares nothing with it except the
 physical model: here the pitch alpha_n(t) is a *continuous* function of time, the
 dynamics are the exact Eqs. 1-2 (``esail_opt.physics.dynamics.rhs`` with the thrust

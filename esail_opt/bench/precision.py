@@ -12,8 +12,8 @@ by :func:`seconds_at_miss`.
 The methods (a list of :class:`Method`; another entry is one more line in a case's
 ``methods``):
 
-* ``closed_form``: the package's closed-form multiple shooting (Richardson-extrapolated
-  rectified arcs) at several segment counts and sub-arc counts;
+* ``closed_form``: the package's closed-form multiple shooting (rectified second-order
+  arcs) at several segment counts and sub-arc counts;
 * ``rk4``: the same NLP with each segment integrated by classic RK4 in theta
   (``propagation.rk4.rk4_segment``) at several segment counts and steps per segment;
 * ``cvodes``: the same NLP with each segment one CVODES integration at 1e-12

@@ -46,7 +46,7 @@ def run(out, repeats):
     lengths so that each side is one NLP from one start) both NLPs have the same
     variables, bounds, constraints (the CVODES one's q3 rows are constant), initial guess
     and Ipopt options (MUMPS, exact Hessian); only the segment Function differs: the
-    Richardson-extrapolated closed-form chain, or one CVODES integration of Eqs. 1-2 in
+    chain of second-order closed-form arcs, or one CVODES integration of Eqs. 1-2 in
     theta at 1e-12 with CasADi's sensitivities.  Each is timed from ``nlpsol``
     construction to the end of the solve, the median of ``min(repeats, 3)`` runs.
     ``ratio`` is cvodes_seconds / closed_form_seconds.  The top-level keys are the first

@@ -1,7 +1,7 @@
 """Exact refinement: the closed-form optimum re-solved on Eqs. 1-2.
 
-The closed form is first-order, so its optimum misses the target by thousands of km once
-flown on the full dynamics (THEORY.md §5.2).  The polish keeps the same piecewise-constant
+The closed form is approximate, so its optimum misses the target by hundreds to thousands
+of km once flown on the full dynamics (THEORY.md §3.8, §5.2).  The polish keeps the same piecewise-constant
 problem -- the same segments, objective, target and path constraints, and the same
 NLP builder (:func:`~esail_opt.optimisation.transcription.transcribe`) -- and swaps each
 segment's closed-form arc for Eqs. 1-2 in time; the segment durations become the length

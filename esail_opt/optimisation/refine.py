@@ -1,9 +1,10 @@
 """Error control: the closed-form optimum refined until its flight on Eqs. 1-2 meets the
 problem's tolerance.
 
-The closed form is first order, and an optimum found on it alone misses once flown: by
-11,590 km on the shipped Earth-Mars transfer, and by 1.6e7 km on a 20-segment spiral to
-0.1 au whose optimiser stretched single arcs far past their validity.  Each round here:
+The closed form is approximate, and an optimum found on it alone misses once flown: by
+11,590 km on the shipped Earth-Mars transfer when its arcs were first order (448 km on
+second-order ones), and by 1.6e7 km on a 20-segment spiral to 0.1 au whose optimiser
+stretched single first-order arcs far past their validity.  Each round here:
 
 1. **Judge.** Fly the schedule on Eqs. 1-2 (``verify``) and hold the flight to the
    tolerance (``verify.judge``).  Met: stop, verified.
@@ -29,8 +30,8 @@ first correction round took the flown miss from 11,590 km to 88 km in 20 warm
 iterations (7 s) and the third to 0.6 km; refining the mesh alone gains only a factor
 (m'/m)^2 in m sub-arcs per round at the price of a cold solve of a larger NLP.  Sub-arcs
 are still added where the closed form is strained, because a defect correction built on
-an arc far outside its first-order regime has wrong derivatives and converges slowly or
-not at all (60 x 1 sub-arc without Richardson: 7 rounds to reach 705 km).
+an arc far outside its regime has wrong derivatives and converges slowly or not at all
+(first-order arcs, 60 x 1 sub-arc without Richardson: 7 rounds to reach 705 km).
 """
 
 import dataclasses
