@@ -176,3 +176,18 @@ def test_earth_mars_rendezvous_has_separate_optima_and_returns_the_best(tmp_path
     assert lines[0].startswith("rank,revolutions,free_local_optimum")
     assert len(lines) == 1 + len(data["rows"])
     assert all(p.exists() for p in written)
+
+
+def test_a_search_without_the_polish_draws_its_closed_form_times():
+    # Verified rows of a search run with --no-polish have no exact time of flight.
+    from esail_opt.app.search import figure, summary
+
+    rows = [{"rank": k + 1, "revolutions": rev, "free_local_optimum": True, "window_rev": None,
+             "rendezvous_k": 0, "tof_days_closed_form": tof, "tof_days_exact": None,
+             "verified": True} for k, (rev, tof) in enumerate([(0.75, 794.3), (1.75, 1393.4)])]
+    fig = figure({"rows": rows, "best": rows[0], "polished": False, "problem": "p"})
+    ax = fig.axes[0]
+    assert "best: 794.30 d" in [t.get_text() for t in ax.get_legend().get_texts()]
+    lines = summary({**{"rows": rows, "polished": False, "problem": "p"},
+                     "starts": [0, 1], "free_local_optima": 2})
+    assert lines[1].endswith("closed form 794.300 d, verified, not polished; free local optimum")

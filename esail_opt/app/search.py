@@ -172,8 +172,10 @@ def figure(data, ax=None):
 
 
 def _tof(row):
-    """The time of flight a row is plotted at: exact where verified, else closed form."""
-    return row["tof_days_exact"] if row["verified"] else row["tof_days_closed_form"]
+    """The time of flight a row is plotted at: exact where polished and verified, else
+    closed form (a search without the polish has verified rows with no exact time)."""
+    exact = row["tof_days_exact"]
+    return exact if row["verified"] and exact is not None else row["tof_days_closed_form"]
 
 
 def write(data, solutions, out_dir):
@@ -197,8 +199,11 @@ def summary(data):
     for r in data["rows"]:
         kind = ("free local optimum" if r["free_local_optimum"]
                 else f"window {r['window_rev'][0]}-{r['window_rev'][1]} rev, bound active")
-        exact = (f"exact {r['tof_days_exact']:.3f} d (verified)" if r["verified"] else
-                 "exact: not verified" if data["polished"] else "not polished")
+        if not data["polished"]:
+            exact = "verified, not polished" if r["verified"] else "not verified"
+        else:
+            exact = (f"exact {r['tof_days_exact']:.3f} d (verified)" if r["verified"]
+                     else "exact: not verified")
         lines.append(f"  #{r['rank']}: {r['revolutions']:.3f} rev, closed form "
                      f"{r['tof_days_closed_form']:.3f} d, {exact}; {kind}")
     return lines
