@@ -21,7 +21,7 @@ problem = eo.Problem(
                 "a_c = 2 mm/s^2, throttle kappa in [0, 1] per segment",
     departure=eo.ParkingOrbit(a_au=1.0),
     sail=eo.Sail(ac_mm_s2=2.0, throttle=True),
-    segments=eo.Segments(count=30, sub_arcs=2, equal=True),
+    segments=eo.Segments(count=30, sub_arcs=3, equal=True),
     objective=eo.MinTime(),
     target=eo.CircularOrbit(radius_au=1.524),
 )

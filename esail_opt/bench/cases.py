@@ -32,9 +32,9 @@ def earth_venus_min_time():
 
 def earth_mars_min_time():
     """Earth to Mars in minimum time at 1 mm/s^2: circular 1 au -> 1.524 au, 60 free
-    segments x 2 sub-arcs (``problems/earth_mars_min_time.py``)."""
+    segments x 3 sub-arcs (``problems/earth_mars_min_time.py``)."""
     return _circle_to_circle("earth_mars_min_time", 1.0, 1.524,
-                             eo.Segments(count=60, sub_arcs=2, equal=False))
+                             eo.Segments(count=60, sub_arcs=3, equal=False))
 
 
 def earth_mars_low_thrust():
