@@ -111,9 +111,9 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=
     Picard sweep on Eq. 12 over the clock's own quadrature nodes).  Measured on the
     benchmarks' equal-length NLPs, each flown on CVODES (one run each): Earth-Venus
     (30 segments) missed by 116 km in 0.046 s with one second-order arc a segment,
-    against 842 km in 0.101 s with today's 3 first-order sub-arcs extrapolated; Earth-Mars
-    (60) by 1,470 km in 0.077 s against 2,103 km in 0.163 s; Earth-Mars at 0.1 mm/s^2
-    (100) by 2.4 km in 0.044 s against 439 km in 0.078 s.  Extrapolating second-order
+    against 842 km in 0.101 s with the former default (3 first-order sub-arcs,
+    extrapolated); Earth-Mars (60) by 1,470 km in 0.077 s against 2,103 km in 0.163 s;
+    Earth-Mars at 0.1 mm/s^2 (100) by 2.4 km in 0.044 s against 439 km in 0.078 s.  Extrapolating second-order
     arcs (weights 4/3 and -1/3) gained about what a third sub-arc does at the same cost
     (Earth-Venus: 6.6 km with one extrapolated sub-arc, 9.9 km with three plain ones),
     so it is off by default.
@@ -130,8 +130,9 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=
         (b1, b2) of Eqs. 3-4.
     extrapolate : bool
         Richardson-extrapolate the segment (its chain of sub-arcs flown as it is and
-        with every sub-arc halved, combined as 2 x_halves - x_whole at the segment's
-        end; every segment restarts from its node).  The first-order rectified closed
+        with every sub-arc halved, combined at the segment's end as 2 x_halves - x_whole
+        for first-order arcs and (4 x_halves - x_whole) / 3 for second-order ones; every
+        segment restarts from its node).  The first-order rectified closed
         form's error falls only like 1/N with N arcs (THEORY.md §5.2); extrapolation
         cancels that leading term at three times the arcs.  On Earth-Venus at 1 mm/s^2,
         30 x 3 extrapolated first-order sub-arcs miss the CVODES flight by 6e3 km, where

@@ -30,7 +30,7 @@ THEORY.md §2.3 and §6.1).  Only Eq. 14, which agrees with 1/s^2, is used here.
 import casadi as ca
 import numpy as np
 
-from esail_opt.physics.elements import ac_tilde, polar_from_q, q_from_polar
+from esail_opt.physics.elements import ac_tilde, polar_from_q, q_from_polar, s_of
 
 
 class _Complex:
@@ -234,18 +234,17 @@ class FirstOrderArc:
 
 
 def clock_rate(q, phi):
-    """dt/dphi = 1 / (q3 s^2) at elements q, in units sqrt(r0^3 / mu), with
-    s = q1 cos(phi) + q2 sin(phi) + q3 (Eq. 9: r = 1 / (q3 s))."""
-    s = q[0] * ca.cos(phi) + q[1] * ca.sin(phi) + q[2]
-    return 1 / (q[2] * s**2)
+    """dt/dphi = 1 / (q3 s^2) at elements q, in units sqrt(r0^3 / mu)
+    (:func:`~esail_opt.physics.elements.s_of`; Eq. 9: r = 1 / (q3 s))."""
+    return 1 / (q[2] * s_of(q, phi) ** 2)
 
 
 def element_rate(q, phi, R, T):
     """dq/dtheta per unit a~_c on the exact motion (THEORY.md §2.3): (1/s^2) A [R, T]^T,
-    with s = q1 cos(phi) + q2 sin(phi) + q3 and elements, angle and lengths as in
-    :class:`FirstOrderArc`."""
+    with s of Eq. 9 (:func:`~esail_opt.physics.elements.s_of`) and elements, angle and
+    lengths as in :class:`FirstOrderArc`."""
     c, s_phi = ca.cos(phi), ca.sin(phi)
-    s = q[0] * c + q[1] * s_phi + q[2]
+    s = s_of(q, phi)
     return ca.vertcat(s * s_phi * R + (s + q[2]) * c * T,
                       -s * c * R + (s + q[2]) * s_phi * T,
                       -q[2] * T) / s**2
@@ -288,7 +287,6 @@ class SecondOrderArc:
     """
 
     def __init__(self, arc, phi, nodes):
-        self.arc = arc
         xg, wg = gauss_legendre(nodes)
         phis = [phi * x for x in xg]
         q0, eps, R, T = arc.q0, arc.actilde, arc.R, arc.T
@@ -303,7 +301,7 @@ class SecondOrderArc:
         at_nodes = [q + phi * sum(weights[k, j] * excess[j] for j in range(nodes))
                     for k, q in enumerate(firsts)]
         kep = arc.kepler
-        exact = arc.h0**3 * (kep.i_c(phi) - kep.i_c(0))
+        exact = arc.h0**3 * kep.i_c(phi)  # i_c(0) = 0
         rates = [clock_rate(q, p) - arc.h0**3 / kep.w(p) ** 2
                  for q, p in zip(at_nodes, phis)]
         #: Time from 0 to phi, in units sqrt(r0^3 / mu).

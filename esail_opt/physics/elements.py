@@ -25,10 +25,16 @@ def q_from_polar(x, r0):
     return ca.vertcat(q1, q2, q3)
 
 
+def s_of(q, theta):
+    """s = q1 cos(theta) + q2 sin(theta) + q3 (Eqs. 9-11: r = r0 / (q3 s), v_theta is
+    s in sqrt(mu / r0))."""
+    return q[0] * ca.cos(theta) + q[1] * ca.sin(theta) + q[2]
+
+
 def polar_from_q(q, theta, r0):
     """Polar state at angle theta from elements q normalised by r0 (Eqs. 9-11)."""
     q1, q2, q3 = q[0], q[1], q[2]
-    s = q1 * ca.cos(theta) + q2 * ca.sin(theta) + q3
+    s = s_of(q, theta)
     speed = 1 / ca.sqrt(r0)
     return ca.vertcat(
         r0 / (q3 * s),
