@@ -1,0 +1,134 @@
+"""Dates: the one place where calendar dates become times and back.
+
+Every date the package reads is an ISO 8601 calendar date, ``YYYY-MM-DD``,
+``YYYY-MM-DDTHH:MM`` or ``YYYY-MM-DDTHH:MM:SS[.fff]`` (a space may stand for the ``T``),
+and it is read as **TDB**, the time scale of the JPL ephemerides.  A trailing ``TDB``
+(``2030-01-01T00:00 TDB``) is accepted, since it only restates that.  A trailing ``Z`` or
+a UTC offset is refused rather than ignored: it claims UTC, which this module does not
+convert.
+
+Why TDB and not UTC: the ephemeris is tabulated in TDB, and the difference is far below
+the tolerances a trajectory is optimised to.  TT - UTC = 69.184 s since 2017-01-01
+(32.184 s plus 37 leap seconds) and TDB - TT stays below 2 ms, so a UTC date read as TDB
+is about 69 s late: a planet moves at most a few thousand km in that time (Earth about
+2,100 km at 30 km/s, Mercury about 3,300 km at 47 km/s), a fraction of a 10,000 km
+rendezvous tolerance and far inside Earth's sphere of influence.
+
+Canonical time is TU (``esail_opt.physics.constants.TU_DAYS`` days) since J2000.0 TDB,
+JD 2451545.0 = 2000-01-01T12:00:00 TDB.
+"""
+
+import datetime as _dt
+import math
+import re
+
+import numpy as np
+
+from esail_opt.errors import InputError
+from esail_opt.physics import constants as units
+
+#: Julian date of the epoch J2000.0 (2000-01-01T12:00:00 TDB).
+J2000_JD = 2451545.0
+
+#: The form a date must have, as told to a user whose date is refused.
+ISO_FORM = "YYYY-MM-DD[THH:MM[:SS]]"
+
+# JD of 2000-01-01T00:00:00, the origin of the proleptic Gregorian day count below.
+_JD_2000_MIDNIGHT = J2000_JD - 0.5
+_ORDINAL_2000 = _dt.date(2000, 1, 1).toordinal()
+
+_PATTERN = re.compile(
+    r"(\d{4})-(\d{2})-(\d{2})"
+    r"(?:[T ](\d{2}):(\d{2})(?::(\d{2})(\.\d+)?)?)?"
+    r"(?:\s*TDB)?"
+)
+
+
+def jd_from_iso(text, field="date"):
+    """Julian date (TDB) of an ISO 8601 calendar date read as TDB.
+
+    Parameters
+    ----------
+    text : str
+        ``YYYY-MM-DD``, ``YYYY-MM-DDTHH:MM`` or ``YYYY-MM-DDTHH:MM:SS[.fff]``, optionally
+        followed by ``TDB``.  The calendar is the proleptic Gregorian one.
+    field : str
+        The name of the field the date comes from, used in the error message.
+
+    Returns
+    -------
+    float
+        The Julian date; a date without a time is at 00:00:00, i.e. JD ``N.5``.
+
+    Raises
+    ------
+    InputError
+        If ``text`` is not such a date, names a day that does not exist (2030-02-30), an
+        hour past 23, a minute or second past 59 (TDB has no leap seconds), or carries a
+        UTC marker.
+    """
+    if not isinstance(text, str):
+        raise InputError(f"{field} = {text!r} is not an ISO 8601 date ({ISO_FORM})")
+    stripped = text.strip()
+    match = _PATTERN.fullmatch(stripped)
+    if match is None:
+        if stripped.endswith("Z") or re.search(r"[+-]\d{2}:?\d{2}$", stripped[10:]):
+            raise InputError(
+                f"{field} = {text!r} carries a time zone; dates are read as TDB, "
+                f"write {ISO_FORM} without Z or an offset"
+            )
+        raise InputError(f"{field} = {text!r} is not an ISO 8601 date ({ISO_FORM})")
+    year, month, day, hour, minute, second, fraction = match.groups()
+    try:
+        date = _dt.date(int(year), int(month), int(day))
+        clock = _dt.time(int(hour or 0), int(minute or 0), int(second or 0))
+    except ValueError:
+        raise InputError(f"{field} = {text!r} is not an ISO 8601 date ({ISO_FORM})") from None
+    seconds = clock.hour * 3600 + clock.minute * 60 + clock.second
+    if fraction:
+        seconds += float(fraction)
+    days = date.toordinal() - _ORDINAL_2000
+    return _JD_2000_MIDNIGHT + days + seconds / units.DAY
+
+
+def iso_from_jd(jd):
+    """ISO 8601 date ``YYYY-MM-DDTHH:MM:SS`` (TDB) of a Julian date, rounded to the second.
+
+    Raises
+    ------
+    InputError
+        If ``jd`` is not a finite number or lies outside the years 1-9999.
+    """
+    try:
+        value = float(jd)
+    except (TypeError, ValueError):
+        raise InputError(f"jd = {jd!r} is not a number") from None
+    if not math.isfinite(value):
+        raise InputError(f"jd = {jd!r} is not a finite Julian date")
+    # Whole days and seconds are split before rounding so that no float ever holds
+    # seconds since year 1 (a JD has ~40 microseconds of resolution, enough for this).
+    days_from_2000 = value - _JD_2000_MIDNIGHT
+    whole = math.floor(days_from_2000)
+    seconds = round((days_from_2000 - whole) * units.DAY)
+    try:
+        stamp = _dt.datetime.fromordinal(_ORDINAL_2000 + whole) + _dt.timedelta(seconds=seconds)
+    except (ValueError, OverflowError):
+        raise InputError(f"jd = {jd!r} is outside the years 1-9999") from None
+    return f"{stamp.year:04d}-{stamp.month:02d}-{stamp.day:02d}T{stamp:%H:%M:%S}"
+
+
+def tu_from_jd(jd):
+    """Canonical time (TU since J2000.0 TDB) of a Julian date.
+
+    A float gives a float; a numpy array gives an array of the same shape.
+    """
+    return _same_kind(units.time_from_days(np.asarray(jd, dtype=float) - J2000_JD), jd)
+
+
+def jd_from_tu(t):
+    """Julian date (TDB) of a canonical time in TU since J2000.0 (float or numpy array)."""
+    return _same_kind(J2000_JD + units.time_to_days(np.asarray(t, dtype=float)), t)
+
+
+def _same_kind(value, like):
+    return float(value) if np.ndim(like) == 0 else value

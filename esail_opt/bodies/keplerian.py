@@ -1,0 +1,236 @@
+"""Small bodies on Keplerian orbits about the Sun, from osculating elements at an epoch.
+
+A :class:`SmallBody` holds heliocentric osculating elements referred to the ecliptic and
+equinox of J2000 (the frame of :mod:`~esail_opt.bodies.ephemeris`), in boundary units
+(au, degrees, an ISO 8601 epoch in TDB).  Its state at another date is the two-body
+motion with mu_sun = 1 in canonical units: the mean anomaly grows at n = a^(-3/2) per TU,
+Kepler's equation gives the eccentric anomaly, and the orbit's orientation is fixed.
+
+This ignores the planets' pull, so it drifts from the real body as the date moves from
+the epoch (for a main-belt asteroid, of order 1e-4 au a year; far more for a near-Earth
+asteroid after a close planetary encounter).  It is the standard preliminary-design
+model of a small-body target; elements with an epoch near the mission dates keep it
+close.
+"""
+
+import math
+from dataclasses import dataclass, field as _field
+
+import numpy as np
+
+from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, tu_from_jd
+from esail_opt.bodies.ephemeris import polar_from_ecliptic
+from esail_opt.errors import InputError, check_range
+from esail_opt.physics import constants as units
+
+#: Newton's method on Kepler's equation stops when the step is below this, rad.
+KEPLER_TOL = 1e-15
+_KEPLER_MAX_ITER = 60
+
+
+def eccentric_anomaly(mean_anomaly, e):
+    """Solve Kepler's equation E - e sin E = M for E (elliptic, 0 <= e < 1).
+
+    M is first reduced to (-pi, pi], E is returned in the same branch plus the
+    removed whole turns, so E - M is continuous.  The start E0 = M + 0.85 e sign(sin M)
+    (Danby's) keeps Newton's method monotone and fast for every e < 1, including high
+    eccentricities where the start E0 = M can overshoot; iteration stops when every step
+    is below :data:`KEPLER_TOL`, capped at 60 iterations, after which the residual is
+    checked.
+
+    Parameters
+    ----------
+    mean_anomaly : float or numpy.ndarray
+        M, rad.
+    e : float
+        Eccentricity in [0, 1).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        E, rad, of the shape of ``mean_anomaly``.
+    """
+    m = np.asarray(mean_anomaly, dtype=float)
+    turns = np.round(m / (2 * math.pi))
+    reduced = m - 2 * math.pi * turns
+    ecc = float(e)
+    big_e = reduced + 0.85 * ecc * np.sign(np.sin(reduced))
+    for _ in range(_KEPLER_MAX_ITER):
+        step = (big_e - ecc * np.sin(big_e) - reduced) / (1 - ecc * np.cos(big_e))
+        big_e = big_e - step
+        if np.all(np.abs(step) < KEPLER_TOL):
+            break
+    residual = np.abs(big_e - ecc * np.sin(big_e) - reduced)
+    if not np.all(residual < 1e-13):
+        raise ArithmeticError(f"Kepler's equation did not converge (residual {residual.max():.3g})")
+    result = big_e + 2 * math.pi * turns
+    return float(result) if np.ndim(mean_anomaly) == 0 else result
+
+
+@dataclass(frozen=True)
+class SmallBody:
+    """A small body on a heliocentric Keplerian orbit (ecliptic and equinox J2000).
+
+    Attributes (boundary units)
+    ---------------------------
+    name : str
+        What the body is called, e.g. ``"(101955) Bennu"``.
+    a_au : float
+        Semimajor axis, au, > 0.
+    e : float
+        Eccentricity in [0, 1) (elliptic orbits only).
+    inclination_deg : float
+        Inclination to the ecliptic of J2000, deg, in [0, 90): the package's polar state
+        describes prograde motion about the ecliptic pole, so retrograde and polar orbits,
+        whose projected longitude stalls or runs backwards, are refused.
+    node_deg : float
+        Longitude of the ascending node, deg, in [-360, 360].
+    perihelion_deg : float
+        Longitude of perihelion varpi = node + argument of perihelion, deg, in [-720, 720].
+    mean_anomaly_deg : float
+        Mean anomaly at the epoch, deg, in [-360, 360].
+    epoch : str
+        ISO 8601 date of the elements, TDB.
+    source : str
+        Where the elements come from.
+
+    Every field is checked when the body is created; a bad one raises InputError naming
+    ``body.<field>`` and its allowed range.
+    """
+
+    name: str
+    a_au: float
+    e: float
+    inclination_deg: float
+    node_deg: float
+    perihelion_deg: float
+    mean_anomaly_deg: float
+    epoch: str
+    source: str = ""
+    epoch_jd: float = _field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise InputError(f"body.name = {self.name!r} must be a non-empty string")
+        if not isinstance(self.source, str):
+            raise InputError(f"body.source = {self.source!r} must be a string")
+        checked = {
+            "a_au": check_range("body.a_au", self.a_au, 0.0, low_open=True, high=math.inf,
+                                high_open=True, unit="au"),
+            "e": check_range("body.e", self.e, 0.0, 1.0, high_open=True),
+            "inclination_deg": check_range("body.inclination_deg", self.inclination_deg,
+                                           0.0, 90.0, high_open=True, unit="deg"),
+            "node_deg": check_range("body.node_deg", self.node_deg, -360.0, 360.0, unit="deg"),
+            "perihelion_deg": check_range("body.perihelion_deg", self.perihelion_deg,
+                                          -720.0, 720.0, unit="deg"),
+            "mean_anomaly_deg": check_range("body.mean_anomaly_deg", self.mean_anomaly_deg,
+                                            -360.0, 360.0, unit="deg"),
+        }
+        for key, value in checked.items():
+            object.__setattr__(self, key, value)
+        object.__setattr__(self, "epoch_jd", jd_from_iso(self.epoch, "body.epoch"))
+
+    @property
+    def mean_motion(self):
+        """n = a^(-3/2), rad/TU (mu_sun = 1)."""
+        return self.a_au ** -1.5
+
+    @property
+    def period_days(self):
+        """Orbital period, days."""
+        return units.time_to_days(2 * math.pi / self.mean_motion)
+
+    def ecliptic_state(self, jd, field="body"):
+        """Heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU).
+
+        Parameters
+        ----------
+        jd : float or array_like of shape (M,)
+            Julian date(s), TDB.  Any finite date: the two-body model has no span.
+        field : str
+            Name used in error messages (``<field>.date``).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (6,) for a scalar date, (6, M) for M dates.
+        """
+        scalar = np.ndim(jd) == 0
+        dates = np.atleast_1d(np.asarray(jd, dtype=float))
+        if not np.all(np.isfinite(dates)):
+            raise InputError(f"{field}.date = {jd!r} is not a finite Julian date")
+        a, e = self.a_au, self.e
+        n = self.mean_motion
+        m = math.radians(self.mean_anomaly_deg) + n * (tu_from_jd(dates) - tu_from_jd(self.epoch_jd))
+        big_e = eccentric_anomaly(m, e)
+        cos_e, sin_e = np.cos(big_e), np.sin(big_e)
+        root = math.sqrt(1 - e * e)
+        rate = n / (1 - e * cos_e)  # dE/dt
+        # Perifocal frame: x towards perihelion, y 90 deg ahead in the orbital plane.
+        p = np.array([a * (cos_e - e), a * root * sin_e])
+        v = np.array([-a * sin_e * rate, a * root * cos_e * rate])
+        rotation = self._perifocal_to_ecliptic()
+        state = np.vstack([rotation @ p, rotation @ v])
+        return state[:, 0] if scalar else state
+
+    def polar_state(self, jd, field="body"):
+        """State projected onto the ecliptic as ``([r, theta, v_r, v_theta], z)``.
+
+        Same contract as :func:`esail_opt.bodies.ephemeris.polar_state`.
+        """
+        return polar_from_ecliptic(self.ecliptic_state(jd, field))
+
+    def _perifocal_to_ecliptic(self):
+        """The 3x2 matrix R3(-node) R1(-i) R3(-argument of perihelion), first two columns."""
+        node = math.radians(self.node_deg)
+        inc = math.radians(self.inclination_deg)
+        arg = math.radians(self.perihelion_deg - self.node_deg)
+        cn, sn = math.cos(node), math.sin(node)
+        ci, si = math.cos(inc), math.sin(inc)
+        cw, sw = math.cos(arg), math.sin(arg)
+        return np.array([
+            [cn * cw - sn * sw * ci, -cn * sw - sn * cw * ci],
+            [sn * cw + cn * sw * ci, -sn * sw + cn * cw * ci],
+            [sw * si, cw * si],
+        ])
+
+    def describe(self):
+        """One line for logs and reports."""
+        return (f"{self.name}: a = {self.a_au:.6f} au, e = {self.e:.6f}, "
+                f"i = {self.inclination_deg:.4f} deg, epoch {iso_from_jd(self.epoch_jd)} TDB")
+
+
+#: (101955) Bennu, a near-Earth (Apollo) asteroid, target of OSIRIS-REx.
+BENNU = SmallBody(
+    name="(101955) Bennu",
+    a_au=1.1263910258948120,
+    e=0.2037450762416414,
+    inclination_deg=6.0349437702479403,
+    node_deg=2.060866195696420,
+    # varpi = OM + W = 2.060866195696420 + 66.22306084084298
+    perihelion_deg=68.283927036539400,
+    mean_anomaly_deg=101.7039520024729,
+    epoch="2011-01-01",
+    source=("JPL Horizons heliocentric ecliptic J2000 osculating elements of 101955 Bennu, "
+            "epoch JD 2455562.5 (2011-01-01.0) TDB, orbit solution dated 2021-01-07 "
+            "(OSIRIS-REx solution, Farnocchia et al. 2021, Icarus 369, 114594; "
+            "trajectory sb-101955-118)"),
+)
+
+#: (1) Ceres, the largest main-belt body.
+CERES = SmallBody(
+    name="(1) Ceres",
+    a_au=2.769289292143484,
+    e=0.07687465013145245,
+    inclination_deg=10.59127767086216,
+    node_deg=80.3011901917491,
+    # varpi = OM + W = 80.3011901917491 + 73.80896808746482
+    perihelion_deg=154.11015827921392,
+    mean_anomaly_deg=130.3159688200986,
+    epoch="2020-01-01",
+    source=("JPL Horizons heliocentric ecliptic J2000 osculating elements of 1 Ceres, "
+            "epoch JD 2458849.5 (2020-01-01.0) TDB, orbit solution JPL#48 dated 2021-04-13"),
+)
+
+#: The small bodies the package ships, by lower-case short name.
+SMALL_BODIES = {"bennu": BENNU, "ceres": CERES}
