@@ -60,7 +60,7 @@ def test_default_sail_has_no_throttle_variables():
     tr = transcribe(_venus())
     n = tr.guess.alpha.size
     assert tr.x0.size == n + n + 5 * n
-    assert np.array_equal(np.array(tr.unpack(tr.x0)[7]).ravel(), np.ones(n))
+    assert np.array_equal(np.array(tr.unpack(tr.x0, tr.parameters())[7]).ravel(), np.ones(n))
 
 
 def test_throttle_fixed_at_one_reproduces_the_unthrottled_nlp():

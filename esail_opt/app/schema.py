@@ -6,9 +6,12 @@ file, the polish included: lengths and position misses in km (au for radii and
 semimajor axes), speeds and velocity misses in m/s (km/s for state velocities), times in
 days, angles in degrees.
 
-Version 2 (this one) added ``schema_version``, gave the polish's misses and bounds the
-same keys and units as the closed form's (km and m/s, where version 1 used m and mm/s),
-and made an (a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.
+Version 2 added ``schema_version``, gave the polish's misses and bounds the same keys and
+units as the closed form's (km and m/s, where version 1 used m and mm/s), and made an
+(a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.  Version 3 (this
+one) added the calendar: the fields under "On the calendar" below, a body's name in
+``problem.departure`` and ``problem.target``, and a body target's
+``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.
 
 Top level
 ---------
@@ -56,6 +59,22 @@ trajectory : object
     ``closed_form`` and ``cvodes`` samples (``r_au``, ``theta_deg``, ``vr_km_s``,
     ``vtheta_km_s``, ``a_au``, ``e``, ``t_days``), and ``polished`` after a polish.
 
+On the calendar (a BodyDeparture; absent otherwise)
+---------------------------------------------------
+departure_date, arrival_date : str
+    ISO 8601, TDB (``YYYY-MM-DDTHH:MM:SS``); the arrival is the departure plus the NLP's
+    time of flight.
+departure_body : object
+    ``name``, ``source`` (the ephemeris or the elements), ``out_of_plane_km`` (the body's
+    distance from the ecliptic at departure, which the 2-D model drops), ``vinf_km_s`` and
+    ``vinf_angle_deg`` (from the local horizontal towards radial outward).
+target_body : object
+    For a BodyRendezvous or BodyIntercept: ``name``, ``source``, ``kind``,
+    ``out_of_plane_km`` at the flown arrival and ``relative_speed_km_s`` of the flight
+    against the body there.
+ac_mm_s2_required : float
+    For a MinAcceleration objective: the characteristic acceleration found, mm/s^2.
+
 After a polish
 --------------
 objective_closed_form, objective_exact, tof_days_exact
@@ -69,12 +88,16 @@ polish : object
 
 from esail_opt.errors import InputError
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+#: Versions this code reads: version 3 only added fields, so a version-2 file reads as
+#: one of a problem off the calendar.
+READABLE = (2, 3)
 
 
 def check(data, source):
-    """Raise InputError, naming ``source``, unless ``data`` is of this schema version."""
+    """Raise InputError, naming ``source``, unless ``data`` is of a readable version."""
     found = data.get("schema_version", 1) if isinstance(data, dict) else None
-    if found != SCHEMA_VERSION:
+    if found not in READABLE:
         raise InputError(f"{source}: solution.json schema version {found}, but this esail_opt "
-                         f"reads version {SCHEMA_VERSION}; solve the problem again to rewrite it")
+                         f"reads versions {', '.join(map(str, READABLE))}; solve the problem "
+                         "again to rewrite it")

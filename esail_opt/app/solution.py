@@ -18,6 +18,7 @@ import numpy as np
 
 from esail_opt.app import schema
 from esail_opt.app.files import atomic_path, json_ready, write_json
+from esail_opt.bodies import dates, lookup
 from esail_opt.optimisation import exact as exact_refinement
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
@@ -62,11 +63,46 @@ def _trajectory(xs):
     return out
 
 
+def _fields(obj):
+    """A problem part's kind and fields; a body is given by its name."""
+    out = {"kind": type(obj).__name__}
+    out.update({k: getattr(obj, k) for k in obj.__dataclass_fields__})
+    if "body" in out:
+        out["body"] = lookup.name(out["body"])
+    return out
+
+
 def _target_dict(target):
-    if target is None:
-        return None
-    out = {"kind": type(target).__name__}
-    out.update({k: getattr(target, k) for k in target.__dataclass_fields__})
+    return None if target is None else _fields(target)
+
+
+def _calendar_data(problem, result, check):
+    """The dated part of solution.json: departure and arrival dates (ISO 8601, TDB),
+    the bodies with their sources, the planes' distances the 2-D model ignores, and
+    what a MinAcceleration objective found.  Empty for problems off the calendar."""
+    out = {}
+    if problem.objective.free_acceleration:
+        out["ac_mm_s2_required"] = problem.sail.ac_mm_s2 * result.ac_scale
+    if not problem.dated():
+        return out
+    dep = problem.departure
+    start_jd = dates.jd_from_tu(result.epoch)
+    tof = float(np.sum(result.durations))
+    out["departure_date"] = dates.iso_from_jd(start_jd)
+    out["arrival_date"] = dates.iso_from_jd(dates.jd_from_tu(result.epoch + tof))
+    z0 = lookup.polar_state(dep.body, start_jd)[1]
+    out["departure_body"] = {"name": lookup.name(dep.body), "source": lookup.source(dep.body),
+                             "out_of_plane_km": units.length_to_km(abs(z0)),
+                             "vinf_km_s": dep.vinf_km_s,
+                             "vinf_angle_deg": math.degrees(result.vinf_angle)}
+    target = problem.target
+    if target is not None and getattr(target, "body", None) is not None:
+        m = check.misses
+        out["target_body"] = {"name": lookup.name(target.body),
+                              "source": lookup.source(target.body),
+                              "kind": type(target).__name__,
+                              "out_of_plane_km": m.get("out_of_plane_km"),
+                              "relative_speed_km_s": m.get("relative_speed_km_s")}
     return out
 
 
@@ -264,7 +300,7 @@ def _polish_data(problem, exact, check):
         "within_bounds_vs_nlp": within(m, exact_refinement.TOLERANCE, "nlp"),
         "within_bounds_vs_target": problem.target is None or within(m, exact_refinement.TOLERANCE),
         "verified": verified, "note": note,
-        "schedule": _schedule(exact, problem.sail.throttle),
+        "schedule": _schedule(exact, problem.throttled()),
         "final_state": _polar_dict(exact.nodes[:4, -1]),
         "verification": _verification_data(check),
     }
@@ -369,7 +405,7 @@ def solution_of(problem, result, tr=None, samples=16, polish=False, progress=Non
             "" if result.outcome != "infeasible" else
             f" from {len(starts or [1])} start(s); no start found a feasible point, which "
             "does not prove the target unreachable")
-    schedule = _schedule(result, problem.sail.throttle)
+    schedule = _schedule(result, problem.throttled())
     if refined is not None:
         for row, err in zip(schedule, refined.local_error_km):
             row["local_error_km"] = float(err)
@@ -401,6 +437,7 @@ def solution_of(problem, result, tr=None, samples=16, polish=False, progress=Non
             "closed_form": _trajectory(check.closed_form),
             "cvodes": _trajectory(check.cvodes) if check.error is None else None,
         },
+        **_calendar_data(problem, result, check),
     }
     if polish:
         _add_polish(data, problem, result, samples, say)
@@ -420,15 +457,14 @@ def _problem_data(problem, result, sub_arcs_requested):
         "sub_arcs": seg.sub_arcs, "sub_arcs_requested": sub_arcs_requested,
         "equal_segments": seg.equal, "objective": type(problem.objective).__name__,
         "target": _target_dict(problem.target),
-        "departure": {"kind": type(dep).__name__,
-                      **{k: getattr(dep, k) for k in dep.__dataclass_fields__}},
+        "departure": _fields(dep),
         "departure_state": _polar_dict(result.x_start),
         "r_min_au": problem.path.r_min_au, "q3_margin": problem.path.q3_margin,
     }
-    if problem.sail.throttle:
+    if problem.throttled():
         # Only a throttled problem names its bounds: an unthrottled solution.json is
         # exactly what it was before throttles existed.
-        out["throttle_bounds"] = [problem.sail.throttle_min, problem.sail.throttle_max]
+        out["throttle_bounds"] = list(problem.throttle_bounds())
     return out
 
 

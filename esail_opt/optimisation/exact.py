@@ -95,7 +95,7 @@ def exact_guess(problem, x_start, guess):
     optimum here; the benchmark passes the constant-pitch seed (a cold start).
     """
     try:
-        flown = simulate(x_start, guess.alpha, guess.lengths, problem.sail.ac,
+        flown = simulate(x_start, guess.alpha, guess.lengths, problem.sail.ac * guess.ac_scale,
                          throttles=guess.throttle, samples=1, length_in="time",
                          coefficients=problem.sail.coefficients)
     except SimulationError:
@@ -114,7 +114,8 @@ def rk4_polish_segment(problem, x_start, start, steps=RK4_STEPS):
     at 0.1 mm/s^2 then ran out of iterations, where the uncorrected start converges.)
     """
     nodes_from = np.column_stack([np.r_[x_start, 0.0], start.nodes[:, :-1]])
-    args = (nodes_from, problem.sail.ac * start.throttle[None, :], start.alpha[None, :],
+    args = (nodes_from, problem.sail.ac * start.ac_scale * start.throttle[None, :],
+            start.alpha[None, :],
             start.lengths[None, :])
     for count in steps:
         segment = rk4_segment(count, problem.sail.coefficients, "time")
@@ -128,7 +129,8 @@ def _lands(problem, result):
     """Whether the schedule, flown on Eqs. 1-2 from the departure, ends within
     :data:`LANDING_KM` and :data:`LANDING_M_S` of the NLP's final node (raises
     SimulationError if it cannot fly)."""
-    flown = simulate(result.x_start, result.alpha, result.durations, problem.sail.ac,
+    flown = simulate(problem.start_state(result), result.alpha, result.durations,
+                     problem.sail.ac * result.ac_scale,
                      throttles=result.throttle, coefficients=problem.sail.coefficients,
                      tol=VERIFY_TOLERANCE)
     r_km, v_m_s, _ = state_miss(flown[:4, -1], result.nodes[:4, -1])

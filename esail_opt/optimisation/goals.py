@@ -22,12 +22,14 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
+from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError, check_range
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar, orbital_energy
 
-__all__ = ["MinTime", "MaxRadius", "MaxEnergy", "FinalStateExpression", "CircularOrbit",
-           "Orbit", "Rendezvous", "OBJECTIVES", "TARGETS", "state_miss"]
+__all__ = ["MinTime", "MaxRadius", "MaxEnergy", "FinalStateExpression", "MinAcceleration",
+           "CircularOrbit", "Orbit", "Rendezvous", "BodyRendezvous", "BodyIntercept",
+           "OBJECTIVES", "TARGETS", "state_miss"]
 
 
 def cartesian(x):
@@ -58,6 +60,7 @@ class MinTime:
     """Minimise the time of flight (the target fixes the end)."""
 
     fixed_time = False
+    free_acceleration = False
     meaning = "time of flight, TU (minimised)"
 
     @staticmethod
@@ -75,6 +78,7 @@ class _FixedTime:
     tof_days: float
 
     fixed_time = True
+    free_acceleration = False
 
     def __post_init__(self):
         check_range("objective.tof_days", self.tof_days, 0, 36525, low_open=True, unit="days")
@@ -167,11 +171,11 @@ class CircularOrbit:
     def aim_radius_au(self):
         return self.radius_au
 
-    def constraints(self, xf, tf, turns):
+    def constraints(self, xf, tf, turns, t0=0.0):
         r, _, vr, vt = xf[0], xf[1], xf[2], xf[3]
         return [r - self.radius_au, vr, vt - self.radius_au ** -0.5]
 
-    def miss(self, x, t):
+    def miss(self, x, t, t0=0.0):
         """The radial distance to the orbit, and the velocity error against the local
         circular velocity."""
         r, _, vr, vt = (float(v) for v in np.ravel(x)[:4])
@@ -200,11 +204,11 @@ class Orbit:
     def aim_radius_au(self):
         return self.a_au
 
-    def constraints(self, xf, tf, turns):
+    def constraints(self, xf, tf, turns, t0=0.0):
         return [orbital_energy(xf) + 0.5 / self.a_au,
                 xf[0] * xf[3] - math.sqrt(self.a_au * (1 - self.e ** 2))]
 
-    def miss(self, x, t):
+    def miss(self, x, t, t0=0.0):
         """A position on an orbit whose apse line is free has no unique nearest point, so
         the position miss is max(|da|, a |de|) (an error of e moves the orbit by about
         a de), with the two parts given apart; there is no velocity miss."""
@@ -241,30 +245,152 @@ class Rendezvous:
     def aim_radius_au(self):
         return self.radius_au
 
-    def body_angle(self, t):
-        """The body's polar angle at time t (TU), rad, unwrapped: phase0 + n t."""
+    def body_angle(self, t, t0=0.0):
+        """The body's polar angle at time t (TU) after departure, rad, unwrapped:
+        phase0 + n t (the phase is given at departure, so the epoch t0 plays no part)."""
         return math.radians(self.phase_deg) + t * self.radius_au ** -1.5
 
-    def turns_behind(self, theta, t):
+    def turns_behind(self, theta, t, t0=0.0):
         """Whole turns k between the sail at polar angle theta and the body at time t.
 
         The sail arrives from an inner (faster) orbit, so it can gain angle on the body
         by waiting, not lose it: the next whole turn ahead of the lag."""
         return int(math.ceil((theta - self.body_angle(t)) / (2 * math.pi)))
 
-    def constraints(self, xf, tf, turns):
+    def constraints(self, xf, tf, turns, t0=0.0):
         # The turn count is fixed from the guess: matching the angle mod 2 pi by (cos, sin)
         # pairs would give two parallel constraint gradients.
         r, th, vr, vt = xf[0], xf[1], xf[2], xf[3]
         return [r - self.radius_au, th - self.body_angle(tf) - 2 * math.pi * turns, vr,
                 vt - self.radius_au ** -0.5]
 
-    def miss(self, x, t):
+    def miss(self, x, t, t0=0.0):
         """The distance and the relative speed to the body at time t."""
         body = [self.radius_au, self.body_angle(t), 0.0, self.radius_au ** -0.5]
         dr, dv, _ = state_miss(np.ravel(x)[:4], body)
         return _miss(dr, dv)
 
 
-OBJECTIVES = (MinTime, MaxRadius, MaxEnergy, FinalStateExpression)
-TARGETS = (CircularOrbit, Orbit, Rendezvous)
+@dataclass(frozen=True)
+class MinAcceleration(_FixedTime):
+    """The smallest characteristic acceleration that makes the transfer in ``tof_days``.
+
+    The sail's ``ac_mm_s2`` is then only the seed and the scale of a_c, which becomes a
+    decision variable, and every segment's throttle kappa is free in the sail's throttle
+    bounds ([0, 1] unless ``Sail(throttle=True)`` narrows them): a mission that needs
+    less than full thrust on some arcs should not pay for it in a_c.  Meant for fixed
+    departure and arrival dates: the sail designer's porkchop.
+    """
+
+    free_acceleration = True
+    meaning = "characteristic acceleration a_c, canonical (minimised)"
+
+    @staticmethod
+    def cost(xf, tf):
+        raise TypeError("MinAcceleration's cost is the a_c variable of the NLP")
+
+    @staticmethod
+    def shown_as():
+        return units.ACC_UNIT_MM_S2, " mm/s^2"
+
+
+# ---------------------------------------------------------------- bodies on real orbits
+
+
+def _check_arrival_window(window):
+    """The arrival window as a pair of Julian dates (TDB), or None."""
+    if window is None:
+        return None
+    if not isinstance(window, (tuple, list)) or len(window) != 2:
+        raise InputError(f"target.arrival_window = {window!r} is not a pair (earliest, latest) "
+                         "of ISO 8601 dates")
+    lo = dates.jd_from_iso(window[0], "target.arrival_window[0]")
+    hi = dates.jd_from_iso(window[1], "target.arrival_window[1]")
+    if hi < lo:
+        raise InputError(f"target.arrival_window = {tuple(window)!r}: its end comes before its "
+                         "start")
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class _BodyTarget:
+    """A body on its real orbit at the arrival date: a DE421 planet or a small body.
+
+    Attributes
+    ----------
+    body : str or SmallBody
+        A planet name (``bodies.ephemeris.PLANETS``) or a :class:`~esail_opt.bodies.SmallBody`.
+    arrival_window : (str, str) or None
+        Earliest and latest arrival, ISO 8601 dates (TDB); None leaves the arrival free.
+
+    The NLP sees the body through a smooth fit of its ephemeris (``bodies.track``), and
+    the verification holds the flown state to the ephemeris itself at the flown arrival
+    time, so the fit's error is in what is verified, not hidden by it.
+    """
+
+    body: object
+    arrival_window: tuple = None
+
+    tracks_body = True
+    matches_velocity = True
+
+    def __post_init__(self):
+        lookup.check_body(self.body, "target.body")
+        _check_arrival_window(self.arrival_window)
+
+    @property
+    def aim_radius_au(self):
+        return lookup.mean_radius_au(self.body)
+
+    @property
+    def arrival_jd(self):
+        """(earliest, latest) arrival as Julian dates (TDB), or None."""
+        return _check_arrival_window(self.arrival_window)
+
+    def body_state(self, t0, t):
+        """The body's smooth polar state (theta unwrapped) at departure epoch t0 plus t
+        (TU; numbers or CasADi symbols)."""
+        return lookup.track(self.body).polar(t0 + t)
+
+    def body_angle(self, t, t0=0.0):
+        return float(np.ravel(self.body_state(t0, t))[1])
+
+    def turns_behind(self, theta, t, t0=0.0):
+        """Whole turns k between the sail at polar angle theta and the body at t0 + t
+        (as :meth:`Rendezvous.turns_behind`)."""
+        return int(math.ceil((theta - self.body_angle(t, t0)) / (2 * math.pi)))
+
+    def constraints(self, xf, tf, turns, t0=0.0):
+        body = self.body_state(t0, tf)
+        rows = [xf[0] - body[0], xf[1] - body[1] - 2 * math.pi * turns]
+        if self.matches_velocity:
+            rows += [xf[2] - body[2], xf[3] - body[3]]
+        return rows
+
+    def miss(self, x, t, t0=0.0):
+        """Distance (and, for a rendezvous, relative speed) to the body's ephemeris
+        state at the arrival time t0 + t, with the relative speed at encounter and the
+        out-of-plane distance the two-dimensional model ignored there."""
+        jd = dates.jd_from_tu(t0 + t)
+        state, z_au = lookup.polar_state(self.body, jd, "target.body")
+        dr, dv, _ = state_miss(np.ravel(x)[:4], state)
+        return _miss(dr, dv if self.matches_velocity else None,
+                     relative_speed_km_s=dv / 1e3,
+                     out_of_plane_km=units.length_to_km(abs(z_au)))
+
+
+@dataclass(frozen=True)
+class BodyRendezvous(_BodyTarget):
+    """Meet a body on its real orbit: its position and velocity at arrival."""
+
+
+@dataclass(frozen=True)
+class BodyIntercept(_BodyTarget):
+    """Reach a body's position on its real orbit, at any relative speed (a fly-by or a
+    kinetic impactor); the relative speed at encounter is reported."""
+
+    matches_velocity = False
+
+
+OBJECTIVES = (MinTime, MaxRadius, MaxEnergy, FinalStateExpression, MinAcceleration)
+TARGETS = (CircularOrbit, Orbit, Rendezvous, BodyRendezvous, BodyIntercept)

@@ -80,6 +80,9 @@ class NLPResult:
     lam_g: np.ndarray = None
     revolutions_k: int = 0
     theta_window: tuple = None
+    epoch: float = 0.0  # departure, TU since J2000 (dated problems)
+    ac_scale: float = 1.0  # a_c over the sail's (MinAcceleration)
+    vinf_angle: float = 0.0  # excess velocity's direction, rad
 
     @property
     def converged(self):
@@ -90,7 +93,14 @@ class NLPResult:
         ``durations`` its lengths are the segment durations (an NLP in time)."""
         lengths = self.durations if durations else self.lengths
         return Guess(self.alpha, lengths, self.nodes, self.nu0, self.revolutions_k,
-                     self.throttle, self.theta_window)
+                     self.throttle, self.theta_window, self.epoch, self.ac_scale,
+                     self.vinf_angle)
+
+    def accelerations(self, problem):
+        """Each segment's characteristic acceleration as flown, canonical: the sail's
+        a_c times the result's a_c scale and throttle."""
+        kappa = np.ones(self.alpha.size) if self.throttle is None else self.throttle
+        return problem.sail.ac * self.ac_scale * np.asarray(kappa, float)
 
 
 def wrap_pitch(alpha):
@@ -239,7 +249,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         solver = build_solver(tr, options, warm is not None, progress)
     solver, monitor = solver
     monitor.progress = progress
-    p = np.zeros(5 * tr.segments) if defects is None else np.ravel(defects, order="F")
+    p = tr.parameters(defects)
     start = time.perf_counter()
     with monitor:
         if warm is None:
@@ -255,9 +265,9 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
     # Ipopt may leave a variable past its bound by its bound_relax_factor (1e-8): clip,
     # so that a pitch bound of 90 deg is never reported as 90.0000001.
     w = np.clip(np.array(sol["x"]).ravel(), tr.lbx, tr.ubx)
-    g = tr.constraints(w, p)
+    g = np.array(tr.nlp_g(w, p)).ravel()
     violation = float(np.max(np.r_[0.0, tr.lbg - g, g - tr.ubg]))
-    parts = [np.array(v) for v in tr.unpack(w)]
+    parts = [np.array(v) for v in tr.unpack(w, p)]
     return NLPResult(
         status=status, outcome=outcome_of(status), objective=float(sol["f"]),
         iterations=int(stats.get("iter_count", -1)), solve_seconds=seconds,
@@ -267,6 +277,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         stages=[(status, int(stats.get("iter_count", -1)))], throttle=parts[7].ravel(),
         w=w, lam_x=np.array(sol["lam_x"]).ravel(), lam_g=np.array(sol["lam_g"]).ravel(),
         revolutions_k=tr.guess.revolutions_k, theta_window=tr.guess.theta_window,
+        epoch=parts[8].item(), ac_scale=parts[9].item(), vinf_angle=parts[10].item(),
     )
 
 

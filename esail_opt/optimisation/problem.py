@@ -24,21 +24,24 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Union
 
+import casadi as ca
 import numpy as np
 
+from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError, check_range
 from esail_opt.optimisation.goals import (
-    OBJECTIVES, TARGETS, CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius, MinTime,
-    Orbit, Rendezvous,
+    OBJECTIVES, TARGETS, BodyIntercept, BodyRendezvous, CircularOrbit, FinalStateExpression,
+    MaxEnergy, MaxRadius, MinAcceleration, MinTime, Orbit, Rendezvous,
 )
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import orbital_energy, polar_from_classical
 from esail_opt.physics.thrust import BEST_FIT, EXACT
 
 __all__ = [
-    "ParkingOrbit", "PolarState", "Sail", "Segments", "MinTime", "MaxRadius", "MaxEnergy",
-    "FinalStateExpression", "CircularOrbit", "Orbit", "Rendezvous", "PathConstraints",
-    "Tolerance", "Problem", "EXACT", "BEST_FIT",
+    "ParkingOrbit", "PolarState", "BodyDeparture", "Sail", "Segments", "MinTime", "MaxRadius",
+    "MaxEnergy", "FinalStateExpression", "MinAcceleration", "CircularOrbit", "Orbit",
+    "Rendezvous", "BodyRendezvous", "BodyIntercept", "PathConstraints", "Tolerance",
+    "Problem", "EXACT", "BEST_FIT",
 ]
 
 
@@ -129,6 +132,115 @@ class PolarState:
         return np.array([self.r_au, math.radians(self.theta_deg),
                          units.speed_from_km_s(self.vr_km_s),
                          units.speed_from_km_s(self.vtheta_km_s)])
+
+
+@dataclass(frozen=True)
+class BodyDeparture:
+    """Depart from a body on its real orbit: a DE421 planet or a small body.
+
+    Attributes
+    ----------
+    body : str or SmallBody
+        A planet name (``esail_opt.bodies.ephemeris.PLANETS``; "earth" is the Earth-Moon
+        barycentre, see ``bodies.ephemeris``) or a :class:`~esail_opt.bodies.SmallBody`.
+    date : str or None
+        Departure date, ISO 8601 (read as TDB).  With ``window`` it is only the seed of
+        the free date; without either it is required.
+    window : (str, str) or None
+        Earliest and latest departure, ISO 8601 (TDB): the date becomes a decision
+        variable of the NLP inside it.  Without ``date`` the tool seeds it by a coarse
+        scan of the window of its own.
+    vinf_km_s : float
+        Hyperbolic excess speed from the launcher, km/s, in [0, 10]; 0 (the default)
+        leaves on the body's own orbit.
+    vinf_angle_deg : float or None
+        Direction of the excess velocity in the orbit plane, deg in [-180, 180], from
+        the local horizontal (prograde) towards the radial outward direction; None
+        leaves it free to the optimiser.
+    """
+
+    body: object
+    date: Optional[str] = None
+    window: Optional[tuple] = None
+    vinf_km_s: float = 0.0
+    vinf_angle_deg: Optional[float] = None
+
+    free_anomaly = False
+
+    def __post_init__(self):
+        lookup.check_body(self.body, "departure.body")
+        if self.date is None and self.window is None:
+            raise InputError("departure.date = None: give a date (ISO 8601, e.g. "
+                             "'2031-06-01') or a window (earliest, latest)")
+        if self.date is not None:
+            lookup.check_span(dates.jd_from_iso(self.date, "departure.date"), "departure.date")
+        if self.window is not None:
+            if not isinstance(self.window, (tuple, list)) or len(self.window) != 2:
+                raise InputError(f"departure.window = {self.window!r} is not a pair "
+                                 "(earliest, latest) of ISO 8601 dates")
+            lo, hi = self.window_jd
+            if hi < lo:
+                raise InputError(f"departure.window = {tuple(self.window)!r}: its end comes "
+                                 "before its start")
+            if self.date is not None and not lo <= dates.jd_from_iso(self.date) <= hi:
+                raise InputError(f"departure.date = {self.date!r} is outside departure.window "
+                                 f"[{self.window[0]}, {self.window[1]}]")
+        check_range("departure.vinf_km_s", self.vinf_km_s, 0, 10, unit="km/s")
+        if self.vinf_angle_deg is not None:
+            check_range("departure.vinf_angle_deg", self.vinf_angle_deg, -180, 180, unit="deg")
+
+    @property
+    def window_jd(self):
+        """(earliest, latest) departure as Julian dates (TDB), or None for a fixed date."""
+        if self.window is None:
+            return None
+        return tuple(lookup.check_span(dates.jd_from_iso(w, f"departure.window[{i}]"),
+                                       f"departure.window[{i}]")
+                     for i, w in enumerate(self.window))
+
+    @property
+    def free_date(self):
+        return self.window is not None
+
+    @property
+    def free_direction(self):
+        """Whether the NLP chooses the excess velocity's direction."""
+        return self.vinf_km_s > 0 and self.vinf_angle_deg is None
+
+    def epoch_jd(self):
+        """The departure date (or the free date's seed) as a Julian date, TDB; a window
+        without a date seeds at its start (``optimisation.pipeline`` scans it first)."""
+        return dates.jd_from_iso(self.date if self.date is not None else self.window[0])
+
+    def epoch(self):
+        """The departure date (or seed) as canonical time since J2000 TDB, TU."""
+        return dates.tu_from_jd(self.epoch_jd())
+
+    def _excess(self, angle):
+        v = units.speed_from_km_s(self.vinf_km_s)
+        return v * ca.sin(angle), v * ca.cos(angle)
+
+    def seed_angle(self):
+        """The excess velocity's direction as given, else 0 (along the local horizontal)."""
+        return 0.0 if self.vinf_angle_deg is None else math.radians(self.vinf_angle_deg)
+
+    def state_at(self, t0, angle=None):
+        """Exact polar state (ephemeris, canonical) at epoch t0 (TU since J2000) with the
+        excess velocity at ``angle`` (rad; default :meth:`seed_angle`)."""
+        x, _ = lookup.polar_state(self.body, dates.jd_from_tu(float(t0)), "departure.body")
+        dvr, dvt = self._excess(self.seed_angle() if angle is None else angle)
+        return x + np.array([0.0, 0.0, float(dvr), float(dvt)])
+
+    def state(self, nu=None):
+        """Exact canonical polar state at the departure date (``nu`` is ignored)."""
+        return self.state_at(self.epoch())
+
+    def nlp_state(self, t0, angle):
+        """The departure state inside the NLP: the body's smooth track at epoch ``t0``
+        (TU since J2000, number or symbol) plus the excess velocity at ``angle``."""
+        x = lookup.track(self.body).polar(t0)
+        dvr, dvt = self._excess(angle)
+        return ca.vertcat(x[0], x[1], x[2] + dvr, x[3] + dvt)
 
 
 # ---------------------------------------------------------------- sail and arcs
@@ -290,9 +402,9 @@ class Tolerance:
         check_range("tolerance.velocity_m_s", self.velocity_m_s, 1e-6, 1e5, unit="m/s")
 
 
-Departure = Union[ParkingOrbit, PolarState]
-Objective = Union[MinTime, MaxRadius, MaxEnergy, FinalStateExpression]
-Target = Optional[Union[CircularOrbit, Orbit, Rendezvous]]
+Departure = Union[ParkingOrbit, PolarState, BodyDeparture]
+Objective = Union[MinTime, MaxRadius, MaxEnergy, FinalStateExpression, MinAcceleration]
+Target = Optional[Union[CircularOrbit, Orbit, Rendezvous, BodyRendezvous, BodyIntercept]]
 
 
 @dataclass(frozen=True)
@@ -335,7 +447,8 @@ class Problem:
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name or any(c in self.name for c in "/\\"):
             raise InputError(f"name = {self.name!r} is not a non-empty file-name string")
-        for attr, kinds in (("departure", (ParkingOrbit, PolarState)), ("sail", (Sail,)),
+        for attr, kinds in (("departure", (ParkingOrbit, PolarState, BodyDeparture)),
+                            ("sail", (Sail,)),
                             ("segments", (Segments,)),
                             ("objective", OBJECTIVES),
                             ("path", (PathConstraints,)), ("tolerance", (Tolerance,))):
@@ -344,7 +457,13 @@ class Problem:
                 raise InputError(f"{attr} = {getattr(self, attr)!r} is not one of: {names}")
         if self.target is not None and not isinstance(self.target, TARGETS):
             raise InputError(f"target = {self.target!r} is not one of: CircularOrbit, Orbit, "
-                             "Rendezvous, None")
+                             "Rendezvous, BodyRendezvous, BodyIntercept, None")
+        dated = isinstance(self.departure, BodyDeparture)
+        if isinstance(self.target, (BodyRendezvous, BodyIntercept)) and not dated:
+            raise InputError(f"target = {type(self.target).__name__} needs a dated departure: "
+                             "departure = BodyDeparture(body=..., date=...)")
+        if self.objective.free_acceleration and self.target is None:
+            raise InputError("objective = MinAcceleration needs a target to reach")
         if self.target is None and not self.objective.fixed_time:
             raise InputError("objective = MinTime needs a target (target = None leaves "
                              "nothing to reach); use a fixed-time objective")
@@ -372,11 +491,38 @@ class Problem:
         """Departure polar state, canonical units, as a numpy array."""
         return np.array(self.departure.state(), float).ravel()
 
+    def throttled(self):
+        """Whether each segment has a throttle variable: a throttled sail, or a
+        MinAcceleration objective (whose throttle is free, see its docstring)."""
+        return bool(self.sail.throttle) or self.objective.free_acceleration
+
     def throttle_bounds(self):
         """Bounds (kappa_min, kappa_max) of the per-segment throttle, or None without one."""
-        if not self.sail.throttle:
+        if not self.throttled():
             return None
+        if not self.sail.throttle:
+            return 0.0, 1.0
         return float(self.sail.throttle_min), float(self.sail.throttle_max)
+
+    def dated(self):
+        """Whether the problem lives on the calendar (it departs from a body)."""
+        return isinstance(self.departure, BodyDeparture)
+
+    def epoch(self):
+        """Departure epoch (or the free date's seed), TU since J2000 TDB; 0 without a
+        calendar, where nothing depends on it."""
+        return self.departure.epoch() if self.dated() else 0.0
+
+    def free_date(self):
+        return self.dated() and self.departure.free_date
+
+    def start_state(self, result):
+        """The departure state a schedule is flown from in its verification: exact (the
+        body's ephemeris at the result's epoch, with its excess velocity), not the NLP's
+        smooth track of it."""
+        if self.dated():
+            return self.departure.state_at(result.epoch, result.vinf_angle)
+        return np.asarray(result.x_start, float)
 
     def alpha_bounds(self):
         return math.radians(self.sail.alpha_min_deg), math.radians(self.sail.alpha_max_deg)

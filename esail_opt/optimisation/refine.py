@@ -101,7 +101,7 @@ def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TO
     if segment is None:
         segment = problem_segment(problem)
     lengths = result.lengths if length_in == "theta" else result.durations
-    args = (start_nodes(result), problem.sail.ac * result.throttle[None, :],
+    args = (start_nodes(result), result.accelerations(problem)[None, :],
             result.alpha[None, :], lengths[None, :])
     model = np.array(segment.map(result.alpha.size)(*args)[0])
     exact = fly_segments(*args, length_in, problem.sail.coefficients, tol)
@@ -175,7 +175,7 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS):
             break
         sub = problem.segments.sub_arcs
         worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,
-                                    result.throttle)))
+                                    result.accelerations(problem) / problem.sail.ac)))
         strained = worst > 1
         stalled = last_miss is not None and miss > STALL * last_miss
         last_miss = miss

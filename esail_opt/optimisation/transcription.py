@@ -38,6 +38,7 @@ from esail_opt.propagation import compiled
 from esail_opt.propagation.rectified import (invariant_function, native_panel,
                                              piece_function, propagate, rectified_function)
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
+from esail_opt.bodies import dates
 from esail_opt.errors import InputError
 from esail_opt.physics.thrust import EXACT
 
@@ -267,6 +268,9 @@ class Guess:
     revolutions_k: int = 0
     throttle: np.ndarray = None
     theta_window: tuple = None
+    epoch: float = 0.0  # departure, TU since J2000 (dated problems)
+    ac_scale: float = 1.0  # a_c over the sail's (MinAcceleration)
+    vinf_angle: float = 0.0  # excess velocity's direction, rad (BodyDeparture)
 
 
 def _fly_until(problem, x0, alpha, stop, what):
@@ -360,9 +364,12 @@ def initial_guess(problem):
     # The nodes come from the NLP's own segment map, so continuity holds exactly.
     xs = flown_segments(problem, np.full(n, alpha), lengths, x0)
     nodes = xs[:, 1:]
-    k = problem.target.turns_behind(nodes[1, -1], nodes[4, -1]) if problem.tracks_body() else 0
+    t0 = problem.epoch()
+    k = (problem.target.turns_behind(nodes[1, -1], nodes[4, -1], t0)
+         if problem.tracks_body() else 0)
     nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
-    return Guess(np.full(n, alpha), lengths, nodes, nu0, k)
+    angle = problem.departure.seed_angle() if problem.dated() else 0.0
+    return Guess(np.full(n, alpha), lengths, nodes, nu0, k, epoch=t0, vinf_angle=angle)
 
 
 @dataclass
@@ -376,21 +383,38 @@ class Transcription:
     ubx: np.ndarray
     lbg: np.ndarray
     ubg: np.ndarray
-    # w -> (alpha, lengths, nodes[5 x N], durations, x_start, q3, nu0, throttle)
+    # w -> (alpha, lengths, nodes[5 x N], durations, x_start, q3, nu0, throttle, epoch,
+    #       ac_scale, vinf_angle)
     unpack: ca.Function
     guess: Guess
     names: dict
     objective_unit: tuple = (1.0, "")  # (factor, unit) that shows the objective to a user
+    # The NLP's parameters after the defects: the departure epoch (TU since J2000) and
+    # the fixed time of flight (TU; 0 without one).  A scan changes them, not the NLP.
+    epoch: float = 0.0
+    tof: float = 0.0
 
     @property
     def segments(self):
         return self.guess.alpha.size
 
+    def parameters(self, defects=None):
+        """The NLP's parameter vector: the segment defects of the defect correction
+        (5 x N; default none), then the epoch and the time of flight."""
+        d = np.zeros(5 * self.segments) if defects is None else np.ravel(defects, order="F")
+        return np.r_[d, self.epoch, self.tof]
+
+    def at(self, problem):
+        """This NLP with the parameters of ``problem``, a variant of the problem it was
+        built for that differs only in its departure date or fixed time of flight."""
+        tof = problem.fixed_tof()
+        return dataclasses.replace(self, epoch=problem.epoch(),
+                                   tof=0.0 if tof is None else tof)
+
     def constraints(self, w, defects=None):
         """The constraint values g at the flat point ``w`` (numpy), with the segment
         defects of the defect correction (5 x N; default none)."""
-        d = np.zeros(5 * self.segments) if defects is None else np.ravel(defects, order="F")
-        return np.array(self.nlp_g(w, d)).ravel()
+        return np.array(self.nlp_g(w, self.parameters(defects))).ravel()
 
 
 class _Blocks:
@@ -427,16 +451,30 @@ class _Blocks:
 class _Scales:
     """Order-one scales of the variables: the guess's segment length for lengths, its
     whole angle for theta and its time of flight for t; radii and speeds are already of
-    order one in canonical units."""
+    order one in canonical units.
+
+    A node's theta is scaled after a shift by whole turns: a body's track counts its
+    longitude from the ephemeris's first date, hundreds of radians before a departure
+    in this century, and scaled by that size the transfer's own angles would be lost
+    in the last digits of Ipopt's tolerances.
+    """
 
     length: float
     node: np.ndarray  # per row of a node [r, theta, v_r, v_theta, t]
+    epoch: float  # the free departure epoch is this offset plus a variable in TU
+    shift: np.ndarray  # per row of a node: whole turns of theta, 0 elsewhere
 
     @classmethod
     def of(cls, guess):
-        th = max(1.0, float(abs(guess.nodes[1, -1])))
+        turns = 2 * math.pi * round(float(guess.nodes[1, 0]) / (2 * math.pi))
+        th = max(1.0, float(abs(guess.nodes[1, -1] - turns)))
         t = max(1.0, float(guess.nodes[4, -1]))
-        return cls(float(np.mean(guess.lengths)), np.array([1.0, th, 1.0, 1.0, t]))
+        return cls(float(np.mean(guess.lengths)), np.array([1.0, th, 1.0, 1.0, t]),
+                   float(guess.epoch), np.array([0.0, turns, 0.0, 0.0, 0.0]))
+
+    def scaled(self, nodes):
+        """Nodes (5 x N, numbers) in the NLP's scaled variables."""
+        return (np.asarray(nodes, float) - self.shift[:, None]) / self.node[:, None]
 
     @property
     def time(self):
@@ -462,7 +500,7 @@ def _node_bounds(problem, guess, scales, n):
     hi = np.tile([[100.0], [np.inf], [10.0], [20.0], [np.inf]], n)
     if guess.theta_window is not None:
         lo[1, -1], hi[1, -1] = guess.theta_window
-    return lo / scales.node[:, None], hi / scales.node[:, None]
+    return scales.scaled(lo), scales.scaled(hi)
 
 
 def _variables(problem, guess, scales, in_time):
@@ -480,9 +518,15 @@ def _variables(problem, guess, scales, in_time):
     n = guess.alpha.size
     free_nu = bool(getattr(problem.departure, "free_anomaly", False))
     kappa_bounds = problem.throttle_bounds()
+    free_date = problem.free_date()
+    free_ac = problem.objective.free_acceleration
+    free_angle = problem.dated() and problem.departure.free_direction
     v = {"alpha": ca.MX.sym("alpha", n), "length": ca.MX.sym("length", n),
          "nodes": ca.MX.sym("nodes", 5, n), "nu0": ca.MX.sym("nu0", 1 if free_nu else 0),
-         "kappa": ca.MX.sym("kappa", 0 if kappa_bounds is None else n)}
+         "kappa": ca.MX.sym("kappa", 0 if kappa_bounds is None else n),
+         "epoch": ca.MX.sym("epoch", 1 if free_date else 0),
+         "ac_scale": ca.MX.sym("ac_scale", 1 if free_ac else 0),
+         "vinf_angle": ca.MX.sym("vinf_angle", 1 if free_angle else 0)}
     blocks = _Blocks()
     blocks.add("alpha", v["alpha"], *_pitch_bounds(problem), guess.alpha)
     max_angle = 2 * math.pi * problem.max_revolutions
@@ -491,24 +535,38 @@ def _variables(problem, guess, scales, in_time):
               (max_angle / n if problem.segments.equal else max_angle) / scales.length)
     blocks.add("length", v["length"], 1e-4 / scales.length, len_hi, guess.lengths / scales.length)
     blocks.add("nodes", v["nodes"], *_node_bounds(problem, guess, scales, n),
-               guess.nodes / scales.node[:, None])
+               scales.scaled(guess.nodes))
     blocks.add("nu0", v["nu0"], -4 * math.pi, 4 * math.pi, guess.nu0)
     # The throttle comes last, so a throttled NLP only appends N columns to the layout.
     k_lo, k_hi = (1.0, 1.0) if kappa_bounds is None else kappa_bounds
     blocks.add("kappa", v["kappa"], k_lo, k_hi, 1.0 if guess.throttle is None else guess.throttle)
+    if free_date:
+        # In TU from the guess's epoch: an order-one variable, where the epoch itself is
+        # hundreds of TU from J2000.
+        lo, hi = (dates.tu_from_jd(jd) - scales.epoch for jd in problem.departure.window_jd)
+        blocks.add("epoch", v["epoch"], lo, hi, guess.epoch - scales.epoch)
+    # a_c stays inside the sail's own range, (0, 100] mm/s^2.
+    blocks.add("ac_scale", v["ac_scale"], 1e-4, 100.0 / problem.sail.ac_mm_s2, guess.ac_scale)
+    blocks.add("vinf_angle", v["vinf_angle"], -2 * math.pi, 2 * math.pi, guess.vinf_angle)
     return v, blocks
 
 
-def _flight(problem, segment, v, scales, in_time):
+def _flight(problem, segment, v, p, scales, in_time):
     """The segments flown from their start nodes: ends (with the defect parameter),
     q3, the angles and durations of the segments, and the final state and time."""
     n = v["alpha"].numel()
-    nodes = v["nodes"] * ca.DM(scales.node)
+    nodes = v["nodes"] * ca.DM(scales.node) + ca.DM(scales.shift)
     dep = problem.departure
-    x_start = dep.state(v["nu0"][0]) if v["nu0"].numel() else ca.DM(problem.x0())
+    epoch = scales.epoch + v["epoch"][0] if v["epoch"].numel() else p["epoch"]
+    if problem.dated():
+        angle = v["vinf_angle"][0] if v["vinf_angle"].numel() else dep.seed_angle()
+        x_start = dep.nlp_state(epoch, angle)
+    else:
+        x_start = dep.state(v["nu0"][0]) if v["nu0"].numel() else ca.DM(problem.x0())
     starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
     # The closed form (and Eqs. 1-2) take a_c per segment, so a throttle simply scales it.
-    ac = problem.sail.ac * (v["kappa"].T if v["kappa"].numel() else 1)
+    ac_scale = v["ac_scale"][0] if v["ac_scale"].numel() else 1
+    ac = problem.sail.ac * ac_scale * (v["kappa"].T if v["kappa"].numel() else 1)
     length = v["length"] * scales.length
     threads = min(segment_threads(), n)
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
@@ -522,10 +580,10 @@ def _flight(problem, segment, v, scales, in_time):
     return {"nodes": nodes, "x_start": x_start, "ends": ends + defects, "q3": ca.vec(q3),
             "defects": defects, "lengths": swept if in_time else length,
             "durations": length if in_time else elapsed,
-            "xf": nodes[:4, -1], "tf": nodes[4, -1]}
+            "xf": nodes[:4, -1], "tf": nodes[4, -1], "epoch": epoch, "ac_scale": ac_scale}
 
 
-def _constraints(problem, guess, v, flight, scales, in_time):
+def _constraints(problem, guess, v, p, flight, scales, in_time):
     """Continuity, validity, the segments' shape, the time of flight and the target."""
     n = v["alpha"].numel()
     g = _Blocks()
@@ -537,12 +595,17 @@ def _constraints(problem, guess, v, flight, scales, in_time):
         g.add("equal_lengths", lengths[1:] - lengths[:-1], 0, 0)
     # Durations positive: a segment running backwards in time is never physical.
     g.add("durations", flight["durations"] / scales.time, 0, np.inf)
-    tof = problem.fixed_tof()
-    if tof is not None:
-        g.add("tof", (flight["tf"] - tof) / scales.time, 0, 0)
+    if problem.fixed_tof() is not None:
+        g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
     if problem.target is not None:
-        target = problem.target.constraints(flight["xf"], flight["tf"], guess.revolutions_k)
+        target = problem.target.constraints(flight["xf"], flight["tf"], guess.revolutions_k,
+                                            flight["epoch"])
         g.add("target", ca.vertcat(*target), 0, 0)
+        window = getattr(problem.target, "arrival_jd", None)
+        if window is not None:
+            lo, hi = (dates.tu_from_jd(jd) - scales.epoch for jd in window)
+            g.add("arrival", (flight["epoch"] - scales.epoch + flight["tf"]) / scales.time,
+                  lo / scales.time, hi / scales.time)
     return g
 
 
@@ -578,20 +641,30 @@ def transcribe(problem, segment=None, guess=None, length_in="theta"):
     guess = initial_guess(problem) if guess is None else guess
     scales = _Scales.of(guess)
     v, variables = _variables(problem, guess, scales, in_time)
-    flight = _flight(problem, segment, v, scales, in_time)
-    g = _constraints(problem, guess, v, flight, scales, in_time)
+    params = {"epoch": ca.MX.sym("epoch"), "tof": ca.MX.sym("tof")}
+    flight = _flight(problem, segment, v, params, scales, in_time)
+    g = _constraints(problem, guess, v, params, flight, scales, in_time)
     w, lbx, ubx, w0 = variables.stacked()
     g_expr, lbg, ubg, _ = g.stacked()
-    p = ca.vec(flight["defects"])
-    f = problem.objective.cost(flight["xf"], flight["tf"])
+    p = ca.vertcat(ca.vec(flight["defects"]), params["epoch"], params["tof"])
+    if problem.objective.free_acceleration:
+        f = problem.sail.ac * flight["ac_scale"]
+    else:
+        f = problem.objective.cost(flight["xf"], flight["tf"])
     nu0 = v["nu0"][0] if v["nu0"].numel() else ca.MX(guess.nu0)
     throttle = v["kappa"] if v["kappa"].numel() else ca.MX.ones(guess.alpha.size, 1)
-    unpack = ca.Function("unpack", [w], [v["alpha"], flight["lengths"], flight["nodes"],
-                                         flight["durations"], flight["x_start"], flight["q3"],
-                                         nu0, throttle],
-                         ["w"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
-                                 "nu0", "throttle"])
+    angle = (v["vinf_angle"][0] if v["vinf_angle"].numel()
+             else ca.MX(problem.departure.seed_angle() if problem.dated() else 0.0))
+    # Without a free epoch the parameter is an input of unpack too, so that it reports it.
+    unpack = ca.Function("unpack", [w, p], [v["alpha"], flight["lengths"], flight["nodes"],
+                                            flight["durations"], flight["x_start"],
+                                            flight["q3"], nu0, throttle, flight["epoch"],
+                                            flight["ac_scale"], angle],
+                         ["w", "p"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
+                                      "nu0", "throttle", "epoch", "ac_scale", "vinf_angle"])
+    tof = problem.fixed_tof()
     return Transcription({"x": w, "p": p, "f": f, "g": g_expr},
-                         ca.Function("g", [w, p], [g_expr], ["w", "defects"], ["g"]),
+                         ca.Function("g", [w, p], [g_expr], ["w", "p"], ["g"]),
                          np.clip(w0, lbx, ubx), lbx, ubx, lbg, ubg, unpack, guess, g.sizes,
-                         problem.objective.shown_as())
+                         problem.objective.shown_as(), problem.epoch(),
+                         0.0 if tof is None else tof)

@@ -22,12 +22,12 @@ from esail_opt.propagation.rectified import propagate
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate
 
 
-def target_miss(target, x, t):
-    """Miss of polar state ``x`` at time ``t`` (TU) from ``target`` (its ``miss``), with
-    Nones when there is no target."""
+def target_miss(target, x, t, t0=0.0):
+    """Miss of polar state ``x`` at time ``t`` (TU) after a departure at epoch ``t0``
+    from ``target`` (its ``miss``), with Nones when there is no target."""
     if target is None:
         return {"target_miss_r_km": None, "target_miss_v_m_s": None}
-    return target.miss(x, t)
+    return target.miss(x, t, t0)
 
 
 @dataclass
@@ -125,9 +125,11 @@ def verify(problem, result, samples=16):
     -------
     Verification
     """
-    ac, coeff = problem.sail.ac, problem.sail.coefficients
+    ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     sub = problem.segments.sub_arcs
     x0 = np.asarray(result.x_start, float)
+    # CVODES flies from the exact departure (a body's ephemeris, not the NLP's track).
+    x0_exact = problem.start_state(result)
     kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
              else np.asarray(result.throttle, float))
     # The plotted closed form restarts every segment at its NLP node (plain sub-arcs,
@@ -146,10 +148,10 @@ def verify(problem, result, samples=16):
     closed = np.column_stack(pieces)
     error = None
     try:
-        flown = simulate(x0, result.alpha, result.durations, ac, throttles=kappa,
+        flown = simulate(x0_exact, result.alpha, result.durations, ac, throttles=kappa,
                          samples=samples, length_in="time", coefficients=coeff,
                          tol=VERIFY_TOLERANCE)
-        check = simulate(x0, result.alpha, result.durations, ac, throttles=kappa,
+        check = simulate(x0_exact, result.alpha, result.durations, ac, throttles=kappa,
                          length_in="time", coefficients=coeff, tol=CHECK_TOLERANCE)
     except Exception as err:  # CVODES gave up (e.g. an escaping orbit): report, do not hide
         error = f"CVODES failed: {err}"
@@ -161,8 +163,9 @@ def verify(problem, result, samples=16):
         misses = {"miss_r_km": dr, "miss_v_m_s": dv, "miss_theta_deg": dth}
         err_r, err_v, _ = state_miss(check[:4, -1], xf_cv)
         misses.update(verifier_error_r_km=err_r, verifier_error_v_m_s=err_v)
-        misses.update(target_miss(problem.target, xf_cv, flown[4, -1]))
-        nlp_target = target_miss(problem.target, xf_nlp, float(np.sum(result.durations)))
+        misses.update(target_miss(problem.target, xf_cv, flown[4, -1], result.epoch))
+        nlp_target = target_miss(problem.target, xf_nlp, float(np.sum(result.durations)),
+                                 result.epoch)
         misses["nlp_target_miss_r_km"] = nlp_target["target_miss_r_km"]
     else:
         misses = {"miss_r_km": None, "miss_v_m_s": None, "miss_theta_deg": None,

@@ -1,0 +1,338 @@
+"""Launch-window scans: one problem over departure dates, or dates x times of flight.
+
+``esail-opt porkchop PROBLEM.py --depart 2030-01-01:2033-01-01:24`` solves the problem
+at every departure date (its own objective: minimum time, say); with ``--tof
+200:400:12`` every (date, time of flight) cell is solved with the objective's time of
+flight replaced, which with ``MinAcceleration`` is the sail designer's porkchop: the
+characteristic acceleration a transfer needs, per launch date and duration.
+
+A porkchop is a sweep over dates, and runs on the sweep's engine
+(:mod:`esail_opt.app.parallel`: a process pool or Dask, a journal of finished work,
+``--resume``, retries of lost workers, Ctrl-C).  A job is a run of neighbouring cells
+-- a block of dates, or one departure date's row of flight times -- solved in order by
+:func:`esail_opt.optimisation.scan.scan` on one NLP, each cell warm from its solved
+neighbour; the journal holds each job's cells as the job ends.
+
+Every cell is verified on Eqs. 1-2 against the body's ephemeris at its flown arrival,
+as a lone solve is; the map marks the cells that are not, and the run exits 1 if any.
+"""
+
+import csv
+import dataclasses
+import io
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from esail_opt.app import parallel
+from esail_opt.app.files import json_ready, save_figure, write_json, atomic_path
+from esail_opt.app.parallel import first_line
+from esail_opt.bodies import dates
+from esail_opt.errors import InputError, check_range
+from esail_opt.optimisation import scan
+
+CSV_FIELDS = ("index", "departure_date", "tof_days_grid", "converged", "verified", "status",
+              "departure_jd", "arrival_date", "tof_days", "objective", "objective_unit",
+              "target_miss_r_km", "target_miss_v_m_s", "relative_speed_km_s",
+              "out_of_plane_km", "iterations", "start", "seconds", "error")
+JOURNAL = "porkchop.jsonl"
+#: Cells per job of a one-dimensional scan: long enough runs for the warm starts to
+#: pay, short enough to spread over the workers.
+BLOCK = 8
+
+
+def parse_dates(text, field="depart"):
+    """``START:STOP:COUNT`` with ISO 8601 dates -> list of Julian dates (TDB), ends
+    included."""
+    parts = str(text).split(":")
+    # An ISO time of day has colons of its own: START and STOP are then split apart
+    # at the last two separators that are not inside a date.
+    if len(parts) < 3:
+        raise InputError(f"{field} = {text!r}: expected START:STOP:COUNT, e.g. "
+                         "2030-01-01:2033-01-01:24")
+    count_text = parts[-1]
+    rest = ":".join(parts[:-1])
+    start, stop = _split_pair(rest, text, field)
+    lo = dates.jd_from_iso(start, f"{field} START")
+    hi = dates.jd_from_iso(stop, f"{field} STOP")
+    count = _count(count_text, text, field)
+    if hi < lo:
+        raise InputError(f"{field} = {text!r}: STOP comes before START")
+    return list(np.linspace(lo, hi, count)) if count > 1 else [lo]
+
+
+def _split_pair(rest, text, field):
+    # Dates are YYYY-MM-DD[THH:MM[:SS]]: the second date starts at the last
+    # occurrence of ':YYYY-'.
+    for i in range(len(rest) - 1, 0, -1):
+        if rest[i] == ":" and len(rest) > i + 5 and rest[i + 1:i + 5].isdigit() \
+                and rest[i + 5] == "-":
+            return rest[:i], rest[i + 1:]
+    raise InputError(f"{field} = {text!r}: expected START:STOP:COUNT with ISO 8601 dates")
+
+
+def _count(text, whole, field):
+    try:
+        count = int(text)
+    except ValueError:
+        raise InputError(f"{field} = {whole!r}: COUNT must be a whole number") from None
+    if not 1 <= count <= 10000:
+        raise InputError(f"{field} COUNT = {count} is outside [1, 10000]")
+    return count
+
+
+def parse_tofs(text):
+    """``START:STOP:COUNT`` in days -> list of times of flight."""
+    parts = str(text).split(":")
+    if len(parts) != 3:
+        raise InputError(f"tof = {text!r}: expected START:STOP:COUNT in days, e.g. 200:400:12")
+    lo = check_range("tof START", parts[0], 0, 36525, low_open=True, unit="days")
+    hi = check_range("tof STOP", parts[1], lo, 36525, unit="days")
+    count = _count(parts[2], text, "tof")
+    return list(np.linspace(lo, hi, count)) if count > 1 else [lo]
+
+
+@dataclasses.dataclass(frozen=True)
+class Grid:
+    """The cells of a scan: departure dates (Julian, TDB) and, for two dimensions,
+    times of flight (days)."""
+
+    departures: tuple
+    tofs: tuple = None
+
+    @property
+    def shape(self):
+        return (len(self.departures),) + ((len(self.tofs),) if self.tofs else ())
+
+    def cell(self, index):
+        """(departure jd, tof days or None) of flat cell ``index`` (row-major)."""
+        if self.tofs is None:
+            return self.departures[index], None
+        i, j = divmod(index, len(self.tofs))
+        return self.departures[i], self.tofs[j]
+
+    def jobs(self, workers):
+        """Runs of neighbouring cell indices: blocks of dates, or one row per date."""
+        n = int(np.prod(self.shape))
+        if self.tofs is not None:
+            m = len(self.tofs)
+            return [list(range(i * m, (i + 1) * m)) for i in range(len(self.departures))]
+        size = max(1, min(BLOCK, math.ceil(n / max(1, workers))))
+        return [list(range(i, min(i + size, n))) for i in range(0, n, size)]
+
+
+def cell_problem(problem, grid, index):
+    jd, tof = grid.cell(index)
+    variant = scan.at_date(problem, jd)
+    return variant if tof is None else scan.at_tof(variant, tof)
+
+
+def _row(index, grid, cell=None, error=None):
+    jd, tof = grid.cell(index)
+    row = dict.fromkeys(CSV_FIELDS)
+    row.update(index=index, departure_date=dates.iso_from_jd(jd), departure_jd=jd,
+               tof_days_grid=tof, converged=False, verified=False, error=error)
+    if cell is None:
+        return row
+    result = cell.result
+    factor, unit = cell.problem.objective.shown_as()
+    row.update(converged=result.converged, verified=bool(cell.verified), status=result.status,
+               iterations=result.iterations, start=cell.start, seconds=cell.seconds,
+               target_miss_r_km=cell.misses.get("target_miss_r_km"),
+               target_miss_v_m_s=cell.misses.get("target_miss_v_m_s"),
+               relative_speed_km_s=cell.misses.get("relative_speed_km_s"),
+               out_of_plane_km=cell.misses.get("out_of_plane_km"))
+    if cell.solved:
+        tof_tu = float(np.sum(result.durations))
+        from esail_opt.physics import constants as units
+
+        row.update(tof_days=units.time_to_days(tof_tu), objective=cell.objective * factor,
+                   objective_unit=unit.strip(),
+                   arrival_date=dates.iso_from_jd(dates.jd_from_tu(result.epoch + tof_tu)))
+    if not cell.verified and error is None:
+        row["error"] = cell.note
+    return row
+
+
+def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departures=(),
+              tofs=None):
+    """Solve one run of neighbouring cells on one NLP; their rows.  Never raises for a
+    cell: a failure is in its row."""
+    from esail_opt.optimisation.problem_file import load_problem
+    import tempfile
+
+    grid = Grid(tuple(departures), None if tofs is None else tuple(tofs))
+    try:
+        with tempfile.TemporaryDirectory(prefix="esail_porkchop_") as tmp:
+            path = Path(tmp) / filename
+            path.write_text(source)
+            problem = load_problem(path).with_tolerance(tol_km, tol_m_s)
+        cells = scan.scan([cell_problem(problem, grid, i) for i in indices])
+        return [_row(i, grid, c) for i, c in zip(indices, cells)]
+    except Exception as err:  # the job's cells all say why
+        return [_row(i, grid, error=first_line(err)) for i in indices]
+
+
+def check(problem, grid):
+    """InputError unless ``problem`` can be scanned over ``grid``."""
+    if not problem.dated():
+        raise InputError(f"departure = {type(problem.departure).__name__}: a porkchop scans "
+                         "departure dates and needs departure = BodyDeparture(...)")
+    if grid.tofs is not None and not problem.objective.fixed_time:
+        raise InputError(f"objective = {type(problem.objective).__name__}: --tof needs a "
+                         "fixed-time objective (e.g. MinAcceleration(tof_days=...))")
+    for jd in grid.departures:
+        scan.at_date(problem, jd)  # dates outside the ephemeris fail here, one line
+
+
+def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=None,
+        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES):
+    """Scan ``problem_file`` over ``depart`` (and ``tof``); the table as a dict.
+
+    Raises InputError on bad input before any solve.
+    """
+    from esail_opt.app import sweep
+    from esail_opt.optimisation.problem_file import load_problem
+
+    grid = Grid(tuple(parse_dates(depart)), None if tof is None else tuple(parse_tofs(tof)))
+    problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
+    check(problem, grid)
+    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
+                                or workers < 1):
+        raise InputError(f"workers = {workers!r} is outside [1, inf)")
+    if resume and out_dir is None:
+        raise InputError("resume needs out_dir, the folder holding the journal")
+    jobs_all = grid.jobs(workers or os.cpu_count() or 1)
+    workers = int(workers) if workers is not None else min(len(jobs_all), os.cpu_count() or 1)
+    source = Path(problem_file).read_text()
+    header = {"journal": "esail-opt porkchop", "problem": problem.name,
+              "source_sha256": sweep._source_digest(source),
+              "param": f"depart={depart} tof={tof}",
+              "values": [float(v) for v in grid.departures] + list(grid.tofs or []),
+              "polish": False, "tolerance": dataclasses.asdict(problem.tolerance)}
+    journal, kept = None, {}
+    if out_dir is not None:
+        journal = sweep.Journal(Path(out_dir) / JOURNAL, header, fields=CSV_FIELDS)
+        kept = journal.open(resume)
+    rows = dict(kept)
+    todo = {j: job for j, job in enumerate(jobs_all) if not all(i in rows for i in job)}
+    total = int(np.prod(grid.shape))
+
+    def finished(j, job_rows):
+        for row in job_rows:
+            rows[row["index"]] = row
+            if journal is not None:
+                journal.append(row)
+            if progress:
+                progress(row, len(rows), total)
+
+    def failed(j, error):
+        finished(j, [_row(i, grid, error=error) for i in todo[j]])
+
+    started = time.perf_counter()
+    args = {j: (job, source, Path(problem_file).name, tol_km, tol_m_s,
+                [float(v) for v in grid.departures], None if grid.tofs is None else list(grid.tofs))
+            for j, job in todo.items()}
+    parallel.run(solve_job, args, finished, failed, workers=workers, scheduler=scheduler,
+                 retries=retries)
+    ordered = [rows[i] for i in range(total)]
+    verified = [r for r in ordered if r["verified"]]
+    best = min(verified, key=lambda r: r["objective"]) if verified else None
+    return {"problem": problem.name, "problem_file": str(problem_file),
+            "objective": type(problem.objective).__name__,
+            "objective_unit": next((r["objective_unit"] for r in ordered if r["objective_unit"]),
+                                   None),
+            "target": lookup_name(problem),
+            "departures": [dates.iso_from_jd(jd) for jd in grid.departures],
+            "tofs_days": None if grid.tofs is None else list(grid.tofs),
+            "shape": list(grid.shape), "cells": total, "verified_cells": len(verified),
+            "not_verified": total - len(verified), "best": best,
+            "executor": (f"dask distributed at {scheduler}" if scheduler is not None
+                         else f"process pool, {workers} workers"),
+            "wall_seconds": time.perf_counter() - started,
+            "resumed": sorted(kept), "rows": ordered,
+            "journal": None if journal is None else str(journal.path)}
+
+
+def lookup_name(problem):
+    from esail_opt.bodies import lookup
+
+    body = getattr(problem.target, "body", None)
+    return None if body is None else lookup.name(body)
+
+
+def table_csv(result):
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=CSV_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    for row in result["rows"]:
+        writer.writerow({k: ("" if row[k] is None else row[k]) for k in CSV_FIELDS})
+    return buf.getvalue()
+
+
+def figure(result):
+    """The porkchop: the objective over calendar dates, unverified cells marked with a
+    cross and the best cell starred."""
+    from matplotlib.figure import Figure
+    import matplotlib.dates as mdates
+    from datetime import datetime
+
+    fig = Figure(figsize=(8, 5))
+    ax = fig.add_subplot()
+    rows = result["rows"]
+    when = np.array([datetime.fromisoformat(r["departure_date"]) for r in rows])
+    value = np.array([np.nan if r["objective"] is None else r["objective"] for r in rows])
+    ok = np.array([bool(r["verified"]) for r in rows])
+    unit = result["objective_unit"] or ""
+    label = ("time of flight [d]" if result["objective"] == "MinTime"
+             else f"{result['objective']} [{unit}]")
+    if result["tofs_days"] is None:
+        ax.plot(when[ok], value[ok], "o-", ms=4, label="verified")
+        if (~ok).any():
+            ax.plot(when[~ok], np.where(np.isfinite(value[~ok]), value[~ok], np.nanmax(value)),
+                    "x", color="C3", ms=8, label="not verified")
+        ax.set_ylabel(label)
+    else:
+        shape = result["shape"]
+        grid_when = when.reshape(shape)[:, 0]
+        tofs = np.array(result["tofs_days"])
+        z = np.where(ok, value, np.nan).reshape(shape).T
+        x = mdates.date2num(grid_when)
+        if np.isfinite(z).sum() >= 4:
+            cs = ax.contourf(x, tofs, z, levels=12, cmap="viridis")
+            fig.colorbar(cs, ax=ax, label=f"required a_c [{unit}]" if
+                         result["objective"] == "MinAcceleration" else label)
+        bad = ~ok.reshape(shape).T
+        xx, yy = np.meshgrid(x, tofs)
+        if bad.any():
+            ax.plot(xx[bad], yy[bad], "x", color="C3", ms=7, label="not verified")
+        ax.plot(xx[~bad], yy[~bad], ".", color="k", ms=2)
+        ax.set_ylabel("time of flight [d]")
+    best = result["best"]
+    if best is not None:
+        bx = datetime.fromisoformat(best["departure_date"])
+        by = best["objective"] if result["tofs_days"] is None else best["tof_days_grid"]
+        ax.plot([bx], [by], "*", color="gold", mec="k", ms=16, label="best", zorder=5)
+    ax.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m"))
+    fig.autofmt_xdate()
+    ax.set_xlabel("departure date (TDB)")
+    target = result["target"] or "target"
+    ax.set_title(f"{result['problem']}: {result['verified_cells']}/{result['cells']} cells "
+                 f"verified, to {target}")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def write(result, out_dir):
+    """porkchop.json, porkchop.csv, porkchop.png in ``out_dir``; the paths."""
+    out = Path(out_dir)
+    paths = [out / "porkchop.json", out / "porkchop.csv", out / "porkchop.png"]
+    write_json(paths[0], json_ready(result))
+    with atomic_path(paths[1]) as tmp:
+        tmp.write_text(table_csv(result))
+    save_figure(figure(result), paths[2])
+    return paths

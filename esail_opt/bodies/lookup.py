@@ -1,0 +1,110 @@
+"""One way to ask for any body, planet or small body, by what a problem file names.
+
+A problem names a body as a planet's name (a string, read from DE421) or as a
+:class:`~esail_opt.bodies.keplerian.SmallBody`.  The optimisation layer asks this module
+for the body's exact state at a date, its smooth track for the NLP, and its label, so
+it never has to know which kind it holds.
+
+Every track spans :data:`TRACK_SPAN`, built once per body and process: one NLP then
+serves a scan over any dates in it, and the dates stay parameters of the NLP rather
+than part of its structure.  Sixty years cost about half a second of fitting for
+Earth, Mars or Venus; the whole of DE421 (three centuries) would cost seconds per body
+and process, for dates no mission analysis here asks for.  The exact state's polar angle is put on the track's branch
+(theta unwrapped from the span's start), so that a seed flown from the exact state and
+the NLP's departure from the track agree on theta, not only modulo 2 pi.
+"""
+
+import functools
+import math
+
+import numpy as np
+
+from esail_opt.bodies import ephemeris
+from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, jd_from_tu, tu_from_jd
+from esail_opt.bodies.keplerian import SmallBody
+from esail_opt.bodies.track import track_of
+from esail_opt.errors import InputError
+
+
+def check_body(body, field):
+    """Raise InputError, naming ``field``, unless ``body`` is a known planet or a SmallBody."""
+    if isinstance(body, SmallBody):
+        return body
+    if isinstance(body, str) and body.strip().lower() in ephemeris.PLANETS:
+        return body
+    raise InputError(f"{field} = {body!r} is not a SmallBody or one of: "
+                     f"{', '.join(ephemeris.PLANETS)}")
+
+
+def _key(body):
+    return body.strip().lower() if isinstance(body, str) else body
+
+
+def name(body):
+    """The body's name as the solution files give it."""
+    return body.name if isinstance(body, SmallBody) else _key(body)
+
+
+def source(body):
+    """Where the body's states come from, in words."""
+    if isinstance(body, SmallBody):
+        return f"Keplerian orbit from osculating elements: {body.source}"
+    return "JPL DE421 (jplephem), heliocentric, ecliptic of J2000"
+
+
+#: The dates (TDB) every problem on the calendar must lie in: departures, arrivals and
+#: scans.
+TRACK_SPAN = ("2000-01-01", "2060-01-01")
+
+
+@functools.lru_cache(maxsize=None)
+def _track(key):
+    return track_of(key, *(jd_from_iso(d) for d in TRACK_SPAN))
+
+
+def track(body):
+    """The body's smooth track over the ephemeris's span (``bodies.track.Track``)."""
+    return _track(_key(body))
+
+
+def span_tu():
+    """(first, last) canonical time since J2000 that every track covers."""
+    return tuple(tu_from_jd(jd_from_iso(d)) for d in TRACK_SPAN)
+
+
+def polar_state(body, jd, field="body"):
+    """Exact polar state [r, theta, v_r, v_theta] (canonical) at Julian date ``jd`` (TDB)
+    with theta on the track's branch, and the out-of-plane distance z (au)."""
+    body = _key(body)
+    if isinstance(body, SmallBody):
+        x, z = body.polar_state(jd)
+    else:
+        x, z = ephemeris.polar_state(body, jd, field)
+    x = np.array(x, float).ravel()
+    branch = float(np.ravel(track(body).polar(tu_from_jd(jd)))[1])
+    x[1] += 2 * math.pi * round((branch - x[1]) / (2 * math.pi))
+    return x, float(z)
+
+
+@functools.lru_cache(maxsize=None)
+def _mean_radius(key):
+    if isinstance(key, SmallBody):
+        return float(key.a_au)
+    # The osculating semimajor axis at J2000: what the seeding propagation aims at.
+    x, _ = ephemeris.polar_state(key, jd_from_tu(0.0))
+    r, vr, vt = x[0], x[2], x[3]
+    return float(1.0 / (2.0 / r - (vr * vr + vt * vt)))
+
+
+def mean_radius_au(body):
+    """A representative orbit radius of the body, au (the osculating semimajor axis)."""
+    return _mean_radius(_key(body))
+
+
+def check_span(jd, field):
+    """Raise InputError, naming ``field``, if ``jd`` lies outside what the tracks cover."""
+    lo, hi = (jd_from_tu(t) for t in span_tu())
+    if not lo <= jd <= hi:
+        raise InputError(f"{field} = {iso_from_jd(jd)} is outside the dates esail_opt "
+                         f"tracks bodies on, [{TRACK_SPAN[0]}, {TRACK_SPAN[1]}] (TDB)")
+    return jd

@@ -1,0 +1,203 @@
+"""Many cells of one problem on one NLP: launch-window and flight-time scans.
+
+A cell is the problem at one departure date (and, for a fixed-time objective, one time
+of flight).  Dates and times of flight are parameters of the NLP
+(``Transcription.parameters``), so the NLP and its Ipopt solver are built once for
+the first cell and every later cell re-solves them warm from a solved neighbour: a
+neighbour's optimum is a far better start than a constant-pitch seed, and building
+the NLP costs more than a warm solve.
+
+A warm start stays in its neighbour's basin, and a scan's optimum can change basin
+between cells (a rendezvous that gains one more turn on the body, say).  So after the
+forward pass every cell that ended worse than a neighbour -- not converged, not
+verified, or a larger objective -- is solved again from that neighbour, the other way
+along the scan, and keeps the better of the two.  A cell no neighbour can start is
+solved cold from its own seed, as a lone solve would.
+
+Every cell goes through the error control and the CVODES verification of a lone solve
+(``optimisation.refine``, ``optimisation.verify``): a scan's cell is verified exactly
+when the same cell solved alone would be.
+"""
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from esail_opt.bodies import dates
+from esail_opt.errors import InputError
+from esail_opt.optimisation import multistart
+from esail_opt.optimisation.ipopt import NLPResult, build_solver, solve_problem, solve_transcription
+from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
+from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
+from esail_opt.optimisation.verify import verify
+from esail_opt.physics import constants as units
+
+SOLVED = ("converged", "acceptable")
+
+
+def at_date(problem, jd):
+    """``problem`` departing at the Julian date ``jd`` (TDB), its date fixed."""
+    if not problem.dated():
+        raise InputError(f"departure = {type(problem.departure).__name__}: a scan over "
+                         "departure dates needs departure = BodyDeparture(...)")
+    departure = dataclasses.replace(problem.departure, date=dates.iso_from_jd(jd), window=None)
+    return dataclasses.replace(problem, departure=departure)
+
+
+def at_tof(problem, tof_days):
+    """``problem`` with its fixed time of flight replaced, days."""
+    if not problem.objective.fixed_time:
+        raise InputError(f"objective = {type(problem.objective).__name__}: a scan over times "
+                         "of flight needs a fixed-time objective (e.g. MinAcceleration)")
+    return dataclasses.replace(problem, objective=dataclasses.replace(problem.objective,
+                                                                      tof_days=tof_days))
+
+
+@dataclass
+class Cell:
+    """One solved cell: its problem, the closed-form optimum and its judged flight."""
+
+    problem: object
+    result: Optional[NLPResult]
+    transcription: object
+    verified: bool
+    note: str
+    misses: dict
+    seconds: float
+    start: str  # where its start came from: "seed", "previous", "next"
+    # The optimum on the scan's NLP before the error control changed anything: the
+    # start a neighbour is warmed from (a grown mesh has another layout).
+    on_scan_nlp: Optional[NLPResult] = None
+
+    @property
+    def solved(self):
+        return self.result is not None and self.result.outcome in SOLVED
+
+    @property
+    def objective(self):
+        """The objective, or +inf for a cell that did not converge."""
+        return self.result.objective if self.solved else math.inf
+
+
+
+class CellSolver:
+    """One NLP and one warm Ipopt solver per revolution class, for every cell of a scan.
+
+    A class's NLP is built on the first cell of that class, solved cold
+    (``ipopt.solve_problem``: equal segments first, then free ones); its mesh then holds
+    for every cell of the scan.  A rendezvous's turn count k on the body is part of its
+    NLP's constraints, so each k has an NLP of its own (off the calendar, or for orbit
+    targets, there is only k = 0).
+    """
+
+    def __init__(self):
+        self.nlps = {}  # k -> (Transcription, (solver, monitor), Segments)
+        self.segments = None
+
+    def _finish(self, problem, result, tr, started, start, on_scan_nlp):
+        refined = refine(problem, result, tr) if result.outcome in SOLVED else None
+        if refined is not None:
+            problem, result, tr = refined.problem, refined.result, refined.transcription
+        check = verify(problem, result, samples=1)
+        verified, note = check.judge(problem)
+        verified = verified and result.converged
+        if not result.converged:
+            note = f"NOT verified: Ipopt ended {result.status}"
+        return Cell(problem, result, tr, verified, note, check.misses,
+                    time.perf_counter() - started, start, on_scan_nlp)
+
+    def _meshed(self, problem, guess):
+        if self.segments is None:
+            problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
+            self.segments = problem.segments
+            return problem, guess
+        # The scan's NLP fixes the mesh (segment count included); a cold cell still
+        # gets its own seed on it.
+        seg = dataclasses.replace(self.segments, count=guess.alpha.size, per_revolution=None)
+        problem = dataclasses.replace(problem, segments=seg)
+        return problem, initial_guess(problem)
+
+    def cold(self, problem, guess=None, label="seed"):
+        """Solve a cell from its own constant-pitch seed (or ``guess``, a class's seed);
+        the first cell of a class builds the class's NLP."""
+        started = time.perf_counter()
+        problem, guess = self._meshed(problem, initial_guess(problem) if guess is None else guess)
+        result, tr = solve_problem(problem, guess=guess)
+        k = result.revolutions_k
+        on_scan = None
+        if k not in self.nlps and result.outcome in SOLVED:
+            self.nlps[k] = (tr, build_solver(tr, warm=True), problem.segments)
+            on_scan = result
+        return self._finish(problem, result, tr, started, label, on_scan)
+
+    def warm(self, problem, neighbour, label):
+        """Solve a cell warm from a neighbour's optimum, on its class's NLP."""
+        if neighbour is None or neighbour.on_scan_nlp is None:
+            return None
+        started = time.perf_counter()
+        tr, solver, segments = self.nlps[neighbour.on_scan_nlp.revolutions_k]
+        problem = dataclasses.replace(problem, segments=segments)
+        tr = tr.at(problem)
+        result = solve_transcription(tr, warm=neighbour.on_scan_nlp, solver=solver)
+        return self._finish(problem, result, tr, started, label, result)
+
+
+def _class_seed(problem, k):
+    """The rendezvous seed of turn count k (``multistart.rendezvous_starts``)."""
+    return multistart.rendezvous_starts(problem, [k])[0].guess
+
+
+def scan(cells, progress=None):
+    """Solve every cell problem of ``cells`` (a list, in scan order) on one NLP per class.
+
+    Returns the list of :class:`Cell`, in the same order.
+    """
+    solver = CellSolver()
+    say = progress or (lambda text: None)
+    out = []
+    chains = {}  # revolution class -> its last cell solved on the scan's NLP
+    for i, problem in enumerate(cells):
+        tried = [c for c in [solver.warm(problem, out[-1] if out else None, "previous")]
+                 if c is not None]
+        if problem.tracks_body():
+            # A warm start keeps its neighbour's turn count on the body; the cell's own
+            # seed says which count its geometry favours, and that class is solved too.
+            own = initial_guess(problem).revolutions_k
+            if own not in {c.result.revolutions_k for c in tried}:
+                tried.append(solver.warm(problem, chains.get(own), f"class {own}")
+                             or solver.cold(problem, _class_seed(problem, own), f"class {own}"))
+        if not any(c.solved for c in tried):
+            tried.append(solver.cold(problem))
+        for c in tried:
+            if c.on_scan_nlp is not None:
+                chains[c.on_scan_nlp.revolutions_k] = c
+        best = min(tried, key=_rank)
+        out.append(best)
+        say(_line(i, len(cells), best))
+    # The way back: a cell worse than its next neighbour is tried again from it.
+    for i in range(len(out) - 2, -1, -1):
+        nxt = out[i + 1]
+        if nxt.on_scan_nlp is not None and _rank(nxt) < _rank(out[i]):
+            again = solver.warm(cells[i], nxt, "next")
+            if _rank(again) < _rank(out[i]):
+                out[i] = again
+                say(_line(i, len(cells), again) + " (again, from the next cell)")
+    return out
+
+
+def _rank(cell):
+    """Verified first, then the smaller objective."""
+    return (not cell.verified, cell.objective)
+
+
+def _line(i, n, cell):
+    what = (f"{cell.result.status}" if cell.result is not None else "no result")
+    if cell.solved:
+        factor, unit = cell.problem.objective.shown_as()
+        what += f", objective {cell.objective * factor:.6g}{unit}"
+    return (f"cell {i + 1}/{n}: {what}, {'verified' if cell.verified else 'NOT verified'}, "
+            f"{cell.seconds:.2f} s")
