@@ -1,7 +1,10 @@
-"""The one exception type for bad user input.
+"""The exceptions the command line turns into one line and an exit status.
 
-The command line prints its message on one line and exits with status 2; the
-message names the field and the allowed range.
+:class:`InputError` is bad user input (exit 2); its message names the field and the
+allowed range.  :class:`OutputError` is an output folder or file that cannot be
+written (exit 3).  :class:`Terminated` is SIGTERM, raised where Python would raise
+KeyboardInterrupt for SIGINT (exit 143).  They live in the lowest layer because every
+layer may raise them.
 """
 
 import math
@@ -9,6 +12,24 @@ import math
 
 class InputError(ValueError):
     """Bad input from a user: a problem file, a command-line option or an API argument."""
+
+
+class OutputError(Exception):
+    """An output cannot be written (a full disk, a read-only folder, a path under a
+    regular file); the message is one line that names the path and what to do."""
+
+
+class Terminated(KeyboardInterrupt):
+    """The process was asked to stop by a signal other than SIGINT (SIGTERM).
+
+    A KeyboardInterrupt, so that every clean-up written for Ctrl-C (stopping workers,
+    removing temporary files, stopping Ipopt at its next iteration) runs for it too;
+    ``signum`` tells the command line which exit status to give (128 + signum).
+    """
+
+    def __init__(self, signum=15):
+        super().__init__(signum)
+        self.signum = signum
 
 
 def check_range(name, value, low=-math.inf, high=math.inf, low_open=False, high_open=False,

@@ -1,18 +1,28 @@
 """The ``esail-opt`` command line.
 
 Each subcommand parses its options here and hands the work to the module that
-owns it.  Bad input ends in one line on stderr and exit status 2.
+owns it.  Bad input ends in one line on stderr and exit status 2; see :data:`EPILOG`
+for every exit status.
 """
 
 import argparse
+import errno
 import logging
+import signal
 import sys
 
-from esail_opt.errors import InputError
+from esail_opt.errors import InputError, OutputError, Terminated
 
 EXIT_INPUT = 2
+#: An output that cannot be written (a full disk, a read-only folder): not 1, which
+#: says "solved but not verified".
+EXIT_OUTPUT = 3
 #: The shell's convention for a run stopped by SIGINT (128 + 2).
 EXIT_INTERRUPTED = 130
+EPILOG = ("exit status: 0 converged and verified; 1 not converged or not verified (one "
+          "line says which bound was missed); 2 bad input (nothing solved); 3 an output "
+          "could not be written (full disk, read-only or unsafe folder; the old files "
+          "stay); 1 also when a Dask cluster is lost (the journal keeps what finished); 130 interrupted by SIGINT, 143 by SIGTERM (nothing half-written)")
 
 
 def _number(text):
@@ -184,8 +194,9 @@ def _add_solve(sub):
         "timeline.png.  With --polish, then re-solve the same schedule on exact CVODES "
         "arcs of Eqs. 1-2 in time and verify that it flies to within 1 m and 1 mm/s.  "
         "Exit status 0 only for a converged and verified solve (and polish); 1 with one "
-        "line saying which bound was missed and by how much; 2 for bad input; 130 when "
-        "interrupted (nothing written).",
+        "line saying which bound was missed and by how much; 2 for bad input; 3 when the "
+        "output folder cannot be written (checked before the solve); 130 when "
+        "interrupted, 143 on SIGTERM (nothing half-written).",
     )
     p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
     p.add_argument("--segments", type=int, default=None,
@@ -202,11 +213,14 @@ def _run_solve(args):
 
     from esail_opt.app import solution
 
+    from esail_opt.app.files import check_output_dir
+
     problem = _load(args)
+    out = Path(args.out) if args.out else Path("results") / problem.name
+    check_output_dir(out, name=None if args.out else problem.name)  # before the solve
     progress = progress_printer("solve")
     sol = solution.solve(problem, progress=progress, polish=args.polish)
     progress.done()
-    out = Path(args.out) if args.out else Path("results") / problem.name
     for path in sol.write(out):
         print(f"wrote {path}")
     print(sol.summary())
@@ -244,8 +258,11 @@ def _run_search(args):
     from pathlib import Path
 
     from esail_opt.app import search
+    from esail_opt.app.files import check_output_dir
 
     problem = _load(args)
+    out = Path(args.out) if args.out else Path("results") / f"{problem.name}_search"
+    check_output_dir(out, name=None if args.out else out.name)  # before the search
     progress = progress_printer("search")
     data, solutions = search.run(problem, args.extra_revolutions, polish=not args.no_polish,
                                  progress=progress)
@@ -254,7 +271,6 @@ def _run_search(args):
         print(f"esail-opt search: no start converged ({len(data['starts'])} starts); "
               "nothing written", file=sys.stderr)
         return 1
-    out = Path(args.out) if args.out else Path("results") / f"{problem.name}_search"
     for path in search.write(data, solutions, out):
         print(f"wrote {path}")
     print("\n".join(search.summary(data)))
@@ -322,7 +338,8 @@ def _run_sweep(args):
 
 def build_parser():
     parser = argparse.ArgumentParser(
-        prog="esail-opt", description="E-sail trajectory propagation and optimisation")
+        prog="esail-opt", description="E-sail trajectory propagation and optimisation",
+        epilog=EPILOG)
     sub = parser.add_subparsers(dest="command", required=True)
     _add_propagate(sub)
     _add_reproduce(sub)
@@ -360,6 +377,11 @@ def _show_library_log():
     logger.propagate = False
 
 
+def _terminate(signum, frame):
+    """SIGTERM handler: stop the way Ctrl-C stops (see :class:`Terminated`)."""
+    raise Terminated(signum)
+
+
 def main(argv=None):
     args = build_parser().parse_args(argv)
     # The command line only writes files; library callers keep whatever backend they chose.
@@ -367,15 +389,41 @@ def main(argv=None):
 
     matplotlib.use("Agg")
     _show_library_log()
+    previous = None
+    import threading
+
+    if (threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL):
+        # kill, systemd and batch schedulers send SIGTERM: clean up as for Ctrl-C.
+        previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.run(args)
     except InputError as err:
         print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
         return EXIT_INPUT
-    except KeyboardInterrupt:
-        print(f"\nesail-opt {args.command}: interrupted; nothing half-done was written",
+    except OutputError as err:
+        print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
+        return EXIT_OUTPUT
+    except ClusterLost as err:
+        print(f"esail-opt {args.command}: {err}", file=sys.stderr)
+        return 1
+    except OSError as err:
+        if err.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EROFS):
+            raise
+        # A full or read-only disk met outside the output writers (a bench, a plot).
+        print(f"esail-opt {args.command}: error: cannot write "
+              f"{err.filename or 'an output'}: {err.strerror}", file=sys.stderr)
+        return EXIT_OUTPUT
+    except KeyboardInterrupt as err:
+        signum = err.signum if isinstance(err, Terminated) else signal.SIGINT
+        what = "interrupted" if signum == signal.SIGINT else \
+            f"stopped by {signal.Signals(signum).name}"
+        print(f"\nesail-opt {args.command}: {what}; nothing half-done was written",
               file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return 128 + signum
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -1,24 +1,395 @@
-"""Output files are written whole or not at all: to a temporary file, then renamed."""
+"""Writing outputs: files whole or not at all, folders as one set, checked before a solve.
+
+Three mechanisms, used by every command that writes a folder (``solve``, ``search``,
+``sweep``, and any scan built on them):
+
+* :func:`check_output_dir` runs before any solve: the folder's name must be a safe
+  name, and the folder must be creatable and writable.  A run that cannot write its
+  results must not spend minutes solving first.
+* :func:`publish` writes a run's files into a staging folder beside the target and
+  then puts the whole set in place in one step, so a reader sees the old set or the
+  new one, never a mix (see its docstring for what a reader can observe).
+* :func:`atomic_path` writes one file under a temporary name and renames it into
+  place, for the files that are not part of a folder's set (a journal's header, a
+  bench's JSON).
+
+Files and folders are created with mode 0666/0777 less the umask, as ``open`` and
+``mkdir`` would create them (a private temporary file would leave every output 0600).
+"""
 
 import contextlib
+import ctypes
+import errno
 import json
 import os
-import tempfile
+import secrets
+import shutil
+import signal
+import sys
 from pathlib import Path
+
+from esail_opt.errors import InputError, OutputError
+
+#: Longest file or folder name most file systems take (ext4, xfs, tmpfs), bytes.
+NAME_MAX = 255
+#: The staging folders of :func:`publish` and :func:`check_output_dir`:
+#: ``.<name>.tmp-<pid>-<random>``, so that one left by a killed run can be told from
+#: one in use (its pid is dead) and removed.
+_STAGING = ".{name}.tmp-"
+
+
+def _fail(path, err, doing="write"):
+    """The one-line OutputError for an OSError while writing ``path``."""
+    reason = os.strerror(err.errno) if err.errno else str(err)
+    hint = ("free some space there" if err.errno in (errno.ENOSPC, errno.EDQUOT)
+            else "choose another --out")
+    return OutputError(f"cannot {doing} {str(path)!r}: {reason} ({hint})")
+
+
+def check_name(name, what="output folder name"):
+    """Raise InputError unless ``name`` is one safe path component.
+
+    A safe component is not empty, ``.`` or ``..`` (which would write into an
+    existing folder such as the working directory), holds no ``/`` and no NUL, and is
+    at most :data:`NAME_MAX` bytes in UTF-8.
+    """
+    text = str(name)
+    if text in ("", ".", ".."):
+        raise InputError(f"{what} = {text!r} is not a folder name (not '', '.' or '..')")
+    if "\0" in text:
+        raise InputError(f"{what} = {text!r} holds a NUL character")
+    if "/" in text or os.sep in text:
+        raise InputError(f"{what} = {text!r} holds a '/' (one folder name is expected)")
+    size = len(text.encode("utf-8", "surrogateescape"))
+    if size > NAME_MAX:
+        raise InputError(f"{what} = {text[:40]!r}... is {size} bytes long, outside "
+                         f"[1, {NAME_MAX}]")
+    return text
+
+
+def check_output_dir(path, name=None):
+    """Check, before any solve, that the run's output folder can be published.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output folder (``--out``, or the default ``results/<problem name>``).
+    name : str, optional
+        The user-given name the folder is named after (a problem's name), checked as
+        one safe component with :func:`check_name`.
+
+    Returns
+    -------
+    Path
+        ``path``; its parent folders now exist.
+
+    Raises
+    ------
+    InputError
+        The folder's last component is not a safe name (``..``, ``.``, a NUL, more
+        than 255 bytes), or ``name`` is not (a ``/`` in it too).
+    OutputError
+        The folder cannot be created or written: a path under a regular file, a
+        regular file in its place, a read-only or full file system.  Nothing is left
+        behind by the check.
+    """
+    if name is not None:
+        check_name(name, "problem name (the output folder's name)")
+    raw, path = path, Path(path)
+    if "\0" in str(path):
+        raise InputError(f"output folder {str(path)!r} holds a NUL character")
+    for part in path.parts:
+        if len(part.encode("utf-8", "surrogateescape")) > NAME_MAX:
+            raise InputError(f"output folder {str(path)[:60]!r}...: a component is longer "
+                             f"than {NAME_MAX} bytes")
+    # The last component as the user wrote it: Path turns "results/." into "results",
+    # but the user meant the folder itself, which cannot be swapped for a new one.
+    check_name(os.fspath(raw).rstrip("/").rpartition("/")[2] or os.fspath(raw),
+               "output folder name")
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"cannot write the output folder {str(path)!r}: a file of that "
+                          "name is in the way (choose another --out)")
+    for above in path.parents:
+        if above.exists() or above.is_symlink():
+            if not above.is_dir():
+                raise OutputError(f"cannot create the output folder {str(path)!r}: "
+                                  f"{str(above)!r} is a file, not a folder (choose "
+                                  "another --out)")
+            break
+    parent = path.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        _remove_stale(parent, path.name)
+        probe = _make_staging(parent, path.name)
+        try:
+            with open(probe / "probe", "wb") as handle:
+                handle.write(b"\0" * 4096)  # one block: a full disk fails here
+                handle.flush()
+                os.fsync(handle.fileno())
+        finally:
+            shutil.rmtree(probe, ignore_errors=True)
+        if path.is_dir() and not os.access(path, os.W_OK | os.X_OK):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
+    except OSError as err:
+        raise _fail(path, err, "write the output folder") from None
+    return path
+
+
+def _make_staging(parent, name):
+    """Create and return an empty staging folder for ``name`` in ``parent``."""
+    for _ in range(100):
+        staging = Path(parent, f"{_STAGING.format(name=name)}{os.getpid()}-"
+                               f"{secrets.token_hex(4)}")
+        try:
+            os.mkdir(staging, 0o777)  # less the umask, like any folder the user makes
+            return staging
+        except FileExistsError:
+            continue
+    raise FileExistsError(errno.EEXIST, "no free staging folder name", str(parent))
+
+
+def _remove_stale(parent, name):
+    """Remove staging folders of ``name`` whose process is gone (a killed run's)."""
+    prefix = _STAGING.format(name=name)
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return
+    for entry in entries:
+        if not entry.name.startswith(prefix):
+            continue
+        pid = entry.name[len(prefix):].partition("-")[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(entry.path, ignore_errors=True)
+
+
+def _alive(pid):
+    """Whether a process ``pid`` exists on this machine."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+# ---------------------------------------------------------------- the swap
+
+#: renameat2's flag that swaps two existing paths in one step (Linux >= 3.15).
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _libc_renameat2():
+    """glibc's ``renameat2``, or None where there is none (other systems, old glibc)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        function = libc.renameat2
+    except (OSError, AttributeError):
+        return None
+    function.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
+                         ctypes.c_uint]
+    function.restype = ctypes.c_int
+    return function
+
+
+_renameat2 = _libc_renameat2()
+
+
+def _exchange(a, b):
+    """Swap the paths ``a`` and ``b`` (both existing) in one step; False if the system
+    or the file system cannot (then nothing changed)."""
+    if _renameat2 is None:
+        return False
+    result = _renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b),
+                        _RENAME_EXCHANGE)
+    if result == 0:
+        return True
+    code = ctypes.get_errno()
+    if code in (errno.EINVAL, errno.ENOSYS, errno.ENOTSUP, errno.EOPNOTSUPP):
+        return False
+    raise OSError(code, os.strerror(code), str(b))
+
+
+def _swap_in(staging, target):
+    """Put ``staging`` at ``target``; return the path now holding the old set, or None.
+
+    With an existing target the two are exchanged by ``renameat2(RENAME_EXCHANGE)``:
+    ``target`` never stops existing and always holds one whole set.  Without that
+    (not Linux, or a file system that does not take it), the old set is renamed aside
+    and the new one renamed in: a reader may then find no folder for an instant, but
+    never a mixed one.  ``rename`` of a folder onto an empty one succeeds, onto a
+    non-empty one fails, so a concurrent writer is retried, not overwritten half-way.
+    """
+    for _ in range(20):
+        try:
+            os.rename(staging, target)  # no target yet, or an empty one
+            return None
+        except OSError as err:
+            if err.errno not in (errno.ENOTEMPTY, errno.EEXIST):
+                raise
+        if _exchange(staging, target):
+            return staging
+        aside = _make_staging(target.parent, target.name)
+        os.rmdir(aside)
+        try:
+            os.rename(target, aside)
+        except FileNotFoundError:
+            continue  # another writer moved it just now: try again
+        try:
+            os.rename(staging, target)
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.rename(aside, target)  # put the old set back
+            raise
+        return aside
+    raise OSError(errno.EBUSY, "other writers kept replacing it", str(target))
+
+
+def _carry_over(target, staging, family):
+    """Link the entries of the existing ``target`` that are not the writer's
+    (``family``) into ``staging``, so that a user's own files, or a sweep's journal,
+    stay in the folder; the writer's old files are dropped with the old set."""
+    try:
+        entries = list(os.scandir(target))
+    except FileNotFoundError:
+        return
+    for entry in entries:
+        if entry.name in family or os.path.lexists(staging / entry.name):
+            continue
+        destination = staging / entry.name
+        if entry.is_dir(follow_symlinks=False):
+            # Folders cannot be hard-linked; a foreign one is copied (rare, and small
+            # in the folders this tool writes).
+            shutil.copytree(entry.path, destination, symlinks=True)
+            continue
+        try:
+            os.link(entry.path, destination, follow_symlinks=False)
+        except OSError:
+            shutil.copy2(entry.path, destination, follow_symlinks=False)
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold SIGINT and SIGTERM until the block ends (they are delivered then), so that
+    a swap and its clean-up are never cut in the middle."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    try:
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, OSError, ValueError):
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+@contextlib.contextmanager
+def publish(target, family=()):
+    """Yield a staging folder for a run's files; on success it becomes ``target``.
+
+    Parameters
+    ----------
+    target : str or Path
+        The output folder.  Its parents are created.
+    family : iterable of str
+        Names the writer owns in ``target``: those in the old set that the new set
+        does not write are dropped with it (a stale ``schedule_polished.csv`` never
+        sits beside an unpolished solution).  Every other entry of the old folder is
+        the user's (or a journal) and is carried into the new set.
+
+    Notes
+    -----
+    What a reader of ``target`` observes: the old set, complete, until one
+    ``renameat2(RENAME_EXCHANGE)`` swaps the folders, then the new set, complete.  No
+    file is replaced inside ``target`` itself, so a reader that opens ``target/x`` and
+    then ``target/y`` sees one set only if it holds ``target`` open (a file descriptor
+    of the folder, or ``cd``); by path it may see the old ``x`` and the new ``y`` if
+    the swap falls between its two opens.  Without RENAME_EXCHANGE there is an instant
+    with no folder between two renames.  Two writers of one folder leave one of their
+    sets, whole.  A run killed while writing leaves its staging folder
+    ``.<name>.tmp-<pid>-<random>`` beside the target, which the next run removes.
+
+    Raises
+    ------
+    OutputError
+        An OSError while writing or swapping (a full disk, a read-only folder): one
+        line; ``target`` keeps its old set and the staging folder is removed.
+    """
+    target = Path(target)
+    family = set(family)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        _remove_stale(target.parent, target.name)
+        staging = _make_staging(target.parent, target.name)
+    except OSError as err:
+        raise _fail(target, err) from None
+    old = None
+    try:
+        try:
+            yield staging
+            with _signals_held():
+                _carry_over(target, staging, family)
+                _fsync_tree(staging)
+                old = _swap_in(staging, target)
+        except OSError as err:
+            raise _fail(target, err) from None
+    finally:
+        with _signals_held():
+            # After a swap ``old`` holds the old set; before one, staging holds a part.
+            for leftover in (old, staging):
+                if leftover is not None and os.path.lexists(leftover) and \
+                        Path(leftover) != target:
+                    shutil.rmtree(leftover, ignore_errors=True)
+
+
+def _fsync_tree(folder):
+    """Flush the files of ``folder`` to disk, so that the swap never publishes a set
+    whose data a power cut could still lose."""
+    for entry in os.scandir(folder):
+        if entry.is_file(follow_symlinks=False):
+            fd = os.open(entry.path, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        elif entry.is_dir(follow_symlinks=False):
+            _fsync_tree(entry.path)
+
+
+# ---------------------------------------------------------------- one file
 
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path``; rename it onto ``path`` on success."""
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
+
+    The temporary file is created with mode 0666 less the umask (``mkstemp`` would
+    make it 0600, and the rename would keep that), and removed on any failure or
+    interrupt.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
+    for _ in range(100):
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}{path.suffix}"
+        try:
+            os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+            break
+        except FileExistsError:
+            continue
+    else:  # pragma: no cover - 100 random names taken
+        raise FileExistsError(errno.EEXIST, "no free temporary name", str(path))
     try:
-        yield Path(tmp)
+        yield tmp
         os.replace(tmp, path)
     finally:
-        if os.path.exists(tmp):
+        if os.path.lexists(tmp):
             os.unlink(tmp)
 
 

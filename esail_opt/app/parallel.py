@@ -7,14 +7,27 @@ and failures are handed to the caller as each job ends, in finishing order.
 
 A job whose worker process dies (killed, out of memory, a crash in native code) is run
 again on a fresh pool a bounded number of times; the jobs on healthy workers keep or
-redo their work without being charged for it.  On Ctrl-C (or any error) the workers
-are stopped within seconds: pending jobs cancelled, running ones terminated.
+redo their work without being charged for it.  On Ctrl-C, SIGTERM (under the command
+line's handler) or any error the workers are stopped within seconds: pending jobs
+cancelled, running ones terminated.  A local pool's workers also end by themselves when
+the parent dies without a word (SIGKILL): the kernel sends them SIGKILL on Linux
+(``PR_SET_PDEATHSIG``), and each polls its parent's pid in any case.
+
+On Dask, a cluster that can no longer run anything ends the run with
+:class:`ClusterLost` within a bounded time: the scheduler unreachable for
+:data:`SCHEDULER_LOST_SECONDS`, or no worker at all for :data:`NO_WORKER_SECONDS` while
+jobs wait.  The jobs that ended before were reported as they ended.
 """
 
+import contextlib
+import ctypes
+import logging
 import os
 import signal
+import sys
 import tempfile
 import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, wait
 from pathlib import Path
 
@@ -25,6 +38,23 @@ RETRIES = 2
 #: Longest wait on the futures between two looks at the pool: a Ctrl-C is acted on
 #: within this, whatever the executor's own waiting does with signals.
 POLL_SECONDS = 0.25
+#: Seconds a Dask scheduler may take to answer the first connection: a wrong address
+#: is reported after this, not after Dask's default 30 s.
+CONNECT_SECONDS = 5.0
+#: Seconds without a connection to the scheduler before the run ends (Dask's client
+#: tries to reconnect meanwhile).
+SCHEDULER_LOST_SECONDS = 10.0
+#: Seconds with no worker on the cluster, while jobs wait, before the run ends.  Long
+#: enough for a worker to restart; a cluster that scales up from none needs its first
+#: worker within this.
+NO_WORKER_SECONDS = 30.0
+#: Seconds between two looks of a local pool's worker at its parent's pid.
+PARENT_POLL_SECONDS = 1.0
+
+
+class ClusterLost(RuntimeError):
+    """The Dask cluster can no longer run the jobs (its scheduler is gone, or every
+    worker); the message is one line.  The jobs that ended were reported already."""
 
 
 def first_line(err):
@@ -63,12 +93,17 @@ def run(function, jobs, on_result, on_failure, workers=1, scheduler=None, retrie
     ------
     InputError
         Dask is missing or the scheduler cannot be reached (before any job runs).
+    ClusterLost
+        The Dask scheduler was lost, or every worker, for longer than
+        :data:`SCHEDULER_LOST_SECONDS` or :data:`NO_WORKER_SECONDS` (one line).
     KeyboardInterrupt
-        After stopping the workers.
+        After stopping the workers (:class:`~esail_opt.errors.Terminated` for SIGTERM).
     """
-    client = _connect(scheduler) if scheduler is not None else None
-    runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries)
-    runner.run()
+    with _quiet_dask() if scheduler is not None else contextlib.nullcontext():
+        client = _connect(scheduler) if scheduler is not None else None
+        runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
+                         scheduler)
+        runner.run()
     return {i: (n, runner.causes[i]) for i, n in sorted(runner.losses.items())}
 
 
@@ -80,8 +115,11 @@ class _Runner:
     job it starts, so that a break is charged to the job whose worker died.
     """
 
-    def __init__(self, function, jobs, on_result, on_failure, workers, client, retries):
+    def __init__(self, function, jobs, on_result, on_failure, workers, client, retries,
+                 address=None):
         self.function, self.jobs = function, jobs
+        self.address = address
+        self.unhealthy = {}  # what is wrong with the cluster -> since when (monotonic)
         self.on_result, self.on_failure = on_result, on_failure
         self.workers, self.client, self.retries = workers, client, retries
         self.lost_errors = _lost_worker_errors()
@@ -107,7 +145,7 @@ class _Runner:
         if self.executor is not None:
             self.executor.shutdown(wait=True)
         if self.client is not None:
-            self.client.close()
+            self.client.close(timeout=CONNECT_SECONDS)
 
     def _submit(self, todo, scratch):
         """Submit ``todo`` (opening a round if needed); return the jobs not submitted."""
@@ -140,6 +178,8 @@ class _Runner:
         """Wait briefly, settle what ended; return the jobs to submit again."""
         if self.client is None:
             _pool_processes(self.executor, self.processes)
+        else:
+            self._watch_cluster()
         done, _ = wait(list(self.active), timeout=POLL_SECONDS, return_when=FIRST_COMPLETED)
         broken = self.client is None and (unsubmitted or any(
             isinstance(f.exception(), BrokenExecutor) for f in done if not f.cancelled()))
@@ -181,6 +221,30 @@ class _Runner:
         blamed = _blame(lost, self.started, self.processes)
         return sorted(i for i in lost if i not in blamed or self._charge(i, blamed[i]))
 
+    def _watch_cluster(self):
+        """Raise ClusterLost once the Dask cluster has been unable to run anything for
+        longer than its bound: no scheduler, or no worker while jobs wait."""
+        now = time.monotonic()
+        status = str(getattr(self.client, "status", "running"))
+        problems = {}
+        if status != "running":
+            problems["scheduler"] = (SCHEDULER_LOST_SECONDS,
+                                     f"lost the Dask scheduler at {self.address} (no "
+                                     f"connection for {SCHEDULER_LOST_SECONDS:g} s)")
+        elif self.active:
+            try:
+                workers = self.client.scheduler_info().get("workers", {})
+            except Exception:  # a client between states: judged at the next look
+                workers = {None: None}
+            if not workers:
+                problems["workers"] = (NO_WORKER_SECONDS,
+                                       f"no Dask worker left at {self.address} for "
+                                       f"{NO_WORKER_SECONDS:g} s")
+        self.unhealthy = {k: self.unhealthy.get(k, now) for k in problems}
+        for key, (bound, message) in problems.items():
+            if now - self.unhealthy[key] >= bound:
+                raise ClusterLost(message)
+
     def _charge(self, i, cause):
         """Count one lost worker against job ``i``; True if it may run again."""
         self.losses[i] = self.losses.get(i, 0) + 1
@@ -193,9 +257,11 @@ class _Runner:
     def _abort(self):
         """Stop everything after an interrupt or an error, without waiting for jobs."""
         # A second Ctrl-C must not cut the cleanup short and leave workers running.
-        previous = None
+        # Nor a SIGTERM after a Ctrl-C, or a second SIGTERM.
+        previous = {}
         if threading.current_thread() is threading.main_thread():
-            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                previous[signum] = signal.signal(signum, signal.SIG_IGN)
         try:
             for future in self.active:
                 future.cancel()
@@ -203,23 +269,57 @@ class _Runner:
                 _pool_processes(self.executor, self.processes)
                 _stop_pool(self.executor, self.processes)
             elif self.executor is not None:
-                self.executor.shutdown(wait=False)  # Dask: cancels its futures on the cluster
+                # Dask: cancels its futures on the cluster (if it is still there).
+                with contextlib.suppress(Exception):
+                    self.executor.shutdown(wait=False)
             if self.client is not None:
-                self.client.close()
+                with contextlib.suppress(Exception):
+                    self.client.close(timeout=2)
         finally:
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
 
 # ---------------------------------------------------------------- in the workers
 
 
-def _worker_init(threads):
+def _worker_init(threads, parent=None):
     """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
-    the whole process group) reaches only the parent, which decides what stops; and it
-    evaluates its NLP's segments on its share of the cores (``ESAIL_OPT_THREADS``)."""
+    the whole process group) reaches only the parent, which decides what stops; it
+    evaluates its NLP's segments on its share of the cores (``ESAIL_OPT_THREADS``); and
+    it ends when its parent ``parent`` does, however the parent ended."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
+    if parent is not None:
+        _die_with_parent(parent)
+
+
+#: prctl's option that has the kernel signal a process when its parent ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent):
+    """End this process when process ``parent`` ends.
+
+    On Linux the kernel sends SIGKILL at once (``prctl(PR_SET_PDEATHSIG)``; it fires
+    when the thread that started this process ends, which for the pool is the parent's
+    main thread, or the parent itself).  Everywhere a daemon thread also checks every
+    :data:`PARENT_POLL_SECONDS` that the parent is still this process's parent: an
+    orphan is re-parented, so a changed ``getppid()`` means the parent is gone.
+    """
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before the prctl took hold
+        os._exit(1)
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="esail-parent-watch", daemon=True).start()
 
 
 def _pool_member(started, function, index, *args):
@@ -264,9 +364,29 @@ def _connect(scheduler):
     except ImportError:
         raise InputError("--scheduler needs Dask: pip install 'esail_opt[dask]'") from None
     try:
-        return Client(scheduler, timeout=30)
+        return Client(scheduler, timeout=CONNECT_SECONDS)
     except (OSError, TimeoutError) as err:
-        raise InputError(f"scheduler {scheduler!r} cannot be reached: {err}") from None
+        detail = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise InputError(f"scheduler {scheduler!r} cannot be reached within "
+                         f"{CONNECT_SECONDS:g} s: {detail}") from None
+    except ValueError as err:  # a malformed address
+        raise InputError(f"scheduler {scheduler!r}: {err}") from None
+
+
+@contextlib.contextmanager
+def _quiet_dask():
+    """Keep Dask's own log lines (reconnection attempts, tracebacks of a lost
+    connection) off the terminal during a run: the run reports the cluster's state in
+    one line of its own (:class:`ClusterLost`)."""
+    loggers = [logging.getLogger(name) for name in ("distributed", "tornado", "asyncio")]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
 
 
 def _new_pool(workers):
@@ -280,7 +400,7 @@ def _new_pool(workers):
     return ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_worker_init,
-                               initargs=(max(1, cores // workers),))
+                               initargs=(max(1, cores // workers), os.getpid()))
 
 
 def _pool_processes(pool, known):

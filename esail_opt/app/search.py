@@ -14,7 +14,7 @@ import csv
 import io
 from pathlib import Path
 
-from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
+from esail_opt.app.files import json_ready, publish, save_figure, write_json
 from esail_opt.optimisation import multistart
 from esail_opt.physics import constants as units
 from esail_opt.app.solution import solution_of
@@ -178,18 +178,22 @@ def _tof(row):
     return exact if row["verified"] and exact is not None else row["tof_days_closed_form"]
 
 
+#: Every entry :func:`write` may put in its folder, replaced as one set.
+SEARCH_FILES = ("search.json", "search.csv", "search.png", "best")
+
+
 def write(data, solutions, out_dir):
     """Write search.json, search.csv, search.png and best/ (the best optimum's
-    solution files), each atomically; returns the paths written."""
+    solution files) into ``out_dir`` as one set (:func:`~esail_opt.app.files.publish`);
+    returns the paths written.  OutputError if the folder cannot be written."""
     out = Path(out_dir)
-    written = [out / "search.json", out / "search.csv", out / "search.png"]
-    write_json(written[0], data)
-    with atomic_path(written[1]) as tmp:
-        tmp.write_text(table_csv(data))
-    save_figure(figure(data), written[2])
-    if solutions:
-        written += solutions[0].write(out / "best")
-    return written
+    names = ["search.json", "search.csv", "search.png"]
+    with publish(out, family=SEARCH_FILES) as stage:
+        write_json(stage / names[0], data)
+        (stage / names[1]).write_text(table_csv(data))
+        save_figure(figure(data), stage / names[2])
+        best = solutions[0].write(stage / "best") if solutions else []
+    return [out / name for name in names] + [out / "best" / p.name for p in best]
 
 
 def summary(data):

@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.app import schema
-from esail_opt.app.files import atomic_path, json_ready, write_json
+from esail_opt.app.files import json_ready, publish, write_json
 from esail_opt.bodies import dates, lookup
 from esail_opt.optimisation import exact as exact_refinement
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
@@ -33,6 +33,10 @@ SCHEDULE_FIELDS = ("t_days", "theta_deg", "alpha_deg", "duration_days", "dtheta_
 THROTTLE_FIELD = "throttle"
 #: The closed form's local error per segment, km (absent from polished schedules).
 LOCAL_ERROR_FIELD = "local_error_km"
+#: Every file :meth:`Solution.write` may put in its folder: the set that a new write
+#: replaces whole (anything else in the folder is the user's and stays).
+SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_polished.csv",
+                  "trajectory.png", "timeline.png")
 
 
 @functools.lru_cache(maxsize=None)
@@ -164,24 +168,30 @@ class Solution:
 
     def write(self, out_dir, plots=True):
         """Write solution.json, schedule.csv (and schedule_polished.csv after a polish)
-        and (optionally) the two PNGs, each atomically.
+        and (optionally) the two PNGs into ``out_dir``, as one set
+        (:func:`esail_opt.app.files.publish`): a reader of the folder sees the previous
+        run's files or these, never a mix, and files of the user's own stay.
 
         Returns the list of paths written.
+
+        Raises
+        ------
+        OutputError
+            The folder cannot be written (one line; the old set stays as it was).
         """
         out = Path(out_dir)
-        written = [out / "solution.json", out / "schedule.csv"]
-        write_json(written[0], self.data)
-        with atomic_path(written[1]) as tmp:
-            tmp.write_text(self.schedule_csv())
-        if "schedule" in self.data.get("polish", {}):
-            written.append(out / "schedule_polished.csv")
-            with atomic_path(written[-1]) as tmp:
-                tmp.write_text(self.schedule_csv(polished=True))
-        if plots:
-            from esail_opt.app import plots as plotting
+        with publish(out, family=SOLUTION_FILES) as stage:
+            names = ["solution.json", "schedule.csv"]
+            write_json(stage / names[0], self.data)
+            (stage / names[1]).write_text(self.schedule_csv())
+            if "schedule" in self.data.get("polish", {}):
+                names.append("schedule_polished.csv")
+                (stage / names[-1]).write_text(self.schedule_csv(polished=True))
+            if plots:
+                from esail_opt.app import plots as plotting
 
-            written += plotting.write_plots(self, out)
-        return written
+                names += [p.name for p in plotting.write_plots(self, stage)]
+        return [out / name for name in names]
 
     # -- printing
     def summary(self):

@@ -23,8 +23,10 @@ Only the names in :data:`SWEEPABLE` can be swept; each maps to one field of the
 rather than a free-form attribute path a typo could send anywhere.
 """
 
+import contextlib
 import csv
 import dataclasses
+import errno
 import hashlib
 import io
 import json
@@ -37,9 +39,10 @@ from pathlib import Path
 import numpy as np
 
 from esail_opt.app import parallel
-from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
+from esail_opt.app.files import (atomic_path, check_output_dir, json_ready, publish,
+                                 save_figure, write_json)
 from esail_opt.app.parallel import first_line
-from esail_opt.errors import InputError
+from esail_opt.errors import InputError, OutputError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -312,6 +315,10 @@ class Journal:
     def open(self, resume):
         """Start the journal, or with ``resume`` read the rows it already holds.
 
+        A last line without its newline is a row torn by a crash mid-append: it is
+        ignored (that member runs again) and cut off the file before anything is
+        appended, so that the next row starts on a line of its own.
+
         Returns
         -------
         dict
@@ -320,8 +327,9 @@ class Journal:
         Raises
         ------
         InputError
-            With ``resume``: the journal is not a sweep journal, or belongs to another
-            problem, problem file, param grid, polish or tolerance.
+            With ``resume``: the journal is not a sweep journal, belongs to another
+            problem, problem file, param grid, polish or tolerance, or a whole line of
+            it is not UTF-8 JSON (one line naming the file and the line).
         """
         kept = self._read() if resume and self.path.exists() else {}
         if not kept:
@@ -332,12 +340,30 @@ class Journal:
         return kept
 
     def append(self, row):
-        """Add one finished member's row, on disk before returning."""
+        """Add one finished member's row, on disk before returning.
+
+        A write that fails part-way (a full disk) is cut back off the file, so the
+        journal never keeps half a line that the next row would be glued to.
+
+        Raises
+        ------
+        OutputError
+            The row could not be written (one line; the journal is as it was).
+        """
         data = self._line(row).encode()
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
         try:
-            os.write(fd, data)
-            os.fsync(fd)
+            size = os.fstat(fd).st_size
+            try:
+                written = os.write(fd, data)
+                if written != len(data):
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                os.fsync(fd)
+            except OSError as err:
+                with contextlib.suppress(OSError):
+                    os.ftruncate(fd, size)
+                raise OutputError(f"cannot append to the journal {str(self.path)!r}: "
+                                  f"{os.strerror(err.errno) if err.errno else err}") from None
         finally:
             os.close(fd)
 
@@ -345,15 +371,34 @@ class Journal:
     def _line(obj):
         return json.dumps(json_ready(obj), allow_nan=False) + "\n"
 
+    def _lines(self):
+        """The journal's whole lines as (number, text); a torn last line is cut off the
+        file (and not returned)."""
+        raw = self.path.read_bytes()
+        whole = raw.rfind(b"\n") + 1
+        if whole < len(raw):
+            with open(self.path, "r+b") as handle:
+                handle.truncate(whole)
+                os.fsync(handle.fileno())
+        lines = []
+        for number, chunk in enumerate(raw[:whole].split(b"\n")[:-1], start=1):
+            try:
+                lines.append((number, chunk.decode("utf-8")))
+            except UnicodeDecodeError as err:
+                raise InputError(f"resume: {self.path} line {number} is not UTF-8 (byte "
+                                 f"{err.start + 1}); delete that line, or run without "
+                                 "--resume to start fresh") from None
+        return lines
+
     def _read(self):
-        lines = self.path.read_text().splitlines()
+        lines = self._lines()
         try:
-            header = json.loads(lines[0]) if lines else None
+            header = json.loads(lines[0][1]) if lines else None
         except json.JSONDecodeError:
             header = None
         if not isinstance(header, dict) or header.get("journal") != self.header["journal"]:
-            raise InputError(f"resume: {self.path} is not a sweep journal; run without "
-                             "--resume to start fresh")
+            raise InputError(f"resume: {self.path} is not a sweep journal (line 1 is not its "
+                             "header); run without --resume to start fresh")
         for key in ("problem", "source_sha256", "param", "values", "polish", "tolerance"):
             if header.get(key) != self.header[key]:
                 what = ("the problem file changed since it was written" if key == "source_sha256"
@@ -363,11 +408,15 @@ class Journal:
                                  "run without --resume to start fresh")
         values = self.header["values"]
         kept = {}
-        for line in lines[1:]:
+        for number, line in lines[1:]:
+            if not line.strip():
+                continue
             try:
                 row = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a line torn by a crash mid-append: that member runs again
+            except json.JSONDecodeError as err:
+                raise InputError(f"resume: {self.path} line {number} is not JSON "
+                                 f"({err.msg}, column {err.colno}); delete that line, or "
+                                 "run without --resume to start fresh") from None
             if not isinstance(row, dict):
                 continue
             i = row.get("index")
@@ -389,12 +438,16 @@ def default_out_dir(problem_file, param):
     Raises
     ------
     InputError
-        Bad ``param`` or an unreadable problem file.
+        Bad ``param``, an unreadable problem file, or a problem name that makes no
+        safe folder name.
+    OutputError
+        The folder cannot be created or written.
     """
     from esail_opt.optimisation.problem_file import load_problem
 
     name, _ = parse_param(param)
-    return Path("results") / f"{load_problem(problem_file).name}_sweep_{name}"
+    folder = f"{load_problem(problem_file).name}_sweep_{name}"
+    return check_output_dir(Path("results") / folder, name=folder)
 
 
 def run(problem_file, param, workers=None, scheduler=None, progress=None, polish=False,
@@ -449,7 +502,13 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     InputError
         Bad ``param``, ``workers``, tolerance or ``retries``, an unreadable problem
         file, a parameter the problem does not have, a journal of another sweep under
-        ``resume``, or an unreachable scheduler -- all before any solve.
+        ``resume``, an unsafe ``out_dir`` name, or an unreachable scheduler -- all
+        before any solve.
+    OutputError
+        ``out_dir`` cannot be created or written (before any solve).
+    esail_opt.app.parallel.ClusterLost
+        The Dask scheduler or every worker was lost (one line saying what the journal
+        keeps); nothing else is written.
     KeyboardInterrupt
         After stopping the workers; the journal holds every member that finished.
     """
@@ -460,9 +519,17 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     executor = (f"dask distributed at {scheduler}" if scheduler is not None
                 else f"process pool, {request.workers} workers")
     start = time.perf_counter()
-    lost = parallel.run(solve_member, {i: request.member(i) for i in rows.todo()},
-                        rows.finished, rows.unfinished, workers=request.workers,
-                        scheduler=scheduler, retries=retries)
+    todo = rows.todo()
+    try:
+        lost = parallel.run(solve_member, {i: request.member(i) for i in todo},
+                            rows.finished, rows.unfinished, workers=request.workers,
+                            scheduler=scheduler, retries=retries)
+    except parallel.ClusterLost as err:
+        kept = (f"the journal {journal.path} keeps the {len(rows.resumed) + len(rows.solved)} "
+                "finished members; run again with --resume for the other "
+                f"{len(todo) - len(rows.solved)}" if journal is not None
+                else f"{len(rows.solved)} of {len(todo)} members had finished")
+        raise parallel.ClusterLost(f"{err}; {kept}") from None
     return _result(request, rows, journal, executor, time.perf_counter() - start, lost)
 
 
@@ -528,6 +595,9 @@ def _check(problem_file, param, workers, retries, resume, out_dir, polish, tol_k
     # is one line at once instead of COUNT identical failed rows.
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check_applicable(problem, name)
+    if out_dir is not None:
+        check_output_dir(out_dir)  # before any member runs: a sweep that cannot be
+        # written must not solve first
     return _Request(str(problem_file), name, values, workers, problem,
                     Path(problem_file).read_text(), polish, tol_km, tol_m_s)
 
@@ -701,12 +771,18 @@ def _exact_points(ax, rows, key, scale_by):
                 color="C2", ms=7)
 
 
+#: Every file :func:`write` puts in the sweep's folder, replaced as one set (the
+#: journal and anything else there stay).
+SWEEP_FILES = ("sweep.csv", "sweep.json", "sweep.png")
+
+
 def write(result, out_dir):
-    """Write sweep.csv, sweep.json and sweep.png into ``out_dir``, each atomically."""
+    """Write sweep.csv, sweep.json and sweep.png into ``out_dir`` as one set
+    (:func:`~esail_opt.app.files.publish`); the journal stays beside them.
+    OutputError if the folder cannot be written."""
     out = Path(out_dir)
-    paths = [out / "sweep.csv", out / "sweep.json", out / "sweep.png"]
-    with atomic_path(paths[0]) as tmp:
-        tmp.write_text(table_csv(result))
-    write_json(paths[1], json_ready(result))
-    save_figure(figure(result), paths[2])
-    return paths
+    with publish(out, family=SWEEP_FILES) as stage:
+        (stage / SWEEP_FILES[0]).write_text(table_csv(result))
+        write_json(stage / SWEEP_FILES[1], json_ready(result))
+        save_figure(figure(result), stage / SWEEP_FILES[2])
+    return [out / name for name in SWEEP_FILES]

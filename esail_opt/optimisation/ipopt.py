@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from esail_opt.errors import Terminated
 from esail_opt.optimisation.transcription import Guess, initial_guess, transcribe
 
 CONVERGED = ("Solve_Succeeded",)
@@ -179,18 +180,32 @@ class _Monitor(ca.Callback):
         return [1 if self.interrupted else 0]
 
     def __enter__(self):
-        self.saved = None
+        self.saved = {}
+        self.signum = None
         if threading.current_thread() is threading.main_thread():
-            self.saved = signal.signal(signal.SIGINT, self._on_interrupt)
+            self.saved[signal.SIGINT] = signal.signal(signal.SIGINT, self._on_interrupt)
+            # SIGTERM only where a Python handler already turns it into an exception
+            # (the command line's): a library caller's default SIGTERM stays a kill.
+            if callable(signal.getsignal(signal.SIGTERM)):
+                self.saved[signal.SIGTERM] = signal.signal(signal.SIGTERM,
+                                                           self._on_interrupt)
         return self
 
     def _on_interrupt(self, signum, frame):
         self.interrupted = True
+        self.signum = signum
 
     def __exit__(self, *exc):
-        if self.saved is not None:
-            signal.signal(signal.SIGINT, self.saved)
+        for signum, handler in self.saved.items():
+            signal.signal(signum, handler)
         return False
+
+    def stopped(self):
+        """The exception for the signal that stopped the solve: KeyboardInterrupt for
+        SIGINT, :class:`~esail_opt.errors.Terminated` for SIGTERM."""
+        if self.signum is not None and self.signum != signal.SIGINT:
+            return Terminated(self.signum)
+        return KeyboardInterrupt()
 
 
 def warm_options(options):
@@ -243,7 +258,9 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
     Raises
     ------
     KeyboardInterrupt
-        If SIGINT arrived during the solve (Ipopt is stopped at its next iteration).
+        If SIGINT arrived during the solve (Ipopt is stopped at its next iteration);
+        :class:`~esail_opt.errors.Terminated`, a KeyboardInterrupt, for SIGTERM under
+        the command line's handler.
     """
     if solver is None:
         solver = build_solver(tr, options, warm is not None, progress)
@@ -258,7 +275,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
             sol = solver(x0=warm.w, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=tr.lbx,
                          ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
     if monitor.interrupted:
-        raise KeyboardInterrupt
+        raise monitor.stopped()
     seconds = time.perf_counter() - start
     stats = solver.stats()
     status = stats.get("return_status", "unknown")

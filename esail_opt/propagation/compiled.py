@@ -29,10 +29,17 @@ instructions again, and takes 6-12 s per sub-arc count and extrapolation setting
 The cache is a directory of shared libraries named by a hash of the Function's
 serialised graph, the CasADi version, the compiler's own version line and the flags
 (and the names of the libraries it calls).
-A library is built under a temporary name and renamed into place, and a lock file per
-hash makes parallel workers (``esail-opt sweep``) wait for one compile instead of each
-running their own.  Without a C compiler, or when a compile fails, the Function stays
-on the virtual machine and one log line says so.
+A library is built under a temporary name and renamed into place, then its SHA-256 is
+written beside it (``<key>.so.sha256``); a library is loaded only if it matches, since a
+truncated one would be mapped into the process and crash it with SIGBUS.  A damaged or
+unloadable library is removed and built again, with one line.  A lock file per hash
+makes parallel workers (``esail-opt sweep``) wait for one compile instead of each
+running their own.  An interrupted compile kills its compilers (each in a session of its
+own) and removes its ``.build-<pid>-*`` folder; one whose process was killed outright
+is cleaned up by the next compile into the cache.  Without a C compiler, when a compile
+fails, or when the cache cannot be written (a full disk, a read-only folder), the
+Function stays on the virtual machine and one log line says so; a cache whose disk ran
+out of space is not tried again until space is freed.
 
 Environment:
 
@@ -43,14 +50,17 @@ Environment:
 """
 
 import contextlib
+import errno
 import functools
 import hashlib
 import logging
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -69,7 +79,14 @@ log = logging.getLogger("esail_opt")
 #: -O2 and -O3 compiled in 14 s against 5 s and ran no faster (7.5-7.9 us a mapped call).
 FLAGS = ("-O1", "-fPIC")
 #: Raised whenever what is written into a library changes, so old libraries are ignored.
-RECIPE = "segment+jac+adj1+jac_adj1 v1"
+RECIPE = "segment+jac+adj1+jac_adj1 v2 checksummed"
+#: Suffix of a library's checksum file, written after the library itself.
+CHECKSUM = ".sha256"
+#: Free space a compile needs in the cache (its objects and library are a few MB; the
+#: margin keeps the cache from filling a disk to the last block).
+MIN_FREE_BYTES = 64 << 20
+#: The file that remembers a compile that ran out of space (see ``_unusable``).
+FAILED_MARKER = ".compile-failed"
 #: Values of ESAIL_OPT_COMPILE that force the virtual machine.
 OFF = ("0", "off", "no", "false", "vm")
 
@@ -137,16 +154,229 @@ def _locked(path):
                 fcntl.flock(handle, fcntl.LOCK_UN)
 
 
+# ---------------------------------------------------------------- the cache's health
+
+
+def _digest(path):
+    """SHA-256 of the file at ``path``, hex."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _checksum_path(target):
+    return target.with_name(target.name + CHECKSUM)
+
+
+def _publish(partial, target):
+    """Rename the whole library ``partial`` onto ``target``, then write its checksum.
+
+    The checksum is written last (itself atomically), so a library without one, or
+    with one that does not match, was cut off or damaged after it was written: it is
+    never loaded (:func:`_damage`).
+    """
+    digest = _digest(partial)
+    with open(partial, "rb+") as handle:
+        os.fsync(handle.fileno())
+    os.replace(partial, target)
+    record = _checksum_path(target)
+    tmp = record.with_name(f".{record.name}.{os.getpid()}")
+    with open(tmp, "w") as handle:
+        handle.write(f"{digest}  {target.name}\n")
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(tmp, record)
+
+
+def _damage(target):
+    """Why the cached library ``target`` must not be loaded, or None if it is whole."""
+    record = _checksum_path(target)
+    try:
+        expected = record.read_text().split()[0]
+    except (OSError, IndexError):
+        return "it has no checksum (its write was cut off)"
+    try:
+        found = _digest(target)
+    except OSError as err:
+        return f"it cannot be read ({err.strerror})"
+    if found != expected:
+        return "its checksum does not match (the file was truncated or changed)"
+    return None
+
+
+def _remove_entry(target):
+    """Remove a cached library and its checksum (missing files are fine)."""
+    for path in (target, _checksum_path(target)):
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
+def _free_bytes(folder):
+    try:
+        stat = os.statvfs(folder)
+    except (OSError, AttributeError):
+        return None
+    return stat.f_bavail * stat.f_frsize
+
+
+def _unusable(folder):
+    """Why nothing can be compiled into ``folder`` now, in words, or None.
+
+    A cache that failed for want of space is not tried again, every run paying for
+    a compile that cannot finish, until its disk has :data:`MIN_FREE_BYTES` more free
+    than at the failure (the marker :data:`FAILED_MARKER` records it), or a day has
+    passed.
+    """
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return "it is not writable"
+    free = _free_bytes(folder)
+    if free is not None and free < MIN_FREE_BYTES:
+        return f"its disk has {free / 2**20:.0f} MB free, less than {MIN_FREE_BYTES >> 20} MB"
+    marker = folder / FAILED_MARKER
+    try:
+        age = time.time() - marker.stat().st_mtime
+        recorded = int((marker.read_text().split() or ["0"])[0])
+    except (OSError, ValueError):
+        return None
+    if age < 86400 and (free is None or free < recorded + MIN_FREE_BYTES):
+        return (f"a compile there ran out of space {age / 60:.0f} min ago and the disk has "
+                "not been freed since")
+    with contextlib.suppress(OSError):
+        marker.unlink()
+    return None
+
+
+def _remember_no_space(folder):
+    """Leave the marker of :func:`_unusable` (an empty file still fits on a full disk)."""
+    with contextlib.suppress(OSError):
+        marker = folder / FAILED_MARKER
+        marker.touch()
+        marker.write_text(f"{_free_bytes(folder) or 0}\n")
+
+
+def _sweep_builds(folder):
+    """Remove the build folders of compiles that were killed, and their compilers.
+
+    A build folder is named ``.build-<pid>-...``: it is stale when that process is
+    gone.  Its compilers run in their own session (so that an interrupt can end them
+    all), and outlive a SIGKILL of the process that started them; on Linux those whose
+    command line names the stale folder are killed too.
+    """
+    try:
+        entries = [e for e in os.scandir(folder) if e.name.startswith(".build-")]
+    except OSError:
+        return
+    for entry in entries:
+        pid = entry.name[len(".build-"):].partition("-")[0]
+        if pid.isdigit():
+            if _alive(int(pid)):
+                continue
+        else:  # a folder of an older version, without a pid: stale after an hour
+            with contextlib.suppress(OSError):
+                if time.time() - entry.stat().st_mtime < 3600:
+                    continue
+        _kill_compilers_of(entry.path)
+        shutil.rmtree(entry.path, ignore_errors=True)
+
+
+def _alive(pid):
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _kill_compilers_of(build):
+    """SIGKILL every process whose command line names the folder ``build`` (Linux)."""
+    proc = Path("/proc")
+    if not proc.is_dir():
+        return
+    needle = os.fsencode(build)
+    for entry in proc.iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if needle in (entry / "cmdline").read_bytes():
+                os.kill(int(entry.name), signal.SIGKILL)
+        except OSError:
+            continue
+
+
+def _no_space(err):
+    """Whether a failed build ran out of disk space."""
+    if isinstance(err, OSError):
+        return err.errno in (errno.ENOSPC, errno.EDQUOT)
+    text = getattr(err, "stderr", None) or ""
+    return "No space left on device" in text or "Disk quota exceeded" in text
+
+
+def _one_line(err):
+    """The telling line of a failed compile's output: the first naming an error (gcc's
+    first lines are often "In function ..." or "Assembler messages:")."""
+    detail = getattr(err, "stderr", None) or str(err)
+    lines = [ln.strip() for ln in str(detail).strip().splitlines() if ln.strip()]
+    for line in lines:
+        if "error" in line.lower() or "fatal" in line.lower():
+            return line
+    return lines[0] if lines else type(err).__name__
+
+
+# ---------------------------------------------------------------- building
+
+
+class _Compilers:
+    """The compiler processes of one build, each in a session of its own, so that an
+    interrupt ends them and what they started (cc1, as) at once: a compiler left
+    running would go on filling the cache's disk with nobody waiting for it."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.running = []
+        self.stopped = False
+
+    def run(self, command):
+        with self.lock:
+            if self.stopped:
+                raise subprocess.CalledProcessError(-signal.SIGKILL, command, "", "stopped")
+            proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    text=True, start_new_session=True)
+            self.running.append(proc)
+        out, err = proc.communicate()
+        if proc.returncode != 0:
+            raise subprocess.CalledProcessError(proc.returncode, command, out, err)
+
+    def kill(self):
+        with self.lock:
+            self.stopped = True
+            for proc in self.running:
+                with contextlib.suppress(OSError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+        for proc in self.running:
+            with contextlib.suppress(Exception):
+                proc.wait(timeout=5)
+
+
 def _build(fun, compiler, target, links=()):
     """Generate C for ``fun`` and its derivatives and link them into ``target``.
 
     Each Function is its own translation unit, compiled in parallel (the Hessian block
-    is most of the time), and the library is renamed into place only when it is whole.
-    ``links`` are the keys of cached libraries (in ``target``'s folder) whose Functions
-    ``fun`` calls: the generated code calls their symbols, and the library finds them
-    beside itself when it is loaded (an rpath of ``$ORIGIN``).
+    is most of the time), and the library is renamed into place only when it is whole,
+    then its checksum written (:func:`_publish`).  ``links`` are the keys of cached
+    libraries (in ``target``'s folder) whose Functions ``fun`` calls: the generated
+    code calls their symbols, and the library finds them beside itself when it is
+    loaded (an rpath of ``$ORIGIN``).  An interrupt or an error kills the compilers
+    and removes the build folder before it propagates.
     """
-    with tempfile.TemporaryDirectory(dir=target.parent, prefix=".build-") as tmp:
+    compilers = _Compilers()
+    with tempfile.TemporaryDirectory(dir=target.parent,
+                                     prefix=f".build-{os.getpid()}-") as tmp:
         tmp = Path(tmp)
         sources = []
         for i, f in enumerate(derivatives(fun)):
@@ -158,19 +388,76 @@ def _build(fun, compiler, target, links=()):
 
         def compile_one(source):
             obj = source.with_suffix(".o")
-            subprocess.run([compiler, *FLAGS, "-c", str(source), "-o", str(obj)],
-                           check=True, capture_output=True, text=True)
+            compilers.run([compiler, *FLAGS, "-c", str(source), "-o", str(obj)])
             return obj
 
         # The largest translation unit (the Hessian block) first, so it is never last.
-        with ThreadPoolExecutor(max(1, min(len(sources), os.cpu_count() or 1))) as pool:
+        pool = ThreadPoolExecutor(max(1, min(len(sources), os.cpu_count() or 1)))
+        try:
             objects = list(pool.map(compile_one, sources[::-1]))
-        partial = tmp / "lib.so"
-        linked = [f"-L{target.parent}", *(f"-l:{key}.so" for key in links),
-                  "-Wl,-rpath,$ORIGIN"] if links else []
-        subprocess.run([compiler, "-shared", "-o", str(partial), *map(str, objects), *linked,
-                        "-lm"], check=True, capture_output=True, text=True)
-        os.replace(partial, target)
+            partial = tmp / "lib.so"
+            linked = [f"-L{target.parent}", *(f"-l:{key}.so" for key in links),
+                      "-Wl,-rpath,$ORIGIN"] if links else []
+            compilers.run([compiler, "-shared", "-o", str(partial), *map(str, objects),
+                           *linked, "-lm"])
+        except BaseException:
+            compilers.kill()  # before the pool waits for its threads' compilers
+            raise
+        finally:
+            pool.shutdown(wait=True)
+        _publish(partial, target)
+
+
+def _warn_unusable(folder, reason):
+    """One plain line, once per process and folder, for a cache nothing compiles into."""
+    if ("unusable", str(folder)) in _loaded:
+        return
+    _loaded[("unusable", str(folder))] = None
+    log.warning("esail-opt: cannot compile into the cache %s: %s; the NLP stays on CasADi's "
+                "virtual machine (several times slower) -- free space there or set "
+                "ESAIL_OPT_CACHE to a writable folder (ESAIL_OPT_COMPILE=0 silences this)",
+                folder, reason)
+
+
+def _load(fun, folder, target, key, build):
+    """``external`` of the cached library ``target``, built by ``build()`` if missing.
+
+    A library that fails its checksum, or that CasADi cannot load, is removed and
+    built again once, with one line saying so; None when nothing can be built into
+    ``folder`` (one line says why).
+    """
+    unloadable = None  # the checksum record of a library that would not load
+    if target.exists() and _damage(target) is None:
+        try:
+            return ca.external(fun.name(), str(target))
+        except RuntimeError as err:
+            unloadable = (_record(target), f"it does not load ({_one_line(err)})")
+    reason = _unusable(folder)
+    if reason is not None:
+        _warn_unusable(folder, reason)
+        return None
+    with _locked(folder / f"{key}.lock"):
+        _sweep_builds(folder)
+        if target.exists():
+            # Judged again under the lock: another process may have rebuilt it.
+            why = _damage(target)
+            if why is None and unloadable is not None and _record(target) == unloadable[0]:
+                why = unloadable[1]
+            if why is not None:
+                log.warning("esail-opt: the cached library %s is damaged: %s; removed, "
+                            "compiling it again", target.name, why)
+                _remove_entry(target)
+        if not target.exists():
+            build()
+    return ca.external(fun.name(), str(target))
+
+
+def _record(target):
+    """The text of ``target``'s checksum file, or None."""
+    try:
+        return _checksum_path(target).read_text()
+    except OSError:
+        return None
 
 
 def compiled(fun, calls=()):
@@ -193,8 +480,15 @@ def compiled(fun, calls=()):
     casadi.Function
         An ``external`` with the same inputs and outputs, whose Jacobian, reverse
         derivative and Hessian block are compiled too; or ``fun`` when compiling is off
-        (``ESAIL_OPT_COMPILE=0``), no C compiler runs, or the compile fails (one warning
-        on the ``esail_opt`` logger for the last two).
+        (``ESAIL_OPT_COMPILE=0``), no C compiler runs, the cache cannot be written (a
+        full disk, a read-only folder: not retried on every run), or the compile fails
+        (one warning on the ``esail_opt`` logger for all but the first).
+
+    Notes
+    -----
+    A cached library is loaded only if its checksum matches: a truncated library
+    mapped into the process would crash it (SIGBUS) instead of raising.  A damaged one
+    is removed and compiled again, with one line.
     """
     if not enabled():
         return fun
@@ -221,21 +515,28 @@ def compiled(fun, calls=()):
         return _loaded[key]
     folder = cache_dir()
     target = folder / f"{key}.so"
+
+    def build():
+        log.info("esail-opt: compiling %r and its derivatives to C, once per machine; "
+                 "about %d s (cache: %s) ...", fun.name(), 10 if links else 20, folder)
+        start = time.perf_counter()
+        _build(fun, identity[0], target, links)
+        log.info("esail-opt: compiled in %.1f s", time.perf_counter() - start)
+
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        with _locked(folder / f"{key}.lock"):
-            if not target.exists():
-                log.info("esail-opt: compiling %r and its derivatives to C, once per "
-                         "machine; about %d s (cache: %s) ...", fun.name(),
-                         10 if links else 20, folder)
-                start = time.perf_counter()
-                _build(fun, identity[0], target, links)
-                log.info("esail-opt: compiled in %.1f s", time.perf_counter() - start)
-        loaded = ca.external(fun.name(), str(target))
+        loaded = _load(fun, folder, target, key, build)
+        if loaded is None:
+            loaded = fun
     except (OSError, subprocess.CalledProcessError, RuntimeError) as err:
-        detail = getattr(err, "stderr", None) or str(err)
-        log.warning("esail-opt: compiling %s failed (%s); the NLP stays on CasADi's virtual "
-                    "machine", fun.name(), detail.strip().splitlines()[0] if detail else err)
+        if _no_space(err):
+            _remember_no_space(folder)
+            _warn_unusable(folder, "its disk is full")
+        elif isinstance(err, OSError) and not isinstance(err, subprocess.SubprocessError):
+            _warn_unusable(folder, err.strerror or str(err))
+        else:
+            log.warning("esail-opt: compiling %s failed (%s); the NLP stays on CasADi's "
+                        "virtual machine", fun.name(), _one_line(err))
         loaded = fun  # not retried in this process: one line is enough
     _loaded[key] = loaded
     return loaded
