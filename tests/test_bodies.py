@@ -383,6 +383,18 @@ def test_track_errors():
     track = track_of("venus", WINDOW[0], WINDOW[0] + 100)
     with pytest.raises(InputError, match="outside the track of venus"):
         track.polar(tu_from_jd(WINDOW[0] + 200))
+    # Symbolic or function calls a little outside the window (an NLP iterate) still follow
+    # the body; far outside they hold the sampled end state rather than CasADi's zeros.
+    for days in (-30.0, 30.0):
+        jd = (WINDOW[0] if days < 0 else WINDOW[0] + 100) + days
+        near = np.array(track.function(tu_from_jd(jd))).ravel()
+        exact, _ = polar_state("venus", jd)
+        diff = in_plane(near) - in_plane(exact)
+        assert km_of(math.hypot(diff[0], diff[1])) < 1.0
+    far = np.array(track.function(tu_from_jd(WINDOW[0] - 1000))).ravel()
+    end = np.array(track.function(track.sampled_t_range[0])).ravel()
+    np.testing.assert_array_equal(far, end)
+    assert far[0] == pytest.approx(0.72, abs=0.01)
     # A small body's two-body orbit has no span: a window after DE421 is fine.
     late = track_of(BENNU, last + 10, last + 400)
     assert late.max_error_km < 1.0
