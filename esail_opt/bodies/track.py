@@ -5,9 +5,10 @@ date) that Ipopt can differentiate twice, since it uses exact Hessians.  DE421 i
 piecewise Chebyshev with records of 8-32 days whose joints are only approximately smooth,
 and the Keplerian solver iterates; neither is a CasADi expression.  A :class:`Track`
 samples the exact source on a uniform grid over the window (plus a margin of at least
-60 days at each end, where a spline is least accurate and where an NLP iterate may stray), unwraps the longitude so that it grows
-continuously past 2 pi, and fits one cubic B-spline (``casadi.interpolant``, "bspline",
-not-a-knot) to each of r, theta, v_r and v_theta.  The spline is C2 and CasADi has its
+60 days at each end, where a spline is least accurate and where an NLP iterate may
+stray), unwraps the longitude so that it grows continuously past 2 pi, and fits one
+cubic B-spline (``casadi.interpolant``, "bspline", not-a-knot) to each of r, theta, v_r
+and v_theta.  The spline is C2 and CasADi has its
 derivatives in closed form, so first and second derivatives exist for SX and MX inputs.
 
 Why a spline of samples rather than Kepler's equation unrolled in CasADi for small
