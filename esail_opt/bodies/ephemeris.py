@@ -18,7 +18,11 @@ far inside the sphere of influence.  Earth's centre would add the Moon's monthly
 (4,700 km, 12.6 m/s), which a smooth :mod:`~esail_opt.bodies.track` of the barycentre
 does not need to resolve.
 
-Dates are Julian dates in TDB (see :mod:`~esail_opt.bodies.dates`).  The coefficients load
+Dates are Julian dates in TDB (see :mod:`~esail_opt.bodies.dates`).  The span is read
+from the tables as loaded (:data:`SPAN_JD`); the `de421` package's tables run from
+1899-12-04 to 2200-02-01, wider than the 1900-2050 its description names, and past 2050
+they agree with ERFA's plan94 as well as before it.  jplephem itself would extrapolate
+up to one record beyond the end, so this module checks every date against the span.  The coefficients load
 lazily: the small header at import (for :data:`SPAN_JD`), each body's table on first use,
 once.
 """

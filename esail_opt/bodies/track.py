@@ -4,10 +4,11 @@ The NLP needs a body's polar state as a function of a free time (a departure or 
 date) that Ipopt can differentiate twice, since it uses exact Hessians.  DE421 is
 piecewise Chebyshev with records of 8-32 days whose joints are only approximately smooth,
 and the Keplerian solver iterates; neither is a CasADi expression.  A :class:`Track`
-samples the exact source on a uniform grid over the window (plus a margin of a few steps
-at each end, where a spline is least accurate), unwraps the longitude so that it grows
-continuously past 2 pi, and fits one cubic B-spline (``casadi.interpolant``, "bspline",
-not-a-knot) to each of r, theta, v_r and v_theta.  The spline is C2 and CasADi has its
+samples the exact source on a uniform grid over the window (plus a margin of at least
+60 days at each end, where a spline is least accurate and where an NLP iterate may
+stray), unwraps the longitude so that it grows continuously past 2 pi, and fits one
+cubic B-spline (``casadi.interpolant``, "bspline", not-a-knot) to each of r, theta, v_r
+and v_theta.  The spline is C2 and CasADi has its
 derivatives in closed form, so first and second derivatives exist for SX and MX inputs.
 
 Why a spline of samples rather than Kepler's equation unrolled in CasADi for small
@@ -35,8 +36,10 @@ from esail_opt.physics import constants as units
 
 #: Samples per osculating period in the default step.
 SAMPLES_PER_PERIOD = 200
-#: Steps of margin sampled beyond each end of the window.
+#: Margin sampled beyond each end of the window: this many steps, and at least
+#: MARGIN_DAYS, so that an NLP iterate a little outside the window still sees the body.
 MARGIN_STEPS = 4
+MARGIN_DAYS = 60.0
 #: At least this many steps across the window, however short it is.
 MIN_STEPS = 16
 #: The default step is halved until the measured error is below both of these.
@@ -63,10 +66,14 @@ class Track:
     max_error_km, max_error_m_s : float
         The largest in-plane position (km) and velocity (m/s) difference between the
         track and its exact source at the mid-points of the samples inside the window.
+    sampled_t_range : tuple of float
+        The times sampled, TU: :attr:`t_range` widened by a margin of at least 60 days
+        at each end (less where a planet's window meets the ephemeris span).  The spline
+        follows the body there too, but its error is only measured on :attr:`t_range`.
     function : casadi.Function
         ``track(t) -> [r, theta, v_r, v_theta]`` (4x1), t in TU since J2000; theta is
-        unwrapped, so continuous over the window.  Outside :attr:`t_range` it
-        extrapolates: bound t in the NLP.
+        unwrapped, so continuous over the window.  Beyond :attr:`sampled_t_range` it
+        holds the end state (zero derivative): bound t to :attr:`t_range` in the NLP.
     """
 
     def __init__(self, name, source, start_jd, stop_jd, step_days, span=None):
@@ -74,7 +81,8 @@ class Track:
         self.jd_range = (float(start_jd), float(stop_jd))
         self.t_range = (tu_from_jd(start_jd), tu_from_jd(stop_jd))
         self.step_days = float(step_days)
-        low, high = start_jd - MARGIN_STEPS * step_days, stop_jd + MARGIN_STEPS * step_days
+        margin = max(MARGIN_STEPS * step_days, MARGIN_DAYS)
+        low, high = start_jd - margin, stop_jd + margin
         if span is not None:
             low, high = max(low, span[0]), min(high, span[1])
         count = max(int(math.ceil((high - low) / step_days)), MIN_STEPS) + 1
@@ -83,10 +91,13 @@ class Track:
         polar[1] = np.unwrap(polar[1])
         t_grid = tu_from_jd(jd)
         t = ca.MX.sym("t")
-        parts = [ca.interpolant(f"{self._tag()}_{label}", "bspline", [t_grid], polar[k])(t)
+        # CasADi's B-spline is zero outside its knots; holding t at the sampled range
+        # keeps a stray NLP iterate on a finite, physical (if frozen) state instead.
+        held = ca.fmin(ca.fmax(t, t_grid[0]), t_grid[-1])
+        parts = [ca.interpolant(f"{self._tag()}_{label}", "bspline", [t_grid], polar[k])(held)
                  for k, label in enumerate(("r", "theta", "v_r", "v_theta"))]
         self.function = ca.Function("track", [t], [ca.vertcat(*parts)], ["t"], ["polar"])
-        self._theta_offset = polar[1, 0]
+        self.sampled_t_range = (float(t_grid[0]), float(t_grid[-1]))
         self._measure(source, jd)
 
     def _tag(self):
