@@ -6,12 +6,14 @@ from the names below (see :mod:`esail_opt.optimisation.problem`); ``eo.solve(pro
 runs it and returns a :class:`Solution`.
 """
 
+from esail_opt.bodies.keplerian import BENNU, CERES, SmallBody  # noqa: F401
 from esail_opt.optimisation.goals import (  # noqa: F401
-    CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius, MinTime, Orbit, Rendezvous,
+    BodyIntercept, BodyRendezvous, CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius,
+    MinAcceleration, MinTime, Orbit, Rendezvous,
 )
 from esail_opt.optimisation.problem import (  # noqa: F401
-    BEST_FIT, EXACT, ParkingOrbit, PathConstraints, PolarState, Problem, Sail, Segments,
-    Tolerance,
+    BEST_FIT, EXACT, BodyDeparture, ParkingOrbit, PathConstraints, PolarState, Problem, Sail,
+    Segments, Tolerance,
 )
 
 

@@ -12,6 +12,7 @@ import signal
 import sys
 
 from esail_opt.errors import InputError, OutputError, Terminated
+from esail_opt.app.parallel import ClusterLost
 
 EXIT_INPUT = 2
 #: An output that cannot be written (a full disk, a read-only folder): not 1, which
@@ -336,6 +337,76 @@ def _run_sweep(args):
     return 0 if result["failed"] == 0 else 1
 
 
+def _add_porkchop(sub):
+    p = sub.add_parser(
+        "porkchop", help="scan a launch window: departure dates, or dates x flight times",
+        description="Solve the problem in PROBLEM.py (which departs from a body, "
+        "BodyDeparture) at every departure date of --depart, with its own objective; with "
+        "--tof, at every (date, time of flight) cell, the objective's time of flight "
+        "replaced (a fixed-time objective such as MinAcceleration: the a_c a transfer "
+        "needs).  Neighbouring cells share one NLP and warm-start from each other; every "
+        "cell is verified on Eqs. 1-2 against the ephemeris.  Writes porkchop.json, "
+        "porkchop.csv and porkchop.png; exit status 1 if any cell is not verified.  Runs "
+        "on the sweep's engine: journal (porkchop.jsonl), --resume, retries, Dask.",
+    )
+    p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
+    p.add_argument("--depart", required=True, metavar="START:STOP:COUNT",
+                   help="departure dates, ISO 8601 (TDB), e.g. 2030-01-01:2033-01-01:24")
+    p.add_argument("--tof", default=None, metavar="START:STOP:COUNT",
+                   help="times of flight in days, e.g. 200:400:12 (a two-dimensional scan)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local worker processes, >= 1 (default: the CPUs)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on this Dask distributed scheduler instead (needs the dask extra)")
+    p.add_argument("--out", default=None,
+                   help="output directory (default results/<problem name>_porkchop)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the cells journaled in the output directory's porkchop.jsonl")
+    _add_tolerance(p)
+    p.set_defaults(run=_run_porkchop)
+
+
+def _run_porkchop(args):
+    from pathlib import Path
+
+    from esail_opt.app import porkchop
+    from esail_opt.app.files import check_output_dir
+    from esail_opt.optimisation.problem_file import load_problem
+
+    out = Path(args.out) if args.out else (
+        Path("results") / f"{load_problem(args.problem_file).name}_porkchop")
+    check_output_dir(out)
+    result = porkchop.run(args.problem_file, args.depart, args.tof, workers=args.workers,
+                          scheduler=args.scheduler, out_dir=out, resume=args.resume,
+                          tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_line)
+    for path in porkchop.write(result, out):
+        print(f"wrote {path}")
+    best = result["best"]
+    if best is not None:
+        unit = result["objective_unit"] or ""
+        print(f"best: depart {best['departure_date']}, arrive {best['arrival_date']}, "
+              f"{best['objective']:.6g} {unit}".rstrip())
+    print(f"{result['verified_cells']}/{result['cells']} cells verified in "
+          f"{result['wall_seconds']:.1f} s ({result['executor']})")
+    if result["not_verified"]:
+        print(f"esail-opt porkchop: {result['not_verified']} cell(s) not verified",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def _porkchop_line(row, done, total):
+    """One line on stderr per finished cell of a porkchop."""
+    cell = row["departure_date"][:10]
+    if row["tof_days_grid"] is not None:
+        cell += f", tof {row['tof_days_grid']:g} d"
+    if row["verified"]:
+        what = f"{row['objective']:.6g} {row['objective_unit'] or ''}, verified".replace(" ,", ",")
+    else:
+        what = f"NOT verified ({row['error']})"
+    print(f"esail-opt porkchop: [{done}/{total}] {cell}: {what}", file=sys.stderr, flush=True)
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="esail-opt", description="E-sail trajectory propagation and optimisation",
@@ -347,6 +418,7 @@ def build_parser():
     _add_solve(sub)
     _add_search(sub)
     _add_sweep(sub)
+    _add_porkchop(sub)
     return parser
 
 

@@ -61,6 +61,25 @@ def _xy(traj):
     return r * np.cos(th), r * np.sin(th)
 
 
+def _draw_bodies(ax, d):
+    """The departure and target bodies on their real orbits over the flight (ephemeris
+    or elements, projected on the ecliptic), each at the departure and at the arrival."""
+    from esail_opt.bodies import dates, lookup
+
+    prob = d["problem"]
+    start, end = (dates.jd_from_iso(d[k]) for k in ("departure_date", "arrival_date"))
+    jd = np.linspace(start, end, 200)
+    pairs = [(d["departure_body"]["name"], prob["departure"]["body"], "0.5")]
+    if d.get("target_body") is not None:
+        pairs.append((d["target_body"]["name"], prob["target"]["body"], "tab:green"))
+    for label, body, colour in pairs:
+        r, th = lookup.polar_states(lookup.resolve(body), jd)[:2]
+        ax.plot(r * np.cos(th), r * np.sin(th), color=colour, lw=0.8, ls="--",
+                label=f"{label} over the flight")
+        ax.plot(r[[0, -1]] * np.cos(th[[0, -1]]), r[[0, -1]] * np.sin(th[[0, -1]]), "o",
+                color=colour, ms=4)
+
+
 def trajectory_figure(solution, ax=None):
     """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes.
 
@@ -78,7 +97,9 @@ def trajectory_figure(solution, ax=None):
         ax.plot(*_orbit_xy(s["a_au"], 0.0), color="0.6", lw=0.8, ls="--",
                 label="departure a (circle)")
     tgt = prob["target"]
-    if tgt is not None:
+    if "departure_date" in d:
+        _draw_bodies(ax, d)
+    elif tgt is not None:
         if tgt["kind"] == "Orbit":
             # The apse line is free: draw the circle of radius a as a guide.
             xy = _orbit_xy(tgt["a_au"], 0.0)

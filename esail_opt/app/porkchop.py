@@ -215,7 +215,8 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
               "polish": False, "tolerance": dataclasses.asdict(problem.tolerance)}
     journal, kept = None, {}
     if out_dir is not None:
-        journal = sweep.Journal(Path(out_dir) / JOURNAL, header, fields=CSV_FIELDS)
+        journal = sweep.Journal(Path(out_dir) / JOURNAL, header, fields=CSV_FIELDS,
+                                count=int(np.prod(grid.shape)))
         kept = journal.open(resume)
     rows = dict(kept)
     todo = {j: job for j, job in enumerate(jobs_all) if not all(i in rows for i in job)}

@@ -20,6 +20,7 @@ from esail_opt.app import schema
 from esail_opt.app.files import json_ready, publish, write_json
 from esail_opt.bodies import dates, lookup
 from esail_opt.optimisation import exact as exact_refinement
+from esail_opt.optimisation import scan
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
 from esail_opt.optimisation.ipopt import solve_problem
@@ -72,7 +73,7 @@ def _fields(obj):
     out = {"kind": type(obj).__name__}
     out.update({k: getattr(obj, k) for k in obj.__dataclass_fields__})
     if "body" in out:
-        out["body"] = lookup.name(out["body"])
+        out["body"] = lookup.describe(out["body"])
     return out
 
 
@@ -349,8 +350,12 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     seg = problem.segments
     count = (f"{seg.count} segments" if seg.per_revolution is None
              else f"{seg.per_revolution} segments per revolution")
-    guess = initial_guess(problem)
-    problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
+    guess = None
+    if problem.free_date():
+        problem, guess = scan.seed_free_date(problem, say)
+    if guess is None:
+        guess = initial_guess(problem)
+        problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
     result, tr = solve_problem(problem, guess=guess, progress=say)
     starts = []

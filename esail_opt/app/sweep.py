@@ -306,11 +306,28 @@ class Journal:
     header : dict
         What identifies the sweep (problem, its file's digest, param, values, polish,
         tolerance); a journal is resumed only under the same header.
+    fields : tuple of str
+        The keys a row holds (default the sweep's :data:`CSV_FIELDS`).
+    count : int, optional
+        Rows the grid has, for a journal whose rows are cells of a grid rather than
+        members of ``header["values"]`` (a porkchop): then a row is kept by its index
+        alone, the header having already matched the grid.
     """
 
-    def __init__(self, path, header):
+    def __init__(self, path, header, fields=CSV_FIELDS, count=None):
         self.path = Path(path)
         self.header = header
+        self.fields = fields
+        self.count = count
+
+    def _belongs(self, i, row):
+        """Whether a journal row is this grid's: where the grid puts it."""
+        if not isinstance(i, int):
+            return False
+        if self.count is not None:
+            return 0 <= i < self.count
+        values = self.header["values"]
+        return 0 <= i < len(values) and row.get("value") == values[i]
 
     def open(self, resume):
         """Start the journal, or with ``resume`` read the rows it already holds.
@@ -406,7 +423,6 @@ class Journal:
                              f"{_short(self.header[key])}")
                 raise InputError(f"resume: {self.path} belongs to another sweep: {what}; "
                                  "run without --resume to start fresh")
-        values = self.header["values"]
         kept = {}
         for number, line in lines[1:]:
             if not line.strip():
@@ -420,11 +436,9 @@ class Journal:
             if not isinstance(row, dict):
                 continue
             i = row.get("index")
-            # Index and value both: a row is this grid's only where the grid puts it.
-            if (isinstance(i, int) and 0 <= i < len(values) and row.get("value") == values[i]
-                    and i not in kept):
-                full = _empty_row(i, values[i])
-                full.update({k: row[k] for k in CSV_FIELDS if k in row})
+            if self._belongs(i, row) and i not in kept:
+                full = dict.fromkeys(self.fields)
+                full.update({k: row[k] for k in self.fields if k in row})
                 kept[i] = full
         return kept
 

@@ -14,6 +14,7 @@ and process, for dates no mission analysis here asks for.  The exact state's pol
 the NLP's departure from the track agree on theta, not only modulo 2 pi.
 """
 
+import dataclasses
 import functools
 import math
 
@@ -34,6 +35,25 @@ def check_body(body, field):
         return body
     raise InputError(f"{field} = {body!r} is not a SmallBody or one of: "
                      f"{', '.join(ephemeris.PLANETS)}")
+
+
+def describe(body):
+    """The body as a solution file holds it: a planet's name, or a small body's fields."""
+    if isinstance(body, SmallBody):
+        return {f.name: getattr(body, f.name) for f in dataclasses.fields(body) if f.init}
+    return _key(body)
+
+
+def resolve(description):
+    """The body :func:`describe` wrote (raises InputError if it is not one)."""
+    if isinstance(description, dict):
+        return SmallBody(**description)
+    return check_body(description, "body")
+
+
+def polar_states(body, jd):
+    """Exact polar states (4 x M) at Julian dates ``jd``, theta on the track's branch."""
+    return np.column_stack([polar_state(body, j)[0] for j in np.atleast_1d(jd)])
 
 
 def _key(body):

@@ -201,3 +201,32 @@ def _line(i, n, cell):
         what += f", objective {cell.objective * factor:.6g}{unit}"
     return (f"cell {i + 1}/{n}: {what}, {'verified' if cell.verified else 'NOT verified'}, "
             f"{cell.seconds:.2f} s")
+
+
+#: Days between the cells of the coarse scan that seeds a free departure date, and the
+#: most cells it takes: a synodic period of Earth and Mars is about 780 days, so a
+#: window of several years still gets a dozen looks.
+SEED_SPACING_DAYS = 60.0
+SEED_CELLS = (4, 16)
+
+
+def seed_free_date(problem, progress=None):
+    """A start for a problem whose departure date is free in a window: the best cell of
+    a coarse scan of the window at fixed dates.
+
+    Returns (problem with the scan's mesh, Guess at the best cell), or (problem, None)
+    when no cell converged.
+    """
+    lo, hi = problem.departure.window_jd
+    count = int(np.clip(math.ceil((hi - lo) / SEED_SPACING_DAYS) + 1, *SEED_CELLS))
+    say = progress or (lambda text: None)
+    say(f"{problem.name}: seeding the free departure date by a scan of {count} dates")
+    cells = scan([at_date(problem, jd) for jd in np.linspace(lo, hi, count)], progress)
+    solved = [c for c in cells if c.solved]
+    if not solved:
+        return problem, None
+    best = min(solved, key=_rank)
+    start = best.on_scan_nlp or best.result
+    meshed = dataclasses.replace(problem, segments=dataclasses.replace(
+        best.problem.segments, count=start.alpha.size, per_revolution=None))
+    return meshed, start.as_guess()
