@@ -6,6 +6,7 @@ owns it.  Bad input ends in one line on stderr and exit status 2.
 
 import argparse
 import logging
+import re
 import sys
 
 from esail_opt.errors import InputError
@@ -80,6 +81,10 @@ def _add_propagate(sub):
         "every case of the grid as Figs. 3-4 do (the closed forms in one batched call) and "
         "writes the grid as JSON (--out), CSV and PNG beside it.",
     )
+    # argparse reads "-90:90:37" as an option, since only plain negative numbers are
+    # values to it; let ranges with a negative START be values too (no option of this
+    # command looks like one).
+    p._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(:\S*)?$")
     p.add_argument("--a0", default="1", help="parking orbit semimajor axis, au (default 1)"
                    + RANGE_HELP)
     p.add_argument("--e0", default="0", help="parking orbit eccentricity, [0, 1) (default 0)"

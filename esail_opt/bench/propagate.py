@@ -198,7 +198,7 @@ def _batch_cases(grid):
     return alpha.ravel(), ac.ravel()
 
 
-def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES):
+def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     """Many cases of the ten years at ARCS arcs: the closed form in one call against CVODES
     per case.
 
@@ -206,7 +206,8 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES):
     :data:`BATCH_GRID`).  The closed form is the race's (second-order arcs on the exact
     angular momentum, in time), all cases in one compiled mapped call
     (``propagation.batch.batch_function(..., native=True)``; its compile, once per
-    process, is reported apart as ``compile_seconds``).  Each case's final error is the
+    process, is reported apart as ``compile_seconds``; ``native`` False keeps it on
+    CasADi's virtual machine).  Each case's final error is the
     distance of its final position from CVODES at ``simulate.VERIFY_TOLERANCE``, as the
     race measures it; ``median_final_error_km`` is their median over all cases.
 
@@ -243,7 +244,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES):
     stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
                np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
     start = time.perf_counter()
-    closed = batch_function(ARCS, cases, 1, "time", invariant=True, order=2, native=True)
+    closed = batch_function(ARCS, cases, 1, "time", invariant=True, order=2, native=native)
     compile_seconds = time.perf_counter() - start
     closed_seconds = median_seconds(lambda: closed(*stacked), repeats)
     xs, q3 = (np.array(v) for v in closed(*stacked))
@@ -283,7 +284,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES):
         "smallest_q3": float(np.min(q3)),
         "cvodes_cases_timed": int(timed.size),
         "cvodes_points": points,
-        "compile_seconds": compile_seconds,
+        "compile_seconds": compile_seconds, "compiled": native,
         "grid": {key: list(value) for key, value in grid.items()},
         "note": "closed form: every case in one compiled mapped call (median of repeats); "
                 "CVODES: seconds per case on cvodes_cases_timed evenly spread cases, the "

@@ -78,6 +78,8 @@ def _rows(values, cases, width, name):
     """``values`` as a float array of shape (cases, width): a scalar or a (width,) row is
     repeated for every case."""
     values = np.asarray(values, float)
+    if values.ndim == 2 and values.shape[0] == 1:
+        values = values[0]
     if values.ndim <= 1 and values.size in (1, width):
         return np.broadcast_to(values.reshape(1, -1), (cases, width)).astype(float)
     if values.shape != (cases, width):
