@@ -45,7 +45,9 @@ def _dop853_ten_years():
 
 
 def test_race_reference_agrees_with_an_independent_flight(tmp_path):
-    path = propagate.run(tmp_path, repeats=1)
+    # A small batch: the batch block has its own test (test_batch_propagation.py).
+    path = propagate.run(tmp_path, repeats=1,
+                         grid={"alpha_deg": (30.0, 60.0, 2), "ac_mm_s2": (0.1, 0.1, 1)})
     race = json.loads(path.read_text())["race"]
     assert (tmp_path / "propagate.png").stat().st_size > 0
     end, tf = _dop853_ten_years()

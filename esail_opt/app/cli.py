@@ -8,6 +8,7 @@ for every exit status.
 import argparse
 import errno
 import logging
+import re
 import signal
 import sys
 
@@ -34,40 +35,111 @@ def _number(text):
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
+#: Values or ranges a propagate option takes: START:STOP:COUNT, both ends included.
+RANGE_HELP = "; or START:STOP:COUNT, both ends included, to fly a grid"
+#: Most values one range may take.
+MAX_RANGE_COUNT = 10_000
+
+
+def _value_or_range(option, text):
+    """A propagate option's values: one number, or COUNT equal steps from START to STOP.
+
+    Raises
+    ------
+    InputError
+        If the text is neither (one line naming the option and what it takes).
+    """
+    import numpy as np
+
+    parts = text.split(":")
+    if len(parts) == 1:
+        try:
+            return [float(text)]
+        except ValueError:
+            raise InputError(f"--{option} = {text!r} is not a number or START:STOP:COUNT"
+                             ) from None
+    if len(parts) != 3:
+        raise InputError(f"--{option} = {text!r} is not a number or START:STOP:COUNT")
+    try:
+        start, stop = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise InputError(f"--{option} = {text!r}: START and STOP must be numbers") from None
+    try:
+        count = int(parts[2])
+    except ValueError:
+        raise InputError(f"--{option} = {text!r}: COUNT must be an integer in "
+                         f"[1, {MAX_RANGE_COUNT}]") from None
+    if not 1 <= count <= MAX_RANGE_COUNT:
+        raise InputError(f"--{option} = {text!r}: COUNT = {count} is outside "
+                         f"[1, {MAX_RANGE_COUNT}]")
+    if not (np.isfinite(start) and np.isfinite(stop)):
+        raise InputError(f"--{option} = {text!r}: START and STOP must be finite")
+    if count == 1 and start != stop:
+        raise InputError(f"--{option} = {text!r}: COUNT = 1 needs START = STOP")
+    return np.linspace(start, stop, count).tolist()
+
+
 def _add_propagate(sub):
     p = sub.add_parser(
         "propagate",
-        help="fly one fixed attitude from a parking orbit (closed form and/or CVODES)",
+        help="fly fixed attitudes from a parking orbit (closed form and/or CVODES)",
         description="Fly one fixed pitch angle from a parking orbit with the paper's "
         "closed form (no rectification; it ends where its own clock reaches the "
         "horizon) and/or CVODES on Eqs. 1-2, and write the samples as JSON.  With both, "
         "eps (Eq. 27) is taken over the closed form's arc; `reproduce fig3|fig4` take it "
-        "over the angle swept by CVODES in the horizon, as the paper does.",
+        "over the angle swept by CVODES in the horizon, as the paper does.  Given a "
+        "range (START:STOP:COUNT) for any of --a0, --e0, --nu0, --ac and --alpha, it flies "
+        "every case of the grid as Figs. 3-4 do (the closed forms in one batched call) and "
+        "writes the grid as JSON (--out), CSV and PNG beside it.",
     )
-    p.add_argument("--a0", type=_number, default=1.0, help="parking orbit semimajor axis, au (default 1)")
-    p.add_argument("--e0", type=_number, default=0.0, help="parking orbit eccentricity, [0, 1) (default 0)")
-    p.add_argument("--nu0", type=_number, default=0.0, help="departure true anomaly, deg (default 0)")
-    p.add_argument("--ac", type=_number, required=True, help="characteristic acceleration, mm/s^2, > 0")
-    p.add_argument("--alpha", type=_number, required=True, help="pitch angle, deg, in [-90, 90]")
+    # argparse reads "-90:90:37" as an option, since only plain negative numbers are
+    # values to it; let ranges with a negative START be values too (no option of this
+    # command looks like one).
+    p._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(:\S*)?$")
+    p.add_argument("--a0", default="1", help="parking orbit semimajor axis, au (default 1)"
+                   + RANGE_HELP)
+    p.add_argument("--e0", default="0", help="parking orbit eccentricity, [0, 1) (default 0)"
+                   + RANGE_HELP)
+    p.add_argument("--nu0", default="0", help="departure true anomaly, deg (default 0)"
+                   + RANGE_HELP)
+    p.add_argument("--ac", required=True, help="characteristic acceleration, mm/s^2, > 0"
+                   + RANGE_HELP)
+    p.add_argument("--alpha", required=True, help="pitch angle, deg, in [-90, 90]"
+                   + RANGE_HELP)
     p.add_argument("--years", type=_number, required=True, help="horizon, years, > 0")
-    p.add_argument("--method", choices=("closed-form", "cvodes", "both"), default="both")
+    p.add_argument("--method", choices=("closed-form", "cvodes", "both"), default="both",
+                   help="one case: what to fly (default both); a grid flies both")
     p.add_argument("--samples", type=int, default=None,
-                   help="sample intervals, equal in theta (default: 32 per parking-orbit period, at least 200)")
-    p.add_argument("--out", default=None, help="JSON file to write (default: print a summary only)")
+                   help="sample intervals, equal in theta (default: 32 per parking-orbit "
+                   "period, at least 200; for a grid, per revolution swept)")
+    p.add_argument("--plot", choices=("eps", "a", "e"), default="eps",
+                   help="a grid's picture: eps (Eq. 27), or the closed form's final a or e")
+    p.add_argument("--out", default=None, help="JSON file to write (default: print a summary "
+                   "only); a grid's CSV and PNG go beside it")
     p.set_defaults(run=_run_propagate)
 
 
 def _run_propagate(args):
     from esail_opt.app import fixed_attitude
-    from esail_opt.app.files import write_json
 
-    case = fixed_attitude.FixedAttitudeCase(a0_au=args.a0, e0=args.e0, nu0_deg=args.nu0,
-                                            ac_mm_s2=args.ac, alpha_deg=args.alpha,
-                                            years=args.years)
+    values = {field: _value_or_range(option, getattr(args, option))
+              for field, option in fixed_attitude.GRID_FIELDS.items()}
     if args.samples is not None and args.samples < 1:
         raise InputError(f"samples = {args.samples} is outside [1, inf)")
-    print(f"propagating {args.years:g} years at alpha = {args.alpha:g} deg ({args.method}) ...",
-          file=sys.stderr)
+    if any(":" in getattr(args, option) for option in fixed_attitude.GRID_FIELDS.values()):
+        return _run_propagate_grid(args, values)
+    case = fixed_attitude.FixedAttitudeCase(
+        a0_au=values["a0_au"][0], e0=values["e0"][0], nu0_deg=values["nu0_deg"][0],
+        ac_mm_s2=values["ac_mm_s2"][0], alpha_deg=values["alpha_deg"][0], years=args.years)
+    return _run_propagate_one(args, case)
+
+
+def _run_propagate_one(args, case):
+    from esail_opt.app import fixed_attitude
+    from esail_opt.app.files import write_json
+
+    print(f"propagating {args.years:g} years at alpha = {case.alpha_deg:g} deg "
+          f"({args.method}) ...", file=sys.stderr)
     result = fixed_attitude.run(case, args.method, args.samples)
     for key in ("closed_form", "cvodes"):
         if key in result:
@@ -82,6 +154,33 @@ def _run_propagate(args):
     if args.out:
         write_json(args.out, result)
         print(f"wrote {args.out}")
+    return 0
+
+
+def _run_propagate_grid(args, values):
+    from pathlib import Path
+
+    from esail_opt.app import fixed_attitude
+    from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
+
+    if args.method != "both":
+        raise InputError(f"method = {args.method!r} with ranges: a grid flies both; "
+                         "allowed: both")
+    # Every case is checked here, before anything is flown or written.
+    count = len(fixed_attitude.grid_cases(values, args.years))
+    print(f"propagating {count} cases of {args.years:g} years ...", file=sys.stderr)
+    data = fixed_attitude.run_grid(values, args.years, args.samples)
+    eps = [v for v in data["columns"]["eps_percent"] if v == v]
+    print(f"{count} cases, {len(data['invalid'])} where the closed form does not hold; eps "
+          f"(Eq. 27) " + (f"from {min(eps):.3f} to {max(eps):.3f} %" if eps else "nowhere"))
+    if args.out:
+        out = Path(args.out)
+        csv, png = out.with_suffix(".csv"), out.with_suffix(".png")
+        with atomic_path(csv) as tmp:
+            tmp.write_text(fixed_attitude.grid_csv(data))
+        save_figure(fixed_attitude.grid_figure(data, args.plot), png)
+        write_json(out, json_ready(data))
+        print(f"wrote {out}, {csv} and {png}")
     return 0
 
 

@@ -16,8 +16,9 @@ from scipy.optimize import brentq
 
 from esail_opt.errors import InputError, check_range
 from esail_opt.physics import constants as units
-from esail_opt.physics.elements import polar_from_classical
+from esail_opt.physics.elements import classical_from_polar, polar_from_classical
 from esail_opt.physics.thrust import EXACT
+from esail_opt.propagation.batch import arcs_at_angles
 from esail_opt.propagation.rectified import rectified_function
 from esail_opt.propagation.simulate import SimulationError, simulate
 
@@ -185,29 +186,6 @@ def closed_form(case, samples):
     return run(angle)[0]
 
 
-def closed_form_over(case, span, samples):
-    """The paper's single first-order arc over theta0 .. theta0 + ``span`` (rad).
-
-    Returns
-    -------
-    numpy.ndarray, shape (5, samples + 1)
-        [r, theta, v_r, v_theta, t] at equal steps of theta, canonical units; t is
-        the closed form's own clock.
-
-    Raises
-    ------
-    InputError
-        If the arc does not hold over the whole span (see VALIDITY_FLOOR).
-    """
-    xs, q3 = _arc(case, samples)(span)
-    if not _valid(xs, q3):
-        raise InputError(
-            f"the first-order arc does not hold (q3 > 0, r within {1 / VALIDITY_FLOOR:g} r0) "
-            f"over theta - theta0 = {math.degrees(span):.1f} deg"
-        )
-    return xs
-
-
 def swept_angle(case):
     """theta - theta0 (rad) that CVODES on Eqs. 1-2 reaches at the horizon."""
     x0 = case.state0()
@@ -253,12 +231,75 @@ def relative_error(case, closed):
     return float(np.max(error)), kept == samples, float(numeric[1, -1])
 
 
-def eps_over_swept_angle(case, samples=None):
-    """Eq. 27 as the paper's Figs. 3-4 measure it: over CVODES's swept angle.
+@dataclass(frozen=True)
+class SweptEps:
+    """Eq. 27 of one case over the angle CVODES sweeps in the horizon.
 
-    CVODES on Eqs. 1-2 flies the horizon in time; its angle at the end bounds the
-    comparison, and the closed form (a function of theta) and CVODES in theta are
-    sampled at the same ``samples`` equal steps of theta up to there.
+    Attributes
+    ----------
+    eps : float
+        max over theta of |r_n - r| / r0 (NaN where ``error`` is set).
+    span : float
+        The swept angle theta_end - theta0, rad.
+    closed, numeric : numpy.ndarray or None
+        The closed form and CVODES in theta at the same equal steps of theta,
+        [r, theta, v_r, v_theta, t] (canonical; the closed form's t is its own clock).
+    error : InputError or None
+        Why the closed form does not hold over the span, if it does not.
+    """
+
+    eps: float
+    span: float
+    closed: np.ndarray = None
+    numeric: np.ndarray = None
+    error: InputError = None
+
+
+def eps_over_swept_angles(cases, samples=None):
+    """Eq. 27 as the paper's Figs. 3-4 measure it, for many cases at once.
+
+    Per case, CVODES on Eqs. 1-2 flies the horizon in time; its angle at the end bounds
+    the comparison, and the closed form (a function of theta) and CVODES in theta are
+    sampled at the same ``samples`` equal steps of theta up to there (default
+    :func:`samples_over` the span).  The closed forms of all cases are one call
+    (``propagation.batch.arcs_at_angles``); CVODES flies case by case.
+
+    Parameters
+    ----------
+    cases : sequence of FixedAttitudeCase
+        All with the same thrust coefficients.
+
+    Returns
+    -------
+    list of SweptEps
+        One per case, in order; a case whose closed form does not hold over its span
+        (see VALIDITY_FLOOR) carries the InputError and no eps.
+    """
+    cases = list(cases)
+    if len({c.coefficients for c in cases}) > 1:
+        raise ValueError("the cases of one batch share their thrust coefficients")
+    spans = [swept_angle(c) for c in cases]
+    counts = [samples_over(span) if samples is None else samples for span in spans]
+    # The angles arc_function would take for equal steps, to the last bit.
+    angles = [span * (np.arange(n + 1) / n) for span, n in zip(spans, counts)]
+    arcs = arcs_at_angles([c.state0() for c in cases], [c.ac for c in cases],
+                          [c.alpha for c in cases], angles, cases[0].coefficients)
+    out = []
+    for case, span, n, (closed, q3) in zip(cases, spans, counts, arcs):
+        if not _valid(closed, q3[-1]):
+            out.append(SweptEps(math.nan, span, error=InputError(
+                f"the first-order arc does not hold (q3 > 0, r within {1 / VALIDITY_FLOOR:g} "
+                f"r0) over theta - theta0 = {math.degrees(span):.1f} deg")))
+            continue
+        numeric = cvodes_at_theta(case, span, n)
+        eps = float(np.max(np.abs(numeric[0] - closed[0])) / closed[0, 0])
+        out.append(SweptEps(eps, span, closed, numeric))
+    return out
+
+
+def eps_over_swept_angle(case, samples=None):
+    """Eq. 27 as the paper's Figs. 3-4 measure it: over CVODES's swept angle
+    (:func:`eps_over_swept_angles` for one case).
 
     Returns
     -------
@@ -272,11 +313,10 @@ def eps_over_swept_angle(case, samples=None):
     InputError
         If the closed form does not hold over the swept angle.
     """
-    span = swept_angle(case)
-    samples = samples_over(span) if samples is None else samples
-    closed = closed_form_over(case, span, samples)
-    numeric = cvodes_at_theta(case, span, samples)
-    return float(np.max(np.abs(numeric[0] - closed[0])) / closed[0, 0]), span
+    (result,) = eps_over_swept_angles([case], samples)
+    if result.error is not None:
+        raise result.error
+    return result.eps, result.span
 
 
 def to_boundary(xs):
@@ -321,3 +361,151 @@ def run(case, method="both", samples=None):
     if method == "both":
         out.update(_eps_entries(case, closed))
     return out
+
+
+# -- Grids: many fixed attitudes at once (``esail-opt propagate`` with ranges) --
+
+#: The fields a grid may range over, slowest-varying first, and the CLI options naming them.
+GRID_FIELDS = {"a0_au": "a0", "e0": "e0", "nu0_deg": "nu0", "ac_mm_s2": "ac",
+               "alpha_deg": "alpha"}
+#: Most cases one grid may hold: each costs two CVODES flights (about 0.1 s).
+MAX_GRID_CASES = 20_000
+#: What a grid's picture may show: a column of the grid's table and its axis label.
+PLOT_KEYS = {"eps": ("eps_percent", r"$\epsilon$ (Eq. 27) [%]"),
+             "a": ("closed_form_a_au", "closed form: final a [au]"),
+             "e": ("closed_form_e", "closed form: final e")}
+#: The grid table's columns, in order (inputs first).
+GRID_COLUMNS = (*GRID_FIELDS, "years", "swept_deg", "eps_percent", "closed_form_a_au",
+                "closed_form_e", "closed_form_r_au", "closed_form_t_days", "cvodes_a_au",
+                "cvodes_e", "cvodes_r_au")
+
+
+def grid_cases(values, years):
+    """Every combination of ``values`` (field of :data:`GRID_FIELDS` -> sequence of
+    numbers), the first field varying slowest.
+
+    Raises
+    ------
+    InputError
+        If a value is outside its field's range (each case is checked, so before
+        anything is flown), or the grid holds more than :data:`MAX_GRID_CASES` cases.
+    """
+    import itertools
+
+    axes = [list(values[field]) for field in GRID_FIELDS]
+    count = math.prod(len(axis) for axis in axes)
+    if count > MAX_GRID_CASES:
+        raise InputError(f"the grid has {count} cases; allowed [1, {MAX_GRID_CASES}] "
+                         "(fewer COUNTs)")
+    return [FixedAttitudeCase(a0_au=a0, e0=e0, nu0_deg=nu0, ac_mm_s2=ac, alpha_deg=alpha,
+                              years=years)
+            for a0, e0, nu0, ac, alpha in itertools.product(*axes)]
+
+
+def _elements(xs):
+    """Osculating a (au) and e of polar states [4+, K]."""
+    import casadi as ca
+
+    x = ca.SX.sym("x", 4)
+    fun = ca.Function("a_e", [x], [ca.vertcat(*classical_from_polar(x)[:2])])
+    a, e = np.array(fun.map(xs.shape[1])(xs[:4]))
+    return a, e
+
+
+def run_grid(values, years, samples=None):
+    """What ``esail-opt propagate`` writes for ranges: every case of the grid flown as
+    Figs. 3-4 fly theirs (:func:`eps_over_swept_angles`: the closed forms in one call).
+
+    Each case is flown to the angle CVODES sweeps in the horizon; its row holds eps of
+    Eq. 27 (percent), the closed form's final osculating a and e, r and its own clock
+    there, and CVODES's a, e and r at the horizon.  A case whose closed form does not
+    hold over its span has null results and its reason in ``invalid``.
+
+    Returns
+    -------
+    dict
+        ``input`` (the axes and years), ``ranged`` (the fields with more than one
+        value), ``columns`` (:data:`GRID_COLUMNS`, one list each, a row per case, the
+        first field varying slowest) and ``invalid`` ({row index: reason}).
+    """
+    cases = grid_cases(values, years)
+    results = eps_over_swept_angles(cases, samples)
+    good = [k for k, r in enumerate(results) if r.error is None]
+    nan = np.full(len(cases), np.nan)
+    closed_a, closed_e, cvodes_a, cvodes_e = (nan.copy() for _ in range(4))
+    closed_r, closed_t, cvodes_r = nan.copy(), nan.copy(), nan.copy()
+    if good:
+        ends = np.column_stack([results[k].closed[:, -1] for k in good])
+        numeric = np.column_stack([results[k].numeric[:, -1] for k in good])
+        closed_a[good], closed_e[good] = _elements(ends)
+        cvodes_a[good], cvodes_e[good] = _elements(numeric)
+        closed_r[good], cvodes_r[good] = ends[0], numeric[0]
+        closed_t[good] = units.time_to_days(ends[4])
+    columns = {field: [getattr(c, field) for c in cases] for field in GRID_FIELDS}
+    columns.update({
+        "years": [years] * len(cases),
+        "swept_deg": [math.degrees(r.span) for r in results],
+        "eps_percent": [100 * r.eps for r in results],
+        "closed_form_a_au": closed_a.tolist(), "closed_form_e": closed_e.tolist(),
+        "closed_form_r_au": closed_r.tolist(), "closed_form_t_days": closed_t.tolist(),
+        "cvodes_a_au": cvodes_a.tolist(), "cvodes_e": cvodes_e.tolist(),
+        "cvodes_r_au": cvodes_r.tolist(),
+    })
+    return {
+        "input": {"axes": {field: [float(v) for v in values[field]] for field in GRID_FIELDS},
+                  "years": years, "samples": samples, "b1": EXACT[0], "b2": EXACT[1]},
+        "ranged": [field for field in GRID_FIELDS if len(values[field]) > 1],
+        "columns": columns,
+        "invalid": {str(k): str(r.error) for k, r in enumerate(results) if r.error},
+        "note": "each case flown to the angle CVODES (tolerance 1e-12) sweeps in the horizon, "
+                "as the paper's Figs. 3-4: eps_percent is Eq. 27 over that angle (100 max "
+                "|r_cvodes - r_closed_form| / r0); closed_form_* at that angle (t_days is its "
+                "own clock), cvodes_* at the horizon; null where the closed form does not hold",
+    }
+
+
+def grid_csv(data):
+    """The grid's table as CSV text: a header of :data:`GRID_COLUMNS`, a row per case."""
+    columns = data["columns"]
+    lines = [",".join(GRID_COLUMNS)]
+    for k in range(len(columns["eps_percent"])):
+        lines.append(",".join("" if columns[c][k] is None or not math.isfinite(columns[c][k])
+                              else repr(float(columns[c][k])) for c in GRID_COLUMNS))
+    return "\n".join(lines) + "\n"
+
+
+def grid_figure(data, plot="eps", ax=None):
+    """A grid's ``plot`` (a key of :data:`PLOT_KEYS`) over its ranged axes.
+
+    One ranged axis gives a line; two or more a map over the first two, at the first
+    value of any others (the title says which).  Cells without a value are grey.
+    """
+    from esail_opt.app.plots import axes_or_new
+
+    column, label = PLOT_KEYS[plot]
+    fig, ax = axes_or_new(ax, figsize=(7, 4.5))
+    axes = data["input"]["axes"]
+    shape = [len(axes[f]) for f in GRID_FIELDS]
+    values = np.array([np.nan if v is None else v for v in data["columns"][column]],
+                      float).reshape(shape)
+    ranged = data["ranged"] or [list(GRID_FIELDS)[-1]]
+    names = list(GRID_FIELDS)
+    # Keep the first two ranged axes whole, every other at its first value.
+    index = tuple(slice(None) if f in ranged[:2] else 0 for f in names)
+    section = values[index]
+    fixed = [f"{f} = {axes[f][0]:g}" for f in names if f not in ranged[:2]]
+    if len(ranged) == 1:
+        ax.plot(axes[ranged[0]], section, "o-")
+        ax.set_xlabel(ranged[0])
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    else:
+        x, y = axes[ranged[0]], axes[ranged[1]]
+        mesh = ax.pcolormesh(x, y, np.ma.masked_invalid(section).T, shading="nearest",
+                             cmap="viridis")
+        ax.set_facecolor("0.85")
+        fig.colorbar(mesh, ax=ax, label=label)
+        ax.set_xlabel(ranged[0])
+        ax.set_ylabel(ranged[1])
+    ax.set_title(f"{data['input']['years']:g} years, " + ", ".join(fixed), fontsize=8)
+    return fig

@@ -15,6 +15,11 @@ AC_MM_S2, ALPHA_DEG, YEARS, ARCS = 0.1, 45.0, 10.0, 20
 RACE_ARCS = (20, 40, 80, 160, 320)
 RACE_TOLERANCES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10, 1e-12)
 RACE_ERRORS_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
+#: The batch: pitch (deg) and a_c (mm/s^2) grids as (start, stop, count), 41 x 25 =
+#: 1,025 cases of the ten years at ARCS arcs, and the cases CVODES is timed on (evenly
+#: spread over the grid; its time per case is scaled to all cases).
+BATCH_GRID = {"alpha_deg": (-40.0, 80.0, 41), "ac_mm_s2": (0.05, 0.2, 25)}
+BATCH_CVODES_CASES = 100
 
 
 def _functions():
@@ -181,6 +186,113 @@ def race(repeats):
             "reference_tolerance": VERIFY_TOLERANCE, "reference_final_state": truth[:5].tolist()}
 
 
+def _batch_cases(grid):
+    """The batch's pitch (rad) and a_c (canonical) per case, pitch varying slowest."""
+    import numpy as np
+
+    from esail_opt.physics import constants as units
+
+    alpha, ac = np.meshgrid(np.radians(np.linspace(*grid["alpha_deg"])),
+                            units.accel_from_mm_s2(np.linspace(*grid["ac_mm_s2"])),
+                            indexing="ij")
+    return alpha.ravel(), ac.ravel()
+
+
+def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
+    """Many cases of the ten years at ARCS arcs: the closed form in one call against CVODES
+    per case.
+
+    The cases are the case above with pitch and a_c on ``grid`` (default
+    :data:`BATCH_GRID`).  The closed form is the race's (second-order arcs on the exact
+    angular momentum, in time), all cases in one compiled mapped call
+    (``propagation.batch.batch_function(..., native=True)``; its compile, once per
+    process, is reported apart as ``compile_seconds``; ``native`` False keeps it on
+    CasADi's virtual machine).  Each case's final error is the
+    distance of its final position from CVODES at ``simulate.VERIFY_TOLERANCE``, as the
+    race measures it; ``median_final_error_km`` is their median over all cases.
+
+    CVODES flies ``cvodes_cases`` of the cases (evenly spread) at each of the race's
+    tolerances, per case (one schedule call each), and again as one mapped call over
+    those cases; the faster of the two counts at each tolerance.  Its seconds per case
+    times the number of cases are ``cvodes_seconds_tight`` (at 1e-12) and
+    ``cvodes_seconds_equal_error``: the time at which its curve of (seconds, median
+    final error over the timed cases) reaches the closed form's median final error over
+    the same cases, read as the race reads its curves (``precision.seconds_at_miss``).
+
+    Returns
+    -------
+    dict
+        The ``batch`` block: ``cases``, ``arcs``, ``closed_form_seconds``,
+        ``cvodes_seconds_equal_error``, ``cvodes_seconds_tight``, ``ratio_equal_error``,
+        ``ratio_tight``, ``median_final_error_km``, and what they were read from
+        (``cvodes_cases_timed``, ``cvodes_points``, ``compile_seconds``, the grid, ...).
+    """
+    import time
+
+    import numpy as np
+
+    from esail_opt.bench.precision import seconds_at_miss
+    from esail_opt.propagation.batch import batch_function
+    from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
+
+    grid = BATCH_GRID if grid is None else grid
+    alphas, acs = _batch_cases(grid)
+    cases = alphas.size
+    x0, _, _, lengths = _schedule(ARCS)
+    rows = np.ones((1, ARCS))
+    per_case = [(x0, ac * rows, alpha * rows, lengths) for alpha, ac in zip(alphas, acs)]
+    stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
+               np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
+    start = time.perf_counter()
+    closed = batch_function(ARCS, cases, 1, "time", invariant=True, order=2, native=native)
+    compile_seconds = time.perf_counter() - start
+    closed_seconds = median_seconds(lambda: closed(*stacked), repeats)
+    xs, q3 = (np.array(v) for v in closed(*stacked))
+    finals = xs[:, ARCS - 1::ARCS]
+    truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE).map(cases)(
+        *stacked))[:, ARCS - 1::ARCS]
+    errors = np.array([_position_km(finals[:, m], truth[:, m]) for m in range(cases)])
+
+    timed = np.unique(np.linspace(0, cases - 1, min(cvodes_cases, cases)).round().astype(int))
+    points = []
+    for tol in RACE_TOLERANCES:
+        fun = schedule_function(ARCS, 1, "time", tol=tol)
+        loop = median_seconds(lambda f=fun: [f(*per_case[m]) for m in timed], repeats)
+        mapped_args = (stacked[0][:, timed],
+                       *(np.concatenate([a[:, m * ARCS:(m + 1) * ARCS] for m in timed], axis=1)
+                         for a in stacked[1:]))
+        mapped = fun.map(timed.size)
+        together = median_seconds(lambda f=mapped: f(*mapped_args), repeats)
+        ends = np.array(mapped(*mapped_args))[:, ARCS - 1::ARCS]
+        miss = [_position_km(ends[:, k], truth[:, m]) for k, m in enumerate(timed)]
+        points.append({"tolerance": tol, "seconds_per_case": min(loop, together) / timed.size,
+                       "per_case_calls_seconds": loop, "mapped_call_seconds": together,
+                       "median_final_error_km": float(np.median(miss))})
+    target = float(np.median(errors[timed]))
+    equal = seconds_at_miss([(p["seconds_per_case"], p["median_final_error_km"])
+                             for p in points], target)
+    tight = next(p["seconds_per_case"] for p in points if p["tolerance"] == 1e-12)
+    equal_total = None if equal is None else equal * cases
+    return {
+        "cases": int(cases), "arcs": ARCS, "closed_form_seconds": closed_seconds,
+        "cvodes_seconds_equal_error": equal_total, "cvodes_seconds_tight": tight * cases,
+        "ratio_equal_error": None if equal is None else equal_total / closed_seconds,
+        "ratio_tight": tight * cases / closed_seconds,
+        "median_final_error_km": float(np.median(errors)),
+        "max_final_error_km": float(np.max(errors)),
+        "median_final_error_km_timed_cases": target,
+        "smallest_q3": float(np.min(q3)),
+        "cvodes_cases_timed": int(timed.size),
+        "cvodes_points": points,
+        "compile_seconds": compile_seconds, "compiled": native,
+        "grid": {key: list(value) for key, value in grid.items()},
+        "note": "closed form: every case in one compiled mapped call (median of repeats); "
+                "CVODES: seconds per case on cvodes_cases_timed evenly spread cases, the "
+                "faster of per-case calls and one mapped call, times cases; final error: "
+                "distance of the final position from CVODES at the reference tolerance",
+    }
+
+
 def race_figure(curves):
     """The race as a log-log work-precision diagram, on a new Figure."""
     from esail_opt.bench.precision import draw_precision
@@ -226,7 +338,22 @@ def _print(data, repeats):
                 ])
 
 
-def run(out, repeats):
+def _print_batch(block):
+    rows = [("closed form, all cases in one call", block["closed_form_seconds"], "s"),
+            ("CVODES per case at equal final error, scaled to all cases",
+             block["cvodes_seconds_equal_error"], "s"),
+            ("CVODES per case at 1e-12, scaled to all cases", block["cvodes_seconds_tight"], "s"),
+            ("ratio at equal error", block["ratio_equal_error"], ""),
+            ("ratio against 1e-12", block["ratio_tight"], ""),
+            ("median final position error of the closed form", block["median_final_error_km"],
+             "km")]
+    print_table(f"bench propagate: batch of {block['cases']} cases, {block['arcs']} arcs, "
+                f"CVODES timed on {block['cvodes_cases_timed']}",
+                [(label, "never" if v is None else float(v), "" if v is None else unit)
+                 for label, v, unit in rows])
+
+
+def run(out, repeats, grid=None):
     """The 10-year orbit raising three ways, timed in one run; writes ``propagate.json``.
 
     * the rectified closed form: 20 arcs of six months on its own clock, one CasADi
@@ -242,8 +369,8 @@ def run(out, repeats):
     between final positions against CVODES after 10 years (the closed form with 20 arcs
     runs about 11 deg ahead in theta; that dominates its km error), with the radial and
     angular parts beside it.  Then :func:`race` times the ten years at several arc
-    counts and tolerances (``race`` in the JSON, ``propagate.png``).  Returns the path
-    written.
+    counts and tolerances (``race`` in the JSON, ``propagate.png``), and :func:`batch`
+    flies many cases at once (``batch``; ``grid`` as there).  Returns the path written.
     """
     import numpy as np
 
@@ -273,8 +400,10 @@ def run(out, repeats):
                     "between final positions; race: call time against final error, see "
                     "bench.propagate.race")
     data["race"] = race(repeats)
+    data["batch"] = batch(repeats, grid)
     _print(data, repeats)
     _print_race(data["race"])
+    _print_batch(data["batch"])
     path = Path(out) / "propagate.json"
     save_figure(race_figure(data["race"]), Path(out) / "propagate.png")
     write_json(path, json_ready(data))

@@ -80,6 +80,26 @@ def native_panel(coefficients=EXACT, nodes=NODES, order=1):
     return None if fast is piece else fast
 
 
+@functools.lru_cache(maxsize=None)
+def angles_function(samples, coefficients=EXACT, nodes=NODES):
+    """One first-order arc sampled at angles the caller gives.
+
+    ``(x0[5], ac, alpha, phis[1 x (samples + 1)]) -> (states[4 x samples],
+    elapsed[1 x samples], q3[1 x samples])``: the panels run from ``phis[k]`` to
+    ``phis[k + 1]`` (angles from the arc's start, rad), ``elapsed`` is the time from
+    ``phis[0]`` to each panel's end and ``q3`` the validity margin there.  It is the
+    sampling :func:`arc_function` does with equal steps; here the steps are free, so that
+    arcs of different sample counts can share one mapped call (pad a shorter arc with
+    repeats of its last angle: an empty panel adds no time and keeps the state).
+    """
+    x0 = ca.MX.sym("x0", 5)
+    ac, alpha, phis = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("phis", 1, samples + 1)
+    piece = panel_function(coefficients, nodes).map(samples)
+    states, dts, q3s = piece(x0, ac, alpha, phis[:, :-1], phis[:, 1:])
+    return ca.Function("angles", [x0, ac, alpha, phis], [states, ca.cumsum(dts, 1), q3s],
+                       ["x0", "ac", "alpha", "phis"], ["states", "elapsed", "q3"])
+
+
 #: Options of the MX Functions built over compiled panels.  Inlined, an NLP segment is
 #: one flat MX graph of panel calls: on Earth-Mars (60 x 3, Richardson; one run) its
 #: Hessian cost 24 ms against 37 ms through the nested map and mapaccum Functions, and
@@ -122,11 +142,11 @@ def arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, nati
                    if order == 1 else dts)
     else:
         phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
-        piece = piece_function(coefficients, nodes, order).map(samples)
         if order == 1:
-            states, dts, q3s = piece(x0, ac, alpha, phis[:, :-1], phis[:, 1:])
-            elapsed = ca.cumsum(dts, 1)
+            states, elapsed, q3s = angles_function(samples, coefficients, nodes)(
+                x0, ac, alpha, phis)
         else:
+            piece = piece_function(coefficients, nodes, order).map(samples)
             states, elapsed, q3s = piece(x0, ac, alpha, phis[:, 1:])
     times = x0[4] + elapsed
     if invariant:

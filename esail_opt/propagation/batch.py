@@ -1,0 +1,185 @@
+"""Many fixed-attitude cases propagated by the closed form in one mapped call.
+
+A survey (which pitch and a_c reach where, and when) and the paper's Figs. 3-4 are
+grids of propagations that differ only in their numbers.  Each is one case of the
+same ``casadi.Function``, so the grid is that Function's ``map`` over M cases: one
+call from Python, one loop in CasADi, no Python loop over cases.  The single-case
+Functions of :mod:`.rectified` are mapped as they are, so a case of the batch is the
+single-case propagator's answer to rounding (tests check it case by case).
+
+Two shapes are batched:
+
+* a rectified schedule of N segments (:func:`batch_function`, numbers through
+  :func:`propagate_batch`): ``rectified.rectified_function`` mapped;
+* the paper's single first-order arc at angles given per case
+  (:func:`angles_batch_function`, numbers through :func:`arcs_at_angles`), so that arcs
+  of different sample counts (Fig. 4 has hundreds) share one call.
+
+``native`` compiles the mapped Function to C with CasADi's own just-in-time compiler,
+for this process only.  Why not ``propagation.compiled``'s disk cache: it compiles a
+Function together with its Jacobian and Hessian blocks, which the NLP needs; the timed
+second-order arc (about 17,500 SX instructions, Newton's method on its clock inside)
+has a Hessian far too large to compile for a call that is never differentiated.  The
+forward evaluation alone compiles in about 6 s.  Without a compiler, or with
+``ESAIL_OPT_COMPILE=0``, the Function stays on CasADi's virtual machine.
+"""
+
+import functools
+import logging
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.physics.thrust import EXACT
+from esail_opt.propagation import compiled
+from esail_opt.propagation.rectified import NODES, angles_function, rectified_function
+
+log = logging.getLogger("esail_opt")
+
+#: Flags of the just-in-time compile.  -O2 and -O3 -march=native ran the 1,000-case
+#: batch of the 10-year raising no faster than -O1 (0.31 s each) and compiled slower.
+JIT_FLAGS = ("-O1",)
+
+
+def _native(fun):
+    """``fun`` compiled to C in this process, or ``fun`` itself on the virtual machine
+    (compiling off, or the compile failed: one warning)."""
+    if not compiled.enabled():
+        return fun
+    symbols = [ca.MX.sym(fun.name_in(k), fun.sparsity_in(k)) for k in range(fun.n_in())]
+    try:
+        return ca.Function(f"{fun.name()}_jit", symbols, fun(*symbols), fun.name_in(),
+                           fun.name_out(), {"jit": True, "compiler": "shell",
+                                            "jit_options": {"flags": list(JIT_FLAGS),
+                                                            "verbose": False}})
+    except RuntimeError as err:
+        log.warning("esail-opt: compiling the batch %s failed (%s); it stays on CasADi's "
+                    "virtual machine", fun.name(), str(err).strip().splitlines()[-1])
+        return fun
+
+
+@functools.lru_cache(maxsize=None)
+def batch_function(segments, cases, samples=1, length_in="theta", coefficients=EXACT,
+                   nodes=NODES, invariant=False, order=1, native=False):
+    """``rectified.rectified_function`` (same arguments) mapped over ``cases``.
+
+    ``(x0[5 x M], ac[1 x M N], alpha[1 x M N], length[1 x M N]) ->
+    (xs[5 x M N samples], q3[1 x M N])``: case m's columns are the m-th block of each
+    (its N segments, its N samples-per-segment states).  With ``native`` the whole
+    map is compiled to C (see the module's docstring).
+    """
+    single = rectified_function(segments, samples, length_in, coefficients, nodes,
+                                invariant, order=order)
+    mapped = single.map(cases)
+    return _native(mapped) if native else mapped
+
+
+def _rows(values, cases, width, name):
+    """``values`` as a float array of shape (cases, width): a scalar or a (width,) row is
+    repeated for every case."""
+    values = np.asarray(values, float)
+    if values.ndim == 2 and values.shape[0] == 1:
+        values = values[0]
+    if values.ndim <= 1 and values.size in (1, width):
+        return np.broadcast_to(values.reshape(1, -1), (cases, width)).astype(float)
+    if values.shape != (cases, width):
+        raise ValueError(f"{name} has shape {values.shape}, expected ({cases}, {width})")
+    return values
+
+
+def propagate_batch(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="theta",
+                    coefficients=EXACT, nodes=NODES, invariant=False, order=1, native=False):
+    """:func:`rectified.propagate` for M cases in one call.
+
+    Parameters
+    ----------
+    x0 : array_like, shape (4,) or (M, 4)
+        Polar start states [r, theta, v_r, v_theta], canonical units; one for all cases,
+        or one per case.
+    alphas, lengths : array_like, shape (M, N)
+        Pitch (rad) and length (angle or duration, as ``length_in``) of each case's
+        segments; a (N,) row serves every case.
+    ac : float or array_like, shape (M,)
+        Characteristic acceleration per case, canonical units.
+    throttles : array_like, shape (M, N) or (N,), optional
+        Factor on ac per segment, default 1.
+    samples, length_in, coefficients, nodes, invariant, order
+        As :func:`rectified.propagate`.
+    native : bool
+        Compile the mapped Function to C (see the module's docstring).
+
+    Returns
+    -------
+    xs : numpy.ndarray, shape (M, 5, N * samples + 1)
+        Each case's [r, theta, v_r, v_theta, t] at its start and at every sample.
+    q3 : numpy.ndarray, shape (M, N)
+        Validity margins at each segment's end.
+    """
+    starts = np.atleast_2d(np.asarray(x0, float))
+    n = np.shape(np.atleast_2d(alphas))[1]
+    cases = max(starts.shape[0], np.shape(np.atleast_2d(alphas))[0],
+                np.shape(np.atleast_2d(lengths))[0], np.size(ac))
+    alphas = _rows(alphas, cases, n, "alphas")
+    lengths = _rows(lengths, cases, n, "lengths")
+    kappa = _rows(1.0 if throttles is None else throttles, cases, n, "throttles")
+    acs = np.broadcast_to(np.asarray(ac, float).reshape(-1, 1), (cases, 1))
+    starts = np.column_stack([_rows(starts, cases, 4, "x0"), np.zeros(cases)])
+    fun = batch_function(n, cases, samples, length_in, coefficients, nodes, invariant,
+                         order, native)
+    xs, q3 = fun(starts.T, (acs * kappa).reshape(1, -1), alphas.reshape(1, -1),
+                 lengths.reshape(1, -1))
+    xs = np.array(xs).reshape(5, cases, n * samples).transpose(1, 0, 2)
+    return np.concatenate([starts[:, :, None], xs], axis=2), np.array(q3).reshape(cases, n)
+
+
+@functools.lru_cache(maxsize=None)
+def angles_batch_function(samples, cases, coefficients=EXACT, nodes=NODES, native=False):
+    """``rectified.angles_function`` mapped over ``cases``: ``(x0[5 x M], ac[1 x M],
+    alpha[1 x M], phis[1 x M (samples + 1)]) -> (states[4 x M samples],
+    elapsed[1 x M samples], q3[1 x M samples])``."""
+    mapped = angles_function(samples, coefficients, nodes).map(cases)
+    return _native(mapped) if native else mapped
+
+
+def arcs_at_angles(x0, ac, alphas, angles, coefficients=EXACT, nodes=NODES, native=False):
+    """The paper's single first-order arc of M cases at angles given per case, one call.
+
+    Parameters
+    ----------
+    x0 : array_like, shape (M, 4)
+        Start states [r, theta, v_r, v_theta], canonical units.
+    ac, alphas : array_like, shape (M,)
+        Characteristic acceleration (canonical) and pitch (rad) per case.
+    angles : sequence of array_like
+        Case m's sample angles from its start (rad), increasing from 0; the cases may
+        have different counts.
+    coefficients, nodes, native
+        The thrust model, the time quadrature's Gauss-Legendre points per panel, and
+        whether to compile (:func:`batch_function`).
+
+    Returns
+    -------
+    list of (numpy.ndarray, numpy.ndarray)
+        Per case, its states [r, theta, v_r, v_theta, t] at its angles (shape
+        (5, len(angles[m])), the start first, t from 0 on the closed form's clock) and
+        q3 at each angle after the start.
+    """
+    starts = np.asarray(x0, float).reshape(-1, 4)
+    cases = starts.shape[0]
+    counts = [len(a) for a in angles]
+    width = max(counts)
+    # Shorter arcs are padded with their last angle: empty panels (see angles_function).
+    phis = np.array([np.r_[a, np.full(width - len(a), a[-1])] for a in angles], float)
+    fun = angles_batch_function(width - 1, cases, coefficients, nodes, native)
+    x5 = np.column_stack([starts, np.zeros(cases)])
+    states, elapsed, q3 = fun(x5.T, np.broadcast_to(np.asarray(ac, float), (cases,))[None, :],
+                              np.broadcast_to(np.asarray(alphas, float), (cases,))[None, :],
+                              phis.reshape(1, -1))
+    states = np.array(states).reshape(4, cases, width - 1)
+    elapsed = np.array(elapsed).reshape(cases, width - 1)
+    q3 = np.array(q3).reshape(cases, width - 1)
+    out = []
+    for m, count in enumerate(counts):
+        xs = np.vstack([states[:, m, : count - 1], elapsed[m, : count - 1]])
+        out.append((np.column_stack([x5[m], xs]), q3[m, : count - 1]))
+    return out
