@@ -560,9 +560,11 @@ def main(argv=None):
 
     matplotlib.use("Agg")
     _show_library_log()
-    previous = None
     import threading
 
+    from esail_opt.app.parallel import ClusterLost
+
+    previous = None
     if (threading.current_thread() is threading.main_thread()
             and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL):
         # kill, systemd and batch schedulers send SIGTERM: clean up as for Ctrl-C.

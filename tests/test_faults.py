@@ -1,0 +1,570 @@
+"""Faults that heal or say what to do: a damaged compile cache, SIGTERM, a lost Dask
+cluster, outputs that cannot be written or are killed while written, a torn journal and
+a problem file that exits.
+
+Each test drives the command line (or the one function at fault) the way the fault
+happens in use: a library cut short on disk, a signal from outside, a scheduler process
+killed, a path under a regular file, a SIGKILL at a random moment of a write.
+"""
+
+import errno
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from esail_opt.app import cli, files, sweep
+from esail_opt.errors import InputError, OutputError
+
+from conftest import PROBLEMS, REPO
+
+TINY = '''
+import esail_opt as eo
+
+problem = eo.Problem(
+    name={name!r},
+    departure=eo.ParkingOrbit(a_au=1.0),
+    sail=eo.Sail(ac_mm_s2=1.0),
+    segments=eo.Segments(count=6, sub_arcs=1),
+    objective=eo.MinTime(),
+    target=eo.CircularOrbit(radius_au=1.524),
+    tolerance=eo.Tolerance(position_km=1e8, velocity_m_s=1e5),
+)
+'''
+
+
+def _env(**extra):
+    env = dict(os.environ, PYTHONPATH=str(REPO), **extra)
+    return env
+
+
+def _cli(*args, env=None, **kw):
+    return subprocess.run([sys.executable, "-m", "esail_opt.app.cli", *map(str, args)],
+                          capture_output=True, text=True, env=env or _env(), timeout=600,
+                          **kw)
+
+
+def _messages(stderr):
+    """stderr's lines without the progress lines (which end in ' ...')."""
+    return [ln for ln in stderr.splitlines() if ln.strip() and not ln.endswith(" ...")]
+
+
+# ---------------------------------------------------------------- 1. compile cache
+
+
+@pytest.mark.slow
+def test_a_truncated_cached_library_is_rebuilt_with_one_line(tmp_path):
+    """A cached library cut to half its size (a full disk, a copy cut off) is never
+    loaded: the next process says so in one line, compiles it again, and its compiled
+    arc gives the virtual machine's numbers."""
+    cache = tmp_path / "cache"
+    child = textwrap.dedent(f"""
+        import logging, os
+        import numpy as np
+        os.environ["ESAIL_OPT_CACHE"] = {str(cache)!r}
+        logging.basicConfig(level=logging.INFO, format="%(message)s")
+        from esail_opt.propagation.compiled import compiled
+        from esail_opt.propagation.rectified import panel_function
+        panel = panel_function()
+        fast = compiled(panel)
+        point = [np.array([1.1, 0.3, 0.05, 0.98, 2.0]), 0.17, 0.7, 0.2, 0.9]
+        a = np.array(fast(*point)).ravel()
+        b = np.array(panel(*point)).ravel()
+        print(fast.class_name(), float(np.max(np.abs(a - b))))
+    """)
+    env = {k: v for k, v in _env().items() if k != "ESAIL_OPT_COMPILE"}
+    first = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True,
+                           env=env, timeout=600)
+    assert first.returncode == 0, first.stderr[-2000:]
+    (library,) = cache.glob("*.so")
+    size = library.stat().st_size
+    with open(library, "r+b") as handle:
+        handle.truncate(size // 2)
+    second = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True,
+                            env=env, timeout=600)
+    assert second.returncode == 0, second.stderr[-2000:]  # not -SIGBUS (exit 135)
+    kind, difference = second.stdout.split()
+    assert kind == "External" and float(difference) < 1e-12
+    damaged = [ln for ln in second.stderr.splitlines() if "damaged" in ln]
+    assert len(damaged) == 1 and "checksum does not match" in damaged[0]
+    assert library.stat().st_size == size
+    assert not list(cache.glob(".build-*"))
+
+
+def test_an_unwritable_cache_is_one_plain_line_and_the_vm(tmp_path, monkeypatch, caplog):
+    """A cache folder under a regular file cannot be created: one line naming the
+    cache and what to do, the Function stays on the virtual machine."""
+    import logging
+
+    from esail_opt.propagation import compiled as cc
+    from esail_opt.propagation.rectified import panel_function
+
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(blocker / "cache"))
+    monkeypatch.delenv("ESAIL_OPT_COMPILE", raising=False)
+    monkeypatch.setattr(cc, "_loaded", {})
+    panel = panel_function()
+    with caplog.at_level(logging.INFO, logger="esail_opt"):
+        assert cc.compiled(panel) is panel
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 1
+    assert "cannot compile into the cache" in lines[0] and "ESAIL_OPT_CACHE" in lines[0]
+    assert "\n" not in lines[0]
+
+
+def test_a_cache_without_space_is_not_tried_again(tmp_path, monkeypatch, caplog):
+    """After a compile ran out of space the marker keeps later processes from
+    compiling again while the disk stays as full; one line says why."""
+    import logging
+
+    from esail_opt.propagation import compiled as cc
+    from esail_opt.propagation.rectified import panel_function
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(cache))
+    monkeypatch.delenv("ESAIL_OPT_COMPILE", raising=False)
+    monkeypatch.setattr(cc, "_loaded", {})
+    builds = []
+
+    def full_disk(fun, compiler, target, links=()):
+        builds.append(target)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(cc, "_build", full_disk)
+    panel = panel_function()
+    with caplog.at_level(logging.INFO, logger="esail_opt"):
+        assert cc.compiled(panel) is panel
+        monkeypatch.setattr(cc, "_loaded", {})  # a later process
+        assert cc.compiled(panel) is panel
+    assert len(builds) == 1
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 2
+    assert "its disk is full" in warnings[0]
+    assert "ran out of space" in warnings[1] and "not been freed" in warnings[1]
+
+
+# ---------------------------------------------------------------- 2. SIGTERM
+
+EVERY_ITERATION = ("import sys; from esail_opt.optimisation import ipopt; "
+                   "ipopt.PROGRESS_SECONDS = 0.0; from esail_opt.app.cli import main; "
+                   "sys.exit(main(sys.argv[1:]))")
+
+
+def test_sigterm_stops_a_solve_with_143_and_leaves_the_old_set(tmp_path):
+    """SIGTERM while Ipopt iterates: exit 143 with one line, the folder still holding
+    the previous run's set untouched, no staging folder or temporary file anywhere."""
+    out = tmp_path / "out"
+    out.mkdir()
+    old = {"solution.json": '{"old": true}\n', "timeline.png": "old png"}
+    for name, text in old.items():
+        (out / name).write_text(text)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", EVERY_ITERATION, "solve",
+         str(PROBLEMS / "earth_mars_min_time.py"), "--out", str(out)],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+        env=_env(ESAIL_OPT_COMPILE="0"))
+    iterating = False
+    try:
+        for line in proc.stderr:
+            if "Ipopt iteration" in line:
+                iterating = True
+                break
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(timeout=30)
+        rest = proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert iterating
+    assert code == 143
+    lines = _messages(rest)
+    assert lines == ["esail-opt solve: stopped by SIGTERM; nothing half-done was written"]
+    assert {p.name: p.read_text() for p in out.iterdir()} == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def _children(pid):
+    """Pids of every live descendant of ``pid``, from /proc."""
+    parents = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+                parents[int(entry.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {p for p, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return found
+
+
+def _alive(pid):
+    """Running and not a zombie."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def _wait_for_workers(proc, count, deadline):
+    while time.monotonic() < deadline and proc.poll() is None:
+        workers = [p for p in _children(proc.pid)
+                   if b"spawn_main" in Path(f"/proc/{p}/cmdline").read_bytes()]
+        if len(workers) >= count:
+            return workers
+        time.sleep(0.1)
+    return []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGKILL])
+def test_a_pool_sweeps_workers_never_outlive_it(tmp_path, signum):
+    """SIGTERM to a process-pool sweep: exit 143, one line, every worker gone.  SIGKILL
+    (no clean-up at all): the workers end by themselves within seconds."""
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "esail_opt.app.cli", "sweep", str(problem), "--param",
+         "segments=6:60:8", "--workers", "2", "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        env=_env(ESAIL_OPT_COMPILE="0"))
+    try:
+        workers = _wait_for_workers(proc, 2, time.monotonic() + 120)
+        assert workers, "the pool never started two workers"
+        time.sleep(1.0)  # the workers are solving
+        proc.send_signal(signum)
+        proc.wait(timeout=30)
+        stderr = proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and any(_alive(p) for p in workers):
+        time.sleep(0.2)
+    assert not [p for p in workers if _alive(p)], "a worker outlived the sweep"
+    if signum == signal.SIGTERM:
+        assert proc.returncode == 143
+        assert _messages(stderr)[-1] == ("esail-opt sweep: stopped by SIGTERM; nothing "
+                                         "half-done was written")
+        assert not (out / "sweep.csv").exists()
+    else:
+        assert proc.returncode == -signal.SIGKILL
+
+
+# ---------------------------------------------------------------- 3. Dask
+
+
+def _free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_an_unreachable_scheduler_is_one_line_within_seconds(tmp_path):
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    start = time.monotonic()
+    run = _cli("sweep", problem, "--param", "ac_mm_s2=0.5:1:2", "--scheduler",
+               f"tcp://127.0.0.1:{_free_port()}", "--out", tmp_path / "out")
+    elapsed = time.monotonic() - start
+    print(f"unreachable scheduler reported after {elapsed:.1f} s")
+    assert run.returncode == 2
+    lines = _messages(run.stderr)
+    assert len(lines) == 1 and "cannot be reached within 5 s" in lines[0]
+
+
+@pytest.mark.slow
+def test_a_dask_sweep_whose_scheduler_dies_ends_with_one_line(tmp_path):
+    """The scheduler process killed mid-sweep: the sweep ends within 60 s with one line
+    naming the journal, which keeps the finished members; --resume on a new cluster
+    runs only the others."""
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    scheduler = subprocess.Popen([sys.executable, "-c",
+                                  "from distributed.cli.dask_scheduler import main; main()",
+                                  "--host", "127.0.0.1", "--port", str(port),
+                                  "--no-dashboard"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 env=_env())
+    worker = subprocess.Popen([sys.executable, "-c",
+                               "from distributed.cli.dask_worker import main; main()",
+                               address, "--nthreads", "1", "--nworkers", "1",
+                               "--no-dashboard"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              env=_env(ESAIL_OPT_COMPILE="0"))
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    out = tmp_path / "out"
+    try:
+        sweep_proc = subprocess.Popen(
+            [sys.executable, "-m", "esail_opt.app.cli", "sweep", str(problem), "--param",
+             "segments=6:40:6", "--scheduler", address, "--out", str(out)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+            env=_env(ESAIL_OPT_COMPILE="0"))
+        journal = out / sweep.JOURNAL
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and sweep_proc.poll() is None:
+            if journal.exists() and len(journal.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.1)
+        assert sweep_proc.poll() is None, sweep_proc.stderr.read()
+        scheduler.kill()
+        killed = time.monotonic()
+        sweep_proc.wait(timeout=60)
+        ended_after = time.monotonic() - killed
+        stderr = sweep_proc.stderr.read()
+    finally:
+        for p in (scheduler, worker):
+            if p.poll() is None:
+                p.kill()
+        if sweep_proc.poll() is None:
+            sweep_proc.kill()
+    print(f"sweep ended {ended_after:.1f} s after the scheduler was killed")
+    assert sweep_proc.returncode == 1
+    lines = [ln for ln in _messages(stderr) if not ln.startswith("esail-opt sweep: [")]
+    assert len(lines) == 1, stderr
+    assert "lost the Dask scheduler" in lines[0] and "--resume" in lines[0]
+    assert "Traceback" not in stderr
+    kept = [json.loads(ln) for ln in journal.read_text().splitlines()[1:]]
+    assert kept and all(row["converged"] for row in kept)
+    # The rest on a local pool (the same journal resumes on any executor).
+    done = _cli("sweep", problem, "--param", "segments=6:40:6", "--workers", "1", "--out",
+                out, "--resume", env=_env(ESAIL_OPT_COMPILE="0"))
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads((out / "sweep.json").read_text())
+    assert sorted(result["resumed"]) == sorted(row["index"] for row in kept)
+    assert sorted(result["resumed"] + result["solved"]) == list(range(6))
+
+
+# ---------------------------------------------------------------- 4. outputs
+
+
+@pytest.mark.parametrize("name, message", [
+    ("x" * 300, "bytes long"),
+    ("bad\0name", "NUL"),
+    ("..", "is not a folder name"),
+])
+def test_an_unsafe_problem_name_is_refused_before_the_solve(tmp_path, name, message):
+    problem = tmp_path / "p.py"
+    problem.write_text(TINY.format(name=name))
+    run = _cli("solve", problem, cwd=tmp_path)
+    assert run.returncode == 2
+    lines = _messages(run.stderr)
+    assert len(lines) == 1 and message in lines[0] and "problem name" in lines[0], lines
+    assert "Ipopt" not in run.stderr and not (tmp_path / "results").exists()
+
+
+def test_an_out_under_a_regular_file_fails_before_the_solve(tmp_path):
+    """``--out`` under a regular file: exit 3 (not 1, "not verified"), one line, and no
+    solve (no progress line) -- the same for sweep and search."""
+    problem = tmp_path / "p.py"
+    problem.write_text(TINY.format(name="tiny"))
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    for command in (["solve", problem], ["search", problem],
+                    ["sweep", problem, "--param", "ac_mm_s2=0.5:1:2"]):
+        run = _cli(*command, "--out", blocker / "out", env=_env(ESAIL_OPT_COMPILE="0"))
+        assert run.returncode == 3, (command, run.stderr)
+        lines = _messages(run.stderr)
+        assert len(lines) == 1 and "is a file, not a folder" in lines[0], lines
+        assert "Ipopt" not in run.stderr and "[1/2]" not in run.stderr
+    assert blocker.read_text() == "x"
+
+
+def test_a_full_disk_while_writing_keeps_the_old_set(tmp_path, monkeypatch):
+    """ENOSPC from the PNG writer: one-line OutputError, the folder keeps the previous
+    set whole, no staging folder is left; the command line maps it to exit 3."""
+    from matplotlib.figure import Figure
+
+    from esail_opt.app.solution import Solution
+
+    source = next(REPO.glob("results/earth_venus_min_time/solution.json"), None)
+    if source is None:
+        pytest.skip("no shipped solution.json")
+    sol = Solution.load(source)
+    out = tmp_path / "out"
+    sol.write(out)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def no_space(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(Figure, "savefig", no_space)
+    with pytest.raises(OutputError, match="No space left on device") as err:
+        sol.write(out)
+    assert "\n" not in str(err.value) and "free some space" in str(err.value)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+    # The command line: the same fault is one line and exit 3 (a stand-in solve).
+    from esail_opt.app import solution
+
+    monkeypatch.setattr(solution, "solve", lambda problem, **kw: sol)
+    problem = tmp_path / "p.py"
+    problem.write_text(TINY.format(name="tiny"))
+    assert cli.main(["solve", str(problem), "--out", str(out)]) == cli.EXIT_OUTPUT == 3
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    problem.unlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_outputs_follow_the_umask(tmp_path):
+    """Files 0666 and folders 0777 less the umask, as any program's; not 0600."""
+    code = textwrap.dedent(f"""
+        import os
+        os.umask(0o027)
+        from esail_opt.app.files import publish, write_json, atomic_path
+        with publish({str(tmp_path / 'out')!r}) as stage:
+            write_json(stage / "a.json", {{"x": 1}})
+            (stage / "b.csv").write_text("b")
+        with atomic_path({str(tmp_path / 'one.json')!r}) as tmp:
+            tmp.write_text("{{}}")
+    """)
+    subprocess.run([sys.executable, "-c", code], check=True, env=_env())
+    modes = {p.name: p.stat().st_mode & 0o777 for p in
+             [tmp_path / "out", *(tmp_path / "out").iterdir(), tmp_path / "one.json"]}
+    assert modes == {"out": 0o750, "a.json": 0o640, "b.csv": 0o640, "one.json": 0o640}
+
+
+WRITER = textwrap.dedent("""
+    import sys, time
+    from esail_opt.app.files import publish
+    target, run_id = sys.argv[1], sys.argv[2]
+    print("start", flush=True)
+    with publish(target, family=[f"part{i}.txt" for i in range(8)]) as stage:
+        for i in range(8):
+            (stage / f"part{i}.txt").write_text(run_id * 2000)
+            time.sleep(0.05)
+    print("done", flush=True)
+""")
+
+
+def test_a_kill_at_any_moment_of_a_write_never_leaves_a_mixed_folder(tmp_path):
+    """SIGKILL a writer of an 8-file set at random moments, 25 times over one folder:
+    after each, every file in the folder carries one run's id (the previous complete
+    run's, or the killed one's if it had finished), and a user's file stays."""
+    target = tmp_path / "out"
+    rng = random.Random(7)
+    subprocess.run([sys.executable, "-c", WRITER, str(target), "A"], check=True, env=_env())
+    (target / "notes.txt").write_text("mine")
+    complete = "A"
+    finished = 0
+    for k in range(25):
+        run_id = chr(ord("B") + k)
+        proc = subprocess.Popen([sys.executable, "-c", WRITER, str(target), run_id],
+                                stdout=subprocess.PIPE, text=True, env=_env())
+        assert proc.stdout.readline().strip() == "start"
+        # Anywhere from the first file to just after the swap (0.4 s of writing).
+        time.sleep(rng.uniform(0.0, 0.5))
+        proc.kill()
+        out = proc.stdout.read()
+        proc.wait()
+        finished += out.strip() == "done"
+        ids = {(target / f"part{i}.txt").read_text()[:1] for i in range(8)}
+        assert len(ids) == 1, (k, ids)
+        (seen,) = ids
+        assert seen in (complete, run_id)
+        if out.strip() == "done":
+            assert seen == run_id
+        complete = seen
+        assert (target / "notes.txt").read_text() == "mine"
+    print(f"{finished} of 25 writers finished before the kill")
+    assert 0 < finished < 25  # the kills fell both inside and after the writes
+    # The next writer removes the staging folders of the killed ones.
+    subprocess.run([sys.executable, "-c", WRITER, str(target), "Z"], check=True, env=_env())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_check_output_dir_refuses_what_cannot_be_a_set(tmp_path):
+    for bad in (tmp_path / "..", f"{tmp_path}/.", ".", "a\0b", tmp_path / ("n" * 256)):
+        with pytest.raises(InputError):
+            files.check_output_dir(bad)
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(OutputError, match="a file of that name is in the way"):
+        files.check_output_dir(tmp_path / "f")
+    assert files.check_output_dir(tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"
+    assert sorted(p.name for p in (tmp_path / "new").iterdir()) == []
+
+
+# ---------------------------------------------------------------- 5. journal
+
+HEADER = {"journal": "esail-opt sweep", "problem": "p", "source_sha256": "abc",
+          "param": "ac_mm_s2", "values": [0.5, 1.0, 1.5], "polish": False,
+          "tolerance": {"position_km": 1e4, "velocity_m_s": 10.0}}
+
+
+def test_a_torn_journal_line_is_cut_off_before_the_next_row(tmp_path):
+    """A row torn mid-append is ignored and cut off the file, so the next row starts a
+    line of its own and a second resume keeps it."""
+    path = tmp_path / sweep.JOURNAL
+    journal = sweep.Journal(path, HEADER)
+    journal.open(resume=False)
+    journal.append({**sweep._empty_row(0, 0.5), "converged": True})
+    with open(path, "a") as handle:
+        handle.write('{"index": 1, "value": 1.0, "conv')
+    kept = sweep.Journal(path, HEADER).open(resume=True)
+    assert list(kept) == [0]
+    sweep.Journal(path, HEADER).append({**sweep._empty_row(1, 1.0), "converged": True})
+    lines = path.read_text().splitlines()
+    assert len(lines) == 3 and all(json.loads(line) for line in lines)
+    assert sorted(sweep.Journal(path, HEADER).open(resume=True)) == [0, 1]
+
+
+@pytest.mark.parametrize("bad, message", [
+    (b'{"index": 0, garbage\n', "line 2 is not JSON"),
+    (b'{"index": 0, "value": "\xff\xfe"}\n', "line 2 is not UTF-8"),
+])
+def test_an_unreadable_journal_line_is_one_error_naming_file_and_line(tmp_path, bad,
+                                                                      message):
+    path = tmp_path / sweep.JOURNAL
+    path.write_bytes((json.dumps(HEADER) + "\n").encode() + bad)
+    with pytest.raises(InputError) as err:
+        sweep.Journal(path, HEADER).open(resume=True)
+    assert message in str(err.value) and str(path) in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_failed_append_leaves_no_half_line(tmp_path, monkeypatch):
+    path = tmp_path / sweep.JOURNAL
+    journal = sweep.Journal(path, HEADER)
+    journal.open(resume=False)
+    before = path.read_bytes()
+    real = os.write
+
+    def half(fd, data):
+        real(fd, data[: len(data) // 2])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "write", half)
+    with pytest.raises(OutputError, match="No space left"):
+        journal.append({**sweep._empty_row(0, 0.5), "converged": True})
+    monkeypatch.setattr(os, "write", real)
+    assert path.read_bytes() == before
+
+
+# ---------------------------------------------------------------- 6. problem files
+
+
+@pytest.mark.parametrize("call", ["sys.exit(0)", "sys.exit()", "raise SystemExit('bye')"])
+def test_a_problem_file_that_exits_is_an_input_error(tmp_path, call):
+    problem = tmp_path / "exits.py"
+    problem.write_text(f"import sys\n{call}\n")
+    run = _cli("solve", problem, "--out", tmp_path / "out")
+    assert run.returncode == 2
+    lines = _messages(run.stderr)
+    assert len(lines) == 1 and "exits.py: the file called sys.exit(" in lines[0], lines
+    assert not (tmp_path / "out").exists()
