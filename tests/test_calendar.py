@@ -1,0 +1,139 @@
+"""Real missions: departures from and arrivals at bodies on their real orbits, on dates.
+
+The reference states here come from jplephem and DE421 read directly in the test, with
+the ecliptic rotation written out again: nothing of ``esail_opt.bodies`` is used to
+judge ``esail_opt``'s own answers.  The flights are the tests' DOP853 (conftest).
+"""
+
+import dataclasses
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import esail_opt as eo
+from esail_opt.errors import InputError
+from esail_opt.physics import constants as units
+
+from conftest import RESULTS, fly_dop853, position_km, velocity_m_s
+
+OBLIQUITY = math.radians(84381.448 / 3600.0)
+
+
+def ecliptic_polar(name, jd):
+    """Heliocentric polar state in the ecliptic of J2000, canonical units, from DE421."""
+    import de421
+    from jplephem import Ephemeris
+
+    eph = Ephemeris(de421)
+    body = np.ravel(eph.compute(name, jd)) - np.ravel(eph.compute("sun", jd))
+    c, s = math.cos(OBLIQUITY), math.sin(OBLIQUITY)
+    rot = np.array([[1, 0, 0], [0, c, s], [0, -s, c]])
+    pos = rot @ body[:3] / (units.AU / 1e3)
+    vel = rot @ body[3:] / (units.AU / 1e3) * units.TU_DAYS
+    r = math.hypot(pos[0], pos[1])
+    th = math.atan2(pos[1], pos[0])
+    vr = (pos[0] * vel[0] + pos[1] * vel[1]) / r
+    vt = (pos[0] * vel[1] - pos[1] * vel[0]) / r
+    return np.array([r, th, vr, vt])
+
+
+def jd_of(text):
+    """Julian date of an ISO 8601 date-time (TDB), by the calendar formula."""
+    from datetime import datetime
+
+    when = datetime.fromisoformat(text)
+    j2000 = datetime(2000, 1, 1, 12)
+    return 2451545.0 + (when - j2000).total_seconds() / 86400.0
+
+
+MARS_FIXED = eo.Problem(
+    name="mars_fixed_dates",
+    departure=eo.BodyDeparture(body="earth", date="2031-08-24"),
+    sail=eo.Sail(ac_mm_s2=1.0),
+    segments=eo.Segments(count=30, sub_arcs=3, equal=True),
+    objective=eo.MinAcceleration(tof_days=700.0),
+    target=eo.BodyRendezvous(body="mars"),
+)
+
+
+@pytest.mark.slow
+def test_a_mars_rendezvous_at_fixed_dates_flies_to_mars_itself():
+    sol = eo.solve(MARS_FIXED)
+    assert sol.verified, sol["verification_note"]
+    d = sol.data
+    assert d["departure_date"] == "2031-08-24T00:00:00"
+    arrival = jd_of(d["arrival_date"])
+    assert arrival == pytest.approx(jd_of("2031-08-24") + 700.0, abs=1.0 / 86400)
+    # Fly the schedule from the Earth-Moon barycentre's own DE421 state, at the a_c found.
+    x0 = ecliptic_polar("earthmoon", jd_of("2031-08-24"))
+    flown = dataclasses.replace(
+        MARS_FIXED, sail=eo.Sail(ac_mm_s2=d["ac_mm_s2_required"]),
+        departure=eo.PolarState(r_au=x0[0], theta_deg=math.degrees(x0[1]),
+                                vr_km_s=units.speed_to_km_s(x0[2]),
+                                vtheta_km_s=units.speed_to_km_s(x0[3])),
+        objective=eo.MinTime(), target=eo.CircularOrbit(radius_au=1.5))
+    xf, elapsed = fly_dop853(flown, d["schedule"])
+    assert units.time_to_days(elapsed) == pytest.approx(700.0, abs=1e-6)
+    mars = ecliptic_polar("mars", arrival)
+    tol = MARS_FIXED.tolerance
+    assert position_km(xf, mars) <= tol.position_km
+    assert velocity_m_s(xf, mars) <= tol.velocity_m_s
+    # The a_c the sail needs is below the 1 mm/s^2 that reaches Mars in 668 d from here.
+    assert 0 < d["ac_mm_s2_required"] < 1.0
+
+
+@pytest.mark.parametrize("build, field", [
+    (lambda: eo.BodyDeparture(body="pluto", date="2031-01-01"), "departure.body"),
+    (lambda: eo.BodyDeparture(body="earth", date="2131-01-01"), "departure.date"),
+    (lambda: eo.BodyDeparture(body="earth", date="2031-02-30"), "departure.date"),
+    (lambda: eo.BodyDeparture(body="earth", window=("2032-01-01", "2031-01-01")),
+     "departure.window"),
+    (lambda: eo.BodyDeparture(body="earth", date="2031-01-01", vinf_km_s=-1), "vinf_km_s"),
+    (lambda: eo.BodyRendezvous(body="vulcan"), "target.body"),
+    (lambda: eo.BodyIntercept(body="mars", arrival_window=("2033-01-01", "2032-01-01")),
+     "target.arrival_window"),
+])
+def test_bad_calendar_input_names_its_field(build, field):
+    with pytest.raises(InputError, match=field.replace(".", r"\.")):
+        build()
+
+
+def test_a_body_target_needs_a_dated_departure():
+    with pytest.raises(InputError, match="BodyDeparture"):
+        eo.Problem(name="x", departure=eo.ParkingOrbit(a_au=1.0), sail=eo.Sail(ac_mm_s2=1.0),
+                   target=eo.BodyRendezvous(body="mars"))
+
+
+def test_the_command_line_refuses_a_malformed_scan_with_nothing_written(tmp_path):
+    problem = tmp_path / "p.py"
+    problem.write_text("import esail_opt as eo\nproblem = eo.Problem(name='p', departure="
+                       "eo.BodyDeparture(body='earth', date='2031-01-01'), sail=eo.Sail("
+                       "ac_mm_s2=1.0), target=eo.BodyRendezvous(body='mars'))\n")
+    out = tmp_path / "out"
+    for depart in ("2031-01-01:2030-01-01:3", "2031-01-01:2031-13-01:3", "2031-01-01:x:3",
+                   "1950-01-01:1951-01-01:3"):
+        run = subprocess.run([sys.executable, "-m", "esail_opt.app.cli", "porkchop",
+                              str(problem), "--depart", depart, "--out", str(out)],
+                             capture_output=True, text=True)
+        assert run.returncode == 2, run.stderr
+        assert len(run.stderr.strip().splitlines()) == 1
+        assert "Traceback" not in run.stderr
+        assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_version_2_solution_file_still_loads(tmp_path):
+    from esail_opt.app.solution import Solution
+
+    old = json.loads((RESULTS / "earth_mars_min_time" / "solution.json").read_text())
+    old["schema_version"] = 2
+    path = tmp_path / "solution.json"
+    path.write_text(json.dumps(old))
+    assert Solution.load(path).tof_days == old["tof_days"]
+    old["schema_version"] = 1
+    path.write_text(json.dumps(old))
+    with pytest.raises(InputError, match="schema version 1"):
+        Solution.load(path)
