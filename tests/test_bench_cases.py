@@ -18,7 +18,7 @@ from esail_opt.optimisation.problem_file import load_problem
 
 #: Every problem a bench runs, by the name of its function in ``cases``.
 BENCH_PROBLEMS = ("earth_venus_min_time", "earth_mars_min_time", "earth_mars_low_thrust",
-                  "orbit_raising_10yr")
+                  "orbit_raising_10yr", "earth_venus_min_ac")
 
 
 def _differences(a, b, where="problem"):

@@ -137,3 +137,58 @@ def test_a_version_2_solution_file_still_loads(tmp_path):
     path.write_text(json.dumps(old))
     with pytest.raises(InputError, match="schema version 1"):
         Solution.load(path)
+
+
+def _mars_window(start, stop):
+    return eo.Problem(
+        name="mars_window_test",
+        departure=eo.BodyDeparture(body="earth", window=(start, stop)),
+        sail=eo.Sail(ac_mm_s2=1.0),
+        segments=eo.Segments(count=40, sub_arcs=3, equal=False),
+        objective=eo.MinTime(),
+        target=eo.BodyRendezvous(body="mars"),
+    )
+
+
+def _scan(problem, depart, tmp_path):
+    from esail_opt.app import porkchop
+
+    path = tmp_path / "problem.py"
+    start, stop = problem.departure.window
+    path.write_text("import esail_opt as eo\nproblem = eo.Problem(name='mars_window_test', "
+                    f"departure=eo.BodyDeparture(body='earth', window=({start!r}, {stop!r})), "
+                    "sail=eo.Sail(ac_mm_s2=1.0), segments=eo.Segments(count=40, sub_arcs=3, "
+                    "equal=False), objective=eo.MinTime(), target=eo.BodyRendezvous("
+                    "body='mars'))\n")
+    return porkchop.run(path, depart, workers=2)
+
+
+@pytest.mark.slow
+def test_the_best_mars_departures_repeat_at_the_synodic_period(tmp_path):
+    result = _scan(_mars_window("2030-01-01", "2035-06-01"), "2030-01-01:2035-06-01:31",
+                   tmp_path)
+    rows = [r for r in result["rows"] if r["verified"]]
+    assert len(rows) >= 0.9 * result["cells"]
+    jd = np.array([jd_of(r["departure_date"]) for r in rows])
+    tof = np.array([r["tof_days"] for r in rows])
+    first = int(np.argmin(tof))
+    # The best departure a synodic period away, on either side: the best cell between
+    # half and one and a half periods from the first.
+    away = np.abs(jd - jd[first])
+    others = np.flatnonzero((away > 0.5 * 780) & (away < 1.5 * 780))
+    second = others[np.argmin(tof[others])]
+    # Earth-Mars synodic period from Kepler's third law on the two semimajor axes.
+    p_earth, p_mars = 365.25, 365.25 * 1.523679 ** 1.5
+    synodic = 1 / (1 / p_earth - 1 / p_mars)
+    assert abs(away[second] - synodic) <= 0.1 * synodic, (jd[first], jd[second])
+
+
+@pytest.mark.slow
+def test_a_free_departure_date_does_no_worse_than_the_best_date_of_a_scan(tmp_path):
+    problem = _mars_window("2031-05-01", "2031-12-01")
+    scanned = _scan(problem, "2031-05-01:2031-12-01:8", tmp_path)
+    assert scanned["best"] is not None
+    free = eo.solve(problem)
+    assert free.verified, free["verification_note"]
+    assert "2031-05-01" <= free["departure_date"] <= "2031-12-01T00:00:00"
+    assert free.tof_days <= scanned["best"]["tof_days"] * 1.005

@@ -7,6 +7,8 @@ Each is the ``run`` of its own module:
 * ``propagate``, ``solve`` (:mod:`.solve_speed`), ``polish``, ``lowthrust`` and
   ``sweep``: each timed against a baseline measured in the same run (:mod:`.timing`
   holds what they share);
+* ``porkchop``: a launch-window scan as shipped (one NLP, warm starts) against RK4
+  segments with the same reuse and against every cell solved cold;
 * ``precision``: solve time against verified accuracy for the closed form, RK4
   (``propagation.rk4``) and CVODES segments.
 
@@ -14,7 +16,7 @@ Their problems are built in :mod:`.cases`; :mod:`.collocation` is the independen
 collocation solver that ``lowthrust`` times and the tests' reference optima came from.
 """
 
-from esail_opt.bench import lowthrust, polish, precision, propagate, solve_speed, sweep
+from esail_opt.bench import lowthrust, polish, porkchop, precision, propagate, solve_speed, sweep
 
 BENCHES = {
     "propagate": propagate.run,
@@ -23,6 +25,7 @@ BENCHES = {
     "lowthrust": lowthrust.run,
     "sweep": sweep.run,
     "precision": precision.run,
+    "porkchop": porkchop.run,
 }
 
 __all__ = ["BENCHES"]

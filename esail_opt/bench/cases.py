@@ -59,6 +59,21 @@ def orbit_raising_10yr():
     )
 
 
+def earth_venus_min_ac():
+    """Earth to Venus on their real orbits, the smallest a_c for a 650-day rendezvous
+    leaving on 2031-01-01, 24 equal segments x 2 sub-arcs (``problems/earth_venus_min_ac.py``)."""
+    return eo.Problem(
+        name="earth_venus_min_ac",
+        description="Minimum a_c for a rendezvous with Venus (DE421), departing 2031-01-01, "
+                    "650 days, throttle free",
+        departure=eo.BodyDeparture(body="earth", date="2031-01-01"),
+        sail=eo.Sail(ac_mm_s2=1.0),
+        segments=eo.Segments(count=24, sub_arcs=2, equal=True),
+        objective=eo.MinAcceleration(tof_days=650.0),
+        target=eo.BodyRendezvous(body="venus"),
+    )
+
+
 #: The collocation optimum of :func:`earth_mars_low_thrust`'s transfer, the entry
 #: ``earth_mars_low`` of the repository's ``tests/reference/collocation_min_time.json``
 #: (written by ``python -m esail_opt.bench.collocation``; ``runtime_seconds`` is its

@@ -1,0 +1,102 @@
+"""``esail-opt bench porkchop``: a launch-window scan timed three ways in one run.
+
+The scan is the sail designer's porkchop of :func:`cases.earth_venus_min_ac` (minimum
+a_c to meet Venus, 6 departure dates x 4 times of flight = 24 cells), solved
+
+* as ``esail-opt porkchop`` solves it: one closed-form NLP per revolution class, each
+  cell warm from its solved neighbour, error control and verification per cell;
+* the same scan with RK4 segments of Eqs. 1-2 (4 steps a segment, what a generic
+  transcription would fly) and the same reuse, each cell verified;
+* every cell built and solved cold from the problem's own seed, as a script calling
+  ``eo.solve`` once per cell would.
+
+All three run in this process, one after another, on one core's worth of work (no
+pool), so their seconds compare.  Only verified cells count: each method's seconds per
+cell are its wall time over its verified cells.
+"""
+
+import time
+
+from esail_opt.app.files import write_json
+from esail_opt.app.porkchop import Grid, cell_problem
+from esail_opt.bench import cases
+from esail_opt.bench.timing import print_table
+from esail_opt.bodies import dates
+from esail_opt.optimisation import scan
+from esail_opt.propagation.rk4 import rk4_segment
+
+DEPARTURES = ("2031-01-01", "2032-06-01", 6)
+TOFS_DAYS = (550.0, 850.0, 4)
+RK4_STEPS = 4
+
+
+def _grid():
+    import numpy as np
+
+    lo, hi = (dates.jd_from_iso(d) for d in DEPARTURES[:2])
+    return Grid(tuple(np.linspace(lo, hi, DEPARTURES[2])), tuple(np.linspace(*TOFS_DAYS)))
+
+
+def _rows(grid):
+    """The scan's jobs as ``esail-opt porkchop`` makes them: one departure date's row."""
+    problem = cases.earth_venus_min_ac()
+    return [[cell_problem(problem, grid, i) for i in job] for job in grid.jobs(1)]
+
+
+def _scan(rows, segment=None):
+    started = time.perf_counter()
+    cells = [c for row in rows for c in scan.scan(row, segment=segment)]
+    return time.perf_counter() - started, cells
+
+
+def _rebuild(rows):
+    from esail_opt.app.solution import solve
+
+    started = time.perf_counter()
+    verified = [solve(p).verified for row in rows for p in row]
+    return time.perf_counter() - started, verified
+
+
+def run(out, repeats=1):
+    """Time the scan three ways; writes ``porkchop.json`` and returns its path."""
+    from pathlib import Path
+
+    grid = _grid()
+    rows = _rows(grid)
+    n = sum(len(r) for r in rows)
+    print(f"bench porkchop: {n} cells, closed form ...", flush=True)
+    cf_seconds, cf_cells = _scan(rows)
+    print("bench porkchop: RK4 segments ...", flush=True)
+    coeff = rows[0][0].sail.coefficients
+    rk_seconds, rk_cells = _scan(rows, rk4_segment(RK4_STEPS, coeff, "theta"))
+    print("bench porkchop: each cell solved alone ...", flush=True)
+    rb_seconds, rb_verified = _rebuild(rows)
+    counts = {"closed_form": sum(c.verified for c in cf_cells),
+              "rk4": sum(c.verified for c in rk_cells), "rebuild": sum(rb_verified)}
+    seconds = {"closed_form": cf_seconds, "rk4": rk_seconds, "rebuild": rb_seconds}
+    per_cell = {k: (seconds[k] / counts[k] if counts[k] else None) for k in seconds}
+
+    def ratio(a, b):
+        return None if per_cell[a] is None or per_cell[b] is None else per_cell[a] / per_cell[b]
+
+    data = {
+        "case": {"problem": "earth_venus_min_ac", "departures": list(DEPARTURES),
+                 "tofs_days": list(TOFS_DAYS), "rk4_steps": RK4_STEPS},
+        "cells": n,
+        "verified_cells": counts,
+        "seconds": seconds,
+        "seconds_per_cell": per_cell,
+        "ratio_rebuild_over_closed_form": ratio("rebuild", "closed_form"),
+        "ratio_rk4_over_closed_form": ratio("rk4", "closed_form"),
+        "ac_mm_s2_closed_form": [c.result.ac_scale * c.problem.sail.ac_mm_s2
+                                 if c.verified else None for c in cf_cells],
+        "ac_mm_s2_rk4": [c.result.ac_scale * c.problem.sail.ac_mm_s2
+                         if c.verified else None for c in rk_cells],
+    }
+    print_table("bench porkchop (seconds per verified cell)",
+                [(k, v if v is not None else "none verified", "s") for k, v in per_cell.items()]
+                + [("rebuild / closed form", data["ratio_rebuild_over_closed_form"] or "n/a", ""),
+                   ("rk4 / closed form", data["ratio_rk4_over_closed_form"] or "n/a", "")])
+    path = Path(out) / "porkchop.json"
+    write_json(path, data)
+    return path
