@@ -75,9 +75,9 @@ def test_a_truncated_cached_library_is_rebuilt_with_one_line(tmp_path):
         panel = panel_function()
         fast = compiled(panel)
         point = [np.array([1.1, 0.3, 0.05, 0.98, 2.0]), 0.17, 0.7, 0.2, 0.9]
-        a = np.array(fast(*point)).ravel()
-        b = np.array(panel(*point)).ravel()
-        print(fast.class_name(), float(np.max(np.abs(a - b))))
+        worst = max(float(np.max(np.abs(np.array(a) - np.array(b))))
+                    for a, b in zip(fast.call(point), panel.call(point)))
+        print(fast.class_name(), worst)
     """)
     env = {k: v for k, v in _env().items() if k != "ESAIL_OPT_COMPILE"}
     first = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True,
@@ -237,7 +237,7 @@ def test_a_pool_sweeps_workers_never_outlive_it(tmp_path, signum):
     out = tmp_path / "out"
     proc = subprocess.Popen(
         [sys.executable, "-m", "esail_opt.app.cli", "sweep", str(problem), "--param",
-         "segments=6:60:8", "--workers", "2", "--out", str(out)],
+         "segments=6:48:8", "--workers", "2", "--out", str(out)],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         env=_env(ESAIL_OPT_COMPILE="0"))
     try:
@@ -312,7 +312,7 @@ def test_a_dask_sweep_whose_scheduler_dies_ends_with_one_line(tmp_path):
     try:
         sweep_proc = subprocess.Popen(
             [sys.executable, "-m", "esail_opt.app.cli", "sweep", str(problem), "--param",
-             "segments=6:40:6", "--scheduler", address, "--out", str(out)],
+             "segments=6:36:6", "--scheduler", address, "--out", str(out)],
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
             env=_env(ESAIL_OPT_COMPILE="0"))
         journal = out / sweep.JOURNAL
@@ -342,7 +342,7 @@ def test_a_dask_sweep_whose_scheduler_dies_ends_with_one_line(tmp_path):
     kept = [json.loads(ln) for ln in journal.read_text().splitlines()[1:]]
     assert kept and all(row["converged"] for row in kept)
     # The rest on a local pool (the same journal resumes on any executor).
-    done = _cli("sweep", problem, "--param", "segments=6:40:6", "--workers", "1", "--out",
+    done = _cli("sweep", problem, "--param", "segments=6:36:6", "--workers", "1", "--out",
                 out, "--resume", env=_env(ESAIL_OPT_COMPILE="0"))
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads((out / "sweep.json").read_text())

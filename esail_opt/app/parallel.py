@@ -263,8 +263,9 @@ class _Runner:
             for signum in (signal.SIGINT, signal.SIGTERM):
                 previous[signum] = signal.signal(signum, signal.SIG_IGN)
         try:
-            for future in self.active:
-                future.cancel()
+            if self.client is None:
+                for future in self.active:
+                    future.cancel()
             if self.executor is not None and self.client is None:
                 _pool_processes(self.executor, self.processes)
                 _stop_pool(self.executor, self.processes)
@@ -378,7 +379,15 @@ def _quiet_dask():
     """Keep Dask's own log lines (reconnection attempts, tracebacks of a lost
     connection) off the terminal during a run: the run reports the cluster's state in
     one line of its own (:class:`ClusterLost`)."""
-    loggers = [logging.getLogger(name) for name in ("distributed", "tornado", "asyncio")]
+    with contextlib.suppress(ImportError):
+        import distributed.client  # noqa: F401 -- its loggers exist, with their levels, once imported
+    # Each of Dask's loggers by name: its configuration gives the children levels of
+    # their own, which a parent's level would not override.  concurrent.futures logs
+    # the tracebacks of Dask's callbacks on futures cancelled after the client closed.
+    names = [name for name in list(logging.root.manager.loggerDict)
+             if name == "distributed" or name.startswith("distributed.")]
+    loggers = [logging.getLogger(name) for name in
+               (*names, "distributed", "tornado", "asyncio", "concurrent.futures")]
     levels = [logger.level for logger in loggers]
     for logger in loggers:
         logger.setLevel(logging.CRITICAL)
