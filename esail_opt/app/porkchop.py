@@ -39,9 +39,6 @@ CSV_FIELDS = ("index", "departure_date", "tof_days_grid", "converged", "verified
               "target_miss_r_km", "target_miss_v_m_s", "relative_speed_km_s",
               "out_of_plane_km", "iterations", "start", "seconds", "error")
 JOURNAL = "porkchop.jsonl"
-#: Cells per job of a one-dimensional scan: long enough runs for the warm starts to
-#: pay, short enough to spread over the workers.
-BLOCK = 8
 
 
 def parse_dates(text, field="depart"):
@@ -114,14 +111,21 @@ class Grid:
         i, j = divmod(index, len(self.tofs))
         return self.departures[i], self.tofs[j]
 
+    def path(self):
+        """Every cell once, each next to the one before: the dates in order, or in two
+        dimensions row by row with every other row's times of flight reversed."""
+        if self.tofs is None:
+            return list(range(len(self.departures)))
+        m = len(self.tofs)
+        return [i * m + (j if i % 2 == 0 else m - 1 - j)
+                for i in range(len(self.departures)) for j in range(m)]
+
     def jobs(self, workers):
-        """Runs of neighbouring cell indices: blocks of dates, or one row per date."""
-        n = int(np.prod(self.shape))
-        if self.tofs is not None:
-            m = len(self.tofs)
-            return [list(range(i * m, (i + 1) * m)) for i in range(len(self.departures))]
-        size = max(1, min(BLOCK, math.ceil(n / max(1, workers))))
-        return [list(range(i, min(i + size, n))) for i in range(0, n, size)]
+        """The path cut into one run of neighbouring cells per worker: every cell but a
+        run's first starts warm, so fewer, longer runs reuse more."""
+        path = self.path()
+        size = math.ceil(len(path) / max(1, min(workers, len(path))))
+        return [path[i:i + size] for i in range(0, len(path), size)]
 
 
 def cell_problem(problem, grid, index):
@@ -304,6 +308,8 @@ def figure(result):
         x = mdates.date2num(grid_when)
         if np.isfinite(z).sum() >= 4:
             cs = ax.contourf(x, tofs, z, levels=12, cmap="viridis")
+            lines = ax.contour(x, tofs, z, levels=cs.levels[::2], colors="w", linewidths=0.6)
+            ax.clabel(lines, fmt="%.2g", fontsize=7)
             fig.colorbar(cs, ax=ax, label=f"required a_c [{unit}]" if
                          result["objective"] == "MinAcceleration" else label)
         bad = ~ok.reshape(shape).T
@@ -316,7 +322,8 @@ def figure(result):
     if best is not None:
         bx = datetime.fromisoformat(best["departure_date"])
         by = best["objective"] if result["tofs_days"] is None else best["tof_days_grid"]
-        ax.plot([bx], [by], "*", color="gold", mec="k", ms=16, label="best", zorder=5)
+        ax.plot([bx], [by], "*", color="gold", mec="k", ms=16, label="best", zorder=5,
+                clip_on=False)
     ax.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m"))
     fig.autofmt_xdate()
     ax.set_xlabel("departure date (TDB)")

@@ -171,8 +171,13 @@ def scan(cells, progress=None, segment=None):
         if problem.tracks_body():
             # A warm start keeps its neighbour's turn count on the body; the cell's own
             # seed says which count its geometry favours, and that class is solved too.
+            # A run's first cell has no neighbour: the counts either side of its seed's
+            # are solved as well, so that the run does not start in a poorer class.
             own = initial_guess(problem).revolutions_k
-            if own not in {c.result.revolutions_k for c in tried}:
+            if not out:
+                for k in (own - 1, own + 1):
+                    tried.append(solver.cold(problem, _class_seed(problem, k), f"class {k}"))
+            if own not in {c.result.revolutions_k for c in tried if c.result is not None}:
                 tried.append(solver.warm(problem, chains.get(own), f"class {own}")
                              or solver.cold(problem, _class_seed(problem, own), f"class {own}"))
         if not any(c.solved for c in tried):
