@@ -239,7 +239,7 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
         why the member failed, including "not verified: ..." for a converged member
         whose flight missed the tolerance.  With ``polish``: ``tof_days_exact``,
         ``exact_verified`` (the polished schedule flies to within 1 m and 1 mm/s) and
-        ``exact_target_miss_m``; None without.
+        ``exact_target_miss_km``; None without.
     """
     from esail_opt.app import solution
     from esail_opt.optimisation.problem_file import load_problem

@@ -16,8 +16,9 @@ it ``problem``::
 
 Everything here is plain data in au, days, degrees, km/s and mm/s^2; every field is
 range-checked when it is built (``InputError`` names the field and the allowed range),
-so a bad file fails before any NLP is made.  The ``canonical_*`` methods are the one
-place where this layer converts to the package's canonical units.
+so a bad file fails before any NLP is made.  The methods of :class:`Problem` below its
+fields (``x0``, ``fixed_tof``, ``epoch``, ...) are the one place where this layer
+converts to the package's canonical units.
 """
 
 import math

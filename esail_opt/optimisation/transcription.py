@@ -46,12 +46,10 @@ from esail_opt.physics.thrust import EXACT
 #: a_c = 1 mm/s^2 (THEORY.md §5.2: sub-arcs of about a tenth of a radian).
 GUESS_STEP = 0.05
 #: Gauss-Legendre points of each sub-arc's time quadrature of the first-order remainder
-#: (Kepler's equation carries the rest of the clock exactly).  Sub-arcs are short, and
-#: 2 points against 4 left the times of flight of Earth-Venus, Earth-Mars and Earth-Mars at
-#: 0.1 mm/s^2 unchanged to 1e-4 d and their flown misses within 1.3 km (of 3,851, 9,113
-#: and 11,593 km), while each Ipopt iteration cost a third less (solves of 9.2 s against
-#: 14.3 s and 3.3 s against 6.0 s, one run each on a loaded machine).  What is left of the
-#: clock's error the defect correction removes (``optimisation.refine``).
+#: (Kepler's equation carries the rest of the clock exactly).  Sub-arcs are short: 4
+#: points left the shipped optima's times of flight unchanged to 1e-4 d at a third more
+#: per Ipopt iteration, and what is left of the clock's error the defect correction
+#: removes (``optimisation.refine``).
 QUAD_NODES = 2
 #: Guess steps per call of the (cached) rectified propagator.
 GUESS_CHUNK = 200
@@ -68,9 +66,7 @@ def segment_threads():
     """Threads that evaluate the segments and their derivatives (CasADi's threaded map).
 
     Segments are independent of one another given their start nodes, so they split
-    across cores: on Earth-Venus (30 x 3, 2 cores) a solve took 0.57-0.62 s on two
-    threads against 0.79-0.96 s on one, in the same 32 iterations to the same optimum.
-    ``ESAIL_OPT_THREADS`` sets the count (the sweep's workers share the cores this way);
+    across cores, to the same optimum in the same iterations.  ``ESAIL_OPT_THREADS`` sets the count (the sweep's workers share the cores this way);
     the default is the machine's cores, at most 4 (as the sweep counts them).
     """
     text = os.environ.get("ESAIL_OPT_THREADS", "").strip()
@@ -117,19 +113,11 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=
     """One constant-pitch segment of ``sub_arcs`` rectified closed-form arcs.
 
     The arcs are second order in a~_c by default (``closed_form.SecondOrderArc``, one
-    Picard sweep on Eq. 12 over the clock's own quadrature nodes).  Measured on the
-    benchmarks' equal-length NLPs, each flown on CVODES (one run each): Earth-Venus
-    (30 segments) missed by 116 km in 0.046 s with one second-order arc a segment,
-    against 842 km in 0.101 s with the former default (3 first-order sub-arcs,
-    extrapolated); Earth-Mars (60) by 1,470 km in 0.077 s against 2,103 km in 0.163 s;
-    Earth-Mars at 0.1 mm/s^2 (100) by 2.4 km in 0.044 s against 439 km in 0.078 s.  Extrapolating second-order
-    arcs (weights 4/3 and -1/3) gained about what a third sub-arc does at the same cost
-    (Earth-Venus: 6.6 km with one extrapolated sub-arc, 9.9 km with three plain ones),
-    so it is off by default.
-
-    Every arc ends with the exact angular momentum, v_theta = h / r with
-    h = h0 + a_c r_E T t (``rectified.invariant_function``): at the same cost it made
-    the flown misses of the stored optima 2.6 to 25 times smaller.
+    Picard sweep on Eq. 12 over the clock's own quadrature nodes, THEORY.md §3.8): on
+    the benchmarks' NLPs they flew closer to Eqs. 1-2 in less time than the first-order
+    arcs, extrapolated or not.  Extrapolating them gains about what one more sub-arc
+    does at the same cost, so it is off by default.  Every arc ends with the exact
+    angular momentum (``rectified.invariant_function``, THEORY.md §5.3a).
 
     Parameters
     ----------
@@ -141,11 +129,8 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=
         Richardson-extrapolate the segment (its chain of sub-arcs flown as it is and
         with every sub-arc halved, combined at the segment's end as 2 x_halves - x_whole
         for first-order arcs and (4 x_halves - x_whole) / 3 for second-order ones; every
-        segment restarts from its node).  The first-order rectified closed
-        form's error falls only like 1/N with N arcs (THEORY.md §5.2); extrapolation
-        cancels that leading term at three times the arcs.  On Earth-Venus at 1 mm/s^2,
-        30 x 3 extrapolated first-order sub-arcs miss the CVODES flight by 6e3 km, where
-        30 x 12 plain ones miss by 2e5 km (both without the invariant).
+        segment restarts from its node), cancelling the leading error term at three
+        times the arcs (THEORY.md §5.3).
     order : int
         1 for the paper's first-order arcs, 2 for the second-order ones.
     native : bool
@@ -182,13 +167,9 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=
     segment = ca.Function("segment", [x0, ac, alpha, dtheta], [xs[:, -1], q3.T],
                           ["x0", "ac", "alpha", "dtheta"], ["x1", "q3"], {"cse": native})
     if native:
-        # The chain rule between the arcs compiled as well, calling the arcs' library.
-        # On CasADi's virtual machine it was about 40 % of a Hessian of the Lagrangian
-        # and 65 % of a constraint Jacobian (perf samples on Earth-Venus and the 10-year
-        # raising); compiled, nlpsol construction and solve took 0.28 s against 0.44 s
-        # (Earth-Venus) and 0.21 s against 0.28 s (raising; medians of 7 alternated
-        # runs in one process), each to the same optimum in the same iterations.  One
-        # library per sub-arc count and extrapolation setting, 6-12 s of compiling each.
+        # The chain rule between the arcs compiled as well, calling the arcs' library:
+        # on CasADi's virtual machine it was a large part of every Hessian and
+        # constraint Jacobian.  One library per sub-arc count and extrapolation setting.
         segment = compiled.compiled(segment, (piece_function(coefficients, QUAD_NODES,
                                                              order),))
     return segment

@@ -11,19 +11,17 @@ an NLP asks of it through a ``map``: its Jacobian (constraint Jacobian), its fir
 reverse derivative (gradient of the Lagrangian) and that one's Jacobian (Hessian of
 the Lagrangian).  CasADi's ``external`` finds them in the library by the names CasADi
 gives them (``jac_<name>``, ``adj1_<name>``, ``jac_adj1_<name>``), and the segments
-are chained from it in MX as before.  Compiling whole segments instead was measured
-and rejected: a Richardson segment of 3 sub-arcs has a 382,000-instruction Hessian
-block that took gcc 146 s, where the arc's library takes 15-20 s and serves every
-segment count, sub-arc count and extrapolation setting.  On Earth-Venus (30 x 3,
-equal lengths) the compiled arcs solved in 0.82 s against 3.71 s for the expanded SX
-segment, in the same 35 iterations to the same optimum.
+are chained from it in MX as before.  Compiling whole segments instead was rejected:
+a segment's Hessian block is hundreds of thousands of instructions, which gcc takes
+minutes over, where the arc's library is compiled once and serves every segment
+count, sub-arc count and extrapolation setting.
 
 The segment's own MX graph -- the arc calls and the chain rule between them, which on
 the virtual machine was still about 40 % of a Hessian of the Lagrangian and 65 % of a
 constraint Jacobian -- is compiled as well, with the arcs left as calls into their
 library (``compiled(segment, calls=(panel,))``): the segment's library is linked
 against the arc's, so gcc sees a few thousand small matrix operations, not the arcs'
-instructions again, and takes 6-12 s per sub-arc count and extrapolation setting
+instructions again: one library per sub-arc count and extrapolation setting
 (Linux only: the link uses GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).
 
 The cache is a directory of shared libraries named by a hash of the Function's

@@ -351,55 +351,20 @@ def extrapolated_function(segments, length_in="theta", coefficients=EXACT, nodes
 @functools.lru_cache(maxsize=None)
 def invariant_function(segments, length_in="theta", coefficients=EXACT, nodes=NODES,
                        native=False, order=1):
-    """As :func:`extrapolated_function`, with the exact angular momentum imposed on every arc.
+    """Richardson-extrapolated chains (as :func:`extrapolated_function`) whose every arc,
+    whole and half alike, ends on the exact angular momentum.
 
-    Eq. 2 gives h = h0 + a_c r_E T (t - t0) exactly along a constant-pitch arc; the
-    first-order arc keeps it only to first order.  Each arc (whole and half alike)
-    ends with v_theta = h / r, h taken at the arc's quadrature time and r the closed
-    form's; then the whole and half chains are combined as in Richardson.  The cost is
-    the same 3N arcs and about 6 more SX instructions an arc.
-
-    Why v_theta and not q3 = 1/h (which moves r too): both were measured.  On eight
-    stored optima (Earth-Mars and Earth-Venus at 1 mm/s^2, the 2 mm/s^2 coast, the
-    0.1 mm/s^2 transfers, Mercury departure, 10-year raising, 5 au spiral), flown in
-    time over the chain's own durations as ``optimisation.verify`` flies them, the
-    v_theta form was 2.5-100x better than plain Richardson on every one at 1, 2, 3 and
-    6 sub-arcs; the q3 form was worse than plain Richardson on Earth-Venus (11,758
-    against 10,036 km at 3 sub-arcs).  Plain chains with the invariant stay first
-    order and lose to Richardson at equal instructions; only the combination pays.
-
-    Measured at the shipped settings (3 sub-arcs a segment on the NLP's schedule; miss
-    of the final position against CVODES flying the chain's durations; in brackets
-    the miss at the same final theta and the time error):
-
-    ========================  =======================  ======================
-    schedule                  Richardson               this
-    ========================  =======================  ======================
-    Earth-Mars, 1 mm/s^2      34,595 km (6,868 km,     11,997 km (842 km,
-                              +0.0154 d)               +0.0059 d)
-    Earth-Venus, 1 mm/s^2     10,036 km (4,298 km,     3,833 km (724 km,
-                              -0.0033 d)               +0.0012 d)
-    Earth-Mars, 0.1 mm/s^2    134,880 km at 3 sub-     5,463 km at 3 (153 km,
-    (ships with 2 sub-arcs)   arcs; 307,846 at 2       +0.0027 d); 12,998 at 2
-    ========================  =======================  ======================
-
-    The segment's SX instructions (3 sub-arcs, 2 quadrature nodes) are 9,595 against
-    9,539, its Jacobian's 95,187 against 94,939 and a Hessian's 317,787 against
-    316,085: the same cost, while 2 sub-arcs with the invariant (6,412 instructions)
-    already beat 3 without it on all three schedules.  It stays second order: halving
-    the arcs quarters the miss.  On the paper's 10-year raising (20 arcs in time) the
-    final theta error falls from 0.20 to 0.015 rad and the r error from 1.4e-2 to 9e-4 au.
-
-    Where it helps little: the gain is for the near-circular spirals optimal transfers
-    fly.  On a fling to e = 0.88 (1 mm/s^2, pitch swept from 35 to -35 deg over 5 rad)
-    the largest errors along the way fell only 1.2-1.5x in r, v_theta and t, and the
-    one in v_r doubled.
+    Eq. 2 gives h = h0 + a_c r_E T (t - t0) exactly along a constant-pitch arc, which the
+    closed form keeps only approximately; each arc ends with v_theta = h / r, h at the
+    arc's quadrature time and r the closed form's, and then the whole and half chains are
+    combined.  v_theta rather than q3 = 1/h (which would move r too) because the q3 form
+    flew worse than plain Richardson on some stored optima where the v_theta form never
+    did (THEORY.md §5.3a).  The cost is a few SX instructions an arc.
 
     ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) -> (xs[5 x N], q3[1 x N])``, xs at
     the segment ends, q3 the smallest margin of the whole and half arcs.  ``native``
-    flies compiled panels (:func:`arc_function`).  The combined
-    end state carries h only to the product of the two chains' differences, which is
-    second order.
+    flies compiled panels (:func:`arc_function`).  The combined end state carries h only
+    to the product of the two chains' differences, which is second order.
     """
     return _extrapolated(segments, length_in, coefficients, nodes, True, native, order)
 
