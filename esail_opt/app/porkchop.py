@@ -120,6 +120,26 @@ class Grid:
         return [i * m + (j if i % 2 == 0 else m - 1 - j)
                 for i in range(len(self.departures)) for j in range(m)]
 
+    def neighbours(self, indices):
+        """For each cell of a run (flat indices), the positions in the run of the cells
+        beside it on the grid."""
+        where = {index: k for k, index in enumerate(indices)}
+        shape = self.shape
+        out = []
+        for index in indices:
+            at = np.unravel_index(index, shape)
+            near = []
+            for axis in range(len(shape)):
+                for step in (-1, 1):
+                    other = list(at)
+                    other[axis] += step
+                    if 0 <= other[axis] < shape[axis]:
+                        flat = int(np.ravel_multi_index(other, shape))
+                        if flat in where:
+                            near.append(where[flat])
+            out.append(near)
+        return out
+
     def jobs(self, workers):
         """The path cut into one run of neighbouring cells per worker: every cell but a
         run's first starts warm, so fewer, longer runs reuse more."""
@@ -174,7 +194,8 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
             path = Path(tmp) / filename
             path.write_text(source)
             problem = load_problem(path).with_tolerance(tol_km, tol_m_s)
-        cells = scan.scan([cell_problem(problem, grid, i) for i in indices])
+        cells = scan.scan([cell_problem(problem, grid, i) for i in indices],
+                          neighbours=grid.neighbours(indices))
         return [_row(i, grid, c) for i, c in zip(indices, cells)]
     except Exception as err:  # the job's cells all say why
         return [_row(i, grid, error=first_line(err)) for i in indices]

@@ -38,14 +38,16 @@ def _grid():
 
 
 def _rows(grid):
-    """The scan's jobs as ``esail-opt porkchop`` makes them: one departure date's row."""
+    """The scan's runs as ``esail-opt porkchop`` makes them on one worker: one path
+    through the grid, with each cell's grid neighbours."""
     problem = cases.earth_venus_min_ac()
-    return [[cell_problem(problem, grid, i) for i in job] for job in grid.jobs(1)]
+    return [([cell_problem(problem, grid, i) for i in job], grid.neighbours(job))
+            for job in grid.jobs(1)]
 
 
 def _scan(rows, segment=None):
     started = time.perf_counter()
-    cells = [c for row in rows for c in scan.scan(row, segment=segment)]
+    cells = [c for row, near in rows for c in scan.scan(row, segment=segment, neighbours=near)]
     return time.perf_counter() - started, cells
 
 
@@ -53,7 +55,7 @@ def _rebuild(rows):
     from esail_opt.app.solution import solve
 
     started = time.perf_counter()
-    verified = [solve(p).verified for row in rows for p in row]
+    verified = [solve(p).verified for row, _ in rows for p in row]
     return time.perf_counter() - started, verified
 
 
@@ -63,11 +65,11 @@ def run(out, repeats=1):
 
     grid = _grid()
     rows = _rows(grid)
-    n = sum(len(r) for r in rows)
+    n = sum(len(r) for r, _ in rows)
     print(f"bench porkchop: {n} cells, closed form ...", flush=True)
     cf_seconds, cf_cells = _scan(rows)
     print("bench porkchop: RK4 segments ...", flush=True)
-    coeff = rows[0][0].sail.coefficients
+    coeff = rows[0][0][0].sail.coefficients
     rk_seconds, rk_cells = _scan(rows, rk4_segment(RK4_STEPS, coeff, "theta"))
     print("bench porkchop: each cell solved alone ...", flush=True)
     rb_seconds, rb_verified = _rebuild(rows)

@@ -154,57 +154,93 @@ def _class_seed(problem, k):
     return multistart.rendezvous_starts(problem, [k])[0].guess
 
 
-def scan(cells, progress=None, segment=None):
+def scan(cells, progress=None, segment=None, neighbours=None):
     """Solve every cell problem of ``cells`` (a list, in scan order) on one NLP per class.
 
-    ``segment`` replaces the closed-form segment of the NLPs (the benchmark passes RK4
-    arcs of Eqs. 1-2); their cells are then verified without the error control, which
-    corrects the closed form.  Returns the list of :class:`Cell`, in the same order.
+    Parameters
+    ----------
+    cells : list of Problem
+        In the order of a path: each cell neighbours the one before it.
+    progress : callable, optional
+        ``progress(text)``: one line per cell.
+    segment : casadi.Function, optional
+        Replaces the closed-form segment of the NLPs (the benchmark passes RK4 arcs of
+        Eqs. 1-2); their cells are verified without the error control, which corrects
+        the closed form.
+    neighbours : list of list of int, optional
+        For each cell, the positions of its neighbours in ``cells`` (a grid's cells
+        beside it); default the cells before and after it in the path.
+
+    Returns
+    -------
+    list of Cell
+        In the order of ``cells``.
     """
     solver = CellSolver(segment)
     say = progress or (lambda text: None)
+    n = len(cells)
+    if neighbours is None:
+        neighbours = [[j for j in (i - 1, i + 1) if 0 <= j < n] for i in range(n)]
     out = []
+    classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
     for i, problem in enumerate(cells):
-        tried = [c for c in [solver.warm(problem, out[-1] if out else None, "previous")]
-                 if c is not None]
-        if problem.tracks_body():
-            # A warm start keeps its neighbour's turn count on the body; the cell's own
-            # seed says which count its geometry favours, and that class is solved too.
-            # A run's first cell has no neighbour: the counts either side of its seed's
-            # are solved as well, so that the run does not start in a poorer class.
-            own = initial_guess(problem).revolutions_k
-            if not out:
-                for k in (own - 1, own + 1):
-                    tried.append(solver.cold(problem, _class_seed(problem, k), f"class {k}"))
-            if own not in {c.result.revolutions_k for c in tried if c.result is not None}:
-                tried.append(solver.warm(problem, chains.get(own), f"class {own}")
-                             or solver.cold(problem, _class_seed(problem, own), f"class {own}"))
-        if not any(c.solved for c in tried):
-            tried.append(solver.cold(problem))
-        if problem.tracks_body() and not any(c.solved for c in tried):
-            # Neither the neighbour's class nor the seed's: the turn counts either side.
-            own = initial_guess(problem).revolutions_k
-            for k in (own + 1, own - 1):
-                tried.append(solver.warm(problem, chains.get(k), f"class {k}")
-                             or solver.cold(problem, _class_seed(problem, k), f"class {k}"))
-                if tried[-1].solved:
-                    break
+        tried = _first_solves(solver, problem, out[-1] if out else None, chains)
         for c in tried:
             if c.on_scan_nlp is not None:
                 chains[c.on_scan_nlp.revolutions_k] = c
-        best = min(tried, key=_rank)
-        out.append(best)
-        say(_line(i, len(cells), best))
-    # The way back: a cell worse than its next neighbour is tried again from it.
-    for i in range(len(out) - 2, -1, -1):
-        nxt = out[i + 1]
-        if nxt.on_scan_nlp is not None and _rank(nxt) < _rank(out[i]):
-            again = solver.warm(cells[i], nxt, "next")
-            if _rank(again) < _rank(out[i]):
-                out[i] = again
-                say(_line(i, len(cells), again) + " (again, from the next cell)")
+        out.append(min(tried, key=_rank))
+        classes.append({c.result.revolutions_k for c in tried if c.result is not None})
+        say(_line(i, n, out[-1]))
+    # Repair, back along the path and forward again: a cell is solved again from a
+    # neighbour that holds a class it has not tried, or that did better on the same
+    # objective (the same time of flight, for a fixed-time scan).
+    for order in (range(n - 1, -1, -1), range(n)):
+        for i in order:
+            for j in neighbours[i]:
+                other = out[j]
+                if other.on_scan_nlp is None:
+                    continue
+                k = other.on_scan_nlp.revolutions_k
+                if k in classes[i] and not (_comparable(cells[i], cells[j])
+                                            and _rank(other) < _rank(out[i])
+                                            and other.start != f"from {i}"):
+                    continue
+                classes[i].add(k)
+                again = solver.warm(cells[i], other, f"from {j}")
+                if _rank(again) < _rank(out[i]):
+                    out[i] = again
+                    say(_line(i, n, again) + f" (again, from cell {j + 1})")
     return out
+
+
+def _first_solves(solver, problem, previous, chains):
+    """A cell's solves in the forward pass: warm from the previous cell, and for a body
+    target the classes its own seed favours."""
+    tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
+    if problem.tracks_body():
+        # A warm start keeps its neighbour's turn count on the body; the cell's own
+        # seed says which count its geometry favours, and that class is solved too.
+        # A run's first cell has no neighbour: the counts either side of its seed's
+        # are solved as well, so that the run does not start in a poorer class.
+        own = initial_guess(problem).revolutions_k
+        if previous is None:
+            for k in (own - 1, own + 1):
+                tried.append(solver.cold(problem, _class_seed(problem, k), f"class {k}"))
+        if own not in {c.result.revolutions_k for c in tried if c.result is not None}:
+            tried.append(solver.warm(problem, chains.get(own), f"class {own}")
+                         or solver.cold(problem, _class_seed(problem, own), f"class {own}"))
+    if not any(c.solved for c in tried):
+        tried.append(solver.cold(problem))
+    return tried
+
+
+def _comparable(a, b):
+    """Whether two cells' objectives mean the same thing: the same time of flight, or
+    neither fixes one."""
+    ta = a.objective.tof_days if a.objective.fixed_time else None
+    tb = b.objective.tof_days if b.objective.fixed_time else None
+    return ta == tb
 
 
 def _rank(cell):
