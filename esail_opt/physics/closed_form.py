@@ -107,13 +107,15 @@ _SERIES_RADIUS = 0.3
 _SERIES_TERMS = 13
 
 
-def _log1p_over(u, small):
+def _log1p_over(u, small, log1p_u):
     """log(1 + u) / u for |u| < 1, finite with all derivatives at u = 0.
 
-    ``small`` is the (scalar) condition |u| < _SERIES_RADIUS.  There the identity
+    ``small`` is the (scalar) condition |u| < _SERIES_RADIUS, and ``log1p_u`` is
+    log(1 + u) itself, which the callers have already formed: an arc's cost is mostly
+    its complex logarithms.  There the identity
     log(1 + u) = 2 atanh(v), v = u / (2 + u), turns the quotient into
     2/(2 + u) * sum v^(2n)/(2n+1), a rapidly converging polynomial.  Elsewhere the
-    quotient is formed on a copy of u that the series branch replaces by a harmless
+    quotient divides by a copy of u that the series branch replaces by a harmless
     constant, so neither branch ever sees 0/0 (whose derivative would be NaN even
     where it is not selected).
     """
@@ -124,7 +126,7 @@ def _log1p_over(u, small):
         series = series * v2 + 1.0 / (2 * n + 1)
     series = series * (2 / (2 + u))
     u_safe = _Complex(ca.if_else(small, 0.5, u.re), ca.if_else(small, 0.0, u.im))
-    direct = _log1p_right_half(u_safe) / u_safe
+    direct = log1p_u / u_safe
     return _Complex(
         ca.if_else(small, series.re, direct.re), ca.if_else(small, series.im, direct.im)
     )
@@ -146,8 +148,8 @@ class _KeplerIntegrals:
         b = 1 / (1 + self.root)
         self.kappa = _Complex(b * ex, -b * ey)  # u at phi = 0
         self.small = b**2 * self.e2 < _SERIES_RADIUS**2
-        self.lam0 = _log1p_over(self.kappa, self.small)
         self.log0 = _log1p_right_half(self.kappa)
+        self.lam0 = _log1p_over(self.kappa, self.small, self.log0)
         self.w0 = 1 + ex
         self.esin0 = -ey / self.w0  # e sin(f) / w at phi = 0
 
@@ -167,8 +169,9 @@ class _KeplerIntegrals:
     def at(self, phi):
         rot = _expi(phi)
         u = self.kappa * rot
-        dlog = _log1p_right_half(u) - self.log0
-        lam = _log1p_over(u, self.small)
+        log1p_u = _log1p_right_half(u)
+        dlog = log1p_u - self.log0
+        lam = _log1p_over(u, self.small, log1p_u)
         i_a = (
             -_I * (rot * lam - self.lam0) - self.kappa.conj() * (phi - _I * dlog.conj())
         ) / self.root
