@@ -192,7 +192,7 @@ def test_polish_steps_are_the_fewest_whose_defects_are_small():
     start = exact_refinement.exact_guess(problem, result.x_start,
                                          result.as_guess(durations=True))
     chain = SimpleNamespace(alpha=start.alpha, throttle=start.throttle, x_start=result.x_start,
-                            durations=start.lengths, nodes=start.nodes)
+                            durations=start.lengths, nodes=start.nodes, ac_scale=1.0)
     worst, ends = {}, {}
     for count in exact_refinement.RK4_STEPS:
         flown, model = segment_ends(problem, chain, rk4_segment(count, length_in="time"),

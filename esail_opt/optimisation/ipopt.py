@@ -41,9 +41,8 @@ def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
         # rejects and backs off from; CasADi's warning for each is only noise.
         "show_eval_warnings": False,
     }
-    # The exact Hessian is the default by measurement: on Earth-Venus (30 x 3 closed-form
-    # segments) Ipopt converged in 67 iterations with it and had not converged after
-    # 3000 with limited-memory (objective 5.2597 against 5.2490 TU).
+    # The exact Hessian is the default: with limited-memory updates Ipopt did not
+    # converge on the closed-form NLPs within its iteration limit.
     if hessian != "exact":
         opts["ipopt.hessian_approximation"] = "limited-memory"
     return opts
@@ -306,11 +305,10 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
 
     Free segment lengths are solved in two stages: first with equal lengths (a smaller,
     better-conditioned NLP that converges in tens of iterations), then with the lengths
-    free, warm-started from it.  From the constant-pitch guess directly, the free NLP
-    of Earth-Mars (60 segments) took 70 to 578 iterations and ended anywhere in
-    578.03-578.34 d depending on the guess pitch; staged, it took 58-67 iterations and
-    578.04 d from guesses of 25, 45 and 65 deg.  The result's iterations and seconds
-    are the sums over both stages; ``stages`` lists each stage's status.
+    free, warm-started from it: from the constant-pitch guess directly, the free NLP
+    took many more iterations and its optimum depended on the guess pitch.  The
+    result's iterations and seconds are the sums over both stages; ``stages`` lists
+    each stage's status.
     """
     seg = problem.segments
     first = None

@@ -265,7 +265,7 @@ class Sail:
         default: the sail is always fully on and the NLP has no throttle variables.
         Prefer ``Segments(equal=True)`` with it: with free lengths, adjacent coasting
         segments can trade duration without changing the flight, a flat direction on
-        which the exact polish stalled (200 iterations, Earth-Mars at 2 mm/s^2).
+        which the exact polish can stall.
     throttle_min, throttle_max : float
         Bounds on kappa, a subset of [0, 1] with min <= max (used only with
         ``throttle``); equal bounds fix kappa, e.g. 1 reproduces the always-on NLP.

@@ -72,9 +72,8 @@ except ImportError:  # pragma: no cover - not POSIX: parallel workers may compil
 
 log = logging.getLogger("esail_opt")
 
-#: -O1 by measurement on a 3-sub-arc segment's Hessian block: -O0 compiled it in 10.9 s
-#: against 23.8 s but ran it at 186 against 60 us a call.  On the arc's Hessian block,
-#: -O2 and -O3 compiled in 14 s against 5 s and ran no faster (7.5-7.9 us a mapped call).
+#: -O1: -O0 compiles faster but the Hessian blocks then run several times slower, and
+#: -O2 or -O3 take longer to compile and run no faster.
 FLAGS = ("-O1", "-fPIC")
 #: Raised whenever what is written into a library changes, so old libraries are ignored.
 RECIPE = "segment+jac+adj1+jac_adj1 v2 checksummed"
