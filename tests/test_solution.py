@@ -70,5 +70,5 @@ def test_a_file_of_another_schema_version_fails_with_one_clear_line(solution, tm
     old = json.loads(written.read_text())
     del old["schema_version"]  # as every file before versions existed
     written.write_text(json.dumps(old))
-    with pytest.raises(InputError, match="schema version 1, but this esail_opt reads version 2"):
+    with pytest.raises(InputError, match="schema version 1, but this esail_opt reads versions 2, 3"):
         Solution.load(written)

@@ -71,6 +71,8 @@ class Refinement:
     local_error_km : numpy.ndarray
         Per segment, the closed form's position error against Eqs. 1-2 over that
         segment from its own start node, km (NaN where a segment could not be flown).
+    check : Verification
+        The last round's flight of ``result`` (one sample per segment).
     """
 
     problem: object
@@ -78,6 +80,7 @@ class Refinement:
     transcription: object
     history: list
     local_error_km: np.ndarray
+    check: object = None
 
 
 def start_nodes(result):
@@ -126,7 +129,7 @@ def _flown_miss(problem, check):
     return np.inf if value is None else value
 
 
-def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS):
+def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None):
     """Refine a closed-form optimum until its flight meets ``problem.tolerance``.
 
     Parameters
@@ -142,6 +145,9 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS):
         ``progress(text)``: a line per round and Ipopt's iteration lines.
     max_rounds : int
         Rounds of correction at most.
+    solver : tuple, optional
+        ``ipopt.build_solver(tr, warm=True)``'s pair, already built for ``tr``: a scan
+        refines many cells on one NLP, and building its solver costs seconds.
 
     Returns
     -------
@@ -150,8 +156,8 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS):
     say = progress or (lambda text: None)
     fresh = tr is None
     if fresh:
-        tr = transcribe(problem, guess=result.as_guess())
-    history, solver, last_miss = [], None, None
+        tr, solver = transcribe(problem, guess=result.as_guess()), None
+    history, last_miss = [], None
     local_km = np.full(result.alpha.size, np.nan)
     started = time.perf_counter()
     for rnd in range(max_rounds + 1):
@@ -199,4 +205,5 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS):
                 solver = build_solver(tr, warm=True, progress=progress)
             result = solve_transcription(tr, defects=defects, warm=result, solver=solver,
                                          progress=progress)
-    return Refinement(problem, result, tr, history, local_km)
+    # Every way out of the loop is a break after flying the final result.
+    return Refinement(problem, result, tr, history, local_km, check)

@@ -30,13 +30,16 @@ import numpy as np
 from esail_opt.bodies import dates
 from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
-from esail_opt.optimisation.ipopt import NLPResult, build_solver, solve_problem, solve_transcription
+from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
+                                          solve_transcription)
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
 
 SOLVED = ("converged", "acceptable")
+#: Ipopt iterations for a cold look at another revolution class than the seed's.
+CLASS_ITERATIONS = 300
 
 
 def at_date(problem, jd):
@@ -72,6 +75,7 @@ class Cell:
     # The optimum on the scan's NLP before the error control changed anything: the
     # start a neighbour is warmed from (a grown mesh has another layout).
     on_scan_nlp: Optional[NLPResult] = None
+    finished: bool = False  # error-controlled and verified
 
     @property
     def solved(self):
@@ -99,43 +103,58 @@ class CellSolver:
         self.segments = None
         self.segment = segment
 
-    def _finish(self, problem, result, tr, started, start, on_scan_nlp):
-        # The error control corrects the closed form; other segments are only verified.
-        refined = (refine(problem, result, tr)
+    def finish(self, cell):
+        """The cell after the error control and the CVODES verification of a lone solve
+        (other segments than the closed form's are only verified)."""
+        if cell.finished:
+            return cell
+        started = time.perf_counter()
+        problem, result, tr = cell.problem, cell.result, cell.transcription
+        warm_solver = None
+        if cell.on_scan_nlp is not None:
+            warm_solver = self.nlps[cell.on_scan_nlp.revolutions_k][1]
+        refined = (refine(problem, result, tr, solver=warm_solver)
                    if result.outcome in SOLVED and self.segment is None else None)
         if refined is not None:
             problem, result, tr = refined.problem, refined.result, refined.transcription
-        check = verify(problem, result, samples=1)
+        check = refined.check if refined is not None else verify(problem, result, samples=1)
         verified, note = check.judge(problem)
         verified = verified and result.converged
         if not result.converged:
             note = f"NOT verified: Ipopt ended {result.status}"
-        return Cell(problem, result, tr, verified, note, check.misses,
+        return dataclasses.replace(cell, problem=problem, result=result, transcription=tr,
+                                   verified=verified, note=note, misses=check.misses,
+                                   seconds=cell.seconds + time.perf_counter() - started,
+                                   finished=True)
+
+    @staticmethod
+    def _candidate(problem, result, tr, started, start, on_scan_nlp):
+        return Cell(problem, result, tr, False, "not yet verified", {},
                     time.perf_counter() - started, start, on_scan_nlp)
 
     def _meshed(self, problem, guess):
         if self.segments is None:
             problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
-            self.segments = problem.segments
-            return problem, guess
-        # The scan's NLP fixes the mesh (segment count included); a cold cell still
-        # gets its own seed on it.
-        seg = dataclasses.replace(self.segments, count=guess.alpha.size, per_revolution=None)
-        problem = dataclasses.replace(problem, segments=seg)
-        return problem, initial_guess(problem)
+            self.segments = dataclasses.replace(problem.segments, count=guess.alpha.size,
+                                                per_revolution=None)
+        # The scan's NLP fixes the mesh: the segment count of its first seed, and the
+        # sub-arcs the cap asked for there.
+        return dataclasses.replace(problem, segments=self.segments), guess
 
     def cold(self, problem, guess=None, label="seed"):
         """Solve a cell from its own constant-pitch seed (or ``guess``, a class's seed);
         the first cell of a class builds the class's NLP."""
         started = time.perf_counter()
         problem, guess = self._meshed(problem, initial_guess(problem) if guess is None else guess)
-        result, tr = solve_problem(problem, segment=self.segment, guess=guess)
+        # A class's seed is a look at another basin, not worth a full iteration budget.
+        options = None if label == "seed" else ipopt_options(max_iter=CLASS_ITERATIONS)
+        result, tr = solve_problem(problem, segment=self.segment, options=options, guess=guess)
         k = result.revolutions_k
         on_scan = None
         if k not in self.nlps and result.outcome in SOLVED:
             self.nlps[k] = (tr, build_solver(tr, warm=True), problem.segments)
             on_scan = result
-        return self._finish(problem, result, tr, started, label, on_scan)
+        return self._candidate(problem, result, tr, started, label, on_scan)
 
     def warm(self, problem, neighbour, label):
         """Solve a cell warm from a neighbour's optimum, on its class's NLP."""
@@ -146,7 +165,7 @@ class CellSolver:
         problem = dataclasses.replace(problem, segments=segments)
         tr = tr.at(problem)
         result = solve_transcription(tr, warm=neighbour.on_scan_nlp, solver=solver)
-        return self._finish(problem, result, tr, started, label, result)
+        return self._candidate(problem, result, tr, started, label, result)
 
 
 def _class_seed(problem, k):
@@ -189,12 +208,14 @@ def scan(cells, progress=None, segment=None, neighbours=None):
         for c in tried:
             if c.on_scan_nlp is not None:
                 chains[c.on_scan_nlp.revolutions_k] = c
-        out.append(min(tried, key=_rank))
+        out.append(_settle(solver, tried))
         classes.append({c.result.revolutions_k for c in tried if c.result is not None})
         say(_line(i, n, out[-1]))
     # Repair, back along the path and forward again: a cell is solved again from a
-    # neighbour that holds a class it has not tried, or that did better on the same
-    # objective (the same time of flight, for a fixed-time scan).
+    # neighbour that holds a class it has not tried, or, where the cell is worse than
+    # every neighbour with the same objective (a spike: the same time of flight, for a
+    # fixed-time scan), from each of them that did better.  Smooth slopes are left
+    # alone: a neighbour's start there only finds the optimum the cell already has.
     for order in (range(n - 1, -1, -1), range(n)):
         for i in order:
             for j in neighbours[i]:
@@ -202,16 +223,29 @@ def scan(cells, progress=None, segment=None, neighbours=None):
                 if other.on_scan_nlp is None:
                     continue
                 k = other.on_scan_nlp.revolutions_k
-                if k in classes[i] and not (_comparable(cells[i], cells[j])
-                                            and _rank(other) < _rank(out[i])
-                                            and other.start != f"from {i}"):
+                if k in classes[i] and not (_spike(i, out, cells, neighbours)
+                                            and _rank(other) < _rank(out[i])):
                     continue
                 classes[i].add(k)
                 again = solver.warm(cells[i], other, f"from {j}")
-                if _rank(again) < _rank(out[i]):
-                    out[i] = again
-                    say(_line(i, n, again) + f" (again, from cell {j + 1})")
+                # Only a better closed-form optimum is worth its error control.
+                if again.solved and (again.objective < out[i].objective or not out[i].verified):
+                    again = solver.finish(again)
+                    if _rank(again) < _rank(out[i]):
+                        out[i] = again
+                        say(_line(i, n, again) + f" (again, from cell {j + 1})")
     return out
+
+
+def _settle(solver, tried):
+    """The cell among a cell's solves: the best closed-form optimum that verifies, the
+    candidates finished (error control and verification) best first until one does."""
+    done = []
+    for cell in sorted(tried, key=lambda c: (not c.solved, c.objective)):
+        done.append(solver.finish(cell))
+        if done[-1].verified:
+            break
+    return min(done, key=_rank)
 
 
 def _first_solves(solver, problem, previous, chains):
@@ -233,6 +267,13 @@ def _first_solves(solver, problem, previous, chains):
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
     return tried
+
+
+def _spike(i, out, cells, neighbours):
+    """Whether cell i is worse than each of its neighbours with the same objective (and
+    has at least one)."""
+    same = [j for j in neighbours[i] if _comparable(cells[i], cells[j])]
+    return bool(same) and all(_rank(out[j]) < _rank(out[i]) for j in same)
 
 
 def _comparable(a, b):
