@@ -73,6 +73,8 @@ class Refinement:
         segment from its own start node, km (NaN where a segment could not be flown).
     check : Verification
         The last round's flight of ``result`` (one sample per segment).
+    defects : numpy.ndarray or None
+        The defects the final ``result`` was solved with (None: none).
     """
 
     problem: object
@@ -81,6 +83,7 @@ class Refinement:
     history: list
     local_error_km: np.ndarray
     check: object = None
+    defects: np.ndarray = None
 
 
 def start_nodes(result):
@@ -129,7 +132,8 @@ def _flown_miss(problem, check):
     return np.inf if value is None else value
 
 
-def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None):
+def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
+           defects=None):
     """Refine a closed-form optimum until its flight meets ``problem.tolerance``.
 
     Parameters
@@ -148,6 +152,9 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
     solver : tuple, optional
         ``ipopt.build_solver(tr, warm=True)``'s pair, already built for ``tr``: a scan
         refines many cells on one NLP, and building its solver costs seconds.
+    defects : numpy.ndarray, optional
+        The 5 x N defects ``result`` was solved with (a scan carries a neighbour's), so
+        that :attr:`Refinement.defects` says what the final result was solved with.
 
     Returns
     -------
@@ -157,7 +164,7 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
     fresh = tr is None
     if fresh:
         tr, solver = transcribe(problem, guess=result.as_guess()), None
-    history, last_miss = [], None
+    history, last_miss, applied = [], None, defects
     local_km = np.full(result.alpha.size, np.nan)
     started = time.perf_counter()
     for rnd in range(max_rounds + 1):
@@ -196,14 +203,14 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
                 plain = segment_ends(problem, result)[1]
                 say(f"refinement: {'strained' if strained else 'slow'} closed form; "
                     f"{problem.segments.sub_arcs} sub-arcs per segment")
-            defects = exact - plain
-            result = solve_transcription(tr, defects=defects, progress=progress)
+            applied = exact - plain
+            result = solve_transcription(tr, defects=applied, progress=progress)
             solver, last_miss, fresh = None, None, False
         else:
-            defects = exact - plain
+            applied = exact - plain
             if solver is None:
                 solver = build_solver(tr, warm=True, progress=progress)
-            result = solve_transcription(tr, defects=defects, warm=result, solver=solver,
+            result = solve_transcription(tr, defects=applied, warm=result, solver=solver,
                                          progress=progress)
     # Every way out of the loop is a break after flying the final result.
-    return Refinement(problem, result, tr, history, local_km, check)
+    return Refinement(problem, result, tr, history, local_km, check, applied)

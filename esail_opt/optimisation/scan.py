@@ -76,6 +76,7 @@ class Cell:
     # start a neighbour is warmed from (a grown mesh has another layout).
     on_scan_nlp: Optional[NLPResult] = None
     finished: bool = False  # error-controlled and verified
+    defects: Optional[np.ndarray] = None  # what on_scan_nlp was solved with
 
     @property
     def solved(self):
@@ -113,9 +114,21 @@ class CellSolver:
         warm_solver = None
         if cell.on_scan_nlp is not None:
             warm_solver = self.nlps[cell.on_scan_nlp.revolutions_k][1]
-        refined = (refine(problem, result, tr, solver=warm_solver)
+        refined = (refine(problem, result, tr, solver=warm_solver, defects=cell.defects)
                    if result.outcome in SOLVED and self.segment is None else None)
+        on_scan, defects = cell.on_scan_nlp, None
         if refined is not None:
+            if on_scan is not None:
+                k = on_scan.revolutions_k
+                if refined.problem.segments != problem.segments:
+                    # The error control needed more sub-arcs: the class's NLP takes the
+                    # finer mesh from here on, rather than every later cell growing it.
+                    rtr = refined.transcription
+                    self.nlps[k] = (rtr, build_solver(rtr, warm=True), refined.problem.segments)
+                    self.segments = refined.problem.segments
+                # The next cell starts from the corrected optimum with its defects,
+                # which change little from cell to cell.
+                on_scan, defects = refined.result, refined.defects
             problem, result, tr = refined.problem, refined.result, refined.transcription
         check = refined.check if refined is not None else verify(problem, result, samples=1)
         verified, note = check.judge(problem)
@@ -125,7 +138,7 @@ class CellSolver:
         return dataclasses.replace(cell, problem=problem, result=result, transcription=tr,
                                    verified=verified, note=note, misses=check.misses,
                                    seconds=cell.seconds + time.perf_counter() - started,
-                                   finished=True)
+                                   finished=True, on_scan_nlp=on_scan, defects=defects)
 
     @staticmethod
     def _candidate(problem, result, tr, started, start, on_scan_nlp):
@@ -162,10 +175,15 @@ class CellSolver:
             return None
         started = time.perf_counter()
         tr, solver, segments = self.nlps[neighbour.on_scan_nlp.revolutions_k]
+        start = neighbour.on_scan_nlp
+        if start.w.size != tr.x0.size or start.lam_g.size != tr.lbg.size:
+            return None  # solved before its class's mesh was refined
         problem = dataclasses.replace(problem, segments=segments)
         tr = tr.at(problem)
-        result = solve_transcription(tr, warm=neighbour.on_scan_nlp, solver=solver)
-        return self._candidate(problem, result, tr, started, label, result)
+        result = solve_transcription(tr, defects=neighbour.defects, warm=neighbour.on_scan_nlp,
+                                     solver=solver)
+        cell = self._candidate(problem, result, tr, started, label, result)
+        return dataclasses.replace(cell, defects=neighbour.defects)
 
 
 def _class_seed(problem, k):
@@ -229,7 +247,7 @@ def scan(cells, progress=None, segment=None, neighbours=None):
                 classes[i].add(k)
                 again = solver.warm(cells[i], other, f"from {j}")
                 # Only a better closed-form optimum is worth its error control.
-                if again.solved and (again.objective < out[i].objective or not out[i].verified):
+                if again is not None and again.solved and (again.objective < out[i].objective or not out[i].verified):
                     again = solver.finish(again)
                     if _rank(again) < _rank(out[i]):
                         out[i] = again
