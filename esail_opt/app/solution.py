@@ -357,7 +357,9 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         guess = initial_guess(problem)
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
-    result, tr = solve_problem(problem, guess=guess, progress=say)
+    # A free date's guess is already the optimum of its best date: no staging from it.
+    result, tr = solve_problem(problem, guess=guess, progress=say,
+                               staged=not problem.free_date())
     starts = []
     if result.outcome not in ("converged", "acceptable"):
         result, tr, starts = _other_starts(problem, result, tr, say)

@@ -297,7 +297,8 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
     )
 
 
-def solve_problem(problem, segment=None, options=None, guess=None, progress=None):
+def solve_problem(problem, segment=None, options=None, guess=None, progress=None,
+                  staged=True):
     """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
 
     ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, with its
@@ -308,14 +309,15 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     free, warm-started from it: from the constant-pitch guess directly, the free NLP
     took many more iterations and its optimum depended on the guess pitch.  The
     result's iterations and seconds are the sums over both stages; ``stages`` lists
-    each stage's status.
+    each stage's status.  ``staged=False`` solves the free NLP alone, for a guess that
+    is already an optimum of a nearby problem.
     """
     seg = problem.segments
     first = None
     # The seed fixes N (a per-revolution count is resolved by its propagation) and does
     # not depend on whether the lengths are free, so both stages share it.
     guess = initial_guess(problem) if guess is None else guess
-    if not seg.equal and guess.alpha.size > 1:
+    if staged and not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
         first = solve_transcription(transcribe(equal, segment, guess), options,
                                     progress=progress)

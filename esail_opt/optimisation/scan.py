@@ -191,7 +191,7 @@ def _class_seed(problem, k):
     return multistart.rendezvous_starts(problem, [k])[0].guess
 
 
-def scan(cells, progress=None, segment=None, neighbours=None):
+def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
     """Solve every cell problem of ``cells`` (a list, in scan order) on one NLP per class.
 
     Parameters
@@ -207,6 +207,9 @@ def scan(cells, progress=None, segment=None, neighbours=None):
     neighbours : list of list of int, optional
         For each cell, the positions of its neighbours in ``cells`` (a grid's cells
         beside it); default the cells before and after it in the path.
+    explore : bool
+        Solve the turn counts either side of a cell's own at every cell, not only at
+        the run's first (a coarse scan that seeds something else needs every class).
 
     Returns
     -------
@@ -222,7 +225,7 @@ def scan(cells, progress=None, segment=None, neighbours=None):
     classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
     for i, problem in enumerate(cells):
-        tried = _first_solves(solver, problem, out[-1] if out else None, chains)
+        tried = _first_solves(solver, problem, out[-1] if out else None, chains, explore)
         for c in tried:
             if c.on_scan_nlp is not None:
                 chains[c.on_scan_nlp.revolutions_k] = c
@@ -266,7 +269,7 @@ def _settle(solver, tried):
     return min(done, key=_rank)
 
 
-def _first_solves(solver, problem, previous, chains):
+def _first_solves(solver, problem, previous, chains, explore=False):
     """A cell's solves in the forward pass: warm from the previous cell, and for a body
     target the classes its own seed favours."""
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
@@ -276,9 +279,12 @@ def _first_solves(solver, problem, previous, chains):
         # A run's first cell has no neighbour: the counts either side of its seed's
         # are solved as well, so that the run does not start in a poorer class.
         own = initial_guess(problem).revolutions_k
-        if previous is None:
+        if previous is None or explore:
             for k in (own - 1, own + 1):
-                tried.append(solver.cold(problem, _class_seed(problem, k), f"class {k}"))
+                if k not in {c.result.revolutions_k for c in tried if c.result is not None}:
+                    tried.append(solver.warm(problem, chains.get(k), f"class {k}")
+                                 or solver.cold(problem, _class_seed(problem, k),
+                                                f"class {k}"))
         if own not in {c.result.revolutions_k for c in tried if c.result is not None}:
             tried.append(solver.warm(problem, chains.get(own), f"class {own}")
                          or solver.cold(problem, _class_seed(problem, own), f"class {own}"))
@@ -334,7 +340,8 @@ def seed_free_date(problem, progress=None):
     count = int(np.clip(math.ceil((hi - lo) / SEED_SPACING_DAYS) + 1, *SEED_CELLS))
     say = progress or (lambda text: None)
     say(f"{problem.name}: seeding the free departure date by a scan of {count} dates")
-    cells = scan([at_date(problem, jd) for jd in np.linspace(lo, hi, count)], progress)
+    cells = scan([at_date(problem, jd) for jd in np.linspace(lo, hi, count)], progress,
+                 explore=True)
     solved = [c for c in cells if c.solved]
     if not solved:
         return problem, None
