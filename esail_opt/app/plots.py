@@ -20,12 +20,16 @@ from matplotlib.figure import Figure
 from esail_opt.app.files import save_figure
 
 
-def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
+def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
     """The figure of the caller's ``axes`` and those axes, or a new figure and its axes.
 
-    The new figure is a bare :class:`matplotlib.figure.Figure` with constrained
-    layout, made without pyplot: drawing it selects no backend and opens no
-    window, and nothing holds it once its last reference goes.
+    The new figure is a bare :class:`matplotlib.figure.Figure`, made without
+    pyplot: drawing it selects no backend and opens no window, and nothing holds
+    it once its last reference goes.  Without ``margins`` it has constrained
+    layout; with them its grid is placed once by those fixed margins.  Constrained
+    layout measures every tick label and then draws the figure a second time when
+    it is saved, which doubled the cost of the two figures that every solve writes:
+    those are placed by margins chosen once for their fixed size and panels.
 
     Parameters
     ----------
@@ -33,6 +37,10 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
         Where to draw; None for a new figure.
     nrows, ncols, figsize, **subplots
         The new figure's grid, size (inches) and ``Figure.subplots`` options.
+    margins : dict, optional
+        ``left``, ``right``, ``bottom``, ``top``, ``wspace`` and ``hspace`` of the
+        new figure's grid, as :meth:`matplotlib.figure.Figure.subplots_adjust` takes
+        them (fractions of the figure); None for constrained layout.
 
     Returns
     -------
@@ -45,8 +53,43 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
         # An Axes' figure may be a SubFigure, whose .figure is the top-level Figure (a
         # Figure's is itself); Artist.get_figure(root=True) would need matplotlib 3.10.
         return np.ravel(axes)[0].figure.figure, axes
-    fig = Figure(figsize=figsize, layout="constrained")
+    if margins is None:
+        fig = Figure(figsize=figsize, layout="constrained")
+    else:
+        fig = Figure(figsize=figsize)
+        fig.subplots_adjust(**margins)
     return fig, fig.subplots(nrows, ncols, **subplots)
+
+
+#: Where the trajectory's axes sit on its 6.4 in square (fractions of the figure):
+#: room for the y tick labels and label on the left, the x ones below and a two-line
+#: title above; the legend is inside.  Constrained layout chose about these.
+TRAJECTORY_MARGINS = dict(left=0.106, right=0.993, bottom=0.094, top=0.925)
+
+#: The timeline's columns on its 10 in width: room for the left column's y labels, and
+#: between the columns for the right column's.
+TIMELINE_COLUMNS = dict(left=0.067, right=0.987, wspace=0.185)
+#: The timeline's right edge when the pitch panel carries the throttle's own axis.
+TIMELINE_RIGHT_WITH_THROTTLE = 0.944
+#: The six time series, three rows under the figure's title: the gap between two rows
+#: holds a row's x tick labels.
+TIMELINE_SERIES_ROWS = dict(top=0.955, bottom=0.3085, hspace=0.153)
+#: The error panels' row, in a grid of its own so that the wider gap above it holds
+#: the "t (days)" labels of the last series and the local error panel's title.
+TIMELINE_ERROR_ROW = dict(top=0.2405, bottom=0.045)
+
+
+def _timeline_axes(throttled):
+    """A new timeline figure and its 4 x 2 array of Axes, placed once by fixed margins
+    (see :func:`axes_or_new` on why not constrained layout); ``throttled`` widens the
+    right margin for the throttle's axis."""
+    columns = dict(TIMELINE_COLUMNS)
+    if throttled:
+        columns["right"] = TIMELINE_RIGHT_WITH_THROTTLE
+    fig = Figure(figsize=(10, 10.5))
+    series = fig.add_gridspec(3, 2, **columns, **TIMELINE_SERIES_ROWS).subplots()
+    errors = fig.add_gridspec(1, 2, **columns, **TIMELINE_ERROR_ROW).subplots(squeeze=False)
+    return fig, np.vstack([series, errors])
 
 
 def _orbit_xy(a, e, omega_rad=0.0, points=361):
@@ -87,7 +130,7 @@ def trajectory_figure(solution, ax=None):
     """
     d = solution.data
     prob = d["problem"]
-    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4))
+    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
     dep = prob["departure"]
     if dep["kind"] == "ParkingOrbit":
         ax.plot(*_orbit_xy(dep["a_au"], dep["e"], np.radians(dep["omega_deg"])), color="0.6",
@@ -139,17 +182,27 @@ def trajectory_figure(solution, ax=None):
     return fig
 
 
+def _pitch_schedule(d, polished):
+    """The schedule that the pitch panel shows: the polished one when there is one."""
+    return d["polish"]["schedule"] if polished else d["schedule"]
+
+
+def _throttled(sched):
+    """Whether a schedule has a throttle, which the pitch panel draws on its own axis."""
+    return bool(sched) and "throttle" in sched[0]
+
+
 def _pitch_panel(ax, d, polished):
     """The pitch schedule (the polished one when there is one) as steps against time,
     with the throttle on a right-hand axis when the problem has one."""
-    sched = d["polish"]["schedule"] if polished else d["schedule"]
+    sched = _pitch_schedule(d, polished)
     t = [row["t_days"] for row in sched]
     alpha = [row["alpha_deg"] for row in sched]
     t_end = d["tof_days_exact"] if polished else d["tof_days"]
     ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
             label="polished" if polished else None)
     ax.set_ylim(-95, 95)
-    if sched and "throttle" in sched[0]:
+    if _throttled(sched):
         # The throttle shares the pitch panel: it switches at the same times, and a
         # coast (kappa = 0) explains a pitch that wanders.
         kappa = [row["throttle"] for row in sched]
@@ -172,7 +225,10 @@ def timeline_figure(solution, axes=None):
     exact = d["trajectory"].get("polished")
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = exact is not None
-    fig, axes = axes_or_new(axes, 4, 2, figsize=(10, 10.5))
+    if axes is None:
+        fig, axes = _timeline_axes(_throttled(_pitch_schedule(d, polished)))
+    else:
+        fig, axes = axes_or_new(axes)
     for ax in axes[:3].ravel():
         ax.sharex(axes[0, 0])
     panels = [("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"), ("vtheta_km_s", "v_theta (km/s)"),
