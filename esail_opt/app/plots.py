@@ -12,10 +12,12 @@ Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
 caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
 """
 
+import re
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import LogFormatterSciNotation
 
 from esail_opt.app.files import save_figure
 
@@ -90,6 +92,40 @@ def _timeline_axes(throttled):
     series = fig.add_gridspec(3, 2, **columns, **TIMELINE_SERIES_ROWS).subplots()
     errors = fig.add_gridspec(1, 2, **columns, **TIMELINE_ERROR_ROW).subplots(squeeze=False)
     return fig, np.vstack([series, errors])
+
+
+#: Digits and minus as Unicode superscripts, for :class:`PlainLogFormatter`.
+_SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075"
+                             "\u2076\u2077\u2078\u2079")
+_MATHDEFAULT = re.compile(r"\$\\mathdefault\{(.*)\}\$")
+_EXPONENT = re.compile(r"\^\{(-?\d+)\}")
+
+
+class PlainLogFormatter(LogFormatterSciNotation):
+    """The tick labels of matplotlib's log axes (the same ticks labelled, the same
+    ``10^k`` and ``c x 10^k``), written with Unicode superscripts instead of mathtext.
+
+    Mathtext's parser is built and run once per process for each new label, which
+    cost a solve's timeline a noticeable part of its drawing time; DejaVu Sans, the
+    default font, has every superscript used here, so the labels read the same.
+    """
+
+    def __call__(self, x, pos=None):
+        label = super().__call__(x, pos)
+        match = _MATHDEFAULT.fullmatch(label)
+        if match is None:
+            return label
+        plain = match.group(1).replace(r"\times", "\u00d7")
+        plain = _EXPONENT.sub(lambda m: m.group(1).translate(_SUPERSCRIPT), plain)
+        return plain[:1].replace("-", "\u2212") + plain[1:]
+
+
+def _plain_log_labels(axis):
+    """Label a log ``axis`` with :class:`PlainLogFormatter` where matplotlib's log scale
+    would label it: its decades, and its minor ticks on an axis that spans too few
+    decades to show more than one."""
+    axis.set_major_formatter(PlainLogFormatter(10))
+    axis.set_minor_formatter(PlainLogFormatter(10, labelOnlyBase=False))
 
 
 def _orbit_xy(a, e, omega_rad=0.0, points=361):
@@ -176,7 +212,9 @@ def trajectory_figure(solution, ax=None):
     title = f"{prob['name']}: tof {d['tof_days']:.1f} d, {d['status']}"
     if d.get("tof_days_exact") is not None:
         title += f"\npolished: tof {d['tof_days_exact']:.2f} d, {d['polish']['status']}"
-    ax.set_title(title)
+    # A title at a given height is not moved clear of ticks above the axes (there are
+    # none): matplotlib skips measuring the y axis for it, once per title and draw.
+    ax.set_title(title, y=1.0)
     ax.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
     return fig
@@ -267,9 +305,10 @@ def _local_error_panel(ax, d):
     t = [row["t_days"] for row in sched] + [d["tof_days"]]
     ax.step(t, errors + errors[-1:], where="post", color="tab:green")
     ax.set_yscale("log")
+    _plain_log_labels(ax.yaxis)
     ax.set_xlabel("t (days)")
     ax.set_ylabel("closed-form local error (km)")
-    ax.set_title(f"per segment, {d['problem']['sub_arcs']} sub-arcs each", fontsize=9)
+    ax.set_title(f"per segment, {d['problem']['sub_arcs']} sub-arcs each", fontsize=9, y=1.0)
     ax.grid(alpha=0.3, which="both")
 
 
@@ -282,6 +321,7 @@ def _refinement_panel(ax, d):
         ax.text(0.5, 0.5, "no flight to judge", ha="center", transform=ax.transAxes)
         return
     ax.semilogy(range(len(misses)), misses, "o-", color="tab:red", label="flown miss")
+    _plain_log_labels(ax.yaxis)
     ax.axhline(d["tolerance"]["position_km"], color="k", ls="--", lw=0.8, label="tolerance")
     ax.set_xlabel("refinement round")
     ax.set_ylabel("position miss (km)")
