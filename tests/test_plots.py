@@ -35,6 +35,17 @@ def throttled(polished):
     return Solution(data)
 
 
+@pytest.fixture(scope="module")
+def narrow(polished):
+    """The same data with local errors within one decade, where matplotlib labels the
+    log axis's minor ticks too (4×10⁰): wider labels than the decades'."""
+    data = copy.deepcopy(polished.data)
+    rows = data["schedule"]
+    for k, row in enumerate(rows):
+        row["local_error_km"] = 0.6 + 3.4 * k / max(len(rows) - 1, 1)
+    return Solution(data)
+
+
 def _drawn(fig):
     FigureCanvasAgg(fig).draw()
     return fig.canvas.get_renderer()
@@ -108,7 +119,7 @@ def test_timeline_has_its_panels_curves_and_labels(which, request):
         np.testing.assert_array_equal(twins[0].get_lines()[0].get_ydata(), kappa + kappa[-1:])
 
 
-@pytest.mark.parametrize("which", ["polished", "throttled"])
+@pytest.mark.parametrize("which", ["polished", "throttled", "narrow"])
 def test_nothing_is_clipped_or_overlapping(which, request):
     sol = request.getfixturevalue(which)
     for fig in (plots.trajectory_figure(sol), plots.timeline_figure(sol)):

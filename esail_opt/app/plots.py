@@ -16,6 +16,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogFormatterSciNotation
 
@@ -79,6 +80,46 @@ TIMELINE_SERIES_ROWS = dict(top=0.955, bottom=0.3085, hspace=0.153)
 #: The error panels' row, in a grid of its own so that the wider gap above it holds
 #: the "t (days)" labels of the last series and the local error panel's title.
 TIMELINE_ERROR_ROW = dict(top=0.2405, bottom=0.045)
+
+
+#: Room kept left of a column's widest y labels, inches (constrained layout's pad).
+LABEL_PAD_IN = 3 / 72
+
+
+def _fit_columns(fig, axes):
+    """Set the left margin, and the gap between the columns of ``axes`` (an array of
+    rows of Axes whose grids share their columns), to the widest y labels of each column.
+
+    A panel's y tick labels depend on its height only, which this leaves alone, so one
+    measurement is final.  It is a small part of what constrained layout does to the
+    same end (that measures both directions, then draws the whole figure once more),
+    and margins fixed in advance would clip labels wider than the usual ones (a log
+    axis under a decade reads 4×10⁰).
+    """
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    width = fig.bbox.width
+    pad = LABEL_PAD_IN * fig.dpi / width
+
+    def room(column):
+        return pad + max(ax.get_window_extent(renderer).x0
+                         - ax.yaxis.get_tightbbox(renderer).x0 for ax in column) / width
+
+    axes = np.atleast_2d(axes)
+    left = room(axes[:, 0])
+    grids = {id(g): g for g in (ax.get_subplotspec().get_gridspec() for ax in axes[:, 0])}
+    for grid in grids.values():
+        if axes.shape[1] == 1:
+            grid.update(left=left)
+        else:
+            gap = room(axes[:, 1])
+            panel = (grid.get_subplot_params(fig).right - left - gap) / 2
+            grid.update(left=left, wspace=gap / panel)
+    # GridSpec.update moves the Axes of pyplot's figures only; these (twins too) are
+    # moved here.
+    for ax in fig.axes:
+        spec = ax.get_subplotspec()
+        if spec is not None and id(spec.get_gridspec()) in grids:
+            ax.set_position(spec.get_position(fig))
 
 
 def _timeline_axes(throttled):
@@ -166,6 +207,7 @@ def trajectory_figure(solution, ax=None):
     """
     d = solution.data
     prob = d["problem"]
+    created = ax is None
     fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
     dep = prob["departure"]
     if dep["kind"] == "ParkingOrbit":
@@ -217,6 +259,8 @@ def trajectory_figure(solution, ax=None):
     ax.set_title(title, y=1.0)
     ax.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
+    if created:
+        _fit_columns(fig, [[ax]])
     return fig
 
 
@@ -263,7 +307,8 @@ def timeline_figure(solution, axes=None):
     exact = d["trajectory"].get("polished")
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = exact is not None
-    if axes is None:
+    created = axes is None
+    if created:
         fig, axes = _timeline_axes(_throttled(_pitch_schedule(d, polished)))
     else:
         fig, axes = axes_or_new(axes)
@@ -292,6 +337,8 @@ def timeline_figure(solution, axes=None):
     fig.suptitle(f"{d['problem']['name']}: {d['status']}, {verdict}"
                  + (f"; polished {d['polish']['status']} (pitch: polished schedule)"
                     if polished else ""))
+    if created:
+        _fit_columns(fig, axes)
     return fig
 
 
