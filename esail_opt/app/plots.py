@@ -29,10 +29,11 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
     The new figure is a bare :class:`matplotlib.figure.Figure`, made without
     pyplot: drawing it selects no backend and opens no window, and nothing holds
     it once its last reference goes.  Without ``margins`` it has constrained
-    layout; with them its grid is placed once by those fixed margins.  Constrained
-    layout measures every tick label and then draws the figure a second time when
-    it is saved, which doubled the cost of the two figures that every solve writes:
-    those are placed by margins chosen once for their fixed size and panels.
+    layout; with them its grid is placed by those margins and the figure is made at
+    :data:`DPI`.  Constrained layout measures every label in both directions and
+    then draws the figure a second time when it is saved, which doubled the cost of
+    the two figures that every solve writes: those are placed by margins chosen for
+    their fixed size and panels, with the left ones fitted by :func:`_fit_columns`.
 
     Parameters
     ----------
@@ -59,7 +60,7 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
     if margins is None:
         fig = Figure(figsize=figsize, layout="constrained")
     else:
-        fig = Figure(figsize=figsize)
+        fig = Figure(figsize=figsize, dpi=DPI)
         fig.subplots_adjust(**margins)
     return fig, fig.subplots(nrows, ncols, **subplots)
 
@@ -82,6 +83,9 @@ TIMELINE_SERIES_ROWS = dict(top=0.955, bottom=0.3085, hspace=0.153)
 TIMELINE_ERROR_ROW = dict(top=0.2405, bottom=0.045)
 
 
+#: The resolution the two figures are made and written at: the labels that
+#: :func:`_fit_columns` measures are then not measured again when the figure is saved.
+DPI = 150
 #: Room kept left of a column's widest y labels, inches (constrained layout's pad).
 LABEL_PAD_IN = 3 / 72
 
@@ -129,7 +133,7 @@ def _timeline_axes(throttled):
     columns = dict(TIMELINE_COLUMNS)
     if throttled:
         columns["right"] = TIMELINE_RIGHT_WITH_THROTTLE
-    fig = Figure(figsize=(10, 10.5))
+    fig = Figure(figsize=(10, 10.5), dpi=DPI)
     series = fig.add_gridspec(3, 2, **columns, **TIMELINE_SERIES_ROWS).subplots()
     errors = fig.add_gridspec(1, 2, **columns, **TIMELINE_ERROR_ROW).subplots(squeeze=False)
     return fig, np.vstack([series, errors])
@@ -381,6 +385,6 @@ def write_plots(solution, out_dir):
     """Write trajectory.png and timeline.png atomically; return their paths."""
     out = Path(out_dir)
     paths = [out / "trajectory.png", out / "timeline.png"]
-    save_figure(trajectory_figure(solution), paths[0])
-    save_figure(timeline_figure(solution), paths[1])
+    save_figure(trajectory_figure(solution), paths[0], dpi=DPI)
+    save_figure(timeline_figure(solution), paths[1], dpi=DPI)
     return paths
