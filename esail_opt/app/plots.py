@@ -12,20 +12,28 @@ Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
 caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
 """
 
+import re
 from pathlib import Path
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import LogFormatterSciNotation
 
 from esail_opt.app.files import save_figure
 
 
-def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
+def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
     """The figure of the caller's ``axes`` and those axes, or a new figure and its axes.
 
-    The new figure is a bare :class:`matplotlib.figure.Figure` with constrained
-    layout, made without pyplot: drawing it selects no backend and opens no
-    window, and nothing holds it once its last reference goes.
+    The new figure is a bare :class:`matplotlib.figure.Figure`, made without
+    pyplot: drawing it selects no backend and opens no window, and nothing holds
+    it once its last reference goes.  Without ``margins`` it has constrained
+    layout; with them its grid is placed by those margins and the figure is made at
+    :data:`DPI`.  Constrained layout measures every label in both directions and
+    then draws the figure a second time when it is saved, which doubled the cost of
+    the two figures that every solve writes: those are placed by margins chosen for
+    their fixed size and panels, with the left ones fitted by :func:`_fit_columns`.
 
     Parameters
     ----------
@@ -33,6 +41,10 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
         Where to draw; None for a new figure.
     nrows, ncols, figsize, **subplots
         The new figure's grid, size (inches) and ``Figure.subplots`` options.
+    margins : dict, optional
+        ``left``, ``right``, ``bottom``, ``top``, ``wspace`` and ``hspace`` of the
+        new figure's grid, as :meth:`matplotlib.figure.Figure.subplots_adjust` takes
+        them (fractions of the figure); None for constrained layout.
 
     Returns
     -------
@@ -45,8 +57,120 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, **subplots):
         # An Axes' figure may be a SubFigure, whose .figure is the top-level Figure (a
         # Figure's is itself); Artist.get_figure(root=True) would need matplotlib 3.10.
         return np.ravel(axes)[0].figure.figure, axes
-    fig = Figure(figsize=figsize, layout="constrained")
+    if margins is None:
+        fig = Figure(figsize=figsize, layout="constrained")
+    else:
+        fig = Figure(figsize=figsize, dpi=DPI)
+        fig.subplots_adjust(**margins)
     return fig, fig.subplots(nrows, ncols, **subplots)
+
+
+#: Where the trajectory's axes sit on its 6.4 in square (fractions of the figure):
+#: room for the y tick labels and label on the left, the x ones below and a two-line
+#: title above; the legend is inside.  Constrained layout chose about these.
+TRAJECTORY_MARGINS = dict(left=0.106, right=0.993, bottom=0.094, top=0.925)
+
+#: The timeline's columns on its 10 in width: room for the left column's y labels, and
+#: between the columns for the right column's.
+TIMELINE_COLUMNS = dict(left=0.067, right=0.987, wspace=0.185)
+#: The timeline's right edge when the pitch panel carries the throttle's own axis.
+TIMELINE_RIGHT_WITH_THROTTLE = 0.944
+#: The six time series, three rows under the figure's title: the gap between two rows
+#: holds a row's x tick labels.
+TIMELINE_SERIES_ROWS = dict(top=0.955, bottom=0.3085, hspace=0.153)
+#: The error panels' row, in a grid of its own so that the wider gap above it holds
+#: the "t (days)" labels of the last series and the local error panel's title.
+TIMELINE_ERROR_ROW = dict(top=0.2405, bottom=0.045)
+
+
+#: The resolution the two figures are made and written at: the labels that
+#: :func:`_fit_columns` measures are then not measured again when the figure is saved.
+DPI = 150
+#: Room kept left of a column's widest y labels, inches (constrained layout's pad).
+LABEL_PAD_IN = 3 / 72
+
+
+def _fit_columns(fig, axes):
+    """Set the left margin, and the gap between the columns of ``axes`` (an array of
+    rows of Axes whose grids share their columns), to the widest y labels of each column.
+
+    A panel's y tick labels depend on its height only, which this leaves alone, so one
+    measurement is final.  It is a small part of what constrained layout does to the
+    same end (that measures both directions, then draws the whole figure once more),
+    and margins fixed in advance would clip labels wider than the usual ones (a log
+    axis under a decade reads 4×10⁰).
+    """
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    width = fig.bbox.width
+    pad = LABEL_PAD_IN * fig.dpi / width
+
+    def room(column):
+        return pad + max(ax.get_window_extent(renderer).x0
+                         - ax.yaxis.get_tightbbox(renderer).x0 for ax in column) / width
+
+    axes = np.atleast_2d(axes)
+    left = room(axes[:, 0])
+    grids = {id(g): g for g in (ax.get_subplotspec().get_gridspec() for ax in axes[:, 0])}
+    for grid in grids.values():
+        if axes.shape[1] == 1:
+            grid.update(left=left)
+        else:
+            gap = room(axes[:, 1])
+            panel = (grid.get_subplot_params(fig).right - left - gap) / 2
+            grid.update(left=left, wspace=gap / panel)
+    # GridSpec.update moves the Axes of pyplot's figures only; these (twins too) are
+    # moved here.
+    for ax in fig.axes:
+        spec = ax.get_subplotspec()
+        if spec is not None and id(spec.get_gridspec()) in grids:
+            ax.set_position(spec.get_position(fig))
+
+
+def _timeline_axes(throttled):
+    """A new timeline figure and its 4 x 2 array of Axes, placed once by fixed margins
+    (see :func:`axes_or_new` on why not constrained layout); ``throttled`` widens the
+    right margin for the throttle's axis."""
+    columns = dict(TIMELINE_COLUMNS)
+    if throttled:
+        columns["right"] = TIMELINE_RIGHT_WITH_THROTTLE
+    fig = Figure(figsize=(10, 10.5), dpi=DPI)
+    series = fig.add_gridspec(3, 2, **columns, **TIMELINE_SERIES_ROWS).subplots()
+    errors = fig.add_gridspec(1, 2, **columns, **TIMELINE_ERROR_ROW).subplots(squeeze=False)
+    return fig, np.vstack([series, errors])
+
+
+#: Digits and minus as Unicode superscripts, for :class:`PlainLogFormatter`.
+_SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075"
+                             "\u2076\u2077\u2078\u2079")
+_MATHDEFAULT = re.compile(r"\$\\mathdefault\{(.*)\}\$")
+_EXPONENT = re.compile(r"\^\{(-?\d+)\}")
+
+
+class PlainLogFormatter(LogFormatterSciNotation):
+    """The tick labels of matplotlib's log axes (the same ticks labelled, the same
+    ``10^k`` and ``c x 10^k``), written with Unicode superscripts instead of mathtext.
+
+    Mathtext's parser is built and run once per process for each new label, which
+    cost a solve's timeline a noticeable part of its drawing time; DejaVu Sans, the
+    default font, has every superscript used here, so the labels read the same.
+    """
+
+    def __call__(self, x, pos=None):
+        label = super().__call__(x, pos)
+        match = _MATHDEFAULT.fullmatch(label)
+        if match is None:
+            return label
+        plain = match.group(1).replace(r"\times", "\u00d7")
+        plain = _EXPONENT.sub(lambda m: m.group(1).translate(_SUPERSCRIPT), plain)
+        return plain[:1].replace("-", "\u2212") + plain[1:]
+
+
+def _plain_log_labels(axis):
+    """Label a log ``axis`` with :class:`PlainLogFormatter` where matplotlib's log scale
+    would label it: its decades, and its minor ticks on an axis that spans too few
+    decades to show more than one."""
+    axis.set_major_formatter(PlainLogFormatter(10))
+    axis.set_minor_formatter(PlainLogFormatter(10, labelOnlyBase=False))
 
 
 def _orbit_xy(a, e, omega_rad=0.0, points=361):
@@ -87,7 +211,8 @@ def trajectory_figure(solution, ax=None):
     """
     d = solution.data
     prob = d["problem"]
-    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4))
+    created = ax is None
+    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
     dep = prob["departure"]
     if dep["kind"] == "ParkingOrbit":
         ax.plot(*_orbit_xy(dep["a_au"], dep["e"], np.radians(dep["omega_deg"])), color="0.6",
@@ -133,23 +258,37 @@ def trajectory_figure(solution, ax=None):
     title = f"{prob['name']}: tof {d['tof_days']:.1f} d, {d['status']}"
     if d.get("tof_days_exact") is not None:
         title += f"\npolished: tof {d['tof_days_exact']:.2f} d, {d['polish']['status']}"
-    ax.set_title(title)
+    # A title at a given height is not moved clear of ticks above the axes (there are
+    # none): matplotlib skips measuring the y axis for it, once per title and draw.
+    ax.set_title(title, y=1.0)
     ax.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
+    if created:
+        _fit_columns(fig, [[ax]])
     return fig
+
+
+def _pitch_schedule(d, polished):
+    """The schedule that the pitch panel shows: the polished one when there is one."""
+    return d["polish"]["schedule"] if polished else d["schedule"]
+
+
+def _throttled(sched):
+    """Whether a schedule has a throttle, which the pitch panel draws on its own axis."""
+    return bool(sched) and "throttle" in sched[0]
 
 
 def _pitch_panel(ax, d, polished):
     """The pitch schedule (the polished one when there is one) as steps against time,
     with the throttle on a right-hand axis when the problem has one."""
-    sched = d["polish"]["schedule"] if polished else d["schedule"]
+    sched = _pitch_schedule(d, polished)
     t = [row["t_days"] for row in sched]
     alpha = [row["alpha_deg"] for row in sched]
     t_end = d["tof_days_exact"] if polished else d["tof_days"]
     ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
             label="polished" if polished else None)
     ax.set_ylim(-95, 95)
-    if sched and "throttle" in sched[0]:
+    if _throttled(sched):
         # The throttle shares the pitch panel: it switches at the same times, and a
         # coast (kappa = 0) explains a pitch that wanders.
         kappa = [row["throttle"] for row in sched]
@@ -172,7 +311,11 @@ def timeline_figure(solution, axes=None):
     exact = d["trajectory"].get("polished")
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = exact is not None
-    fig, axes = axes_or_new(axes, 4, 2, figsize=(10, 10.5))
+    created = axes is None
+    if created:
+        fig, axes = _timeline_axes(_throttled(_pitch_schedule(d, polished)))
+    else:
+        fig, axes = axes_or_new(axes)
     for ax in axes[:3].ravel():
         ax.sharex(axes[0, 0])
     panels = [("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"), ("vtheta_km_s", "v_theta (km/s)"),
@@ -198,6 +341,8 @@ def timeline_figure(solution, axes=None):
     fig.suptitle(f"{d['problem']['name']}: {d['status']}, {verdict}"
                  + (f"; polished {d['polish']['status']} (pitch: polished schedule)"
                     if polished else ""))
+    if created:
+        _fit_columns(fig, axes)
     return fig
 
 
@@ -211,9 +356,10 @@ def _local_error_panel(ax, d):
     t = [row["t_days"] for row in sched] + [d["tof_days"]]
     ax.step(t, errors + errors[-1:], where="post", color="tab:green")
     ax.set_yscale("log")
+    _plain_log_labels(ax.yaxis)
     ax.set_xlabel("t (days)")
     ax.set_ylabel("closed-form local error (km)")
-    ax.set_title(f"per segment, {d['problem']['sub_arcs']} sub-arcs each", fontsize=9)
+    ax.set_title(f"per segment, {d['problem']['sub_arcs']} sub-arcs each", fontsize=9, y=1.0)
     ax.grid(alpha=0.3, which="both")
 
 
@@ -226,6 +372,7 @@ def _refinement_panel(ax, d):
         ax.text(0.5, 0.5, "no flight to judge", ha="center", transform=ax.transAxes)
         return
     ax.semilogy(range(len(misses)), misses, "o-", color="tab:red", label="flown miss")
+    _plain_log_labels(ax.yaxis)
     ax.axhline(d["tolerance"]["position_km"], color="k", ls="--", lw=0.8, label="tolerance")
     ax.set_xlabel("refinement round")
     ax.set_ylabel("position miss (km)")
@@ -238,6 +385,6 @@ def write_plots(solution, out_dir):
     """Write trajectory.png and timeline.png atomically; return their paths."""
     out = Path(out_dir)
     paths = [out / "trajectory.png", out / "timeline.png"]
-    save_figure(trajectory_figure(solution), paths[0])
-    save_figure(timeline_figure(solution), paths[1])
+    save_figure(trajectory_figure(solution), paths[0], dpi=DPI)
+    save_figure(timeline_figure(solution), paths[1], dpi=DPI)
     return paths
