@@ -217,7 +217,7 @@ def trajectory_figure(solution, ax=None):
     if dep["kind"] == "ParkingOrbit":
         ax.plot(*_orbit_xy(dep["a_au"], dep["e"], np.radians(dep["omega_deg"])), color="0.6",
                 lw=0.8, ls="--", label="departure orbit")
-    else:
+    elif dep["kind"] != "BodyDeparture":  # a body's own orbit is drawn with the bodies
         s = prob["departure_state"]
         ax.plot(*_orbit_xy(s["a_au"], 0.0), color="0.6", lw=0.8, ls="--",
                 label="departure a (circle)")
