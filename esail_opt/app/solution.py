@@ -99,7 +99,9 @@ def _calendar_data(problem, result, check):
     out["departure_body"] = {"name": lookup.name(dep.body), "source": lookup.source(dep.body),
                              "out_of_plane_km": units.length_to_km(abs(z0)),
                              "vinf_km_s": dep.vinf_km_s,
-                             "vinf_angle_deg": math.degrees(result.vinf_angle)}
+                             # The NLP's angle is unbounded: reported in [-180, 180).
+                             "vinf_angle_deg": (math.degrees(result.vinf_angle) + 180) % 360
+                             - 180}
     target = problem.target
     if target is not None and getattr(target, "body", None) is not None:
         m = check.misses
