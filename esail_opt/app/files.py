@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 
 from esail_opt.errors import InputError, OutputError
+from esail_opt.processes import alive
 
 #: Longest file or folder name most file systems take (ext4, xfs, tmpfs), bytes.
 NAME_MAX = 255
@@ -159,21 +160,8 @@ def _remove_stale(parent, name):
         if not entry.name.startswith(prefix):
             continue
         pid = entry.name[len(prefix):].partition("-")[0]
-        if pid.isdigit() and not _alive(int(pid)):
+        if pid.isdigit() and not alive(int(pid)):
             shutil.rmtree(entry.path, ignore_errors=True)
-
-
-def _alive(pid):
-    """Whether a process ``pid`` exists on this machine."""
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 # ---------------------------------------------------------------- the swap

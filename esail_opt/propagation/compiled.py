@@ -65,6 +65,8 @@ from pathlib import Path
 
 import casadi as ca
 
+from esail_opt.processes import alive
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX: parallel workers may compile twice
@@ -268,7 +270,7 @@ def _sweep_builds(folder):
     for entry in entries:
         pid = entry.name[len(".build-"):].partition("-")[0]
         if pid.isdigit():
-            if _alive(int(pid)):
+            if alive(int(pid)):
                 continue
         else:  # a folder of an older version, without a pid: stale after an hour
             with contextlib.suppress(OSError):
@@ -276,18 +278,6 @@ def _sweep_builds(folder):
                     continue
         _kill_compilers_of(entry.path)
         shutil.rmtree(entry.path, ignore_errors=True)
-
-
-def _alive(pid):
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _kill_compilers_of(build):
