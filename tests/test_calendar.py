@@ -192,3 +192,30 @@ def test_a_free_departure_date_does_no_worse_than_the_best_date_of_a_scan(tmp_pa
     assert free.verified, free["verification_note"]
     assert "2031-05-01" <= free["departure_date"] <= "2031-12-01T00:00:00"
     assert free.tof_days <= scanned["best"]["tof_days"] * 1.005
+
+
+def test_a_porkchop_writes_its_set_and_resumes_from_its_journal(tmp_path):
+    problem = tmp_path / "venus.py"
+    problem.write_text("import esail_opt as eo\nproblem = eo.Problem(name='venus_scan', "
+                       "departure=eo.BodyDeparture(body='earth', date='2031-01-01'), "
+                       "sail=eo.Sail(ac_mm_s2=1.0), segments=eo.Segments(count=24, "
+                       "sub_arcs=2), objective=eo.MinAcceleration(tof_days=700.0), "
+                       "target=eo.BodyRendezvous(body='venus'))\n")
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "esail_opt.app.cli", "porkchop", str(problem), "--depart",
+            "2031-01-01:2031-01-11:2", "--workers", "1", "--out", str(out)]
+    first = subprocess.run(args, capture_output=True, text=True)
+    assert first.returncode == 0, first.stderr
+    data = json.loads((out / "porkchop.json").read_text())
+    assert data["cells"] == 2 and data["verified_cells"] == 2
+    assert [r["departure_date"][:10] for r in data["rows"]] == ["2031-01-01", "2031-01-11"]
+    for row in data["rows"]:
+        # The arrival is the departure plus the fixed time of flight, and the a_c found
+        # is what a_c needs to be for the rendezvous, within the sail's range.
+        assert jd_of(row["arrival_date"]) - jd_of(row["departure_date"]) == pytest.approx(700.0, abs=1e-4)
+        assert 0 < row["objective"] < 100 and row["objective_unit"] == "mm/s^2"
+    again = subprocess.run(args + ["--resume"], capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    resumed = json.loads((out / "porkchop.json").read_text())
+    assert resumed["resumed"] == [0, 1]
+    assert [r["objective"] for r in resumed["rows"]] == [r["objective"] for r in data["rows"]]

@@ -22,23 +22,28 @@ import dataclasses
 import io
 import math
 import os
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from esail_opt.app import parallel
-from esail_opt.app.files import json_ready, save_figure, write_json, atomic_path
+from esail_opt.app import parallel, sweep
+from esail_opt.app.files import json_ready, publish, save_figure, write_json
 from esail_opt.app.parallel import first_line
-from esail_opt.bodies import dates
+from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError, check_range
 from esail_opt.optimisation import scan
+from esail_opt.optimisation.problem_file import load_problem
+from esail_opt.physics import constants as units
 
 CSV_FIELDS = ("index", "departure_date", "tof_days_grid", "converged", "verified", "status",
               "departure_jd", "arrival_date", "tof_days", "objective", "objective_unit",
               "target_miss_r_km", "target_miss_v_m_s", "relative_speed_km_s",
               "out_of_plane_km", "iterations", "start", "seconds", "error")
 JOURNAL = "porkchop.jsonl"
+#: The files a porkchop writes as one set (its journal is kept beside them).
+PORKCHOP_FILES = ("porkchop.csv", "porkchop.json", "porkchop.png")
 
 
 def parse_dates(text, field="depart"):
@@ -149,6 +154,7 @@ class Grid:
 
 
 def cell_problem(problem, grid, index):
+    """``problem`` at the grid's cell ``index``: its date, and its time of flight."""
     jd, tof = grid.cell(index)
     variant = scan.at_date(problem, jd)
     return variant if tof is None else scan.at_tof(variant, tof)
@@ -171,8 +177,6 @@ def _row(index, grid, cell=None, error=None):
                out_of_plane_km=cell.misses.get("out_of_plane_km"))
     if cell.solved:
         tof_tu = float(np.sum(result.durations))
-        from esail_opt.physics import constants as units
-
         row.update(tof_days=units.time_to_days(tof_tu), objective=cell.objective * factor,
                    objective_unit=unit.strip(),
                    arrival_date=dates.iso_from_jd(dates.jd_from_tu(result.epoch + tof_tu)))
@@ -185,9 +189,6 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
               tofs=None):
     """Solve one run of neighbouring cells on one NLP; their rows.  Never raises for a
     cell: a failure is in its row."""
-    from esail_opt.optimisation.problem_file import load_problem
-    import tempfile
-
     grid = Grid(tuple(departures), None if tofs is None else tuple(tofs))
     try:
         with tempfile.TemporaryDirectory(prefix="esail_porkchop_") as tmp:
@@ -219,9 +220,6 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
 
     Raises InputError on bad input before any solve.
     """
-    from esail_opt.app import sweep
-    from esail_opt.optimisation.problem_file import load_problem
-
     grid = Grid(tuple(parse_dates(depart)), None if tof is None else tuple(parse_tofs(tof)))
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check(problem, grid)
@@ -271,7 +269,7 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
             "objective": type(problem.objective).__name__,
             "objective_unit": next((r["objective_unit"] for r in ordered if r["objective_unit"]),
                                    None),
-            "target": lookup_name(problem),
+            "target": _target_name(problem),
             "departures": [dates.iso_from_jd(jd) for jd in grid.departures],
             "tofs_days": None if grid.tofs is None else list(grid.tofs),
             "shape": list(grid.shape), "cells": total, "verified_cells": len(verified),
@@ -283,9 +281,7 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
             "journal": None if journal is None else str(journal.path)}
 
 
-def lookup_name(problem):
-    from esail_opt.bodies import lookup
-
+def _target_name(problem):
     body = getattr(problem.target, "body", None)
     return None if body is None else lookup.name(body)
 
@@ -302,9 +298,10 @@ def table_csv(result):
 def figure(result):
     """The porkchop: the objective over calendar dates, unverified cells marked with a
     cross and the best cell starred."""
-    from matplotlib.figure import Figure
-    import matplotlib.dates as mdates
     from datetime import datetime
+
+    import matplotlib.dates as mdates
+    from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8, 5))
     ax = fig.add_subplot()
@@ -357,11 +354,12 @@ def figure(result):
 
 
 def write(result, out_dir):
-    """porkchop.json, porkchop.csv, porkchop.png in ``out_dir``; the paths."""
+    """porkchop.csv, porkchop.json and porkchop.png in ``out_dir``, as one set
+    (:func:`~esail_opt.app.files.publish`); the journal stays beside them.  Returns the
+    paths."""
     out = Path(out_dir)
-    paths = [out / "porkchop.json", out / "porkchop.csv", out / "porkchop.png"]
-    write_json(paths[0], json_ready(result))
-    with atomic_path(paths[1]) as tmp:
-        tmp.write_text(table_csv(result))
-    save_figure(figure(result), paths[2])
-    return paths
+    with publish(out, family=PORKCHOP_FILES) as stage:
+        (stage / PORKCHOP_FILES[0]).write_text(table_csv(result))
+        write_json(stage / PORKCHOP_FILES[1], json_ready(result))
+        save_figure(figure(result), stage / PORKCHOP_FILES[2])
+    return [out / name for name in PORKCHOP_FILES]
