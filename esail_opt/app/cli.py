@@ -13,7 +13,6 @@ import signal
 import sys
 
 from esail_opt.errors import InputError, OutputError, Terminated
-from esail_opt.app.parallel import ClusterLost
 
 EXIT_INPUT = 2
 #: An output that cannot be written (a full disk, a read-only folder): not 1, which

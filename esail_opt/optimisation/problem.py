@@ -23,7 +23,7 @@ converts to the package's canonical units.
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Optional, Union
+from typing import Optional, Union
 
 import casadi as ca
 import numpy as np

@@ -35,7 +35,6 @@ from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options
 from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
 from esail_opt.optimisation.verify import verify
-from esail_opt.physics import constants as units
 
 SOLVED = ("converged", "acceptable")
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
