@@ -18,6 +18,22 @@ PROBLEMS = REPO / "problems"
 USER_PROBLEMS = Path(__file__).resolve().parent / "problems"
 RESULTS = REPO / "results"
 
+#: A problem file that solves in a second or two (Earth-Mars on 6 segments, held to a
+#: loose tolerance): for tests of what happens around a solve, not of its numbers.
+TINY_PROBLEM = '''
+import esail_opt as eo
+
+problem = eo.Problem(
+    name={name!r},
+    departure=eo.ParkingOrbit(a_au=1.0),
+    sail=eo.Sail(ac_mm_s2=1.0),
+    segments=eo.Segments(count=6, sub_arcs=1),
+    objective=eo.MinTime(),
+    target=eo.CircularOrbit(radius_au=1.524),
+    tolerance=eo.Tolerance(position_km=1e8, velocity_m_s=1e5),
+)
+'''
+
 
 def fly_dop853(problem, schedule, rtol=1e-13):
     """Fly a schedule (solution.json rows: ``alpha_deg``, ``duration_days`` and maybe

@@ -23,21 +23,7 @@ import pytest
 from esail_opt.app import cli, files, sweep
 from esail_opt.errors import InputError, OutputError
 
-from conftest import PROBLEMS, REPO
-
-TINY = '''
-import esail_opt as eo
-
-problem = eo.Problem(
-    name={name!r},
-    departure=eo.ParkingOrbit(a_au=1.0),
-    sail=eo.Sail(ac_mm_s2=1.0),
-    segments=eo.Segments(count=6, sub_arcs=1),
-    objective=eo.MinTime(),
-    target=eo.CircularOrbit(radius_au=1.524),
-    tolerance=eo.Tolerance(position_km=1e8, velocity_m_s=1e5),
-)
-'''
+from conftest import PROBLEMS, REPO, TINY_PROBLEM as TINY
 
 
 def _env(**extra):

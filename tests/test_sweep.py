@@ -23,21 +23,9 @@ import pytest
 from esail_opt.app import cli, parallel, sweep
 from esail_opt.errors import InputError
 
-from conftest import REPO
+from conftest import REPO, TINY_PROBLEM
 
-TINY = '''
-import esail_opt as eo
-
-problem = eo.Problem(
-    name="tiny_earth_mars",
-    departure=eo.ParkingOrbit(a_au=1.0),
-    sail=eo.Sail(ac_mm_s2=1.0),
-    segments=eo.Segments(count=6, sub_arcs=1),
-    objective=eo.MinTime(),
-    target=eo.CircularOrbit(radius_au=1.524),
-    tolerance=eo.Tolerance(position_km=1e8, velocity_m_s=1e5),
-)
-'''
+TINY = TINY_PROBLEM.format(name="tiny_earth_mars")
 # a_c = 0 is outside Sail's (0, 100] mm/s^2: that member must fail in its row alone.
 PARAM = "ac_mm_s2=0:1.5:4"
 GRID = [0.0, 0.5, 1.0, 1.5]
