@@ -336,6 +336,28 @@ def test_a_dask_sweep_whose_scheduler_dies_ends_with_one_line(tmp_path):
     assert sorted(result["resumed"] + result["solved"]) == list(range(6))
 
 
+
+def test_a_dask_client_closed_mid_run_ends_the_run_as_cluster_lost(tmp_path):
+    """Dask's client closes itself a few seconds after its scheduler dies; a job lost
+    with it and submitted again then meets a closed client, which must read as the
+    lost cluster, not a traceback."""
+    from esail_opt.app import parallel
+
+    class ClosedClient:
+        status = "closed"
+
+        def get_executor(self, pure):
+            return self
+
+        def submit(self, *args):
+            raise RuntimeError("Client is closed. Can't send update-graph message.")
+
+    runner = parallel._Runner(print, {0: ()}, None, None, 1, ClosedClient(), 0,
+                              "tcp://127.0.0.1:1")
+    with pytest.raises(parallel.ClusterLost, match="lost the Dask scheduler"):
+        runner._submit([0], str(tmp_path))
+
+
 # ---------------------------------------------------------------- 4. outputs
 
 

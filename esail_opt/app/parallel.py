@@ -172,6 +172,12 @@ class _Runner:
                 raise
             # The pool broke while being fed: the jobs not yet submitted are lost in
             # the same break (handled by the next step).
+        except Exception as err:
+            # A Dask client that gave up on its scheduler refuses new work at once
+            # (ClosedClientError), sooner than the bound the watch would wait out.
+            if self.client is None or _client_status(self.client) == "running":
+                raise
+            raise ClusterLost(self._scheduler_lost("its client closed")) from err
         return [i for i in todo if i not in submitted]
 
     def _step(self, unsubmitted):
@@ -225,12 +231,12 @@ class _Runner:
         """Raise ClusterLost once the Dask cluster has been unable to run anything for
         longer than its bound: no scheduler, or no worker while jobs wait."""
         now = time.monotonic()
-        status = str(getattr(self.client, "status", "running"))
+        status = _client_status(self.client)
         problems = {}
+        if status in ("closing", "closed"):
+            raise ClusterLost(self._scheduler_lost("its client closed"))
         if status != "running":
-            problems["scheduler"] = (SCHEDULER_LOST_SECONDS,
-                                     f"lost the Dask scheduler at {self.address} (no "
-                                     f"connection for {SCHEDULER_LOST_SECONDS:g} s)")
+            problems["scheduler"] = (SCHEDULER_LOST_SECONDS, self._scheduler_lost())
         elif self.active:
             try:
                 workers = self.client.scheduler_info().get("workers", {})
@@ -244,6 +250,10 @@ class _Runner:
         for key, (bound, message) in problems.items():
             if now - self.unhealthy[key] >= bound:
                 raise ClusterLost(message)
+
+    def _scheduler_lost(self, why=None):
+        why = why or f"no connection for {SCHEDULER_LOST_SECONDS:g} s"
+        return f"lost the Dask scheduler at {self.address} ({why})"
 
     def _charge(self, i, cause):
         """Count one lost worker against job ``i``; True if it may run again."""
@@ -333,6 +343,11 @@ def _pool_member(started, function, index, *args):
 
 
 # ---------------------------------------------------------------- executors
+
+
+def _client_status(client):
+    """A Dask client's state: "running", "connecting", "closing", "closed", ..."""
+    return str(getattr(client, "status", "running"))
 
 
 def _lost_worker_errors():
