@@ -20,17 +20,16 @@ jobs wait.  The jobs that ended before were reported as they ended.
 """
 
 import contextlib
-import ctypes
 import logging
 import os
 import signal
-import sys
 import tempfile
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, wait
 from pathlib import Path
 
+from esail_opt import processes
 from esail_opt.errors import InputError
 
 #: Times a job lost with its worker is run again before it is reported failed.
@@ -48,8 +47,6 @@ SCHEDULER_LOST_SECONDS = 10.0
 #: enough for a worker to restart; a cluster that scales up from none needs its first
 #: worker within this.
 NO_WORKER_SECONDS = 30.0
-#: Seconds between two looks of a local pool's worker at its parent's pid.
-PARENT_POLL_SECONDS = 1.0
 
 
 class ClusterLost(RuntimeError):
@@ -302,35 +299,7 @@ def _worker_init(threads, parent=None):
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
     if parent is not None:
-        _die_with_parent(parent)
-
-
-#: prctl's option that has the kernel signal a process when its parent ends.
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent(parent):
-    """End this process when process ``parent`` ends.
-
-    On Linux the kernel sends SIGKILL at once (``prctl(PR_SET_PDEATHSIG)``; it fires
-    when the thread that started this process ends, which for the pool is the parent's
-    main thread, or the parent itself).  Everywhere a daemon thread also checks every
-    :data:`PARENT_POLL_SECONDS` that the parent is still this process's parent: an
-    orphan is re-parented, so a changed ``getppid()`` means the parent is gone.
-    """
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(Exception):
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-    if os.getppid() != parent:  # the parent died before the prctl took hold
-        os._exit(1)
-
-    def watch():
-        while os.getppid() == parent:
-            time.sleep(PARENT_POLL_SECONDS)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="esail-parent-watch", daemon=True).start()
+        processes.die_with_parent(parent)
 
 
 def _pool_member(started, function, index, *args):
