@@ -220,27 +220,6 @@ def _run_reproduce(args):
     return 0
 
 
-def _add_bench(sub):
-    from esail_opt import bench
-
-    p = sub.add_parser("bench", help="benchmarks, each against a baseline timed in the same run")
-    p.add_argument("name", nargs="+", choices=sorted(bench.BENCHES),
-                   help="one or more benchmarks, run one after another in this run")
-    p.add_argument("--out", default="results/bench", help="output directory (default results/bench)")
-    p.add_argument("--repeats", type=int, default=20, help="timed runs per method (median; default 20)")
-    p.set_defaults(run=_run_bench)
-
-
-def _run_bench(args):
-    from esail_opt import bench
-
-    if args.repeats < 1:
-        raise InputError(f"repeats = {args.repeats} is outside [1, inf)")
-    for name in dict.fromkeys(args.name):
-        print(f"wrote {bench.BENCHES[name](args.out, args.repeats)}")
-    return 0
-
-
 def _add_tolerance(p):
     p.add_argument("--tol-km", type=_number, default=None,
                    help="bound on the flown position miss, km (default: the problem's, "
@@ -512,7 +491,6 @@ def build_parser():
     sub = parser.add_subparsers(dest="command", required=True)
     _add_propagate(sub)
     _add_reproduce(sub)
-    _add_bench(sub)
     _add_solve(sub)
     _add_search(sub)
     _add_sweep(sub)
@@ -554,6 +532,27 @@ def _terminate(signum, frame):
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    return run_command(f"esail-opt {args.command}", args.run, args)
+
+
+def run_command(label, run, args):
+    """Run ``run(args)`` as a command does, and return the exit status.
+
+    Matplotlib draws to files only, the package's log lines go to stderr, SIGTERM
+    stops the run as Ctrl-C does, and each exception a user can meet becomes one line
+    ``<label>: error: ...`` on stderr and its exit status (see :data:`EPILOG`).  The
+    benchmarks' own command (``esail-opt-bench``) runs through here too, so that it
+    exits as this one does.
+
+    Parameters
+    ----------
+    label : str
+        What the lines start with, e.g. ``"esail-opt solve"``.
+    run : callable
+        ``run(args) -> int``, the command's work and its exit status.
+    args : argparse.Namespace
+        The parsed options, passed to ``run``.
+    """
     # The command line only writes files; library callers keep whatever backend they chose.
     import matplotlib
 
@@ -569,28 +568,28 @@ def main(argv=None):
         # kill, systemd and batch schedulers send SIGTERM: clean up as for Ctrl-C.
         previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return args.run(args)
+        return run(args)
     except InputError as err:
-        print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
+        print(f"{label}: error: {err}", file=sys.stderr)
         return EXIT_INPUT
     except OutputError as err:
-        print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
+        print(f"{label}: error: {err}", file=sys.stderr)
         return EXIT_OUTPUT
     except ClusterLost as err:
-        print(f"esail-opt {args.command}: {err}", file=sys.stderr)
+        print(f"{label}: {err}", file=sys.stderr)
         return 1
     except OSError as err:
         if err.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EROFS):
             raise
         # A full or read-only disk met outside the output writers (a bench, a plot).
-        print(f"esail-opt {args.command}: error: cannot write "
+        print(f"{label}: error: cannot write "
               f"{err.filename or 'an output'}: {err.strerror}", file=sys.stderr)
         return EXIT_OUTPUT
     except KeyboardInterrupt as err:
         signum = err.signum if isinstance(err, Terminated) else signal.SIGINT
         what = "interrupted" if signum == signal.SIGINT else \
             f"stopped by {signal.Signals(signum).name}"
-        print(f"\nesail-opt {args.command}: {what}; nothing half-done was written",
+        print(f"\n{label}: {what}; nothing half-done was written",
               file=sys.stderr)
         return 128 + signum
     finally:
