@@ -119,27 +119,27 @@ def _add_propagate(sub):
 
 
 def _run_propagate(args):
-    from esail_opt.app import fixed_attitude
+    from esail_opt.app import propagate
 
     values = {field: _value_or_range(option, getattr(args, option))
-              for field, option in fixed_attitude.GRID_FIELDS.items()}
+              for field, option in propagate.GRID_FIELDS.items()}
     if args.samples is not None and args.samples < 1:
         raise InputError(f"samples = {args.samples} is outside [1, inf)")
-    if any(":" in getattr(args, option) for option in fixed_attitude.GRID_FIELDS.values()):
+    if any(":" in getattr(args, option) for option in propagate.GRID_FIELDS.values()):
         return _run_propagate_grid(args, values)
-    case = fixed_attitude.FixedAttitudeCase(
+    case = propagate.FixedAttitudeCase(
         a0_au=values["a0_au"][0], e0=values["e0"][0], nu0_deg=values["nu0_deg"][0],
         ac_mm_s2=values["ac_mm_s2"][0], alpha_deg=values["alpha_deg"][0], years=args.years)
     return _run_propagate_one(args, case)
 
 
 def _run_propagate_one(args, case):
-    from esail_opt.app import fixed_attitude
+    from esail_opt.app import propagate
     from esail_opt.app.files import write_json
 
     print(f"propagating {args.years:g} years at alpha = {case.alpha_deg:g} deg "
           f"({args.method}) ...", file=sys.stderr)
-    result = fixed_attitude.run(case, args.method, args.samples)
+    result = propagate.run(case, args.method, args.samples)
     for key in ("closed_form", "cvodes"):
         if key in result:
             last = {name: values[-1] for name, values in result[key].items()}
@@ -159,16 +159,16 @@ def _run_propagate_one(args, case):
 def _run_propagate_grid(args, values):
     from pathlib import Path
 
-    from esail_opt.app import fixed_attitude
+    from esail_opt.app import propagate
     from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
 
     if args.method != "both":
         raise InputError(f"method = {args.method!r} with ranges: a grid flies both; "
                          "allowed: both")
     # Every case is checked here, before anything is flown or written.
-    count = len(fixed_attitude.grid_cases(values, args.years))
+    count = len(propagate.grid_cases(values, args.years))
     print(f"propagating {count} cases of {args.years:g} years ...", file=sys.stderr)
-    data = fixed_attitude.run_grid(values, args.years, args.samples)
+    data = propagate.run_grid(values, args.years, args.samples)
     eps = [v for v in data["columns"]["eps_percent"] if v == v]
     print(f"{count} cases, {len(data['invalid'])} where the closed form does not hold; eps "
           f"(Eq. 27) " + (f"from {min(eps):.3f} to {max(eps):.3f} %" if eps else "nowhere"))
@@ -176,8 +176,8 @@ def _run_propagate_grid(args, values):
         out = Path(args.out)
         csv, png = out.with_suffix(".csv"), out.with_suffix(".png")
         with atomic_path(csv) as tmp:
-            tmp.write_text(fixed_attitude.grid_csv(data))
-        save_figure(fixed_attitude.grid_figure(data, args.plot), png)
+            tmp.write_text(propagate.grid_csv(data))
+        save_figure(propagate.grid_figure(data, args.plot), png)
         write_json(out, json_ready(data))
         print(f"wrote {out}, {csv} and {png}")
     return 0
