@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from esail_opt.app import fixed_attitude
 from esail_opt.app.cli import main
+from esail_opt.app.propagate import GRID_COLUMNS, FixedAttitudeCase, eps_over_swept_angle
 from esail_opt.bench import propagate as bench
 from esail_opt.physics import constants as units
 from esail_opt.propagation.batch import arcs_at_angles, propagate_batch
@@ -128,12 +128,12 @@ def test_propagate_grid_writes_json_csv_and_png(tmp_path, capsys):
     cols = data["columns"]
     assert len(cols["eps_percent"]) == 4 and not data["invalid"]
     lines = out.with_suffix(".csv").read_text().splitlines()
-    assert lines[0].split(",") == list(fixed_attitude.GRID_COLUMNS) and len(lines) == 5
+    assert lines[0].split(",") == list(GRID_COLUMNS) and len(lines) == 5
     assert out.with_suffix(".png").stat().st_size > 0
     # Row 1 is ac = 0.05, alpha = 60: the same numbers as that case flown alone.
     assert (cols["ac_mm_s2"][1], cols["alpha_deg"][1]) == (0.05, 60.0)
-    alone = fixed_attitude.eps_over_swept_angle(
-        fixed_attitude.FixedAttitudeCase(1.0, 0.0, 0.0, 0.05, 60.0, 0.5), samples=64)
+    alone = eps_over_swept_angle(
+        FixedAttitudeCase(1.0, 0.0, 0.0, 0.05, 60.0, 0.5), samples=64)
     assert cols["eps_percent"][1] == pytest.approx(100 * alone[0], rel=1e-12)
     assert cols["swept_deg"][1] == pytest.approx(math.degrees(alone[1]), rel=1e-12)
     # Half a year from the circular orbit: CVODES's a, independently, from Eq. 2's

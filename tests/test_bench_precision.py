@@ -92,10 +92,11 @@ def test_rk4_segment_in_the_nlp_solves_and_verifies():
     # The NLP takes a segment with an empty q3 (no q3 rows); a coarse RK4 transcription of
     # Earth-Mars at 1 mm/s^2 (10 segments x 2 steps) converges in a fraction of a second
     # and its schedule, flown by CVODES, ends 4.3e3 km from the target orbit (measured).
-    from esail_opt.bench.cases import earth_mars_min_time
     from esail_opt.bench.precision import Case, rk4, run_case
+    from esail_opt.optimisation.problem_file import shipped_problem
 
-    case = run_case(Case(earth_mars_min_time(), (rk4(segments=10, steps=2),)), 1)
+    case = run_case(Case(shipped_problem("earth_mars_min_time"), (rk4(segments=10, steps=2),)),
+                    1)
     point = case["points"][0]
     assert point["status"] == "Solve_Succeeded"
     assert (point["segments"], point["steps"]) == (10, 2)

@@ -119,27 +119,27 @@ def _add_propagate(sub):
 
 
 def _run_propagate(args):
-    from esail_opt.app import fixed_attitude
+    from esail_opt.app import propagate
 
     values = {field: _value_or_range(option, getattr(args, option))
-              for field, option in fixed_attitude.GRID_FIELDS.items()}
+              for field, option in propagate.GRID_FIELDS.items()}
     if args.samples is not None and args.samples < 1:
         raise InputError(f"samples = {args.samples} is outside [1, inf)")
-    if any(":" in getattr(args, option) for option in fixed_attitude.GRID_FIELDS.values()):
+    if any(":" in getattr(args, option) for option in propagate.GRID_FIELDS.values()):
         return _run_propagate_grid(args, values)
-    case = fixed_attitude.FixedAttitudeCase(
+    case = propagate.FixedAttitudeCase(
         a0_au=values["a0_au"][0], e0=values["e0"][0], nu0_deg=values["nu0_deg"][0],
         ac_mm_s2=values["ac_mm_s2"][0], alpha_deg=values["alpha_deg"][0], years=args.years)
     return _run_propagate_one(args, case)
 
 
 def _run_propagate_one(args, case):
-    from esail_opt.app import fixed_attitude
+    from esail_opt.app import propagate
     from esail_opt.app.files import write_json
 
     print(f"propagating {args.years:g} years at alpha = {case.alpha_deg:g} deg "
           f"({args.method}) ...", file=sys.stderr)
-    result = fixed_attitude.run(case, args.method, args.samples)
+    result = propagate.run(case, args.method, args.samples)
     for key in ("closed_form", "cvodes"):
         if key in result:
             last = {name: values[-1] for name, values in result[key].items()}
@@ -159,16 +159,16 @@ def _run_propagate_one(args, case):
 def _run_propagate_grid(args, values):
     from pathlib import Path
 
-    from esail_opt.app import fixed_attitude
+    from esail_opt.app import propagate
     from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
 
     if args.method != "both":
         raise InputError(f"method = {args.method!r} with ranges: a grid flies both; "
                          "allowed: both")
     # Every case is checked here, before anything is flown or written.
-    count = len(fixed_attitude.grid_cases(values, args.years))
+    count = len(propagate.grid_cases(values, args.years))
     print(f"propagating {count} cases of {args.years:g} years ...", file=sys.stderr)
-    data = fixed_attitude.run_grid(values, args.years, args.samples)
+    data = propagate.run_grid(values, args.years, args.samples)
     eps = [v for v in data["columns"]["eps_percent"] if v == v]
     print(f"{count} cases, {len(data['invalid'])} where the closed form does not hold; eps "
           f"(Eq. 27) " + (f"from {min(eps):.3f} to {max(eps):.3f} %" if eps else "nowhere"))
@@ -176,8 +176,8 @@ def _run_propagate_grid(args, values):
         out = Path(args.out)
         csv, png = out.with_suffix(".csv"), out.with_suffix(".png")
         with atomic_path(csv) as tmp:
-            tmp.write_text(fixed_attitude.grid_csv(data))
-        save_figure(fixed_attitude.grid_figure(data, args.plot), png)
+            tmp.write_text(propagate.grid_csv(data))
+        save_figure(propagate.grid_figure(data, args.plot), png)
         write_json(out, json_ready(data))
         print(f"wrote {out}, {csv} and {png}")
     return 0
@@ -217,27 +217,6 @@ def _run_reproduce(args):
     progress.done()
     for path in written:
         print(f"wrote {path}")
-    return 0
-
-
-def _add_bench(sub):
-    from esail_opt import bench
-
-    p = sub.add_parser("bench", help="benchmarks, each against a baseline timed in the same run")
-    p.add_argument("name", nargs="+", choices=sorted(bench.BENCHES),
-                   help="one or more benchmarks, run one after another in this run")
-    p.add_argument("--out", default="results/bench", help="output directory (default results/bench)")
-    p.add_argument("--repeats", type=int, default=20, help="timed runs per method (median; default 20)")
-    p.set_defaults(run=_run_bench)
-
-
-def _run_bench(args):
-    from esail_opt import bench
-
-    if args.repeats < 1:
-        raise InputError(f"repeats = {args.repeats} is outside [1, inf)")
-    for name in dict.fromkeys(args.name):
-        print(f"wrote {bench.BENCHES[name](args.out, args.repeats)}")
     return 0
 
 
@@ -512,7 +491,6 @@ def build_parser():
     sub = parser.add_subparsers(dest="command", required=True)
     _add_propagate(sub)
     _add_reproduce(sub)
-    _add_bench(sub)
     _add_solve(sub)
     _add_search(sub)
     _add_sweep(sub)
@@ -554,6 +532,27 @@ def _terminate(signum, frame):
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    return run_command(f"esail-opt {args.command}", args.run, args)
+
+
+def run_command(label, run, args):
+    """Run ``run(args)`` as a command does, and return the exit status.
+
+    Matplotlib draws to files only, the package's log lines go to stderr, SIGTERM
+    stops the run as Ctrl-C does, and each exception a user can meet becomes one line
+    ``<label>: error: ...`` on stderr and its exit status (see :data:`EPILOG`).  The
+    benchmarks' own command (``esail-opt-bench``) runs through here too, so that it
+    exits as this one does.
+
+    Parameters
+    ----------
+    label : str
+        What the lines start with, e.g. ``"esail-opt solve"``.
+    run : callable
+        ``run(args) -> int``, the command's work and its exit status.
+    args : argparse.Namespace
+        The parsed options, passed to ``run``.
+    """
     # The command line only writes files; library callers keep whatever backend they chose.
     import matplotlib
 
@@ -569,28 +568,28 @@ def main(argv=None):
         # kill, systemd and batch schedulers send SIGTERM: clean up as for Ctrl-C.
         previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return args.run(args)
+        return run(args)
     except InputError as err:
-        print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
+        print(f"{label}: error: {err}", file=sys.stderr)
         return EXIT_INPUT
     except OutputError as err:
-        print(f"esail-opt {args.command}: error: {err}", file=sys.stderr)
+        print(f"{label}: error: {err}", file=sys.stderr)
         return EXIT_OUTPUT
     except ClusterLost as err:
-        print(f"esail-opt {args.command}: {err}", file=sys.stderr)
+        print(f"{label}: {err}", file=sys.stderr)
         return 1
     except OSError as err:
         if err.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EROFS):
             raise
         # A full or read-only disk met outside the output writers (a bench, a plot).
-        print(f"esail-opt {args.command}: error: cannot write "
+        print(f"{label}: error: cannot write "
               f"{err.filename or 'an output'}: {err.strerror}", file=sys.stderr)
         return EXIT_OUTPUT
     except KeyboardInterrupt as err:
         signum = err.signum if isinstance(err, Terminated) else signal.SIGINT
         what = "interrupted" if signum == signal.SIGINT else \
             f"stopped by {signal.Signals(signum).name}"
-        print(f"\nesail-opt {args.command}: {what}; nothing half-done was written",
+        print(f"\n{label}: {what}; nothing half-done was written",
               file=sys.stderr)
         return 128 + signum
     finally:

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from esail_opt.app import fixed_attitude
 from esail_opt.app.files import save_figure, write_json
 from esail_opt.app.plots import axes_or_new
+from esail_opt.app.propagate import FixedAttitudeCase, eps_over_swept_angles
 from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
 from esail_opt.physics.closed_form import theta_max_circular
@@ -128,10 +128,10 @@ def eps_map(a0, e0, nu0, label, progress=None):
         eps, and the angle (rad) swept by CVODES in YEARS, over which it was taken.
     """
     grid = [(float(alpha), float(ac)) for alpha in ALPHA_DEG for ac in AC_MM_S2]
-    cases = [fixed_attitude.FixedAttitudeCase(a0, e0, nu0, ac, alpha, YEARS)
+    cases = [FixedAttitudeCase(a0, e0, nu0, ac, alpha, YEARS)
              for alpha, ac in grid]
     # All closed forms in one batched call; CVODES per case.
-    results = fixed_attitude.eps_over_swept_angles(cases)
+    results = eps_over_swept_angles(cases)
     for (alpha, ac), result in zip(grid, results):
         if result.error is not None:
             raise RuntimeError(f"{label}: at alpha = {alpha:g} deg, a_c = {ac:g} "

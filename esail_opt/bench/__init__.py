@@ -1,7 +1,8 @@
 """Benchmarks, and the reference solvers they time.
 
 ``BENCHES`` maps a name to ``fn(out_dir, repeats)``, which runs the benchmark, writes its
-files under ``out_dir`` and returns the path of its JSON (``esail-opt bench NAME``).
+files under ``out_dir`` and returns the path of its JSON (``esail-opt-bench NAME``, the
+command of :mod:`.cli`).
 Each is the ``run`` of its own module:
 
 * ``propagate``, ``solve`` (:mod:`.solve_speed`), ``polish``, ``lowthrust`` and
@@ -12,8 +13,12 @@ Each is the ``run`` of its own module:
 * ``precision``: solve time against verified accuracy for the closed form, RK4
   (``propagation.rk4``) and CVODES segments.
 
-Their problems are built in :mod:`.cases`; :mod:`.collocation` is the independent
-collocation solver that ``lowthrust`` times and the tests' reference optima came from.
+Their problems are the shipped problem files, loaded by name from the package data
+``esail_opt.problems`` (``optimisation.problem_file.shipped_problem``), so an installed
+package runs every bench and a bench always solves the file a user sees.
+:mod:`.collocation` is the independent collocation solver that ``lowthrust`` times and
+the tests' reference optima came from.  The benches import the layers below and the
+application modules, none of which imports them.
 """
 
 from esail_opt.bench import lowthrust, polish, porkchop, precision, propagate, solve_speed, sweep

@@ -7,7 +7,7 @@ Run it as a module, naming the JSON file to write (the tests read theirs from
     python -m esail_opt.bench.collocation --out collocation_min_time.json             # all
     python -m esail_opt.bench.collocation --out collocation_min_time.json earth_mars  # a subset
 
-A subset run keeps the other cases already in the file.  ``esail-opt bench lowthrust``
+A subset run keeps the other cases already in the file.  ``esail-opt-bench lowthrust``
 times this module's path to one optimum (``esail_opt.bench.lowthrust``).
 
 Why this exists

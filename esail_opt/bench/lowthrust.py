@@ -1,4 +1,4 @@
-"""``esail-opt bench lowthrust``: Earth-Mars at a_c = 0.1 mm/s^2 (about 6.5 revolutions)
+"""``esail-opt-bench lowthrust``: Earth-Mars at a_c = 0.1 mm/s^2 (about 6.5 revolutions)
 by closed-form shooting, CVODES-arc shooting and collocation, timed in one run."""
 
 import math
@@ -6,9 +6,25 @@ import statistics
 import time
 from pathlib import Path
 
-from esail_opt.bench import cases
 from esail_opt.bench.timing import (
     equal_lengths, print_table, runs_of, shooting_segments, timed_nlps)
+from esail_opt.optimisation.problem_file import shipped_problem
+
+#: The shipped problem this bench solves.
+PROBLEM = "earth_mars_low_thrust"
+#: The collocation optimum of that transfer, the entry ``earth_mars_low`` of the
+#: repository's ``tests/reference/collocation_min_time.json`` (written by
+#: ``python -m esail_opt.bench.collocation``; ``runtime_seconds`` is its whole multistart
+#: and refinement).  Carried here because an installed package has no ``tests/``;
+#: ``tests/test_bench_problems.py`` checks these numbers against that entry.
+EARTH_MARS_LOW_REFERENCE = {
+    "ac_mm_s2": 0.1,
+    "rf_au": 1.524,
+    "tof_days": 3329.616487062407,
+    "intervals": 547,
+    "intervals_fine": 1094,
+    "runtime_seconds": 160.6611323940001,
+}
 
 #: Constant pitch of the collocation's start, deg: the same as the shooting NLPs' seed.
 GUESS_DEG = 45.0
@@ -139,7 +155,7 @@ def _print(data):
 def run(out, repeats):
     """Three optimisers on the low-thrust Earth-Mars transfer; writes ``lowthrust.json``.
 
-    * closed-form multiple shooting: :func:`cases.earth_mars_low_thrust` (its
+    * closed-form multiple shooting: the shipped :data:`PROBLEM` (its
       per-revolution segment count, resolved by the seed), one equal-length NLP;
     * CVODES-arc multiple shooting: the same NLP, N, initial guess and Ipopt options,
       each segment one CVODES integration of Eqs. 1-2 in theta at 1e-12 with CasADi's
@@ -148,7 +164,7 @@ def run(out, repeats):
       from one start (:func:`_collocation_solve`): the constant-pitch +45 deg flight
       (the shooting seed's pitch) solved on the search mesh, re-solved on the reporting
       mesh and on twice it, the meshes of the stored reference
-      (:data:`cases.EARTH_MARS_LOW_REFERENCE`).  Its multistart over other starts is not
+      (:data:`EARTH_MARS_LOW_REFERENCE`).  Its multistart over other starts is not
       timed (it only guards against other basins; ``reference_multistart_seconds`` is
       its stored total).  A single cold solve straight on the fine mesh is no
       substitute: it took 29.6 s (227 iterations) and stopped at a discrete KKT point
@@ -165,8 +181,8 @@ def run(out, repeats):
     """
     from esail_opt.app.files import write_json
 
-    problem = equal_lengths(cases.earth_mars_low_thrust())
-    reference = cases.EARTH_MARS_LOW_REFERENCE
+    problem = equal_lengths(shipped_problem(PROBLEM))
+    reference = EARTH_MARS_LOW_REFERENCE
     radius = problem.target.radius_au
     if (reference["ac_mm_s2"], reference["rf_au"]) != (problem.sail.ac_mm_s2, radius):
         raise RuntimeError(f"{problem.name} and the collocation reference are not the "

@@ -1,15 +1,15 @@
-"""``esail-opt bench polish``: closed-form solve + exact polish against a cold CVODES
+"""``esail-opt-bench polish``: closed-form solve + exact polish against a cold CVODES
 multiple shooting started from the same seed."""
 
 import dataclasses
 import time
 from pathlib import Path
 
-from esail_opt.bench import cases
 from esail_opt.bench.timing import print_table
+from esail_opt.optimisation.problem_file import shipped_problem
 
-#: Problems of the polish benchmark, with their own N and sub-arcs.
-PROBLEMS = (cases.earth_venus_min_time, cases.earth_mars_min_time)
+#: Shipped problems of the polish benchmark, with their own N and sub-arcs.
+PROBLEMS = ("earth_venus_min_time", "earth_mars_min_time")
 #: Ipopt iteration budget of the cold start: a fifth of the solve's default, and four
 #: times what the warm polish needs, so that a cold start that stalls is seen as such.
 COLD_MAX_ITER = 1000
@@ -125,9 +125,9 @@ def run(out, repeats):
     from esail_opt.app.files import write_json
 
     solved = []
-    for problem in PROBLEMS:
-        print(f"bench polish: {problem.__name__} ...", flush=True)
-        solved.append(_polish_case(problem()))
+    for name in PROBLEMS:
+        print(f"bench polish: {name} ...", flush=True)
+        solved.append(_polish_case(shipped_problem(name)))
     data = {"cases": solved, "cold_max_iter": COLD_MAX_ITER,
             "how": ("one run each, wall time of building + solving; warm = closed-form solve "
                     "+ polish, cold = exact CVODES-in-time NLP from the constant-pitch seed; "

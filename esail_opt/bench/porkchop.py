@@ -1,6 +1,6 @@
-"""``esail-opt bench porkchop``: a launch-window scan timed three ways in one run.
+"""``esail-opt-bench porkchop``: a launch-window scan timed three ways in one run.
 
-The scan is a patch of the sail designer's porkchop of :func:`cases.earth_venus_min_ac`
+The scan is a patch of the sail designer's porkchop of the shipped :data:`PROBLEM`
 (minimum a_c to meet Venus, 6 departure dates x 4 times of flight = 24 cells), solved
 
 * as ``esail-opt porkchop`` solves it: one closed-form NLP per revolution class, each
@@ -19,12 +19,14 @@ import time
 
 from esail_opt.app.files import write_json
 from esail_opt.app.porkchop import Grid, cell_problem
-from esail_opt.bench import cases
 from esail_opt.bench.timing import print_table
 from esail_opt.bodies import dates
 from esail_opt.optimisation import scan
+from esail_opt.optimisation.problem_file import shipped_problem
 from esail_opt.propagation.rk4 import rk4_segment
 
+#: The shipped problem whose porkchop this bench scans.
+PROBLEM = "earth_venus_min_ac"
 #: A patch of the shipped porkchop at 20-day spacing in both dates and flight times, as
 #: fine as an analyst's chart would be.
 DEPARTURES = ("2031-01-01", "2031-04-11", 6)
@@ -44,7 +46,7 @@ def _grid():
 def _rows(grid):
     """The scan's runs as ``esail-opt porkchop`` makes them on one worker: one path
     through the grid, with each cell's grid neighbours."""
-    problem = cases.earth_venus_min_ac()
+    problem = shipped_problem(PROBLEM)
     return [([cell_problem(problem, grid, i) for i in job], grid.neighbours(job))
             for job in grid.jobs(1)]
 

@@ -33,8 +33,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from esail_opt.bench import cases as bench_cases
 from esail_opt.bench.timing import equal_lengths, print_table, runs_of
+from esail_opt.optimisation.problem_file import shipped_problem
 
 #: Target misses at which the curves are read, km, with their JSON keys.
 MISSES_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
@@ -161,32 +161,47 @@ def cvodes(segments=None, per_revolution=None):
                              "per_revolution": per_revolution}, solve)
 
 
-#: The two transfers.  At 1 mm/s^2 (about 1.2 revolutions) N is a total; at 0.1 mm/s^2
-#: (about 6.5 revolutions) it is per revolution, so N follows the seed's sweep as in the
-#: shipped problem (16 per revolution x 2 sub-arcs there, N = 100).  Both run down to
-#: coarse settings (10 segments at 1 mm/s^2, 2 per revolution at 0.1 mm/s^2), where a
-#: curve must start above a miss to be read there rather than only bounded, and where
-#: a method may stop converging at all (RK4 with one step at 2 and 3 per revolution did
-#: not); 10 x 3 is the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break
-#: the strain cap (``transcription.STRAIN_CAP``) and the seed adds them back.  CVODES
-#: segments are exact to 1e-12 at any N and cost seconds per solve, so they run at one or
-#: two N.
-CASES = (
-    Case(bench_cases.earth_mars_min_time(), (
-        closed_form(segments=10, sub_arcs=3),
-        *(closed_form(segments=n, sub_arcs=s) for n in (20, 40, 60) for s in (1, 3)),
-        *(corrected(segments=n, sub_arcs=3, rounds=k) for n in (20, 40) for k in (1, 2)),
-        *(rk4(segments=n, steps=m) for n in (10, 20, 30, 60, 100) for m in (1, 2, 4)),
-        cvodes(segments=20), cvodes(segments=40),
-    )),
-    Case(bench_cases.earth_mars_low_thrust(), (
-        *(closed_form(per_revolution=k, sub_arcs=s) for k in (2, 3, 4, 8, 16, 24)
-          for s in (1, 2)),
-        *(corrected(per_revolution=k, sub_arcs=2, rounds=r) for k in (8, 16) for r in (1, 2)),
-        *(rk4(per_revolution=k, steps=m) for k in (2, 3, 4, 8, 16, 24) for m in (1, 2, 4)),
-        cvodes(per_revolution=4), cvodes(per_revolution=8),
-    )),
-)
+#: The shipped problems of the two transfers, in the order of :func:`cases`.
+PROBLEMS = ("earth_mars_min_time", "earth_mars_low_thrust")
+
+
+def cases():
+    """The two transfers of :data:`PROBLEMS`, loaded from the shipped files, with their
+    methods and settings.
+
+    At 1 mm/s^2 (about 1.2 revolutions) N is a total; at 0.1 mm/s^2 (about 6.5
+    revolutions) it is per revolution, so N follows the seed's sweep as in the shipped
+    problem (16 per revolution x 2 sub-arcs there, N = 100).  Both run down to coarse
+    settings (10 segments at 1 mm/s^2, 2 per revolution at 0.1 mm/s^2), where a curve
+    must start above a miss to be read there rather than only bounded, and where a
+    method may stop converging at all (RK4 with one step at 2 and 3 per revolution did
+    not); 10 x 3 is the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break
+    the strain cap (``transcription.STRAIN_CAP``) and the seed adds them back.  CVODES
+    segments are exact to 1e-12 at any N and cost seconds per solve, so they run at one
+    or two N.  Loaded when called, not at import, so that importing the benches reads
+    no file.
+
+    Returns
+    -------
+    tuple of Case
+    """
+    high_ac, low_ac = (shipped_problem(name) for name in PROBLEMS)
+    return (
+        Case(high_ac, (
+            closed_form(segments=10, sub_arcs=3),
+            *(closed_form(segments=n, sub_arcs=s) for n in (20, 40, 60) for s in (1, 3)),
+            *(corrected(segments=n, sub_arcs=3, rounds=k) for n in (20, 40) for k in (1, 2)),
+            *(rk4(segments=n, steps=m) for n in (10, 20, 30, 60, 100) for m in (1, 2, 4)),
+            cvodes(segments=20), cvodes(segments=40),
+        )),
+        Case(low_ac, (
+            *(closed_form(per_revolution=k, sub_arcs=s) for k in (2, 3, 4, 8, 16, 24)
+              for s in (1, 2)),
+            *(corrected(per_revolution=k, sub_arcs=2, rounds=r) for k in (8, 16) for r in (1, 2)),
+            *(rk4(per_revolution=k, steps=m) for k in (2, 3, 4, 8, 16, 24) for m in (1, 2, 4)),
+            cvodes(per_revolution=4), cvodes(per_revolution=8),
+        )),
+    )
 
 
 # ------------------------------------------------------------------ reading the curves
@@ -420,7 +435,7 @@ def precision_figure(cases):
 def run(out, repeats):
     """Work-precision benchmark of the shooting NLP: closed form, RK4 and CVODES arcs.
 
-    For each case in :data:`CASES` every method is solved at each of its settings
+    For each case of :func:`cases` every method is solved at each of its settings
     (median wall time of ``min(repeats, 3)`` runs of the whole ``solve_problem``:
     seed, NLP construction and Ipopt), then its schedule is flown by CVODES and the
     distance of the flight's end from the target orbit recorded.  Each method's seconds
@@ -434,7 +449,7 @@ def run(out, repeats):
 
     runs = runs_of(repeats)
     _warm_up()
-    solved = [run_case(case, runs) for case in CASES]
+    solved = [run_case(case, runs) for case in cases()]
     for case in solved:
         rows = []
         for key, row in case["at_miss_km"].items():

@@ -1,4 +1,4 @@
-"""``esail-opt bench propagate``: the paper's 10-year orbit raising (Sec. 3) propagated
+"""``esail-opt-bench propagate``: the paper's 10-year orbit raising (Sec. 3) propagated
 by the closed form, by CVODES and by Ref. [10]'s model, timed in one run; and the same
 ten years as a work-precision race, each method's call time against its final error."""
 

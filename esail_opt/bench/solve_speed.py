@@ -1,15 +1,15 @@
-"""``esail-opt bench solve``: the optimiser's NLP with closed-form arcs against the same
+"""``esail-opt-bench solve``: the optimiser's NLP with closed-form arcs against the same
 NLP with CVODES arcs, timed in one run."""
 
 from pathlib import Path
 
-from esail_opt.bench import cases
 from esail_opt.bench.timing import (
     equal_lengths, print_table, runs_of, shooting_segments, timed_nlps)
+from esail_opt.optimisation.problem_file import shipped_problem
 
-#: Problems of the solve benchmark: short arcs at a high acceleration, then the paper's
-#: low-acceleration orbit raising, where each CVODES arc needs more steps.
-PROBLEMS = (cases.earth_venus_min_time, cases.orbit_raising_10yr)
+#: Shipped problems of the solve benchmark: short arcs at a high acceleration, then the
+#: paper's low-acceleration orbit raising, where each CVODES arc needs more steps.
+PROBLEMS = ("earth_venus_min_time", "orbit_raising_10yr")
 
 
 def _solve_case(problem, repeats):
@@ -54,7 +54,7 @@ def run(out, repeats):
     """
     from esail_opt.app.files import write_json
 
-    solved = [_solve_case(problem(), repeats) for problem in PROBLEMS]
+    solved = [_solve_case(shipped_problem(name), repeats) for name in PROBLEMS]
     keys = ("closed_form_seconds", "cvodes_seconds", "closed_form_iterations",
             "cvodes_iterations", "ratio")
     data = {key: solved[0][key] for key in keys}

@@ -1,4 +1,4 @@
-"""``esail-opt bench sweep``: a sweep's wall time on a process pool of 1 worker against
+"""``esail-opt-bench sweep``: a sweep's wall time on a process pool of 1 worker against
 2, the same sweep, one run."""
 
 import os
@@ -7,8 +7,25 @@ import tempfile
 import time
 from pathlib import Path
 
-from esail_opt.bench.cases import SWEEP_PARAM, SWEEP_SOURCE
 from esail_opt.bench.timing import print_table, runs_of
+
+#: The sweep's problem file (a sweep runs a file, whose text its workers load):
+#: Earth-Mars minimum time, coarse enough that each member takes seconds.  Not a
+#: shipped problem: the shipped Earth-Mars (60 x 3) would make the bench take minutes.
+SWEEP_SOURCE = '''
+import esail_opt as eo
+
+problem = eo.Problem(
+    name="bench_sweep_earth_mars",
+    departure=eo.ParkingOrbit(a_au=1.0),
+    sail=eo.Sail(ac_mm_s2=1.0),
+    segments=eo.Segments(count=20, sub_arcs=2),
+    objective=eo.MinTime(),
+    target=eo.CircularOrbit(radius_au=1.524),
+)
+'''
+#: The sweep's parameter: 8 values of a_c in [0.6, 1.6] mm/s^2.
+SWEEP_PARAM = "ac_mm_s2=0.6:1.6:8"
 
 
 def _timed_sweeps(path, runs):
@@ -35,7 +52,7 @@ def run(out, repeats):
     """One sweep on 1 worker and on 2; writes ``sweep.json``.
 
     The family is Earth-Mars minimum time at 20 segments x 2 sub-arcs over 8 values of
-    a_c in [0.6, 1.6] mm/s^2 (:data:`cases.SWEEP_SOURCE`, a few seconds of Ipopt each),
+    a_c in [0.6, 1.6] mm/s^2 (:data:`SWEEP_SOURCE`, a few seconds of Ipopt each),
     so the members outweigh the pool's start-up (each spawned worker imports CasADi
     once).  The wall time covers the whole ``sweep.run``: pool start, every member, pool
     shutdown.  With ``repeats`` above 1 the two pool sizes alternate (at most 3 runs

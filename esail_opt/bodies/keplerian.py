@@ -200,37 +200,47 @@ class SmallBody:
                 f"i = {self.inclination_deg:.4f} deg, epoch {iso_from_jd(self.epoch_jd)} TDB")
 
 
+def _from_horizons(name, designation, elements, epoch, solution):
+    """A shipped body from JPL Horizons' heliocentric ecliptic J2000 osculating elements.
+
+    Parameters
+    ----------
+    name : str
+        The body's name, e.g. ``"(101955) Bennu"``.
+    designation : str
+        The body as Horizons names it, for ``source``.
+    elements : tuple of float
+        Horizons' own elements in its order, (A au, EC, IN deg, OM deg, W deg, MA deg).
+        The longitude of perihelion :class:`SmallBody` takes, varpi = OM + W, is formed
+        here, so that every number stays as Horizons prints it.
+    epoch : str
+        ISO 8601 date of the elements (0 h TDB).
+    solution : str
+        Which orbit solution, for ``source``.
+    """
+    a, e, inclination, node, argument, mean_anomaly = elements
+    return SmallBody(
+        name=name, a_au=a, e=e, inclination_deg=inclination, node_deg=node,
+        perihelion_deg=node + argument, mean_anomaly_deg=mean_anomaly, epoch=epoch,
+        source=(f"JPL Horizons heliocentric ecliptic J2000 osculating elements of "
+                f"{designation}, epoch JD {jd_from_iso(epoch):.1f} ({epoch}.0) TDB, {solution}"))
+
+
 #: (101955) Bennu, a near-Earth (Apollo) asteroid, target of OSIRIS-REx.
-BENNU = SmallBody(
-    name="(101955) Bennu",
-    a_au=1.1263910258948120,
-    e=0.2037450762416414,
-    inclination_deg=6.0349437702479403,
-    node_deg=2.060866195696420,
-    # varpi = OM + W = 2.060866195696420 + 66.22306084084298
-    perihelion_deg=68.283927036539400,
-    mean_anomaly_deg=101.7039520024729,
-    epoch="2011-01-01",
-    source=("JPL Horizons heliocentric ecliptic J2000 osculating elements of 101955 Bennu, "
-            "epoch JD 2455562.5 (2011-01-01.0) TDB, orbit solution dated 2021-01-07 "
-            "(OSIRIS-REx solution, Farnocchia et al. 2021, Icarus 369, 114594; "
-            "trajectory sb-101955-118)"),
-)
+BENNU = _from_horizons(
+    "(101955) Bennu", "101955 Bennu",
+    (1.1263910258948120, 0.2037450762416414, 6.0349437702479403, 2.060866195696420,
+     66.22306084084298, 101.7039520024729),
+    "2011-01-01",
+    "orbit solution dated 2021-01-07 (OSIRIS-REx solution, Farnocchia et al. 2021, Icarus "
+    "369, 114594; trajectory sb-101955-118)")
 
 #: (1) Ceres, the largest main-belt body.
-CERES = SmallBody(
-    name="(1) Ceres",
-    a_au=2.769289292143484,
-    e=0.07687465013145245,
-    inclination_deg=10.59127767086216,
-    node_deg=80.3011901917491,
-    # varpi = OM + W = 80.3011901917491 + 73.80896808746482
-    perihelion_deg=154.11015827921392,
-    mean_anomaly_deg=130.3159688200986,
-    epoch="2020-01-01",
-    source=("JPL Horizons heliocentric ecliptic J2000 osculating elements of 1 Ceres, "
-            "epoch JD 2458849.5 (2020-01-01.0) TDB, orbit solution JPL#48 dated 2021-04-13"),
-)
+CERES = _from_horizons(
+    "(1) Ceres", "1 Ceres",
+    (2.769289292143484, 0.07687465013145245, 10.59127767086216, 80.3011901917491,
+     73.80896808746482, 130.3159688200986),
+    "2020-01-01", "orbit solution JPL#48 dated 2021-04-13")
 
 #: The small bodies the package ships, by lower-case short name.
 SMALL_BODIES = {"bennu": BENNU, "ceres": CERES}

@@ -1,11 +1,13 @@
-"""One fixed attitude flown from a parking orbit: the paper's closed form against CVODES.
+"""The ``propagate`` command's work: one fixed attitude flown from a parking orbit, the
+paper's closed form against CVODES.
 
-Two jobs share it.  ``esail-opt propagate`` flies the paper's closed form (one arc,
-no rectification) to where its own clock reaches the horizon, and CVODES to the
-horizon.  The paper's Figs. 3-4 measure Eq. 27 over the numerical integration's
-swept angle in the horizon (the closed form, a function of theta, has no clock
-there): :func:`eps_over_swept_angle`.  theta is measured from the parking orbit's
-apse line (the paper's convention), so theta0 = nu0.
+Named for the command, as ``sweep``, ``porkchop`` and ``search`` are; the propagators
+themselves live in :mod:`esail_opt.propagation`.  Two jobs share it.  ``esail-opt
+propagate`` flies the paper's closed form (one arc, no rectification) to where its own
+clock reaches the horizon, and CVODES to the horizon.  The paper's Figs. 3-4 measure
+Eq. 27 over the numerical integration's swept angle in the horizon (the closed form, a
+function of theta, has no clock there): :func:`eps_over_swept_angle`.  theta is
+measured from the parking orbit's apse line (the paper's convention), so theta0 = nu0.
 """
 
 import math

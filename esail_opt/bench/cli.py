@@ -1,0 +1,48 @@
+"""The ``esail-opt-bench`` command: run benchmarks by name.
+
+The benchmarks are the top layer, above the application, so they have their own command
+(a ``[project.scripts]`` entry, also ``python -m esail_opt.bench``) rather than a
+subcommand of ``esail-opt``: the application's command line would have to import them,
+an import running upward.  Errors become one line and an exit status as in
+``esail-opt`` (:func:`esail_opt.app.cli.run_command`).
+"""
+
+import argparse
+
+from esail_opt.app.cli import run_command
+from esail_opt.bench import BENCHES
+from esail_opt.errors import InputError
+
+PROG = "esail-opt-bench"
+EPILOG = ("exit status: 0 every benchmark named ran and wrote its files; 2 bad input "
+          "(nothing run); 3 an output could not be written; 130 interrupted by SIGINT, "
+          "143 by SIGTERM")
+
+
+def build_parser():
+    """The command's options: benchmark names, ``--out`` and ``--repeats``."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, description="benchmarks, each against a baseline timed in the same run",
+        epilog=EPILOG)
+    parser.add_argument("name", nargs="+", choices=sorted(BENCHES),
+                        help="one or more benchmarks, run one after another in this run")
+    parser.add_argument("--out", default="results/bench",
+                        help="output directory (default results/bench)")
+    parser.add_argument("--repeats", type=int, default=20,
+                        help="timed runs per method (median; default 20)")
+    return parser
+
+
+def _run(args):
+    if args.repeats < 1:
+        raise InputError(f"repeats = {args.repeats} is outside [1, inf)")
+    # A name given twice runs once: each run rewrites the same files.
+    for name in dict.fromkeys(args.name):
+        print(f"wrote {BENCHES[name](args.out, args.repeats)}")
+    return 0
+
+
+def main(argv=None):
+    """Parse ``argv`` (default ``sys.argv[1:]``), run the benchmarks, return the exit status."""
+    args = build_parser().parse_args(argv)
+    return run_command(PROG, _run, args)
