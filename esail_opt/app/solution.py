@@ -19,9 +19,9 @@ import numpy as np
 from esail_opt.app import schema
 from esail_opt.app.files import json_ready, publish, write_json
 from esail_opt.bodies import dates, lookup
-from esail_opt.optimisation import exact as exact_refinement
+from esail_opt.optimisation import polish as polishing
 from esail_opt.optimisation import scan
-from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
+from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.verify import verify, within
@@ -296,7 +296,7 @@ def _polish_data(problem, exact, check):
     polished NLP's final state.
     """
     m = check.misses
-    within_all, note = check.judge(problem, exact_refinement.TOLERANCE, against_nlp=True)
+    within_all, note = check.judge(problem, polishing.TOLERANCE, against_nlp=True)
     verified = exact.converged and within_all
     if not exact.converged:
         note = f"NOT verified: Ipopt did not converge ({exact.status}); {note}"
@@ -308,10 +308,10 @@ def _polish_data(problem, exact, check):
         "constraint_violation": exact.constraint_violation,
         "objective": exact.objective,
         "tof_days": units.time_to_days(float(np.sum(exact.durations))),
-        "bounds": {"position_km": exact_refinement.TOLERANCE.position_km,
-                   "velocity_m_s": exact_refinement.TOLERANCE.velocity_m_s},
-        "within_bounds_vs_nlp": within(m, exact_refinement.TOLERANCE, "nlp"),
-        "within_bounds_vs_target": problem.target is None or within(m, exact_refinement.TOLERANCE),
+        "bounds": {"position_km": polishing.TOLERANCE.position_km,
+                   "velocity_m_s": polishing.TOLERANCE.velocity_m_s},
+        "within_bounds_vs_nlp": within(m, polishing.TOLERANCE, "nlp"),
+        "within_bounds_vs_target": problem.target is None or within(m, polishing.TOLERANCE),
         "verified": verified, "note": note,
         "schedule": _schedule(exact, problem.throttled()),
         "final_state": _polar_dict(exact.nodes[:4, -1]),
@@ -334,7 +334,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         Plot samples per segment.
     polish : bool
         Then refine the optimum on the exact Eqs. 1-2 in time
-        (:func:`esail_opt.optimisation.exact.polish`) and verify that schedule too.
+        (:func:`esail_opt.optimisation.polish.polish`) and verify that schedule too.
 
     Returns
     -------
@@ -398,7 +398,7 @@ def _other_starts(problem, result, tr, say):
 def solution_of(problem, result, tr=None, samples=16, polish=False, progress=None,
                 starts=None, sub_arcs_requested=None):
     """The :class:`Solution` of a closed-form optimum already found: its error control
-    (``optimisation.refine``), its CVODES verification and, with ``polish``, its exact
+    (``optimisation.error_control``), its CVODES verification and, with ``polish``, its exact
     refinement (see :func:`solve`, which is this after the solve; the global search
     calls it for each optimum it keeps).
 
@@ -411,7 +411,7 @@ def solution_of(problem, result, tr=None, samples=16, polish=False, progress=Non
     say = progress or (lambda text: None)
     refined = None
     if result.outcome in ("converged", "acceptable"):
-        refined = refine(problem, result, tr, say)
+        refined = control_error(problem, result, tr, say)
         iterations = result.iterations + sum(r["iterations"] for r in refined.history[1:])
         seconds = result.solve_seconds + refined.history[-1]["seconds"]
         problem, result, tr = refined.problem, refined.result, refined.transcription
@@ -495,7 +495,7 @@ def _add_polish(data, problem, result, samples, say):
                           "note": f"NOT polished: the closed-form solve ended {result.status}"}
         return
     say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
-    exact, _ = exact_refinement.polish(problem, result)
+    exact, _ = polishing.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")
     exact_check = verify(problem, exact, samples)

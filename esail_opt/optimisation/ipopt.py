@@ -244,7 +244,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
     options : dict, optional
         Ipopt options; default :func:`ipopt_options`.
     defects : numpy.ndarray, optional
-        5 x N segment defects of the defect correction (``optimisation.refine``).
+        5 x N segment defects of the defect correction (``optimisation.error_control``).
     warm : NLPResult, optional
         Start from this result's primal and dual point (same NLP layout) with
         :func:`warm_options`, instead of from ``tr.x0``.

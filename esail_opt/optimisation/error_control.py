@@ -56,8 +56,8 @@ STALL = 0.5
 
 
 @dataclass
-class Refinement:
-    """The outcome of :func:`refine`; the caller judges its final flight.
+class ErrorControl:
+    """The outcome of :func:`control_error`; the caller judges its final flight.
 
     Attributes
     ----------
@@ -132,9 +132,10 @@ def _flown_miss(problem, check):
     return np.inf if value is None else value
 
 
-def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
-           defects=None):
-    """Refine a closed-form optimum until its flight meets ``problem.tolerance``.
+def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
+                  defects=None):
+    """Correct and re-mesh a closed-form optimum until its flight meets
+    ``problem.tolerance`` (the rounds of this module's docstring).
 
     Parameters
     ----------
@@ -151,14 +152,14 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
         Rounds of correction at most.
     solver : tuple, optional
         ``ipopt.build_solver(tr, warm=True)``'s pair, already built for ``tr``: a scan
-        refines many cells on one NLP, and building its solver costs seconds.
+        error-controls many cells on one NLP, and building its solver costs seconds.
     defects : numpy.ndarray, optional
         The 5 x N defects ``result`` was solved with (a scan carries a neighbour's), so
-        that :attr:`Refinement.defects` says what the final result was solved with.
+        that :attr:`ErrorControl.defects` says what the final result was solved with.
 
     Returns
     -------
-    Refinement
+    ErrorControl
     """
     say = progress or (lambda text: None)
     fresh = tr is None
@@ -175,11 +176,11 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
             local_km = np.array([state_miss(a, b)[0] for a, b in zip(exact.T, plain.T)])
         except SimulationError as err:
             exact = None
-            say(f"refinement: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")
+            say(f"error control: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")
         history.append(_row(rnd, problem, result, check, local_km,
                             time.perf_counter() - started))
         miss = _flown_miss(problem, check)
-        say(f"refinement round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
+        say(f"error-control round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
             f"{miss:.4g} km (tolerance {problem.tolerance.position_km:g} km)")
         if (verified or rnd == max_rounds or exact is None
                 or result.outcome not in ("converged", "acceptable")):
@@ -201,7 +202,7 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
                     problem.segments, sub_arcs=min(grown, MAX_SUB_ARCS)))
                 tr = transcribe(problem, guess=result.as_guess())
                 plain = segment_ends(problem, result)[1]
-                say(f"refinement: {'strained' if strained else 'slow'} closed form; "
+                say(f"error control: {'strained' if strained else 'slow'} closed form; "
                     f"{problem.segments.sub_arcs} sub-arcs per segment")
             applied = exact - plain
             result = solve_transcription(tr, defects=applied, progress=progress)
@@ -213,4 +214,4 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
             result = solve_transcription(tr, defects=applied, warm=result, solver=solver,
                                          progress=progress)
     # Every way out of the loop is a break after flying the final result.
-    return Refinement(problem, result, tr, history, local_km, check, applied)
+    return ErrorControl(problem, result, tr, history, local_km, check, applied)
