@@ -13,7 +13,8 @@ from conftest import solved_under
 from esail_opt.app import cli
 from esail_opt.errors import InputError
 from esail_opt.optimisation import transcription as tr
-from esail_opt.optimisation.ipopt import outcome_of, solve_problem
+from esail_opt.optimisation.ipopt import solve_problem
+from esail_opt.optimisation.outcome import Outcome
 from esail_opt.physics import constants as units
 from esail_opt.propagation.rectified import propagate, propagate_extrapolated
 
@@ -97,10 +98,13 @@ def test_ipopt_opt_in_working_directory_is_not_read(tmp_path, monkeypatch):
 
 
 def test_acceptable_level_is_not_converged():
-    assert outcome_of("Solve_Succeeded") == "converged"
-    assert outcome_of("Solved_To_Acceptable_Level") == "acceptable"
-    assert outcome_of("Infeasible_Problem_Detected") == "infeasible"
-    assert outcome_of("Maximum_Iterations_Exceeded") == "failed"
+    assert Outcome.of("Solve_Succeeded") is Outcome.CONVERGED
+    assert Outcome.of("Solved_To_Acceptable_Level") is Outcome.ACCEPTABLE
+    assert Outcome.of("Infeasible_Problem_Detected") is Outcome.INFEASIBLE
+    assert Outcome.of("Maximum_Iterations_Exceeded") is Outcome.FAILED
+    # Found is what the later stages go on from; only Solve_Succeeded is converged.
+    assert [o.found for o in Outcome] == [True, True, False, False]
+    assert [o.converged for o in Outcome] == [True, False, False, False]
 
 
 def test_small_transfer_converges_and_lands_on_target():

@@ -120,7 +120,7 @@ def corrected(segments=None, sub_arcs=3, per_revolution=None, rounds=1):
         variant = dataclasses.replace(_with_count(problem, segments, per_revolution, sub_arcs),
                                       tolerance=Tolerance(position_km=1e-3))
         result, tr = solve_problem(variant)
-        if result.outcome not in ("converged", "acceptable"):
+        if not result.outcome.found:
             return result
         return control_error(variant, result, tr, max_rounds=rounds).result
 

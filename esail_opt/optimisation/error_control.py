@@ -36,6 +36,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -55,6 +56,28 @@ MAX_SUB_ARCS = 24
 STALL = 0.5
 
 
+@dataclass(frozen=True)
+class Round:
+    """One round of the error control, in boundary units (solution.json's
+    ``refinement.rounds`` rows): the mesh, Ipopt's record and the flight's misses of the
+    round's result (None where the flight failed or there is no target), and the seconds
+    since the error control started."""
+
+    round: int
+    segments: int
+    sub_arcs: int
+    status: str
+    iterations: int
+    objective: float
+    tof_days: float
+    target_miss_r_km: Optional[float]
+    target_miss_v_m_s: Optional[float]
+    miss_r_km: Optional[float]
+    miss_v_m_s: Optional[float]
+    max_local_error_km: Optional[float]
+    seconds: float
+
+
 @dataclass
 class ErrorControl:
     """The outcome of :func:`control_error`; the caller judges its final flight.
@@ -66,8 +89,8 @@ class ErrorControl:
     result : NLPResult
         The last optimum.
     transcription : Transcription
-    history : list of dict
-        One row per round (boundary units), the last one ``result``'s.
+    history : list of Round
+        One per round, the last one ``result``'s.
     local_error_km : numpy.ndarray
         Per segment, the closed form's position error against Eqs. 1-2 over that
         segment from its own start node, km (NaN where a segment could not be flown).
@@ -114,15 +137,15 @@ def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TO
 
 def _row(rnd, problem, result, check, local_km, seconds):
     m = check.misses
-    return {"round": rnd, "segments": int(result.alpha.size),
-            "sub_arcs": problem.segments.sub_arcs, "status": result.status,
-            "iterations": result.iterations, "objective": result.objective,
-            "tof_days": units.time_to_days(float(np.sum(result.durations))),
-            "target_miss_r_km": m.get("target_miss_r_km"),
-            "target_miss_v_m_s": m.get("target_miss_v_m_s"),
-            "miss_r_km": m.get("miss_r_km"), "miss_v_m_s": m.get("miss_v_m_s"),
-            "max_local_error_km": None if local_km is None else float(np.max(local_km)),
-            "seconds": seconds}
+    return Round(round=rnd, segments=int(result.alpha.size),
+                 sub_arcs=problem.segments.sub_arcs, status=result.status,
+                 iterations=result.iterations, objective=result.objective,
+                 tof_days=units.time_to_days(float(np.sum(result.durations))),
+                 target_miss_r_km=m.get("target_miss_r_km"),
+                 target_miss_v_m_s=m.get("target_miss_v_m_s"),
+                 miss_r_km=m.get("miss_r_km"), miss_v_m_s=m.get("miss_v_m_s"),
+                 max_local_error_km=None if local_km is None else float(np.max(local_km)),
+                 seconds=seconds)
 
 
 def _flown_miss(problem, check):
@@ -183,7 +206,7 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
         say(f"error-control round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
             f"{miss:.4g} km (tolerance {problem.tolerance.position_km:g} km)")
         if (verified or rnd == max_rounds or exact is None
-                or result.outcome not in ("converged", "acceptable")):
+                or not result.outcome.found):
             break
         sub = problem.segments.sub_arcs
         worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,

@@ -263,7 +263,7 @@ def search(problem, extra_revolutions=2, progress=None):
     say(f"{problem.name}: start 1, the problem's own seed (free)")
     first, tr = solve_problem(problem, progress=progress)
     base_k = tr.guess.revolutions_k
-    if first.outcome == "converged":
+    if first.converged:
         centre = base_k if rendezvous else int(swept_angle(first) // (2 * math.pi))
     else:
         centre = base_k if rendezvous else int(float(tr.guess.nodes[1, -1]

@@ -187,7 +187,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
     stages, iterations = list(exact.stages), exact.iterations
     solver, landed = None, False
     for round_ in range(max_rounds + 1):
-        if exact.outcome not in ("converged", "acceptable"):
+        if not exact.outcome.found:
             break
         try:
             landed = _lands(problem, exact)

@@ -36,7 +36,6 @@ from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
 from esail_opt.optimisation.verify import verify
 
-SOLVED = ("converged", "acceptable")
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
 CLASS_ITERATIONS = 300
 
@@ -79,7 +78,7 @@ class Cell:
 
     @property
     def solved(self):
-        return self.result is not None and self.result.outcome in SOLVED
+        return self.result is not None and self.result.outcome.found
 
     @property
     def objective(self):
@@ -115,7 +114,7 @@ class CellSolver:
             warm_solver = self.nlps[cell.on_scan_nlp.revolutions_k][1]
         controlled = (control_error(problem, result, tr, solver=warm_solver,
                                     defects=cell.defects)
-                      if result.outcome in SOLVED and self.segment is None else None)
+                      if result.outcome.found and self.segment is None else None)
         on_scan, defects = cell.on_scan_nlp, None
         if controlled is not None:
             if on_scan is not None:
@@ -167,7 +166,7 @@ class CellSolver:
         result, tr = solve_problem(problem, segment=self.segment, options=options, guess=guess)
         k = result.revolutions_k
         on_scan = None
-        if k not in self.nlps and result.outcome in SOLVED:
+        if k not in self.nlps and result.outcome.found:
             self.nlps[k] = (tr, build_solver(tr, warm=True), problem.segments)
             on_scan = result
         return self._candidate(problem, result, tr, started, label, on_scan)
