@@ -303,3 +303,28 @@ def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value)
     monkeypatch.setenv("ESAIL_OPT_THREADS", value)
     with pytest.raises(InputError, match=r"ESAIL_OPT_THREADS = .* \[1, 64\]"):
         tr.transcribe(small_problem())
+
+
+# ------------------------------------------------ the pipeline
+
+
+def test_a_run_that_found_nothing_is_neither_error_controlled_nor_polished():
+    """finish() on a solve stopped after one iteration (FAILED): the run is verified
+    against nothing, the error control and the polish do not run, and each says why."""
+    from esail_opt.app.solution import Solution
+    from esail_opt.optimisation import pipeline
+    from esail_opt.optimisation.ipopt import ipopt_options
+
+    problem = small_problem()
+    result, tr_ = solve_problem(problem, options=ipopt_options(max_iter=1), staged=False)
+    assert result.outcome is Outcome.FAILED and not result.outcome.found
+    run = pipeline.finish(problem, result, tr_, samples=2, polish=True)
+    assert run.error_control is None and run.polish is not None and not run.polish.ran
+    assert not run.verified and run.note.startswith("NOT verified: Ipopt ended ")
+    assert run.polish.note == f"NOT polished: the closed-form solve ended {result.status}"
+    d = Solution.of(run).to_json()
+    assert d["polish"] == {"status": None, "converged": False, "verified": False,
+                           "note": run.polish.note}
+    assert d["outcome"] == "failed" and d["refinement"]["rounds"] == []
+    assert "polished" not in d["trajectory"] and "tof_days_exact" not in d
+    assert not Solution.of(run).verified

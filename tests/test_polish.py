@@ -74,7 +74,7 @@ def test_polish_leaves_the_closed_form_fields_unchanged(coarse_venus):
     for key in ("objective", "tof_days", "status", "iterations", "schedule", "final_state"):
         assert polished[key] == plain[key], key
     assert polished["objective_closed_form"] == plain["objective"]
-    assert "polish" not in plain.data and "objective_exact" not in plain.data
+    assert "polish" not in plain.to_json() and "objective_exact" not in plain.to_json()
     assert "polished" not in plain["trajectory"]
 
 

@@ -325,7 +325,7 @@ def _run_solve(args):
     print(sol.summary())
     if sol.verified:
         return 0
-    reason = sol["verification_note"] if not sol["verified"] else sol["polish"]["note"]
+    reason = sol.verification_note if not sol.flight_verified else sol.polish.note
     print(f"esail-opt solve: {reason}", file=sys.stderr)
     return 1
 
