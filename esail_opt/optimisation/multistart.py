@@ -76,8 +76,8 @@ class Candidate:
     ----------
     result : NLPResult
         The closed-form optimum (the best of the starts that reached it).  Its
-        ``theta_window`` is kept only when the window's bound is active (a refinement
-        must keep it then); a free optimum carries none.
+        ``theta_window`` is kept only when the window's bound is active (the error control
+        and the polish must keep it then); a free optimum carries none.
     revolutions : float
         Turns swept from departure to arrival, (theta_f - theta_0) / 2 pi.
     free : bool

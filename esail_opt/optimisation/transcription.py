@@ -560,9 +560,9 @@ def _flight(problem, segment, v, p, scales, in_time):
     threads = min(segment_threads(), n) if segment.name() not in INTEGRATOR_SEGMENTS else 1
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
     ends, q3 = mapped(starts, ac, v["alpha"].T, length.T)
-    # The defect correction (optimisation.error_control): a constant per segment, added to its
-    # end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter, so one
-    # solver serves every round of the refinement.
+    # The defect correction (optimisation.error_control): a constant per segment, added
+    # to its end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter,
+    # so one solver serves every round of the error control.
     defects = ca.MX.sym("defects", 5, n)
     swept = (nodes[1, :] - starts[1, :]).T
     elapsed = (nodes[4, :] - starts[4, :]).T
