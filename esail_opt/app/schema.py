@@ -1,12 +1,12 @@
 """The schema of ``solution.json``: its version, and what each field holds.
 
-This is the one place the file's layout is written down.  Only
+This is the one place the file's layout is written down. Only
 :meth:`esail_opt.app.solution.Solution.to_json` and ``Solution.from_json`` use these
-keys; the plot, search and sweep modules read the typed Solution's fields, named as
-the keys are except where ``Solution``'s docstring says otherwise.  Units are one per quantity everywhere in the
-file, the polish included: lengths and position misses in km (au for radii and
-semimajor axes), speeds and velocity misses in m/s (km/s for state velocities), times in
-days, angles in degrees.
+keys; the plot, search and sweep modules read the typed Solution's fields, named as the
+keys are except where ``Solution``'s docstring says otherwise. Units are one per
+quantity everywhere in the file, the polish included: lengths and position misses in km
+(au for radii and semimajor axes), speeds and velocity misses in m/s (km/s for state
+velocities), times in days, angles in degrees.
 
 Version 2 added ``schema_version``, gave the polish's misses and bounds the same keys and
 units as the closed form's (km and m/s, where version 1 used m and mm/s), and made an

@@ -3,12 +3,12 @@
 ``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`
 (one start per revolution class), then runs the rest of the pipeline on every distinct
 optimum (:func:`esail_opt.optimisation.pipeline.finish`: error control, CVODES
-verification, polish) and keeps its :class:`~esail_opt.app.solution.Solution`, and ranks them on
-the exact time of flight of the polished schedules that fly to within 1 m and 1 mm/s
-(then, for any that do not, on the closed-form time).  It writes ``search.json`` and
-``search.csv`` (one row per optimum, all kept), ``search.png`` (revolutions against
-time of flight) and the best optimum's ``solution.json``, ``schedule.csv`` and plots
-under ``best/``.
+verification, polish), keeps each one's :class:`~esail_opt.app.solution.Solution`, and
+ranks them on the exact time of flight of the polished schedules that fly to within 1 m
+and 1 mm/s (then, for any that do not, on the closed-form time). It writes
+``search.json`` and ``search.csv`` (one row per optimum, all kept), ``search.png``
+(revolutions against time of flight) and the best optimum's ``solution.json``,
+``schedule.csv`` and plots under ``best/``.
 """
 
 import csv

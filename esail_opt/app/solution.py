@@ -21,7 +21,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import casadi as ca
 import numpy as np
@@ -249,6 +249,10 @@ class Part:
 
     def __repr__(self):
         return f"Part({self.kind!r}, {self.fields!r})"
+
+    def __reduce__(self):
+        # Copies and pickles rebuild through __init__: __setattr__ refuses every field.
+        return (Part, (self.kind, self.fields))
 
     def has(self, name):
         """Whether this kind of part has field ``name``."""
