@@ -708,7 +708,7 @@ def _nan_for_none(value):
 
 
 def solution_of(run):
-    """:meth:`Solution.of` ``run``."""
+    """The :class:`Solution` of a pipeline Run (:meth:`Solution.of`)."""
     return Solution.of(run)
 
 
