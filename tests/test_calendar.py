@@ -64,7 +64,7 @@ MARS_FIXED = eo.Problem(
 def test_a_mars_rendezvous_at_fixed_dates_flies_to_mars_itself():
     sol = eo.solve(MARS_FIXED)
     assert sol.verified, sol["verification_note"]
-    d = sol.data
+    d = sol.to_json()
     assert d["departure_date"] == "2031-08-24T00:00:00"
     arrival = jd_of(d["arrival_date"])
     assert arrival == pytest.approx(jd_of("2031-08-24") + 700.0, abs=1.0 / 86400)

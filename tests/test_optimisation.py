@@ -13,7 +13,8 @@ from conftest import solved_under
 from esail_opt.app import cli
 from esail_opt.errors import InputError
 from esail_opt.optimisation import transcription as tr
-from esail_opt.optimisation.ipopt import outcome_of, solve_problem
+from esail_opt.optimisation.ipopt import solve_problem
+from esail_opt.optimisation.outcome import Outcome
 from esail_opt.physics import constants as units
 from esail_opt.propagation.rectified import propagate, propagate_extrapolated
 
@@ -97,10 +98,13 @@ def test_ipopt_opt_in_working_directory_is_not_read(tmp_path, monkeypatch):
 
 
 def test_acceptable_level_is_not_converged():
-    assert outcome_of("Solve_Succeeded") == "converged"
-    assert outcome_of("Solved_To_Acceptable_Level") == "acceptable"
-    assert outcome_of("Infeasible_Problem_Detected") == "infeasible"
-    assert outcome_of("Maximum_Iterations_Exceeded") == "failed"
+    assert Outcome.of("Solve_Succeeded") is Outcome.CONVERGED
+    assert Outcome.of("Solved_To_Acceptable_Level") is Outcome.ACCEPTABLE
+    assert Outcome.of("Infeasible_Problem_Detected") is Outcome.INFEASIBLE
+    assert Outcome.of("Maximum_Iterations_Exceeded") is Outcome.FAILED
+    # Found is what the later stages go on from; only Solve_Succeeded is converged.
+    assert [o.found for o in Outcome] == [True, True, False, False]
+    assert [o.converged for o in Outcome] == [True, False, False, False]
 
 
 def test_small_transfer_converges_and_lands_on_target():
@@ -299,3 +303,28 @@ def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value)
     monkeypatch.setenv("ESAIL_OPT_THREADS", value)
     with pytest.raises(InputError, match=r"ESAIL_OPT_THREADS = .* \[1, 64\]"):
         tr.transcribe(small_problem())
+
+
+# ------------------------------------------------ the pipeline
+
+
+def test_a_run_that_found_nothing_is_neither_error_controlled_nor_polished():
+    """finish() on a solve stopped after one iteration (FAILED): the run is verified
+    against nothing, the error control and the polish do not run, and each says why."""
+    from esail_opt.app.solution import Solution
+    from esail_opt.optimisation import pipeline
+    from esail_opt.optimisation.ipopt import ipopt_options
+
+    problem = small_problem()
+    result, tr_ = solve_problem(problem, options=ipopt_options(max_iter=1), staged=False)
+    assert result.outcome is Outcome.FAILED and not result.outcome.found
+    run = pipeline.finish(problem, result, tr_, samples=2, polish=True)
+    assert run.error_control is None and run.polish is not None and not run.polish.ran
+    assert not run.verified and run.note.startswith("NOT verified: Ipopt ended ")
+    assert run.polish.note == f"NOT polished: the closed-form solve ended {result.status}"
+    d = Solution.of(run).to_json()
+    assert d["polish"] == {"status": None, "converged": False, "verified": False,
+                           "note": run.polish.note}
+    assert d["outcome"] == "failed" and d["refinement"]["rounds"] == []
+    assert "polished" not in d["trajectory"] and "tof_days_exact" not in d
+    assert not Solution.of(run).verified

@@ -28,22 +28,22 @@ def polished():
 @pytest.fixture(scope="module")
 def throttled(polished):
     """The same data with a throttle in both schedules, as a throttled problem writes it."""
-    data = copy.deepcopy(polished.data)
+    data = copy.deepcopy(polished.to_json())
     for rows in (data["schedule"], data["polish"]["schedule"]):
         for k, row in enumerate(rows):
             row["throttle"] = 1.0 if k % 2 == 0 else 0.0
-    return Solution(data)
+    return Solution.from_json(data)
 
 
 @pytest.fixture(scope="module")
 def narrow(polished):
     """The same data with local errors within one decade, where matplotlib labels the
     log axis's minor ticks too (4×10⁰): wider labels than the decades'."""
-    data = copy.deepcopy(polished.data)
+    data = copy.deepcopy(polished.to_json())
     rows = data["schedule"]
     for k, row in enumerate(rows):
         row["local_error_km"] = 0.6 + 3.4 * k / max(len(rows) - 1, 1)
-    return Solution(data)
+    return Solution.from_json(data)
 
 
 def _drawn(fig):
@@ -63,7 +63,7 @@ def _inside(box, fig):
 
 
 def test_trajectory_has_its_curves_labels_and_legend(polished):
-    d = polished.data
+    d = polished.to_json()
     fig = plots.trajectory_figure(polished)
     (ax,) = fig.axes
     assert _labels(ax) == ["departure orbit", "target orbit", "closed form (NLP)",
@@ -88,7 +88,7 @@ def test_trajectory_has_its_curves_labels_and_legend(polished):
 @pytest.mark.parametrize("which", ["polished", "throttled"])
 def test_timeline_has_its_panels_curves_and_labels(which, request):
     sol = request.getfixturevalue(which)
-    d = sol.data
+    d = sol.to_json()
     fig = plots.timeline_figure(sol)
     twins = [ax for ax in fig.axes if ax.get_ylabel() == "throttle kappa"]
     assert len(twins) == (1 if which == "throttled" else 0)
@@ -110,7 +110,7 @@ def test_timeline_has_its_panels_curves_and_labels(which, request):
                 "closed form", "CVODES", "polished (CVODES)"]
     assert _labels(panels[0]) == ["closed form", "CVODES", "polished (CVODES)"]
     assert [ax.get_xlabel() for ax in panels] == [""] * 4 + ["t (days)"] * 3 + [
-        "refinement round"]
+        "error-control round"]
     assert panels[6].get_yscale() == panels[7].get_yscale() == "log"
     assert _labels(panels[7]) == ["flown miss", "tolerance"]
     assert "polished Solve_Succeeded" in fig._suptitle.get_text()

@@ -1,4 +1,4 @@
-"""Exact refinement (``--polish``): the closed-form optimum re-solved on CVODES arcs in time.
+"""The polish (``--polish``): the closed-form optimum re-solved on CVODES arcs in time.
 
 References: the verified-miss bounds of issue 6 (1 m, 1 mm/s: what CVODES at a relative
 1e-12 resolves), and the independent continuous-control collocation optimum of
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import esail_opt as eo
-from esail_opt.optimisation import exact as exact_refinement
+from esail_opt.optimisation import polish
 from esail_opt.optimisation.verify import within
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.ipopt import solve_problem
@@ -74,7 +74,7 @@ def test_polish_leaves_the_closed_form_fields_unchanged(coarse_venus):
     for key in ("objective", "tof_days", "status", "iterations", "schedule", "final_state"):
         assert polished[key] == plain[key], key
     assert polished["objective_closed_form"] == plain["objective"]
-    assert "polish" not in plain.data and "objective_exact" not in plain.data
+    assert "polish" not in plain.to_json() and "objective_exact" not in plain.to_json()
     assert "polished" not in plain["trajectory"]
 
 
@@ -114,7 +114,7 @@ def test_warm_start_satisfies_continuity_and_drops_q3():
     # the exact NLP has no q3 rows.
     problem = _problem("earth_venus", segments=4)
     result, tr = solve_problem(problem)
-    guess = exact_refinement.exact_guess(problem, result.x_start, result.as_guess(durations=True))
+    guess = polish.exact_guess(problem, result.x_start, result.as_guess(durations=True))
     exact = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), guess,
                        length_in="time")
     assert "q3" not in exact.names and "q3" in tr.names
@@ -143,7 +143,7 @@ def test_polish_bounds(miss, ok):
     misses = {"target_miss_r_km": km(miss["position_m"]),
               "target_miss_v_m_s": km(miss["velocity_mm_s"]),
               "verifier_error_r_km": 0.0, "verifier_error_v_m_s": 0.0}
-    assert within(misses, exact_refinement.TOLERANCE) is ok
+    assert within(misses, polish.TOLERANCE) is ok
 
 
 # -- slow: the shipped transfers at 1 mm/s^2 against the collocation optimum
@@ -181,28 +181,28 @@ def test_low_thrust_transfer_polished_within_0_3_percent(name, reference_key, se
 def test_polish_steps_are_the_fewest_whose_defects_are_small():
     # Four long segments (about 1.3 rad each): 4 RK4 steps are far from Eqs. 1-2 there,
     # so the polish must take more.  Each count's defects are judged here by CVODES
-    # flights from every node (refine.segment_ends), not by the polish's own flight.
+    # flights from every node (error_control.segment_ends), not by the polish's own flight.
     from types import SimpleNamespace
 
-    from esail_opt.optimisation.refine import segment_ends
+    from esail_opt.optimisation.error_control import segment_ends
     from esail_opt.propagation.rk4 import rk4_segment
 
     problem = _problem("earth_venus", segments=4)
     result, _ = solve_problem(problem)
-    start = exact_refinement.exact_guess(problem, result.x_start,
+    start = polish.exact_guess(problem, result.x_start,
                                          result.as_guess(durations=True))
     chain = SimpleNamespace(alpha=start.alpha, throttle=start.throttle, x_start=result.x_start,
                             durations=start.lengths, nodes=start.nodes, ac_scale=1.0)
     worst, ends = {}, {}
-    for count in exact_refinement.RK4_STEPS:
+    for count in polish.RK4_STEPS:
         flown, model = segment_ends(problem, chain, rk4_segment(count, length_in="time"),
                                     "time")
         worst[count] = float(np.max(np.abs(flown - model)[:4]))
         ends[count] = model
-    chosen = exact_refinement.rk4_polish_segment(problem, result.x_start, start)
+    chosen = polish.rk4_polish_segment(problem, result.x_start, start)
     _, model = segment_ends(problem, chain, chosen, "time")
     count = next(k for k, m in ends.items() if np.array_equal(m, model))
-    steps = list(exact_refinement.RK4_STEPS)
-    assert worst[steps[0]] > exact_refinement.STEP_DEFECT, worst
-    assert count > steps[0] and worst[count] < exact_refinement.STEP_DEFECT, (count, worst)
-    assert worst[steps[steps.index(count) - 1]] >= exact_refinement.STEP_DEFECT, (count, worst)
+    steps = list(polish.RK4_STEPS)
+    assert worst[steps[0]] > polish.STEP_DEFECT, worst
+    assert count > steps[0] and worst[count] < polish.STEP_DEFECT, (count, worst)
+    assert worst[steps[steps.index(count) - 1]] >= polish.STEP_DEFECT, (count, worst)

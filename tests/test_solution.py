@@ -2,6 +2,7 @@
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 
@@ -21,7 +22,7 @@ def solution():
 
 
 def test_json_has_the_issue_fields(solution):
-    d = solution.data
+    d = solution.to_json()
     for key in ("status", "converged", "objective", "tof_days", "iterations", "solve_seconds",
                 "schedule", "final_state", "verification"):
         assert key in d
@@ -41,7 +42,8 @@ def test_files_round_trip(solution, tmp_path):
     written = solution.write(tmp_path, plots=False)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["schedule.csv", "solution.json"]
     loaded = Solution.load(written[0])
-    assert loaded.data == json.loads(json.dumps(solution.data))
+    assert loaded == solution
+    assert loaded.to_json() == json.loads(written[0].read_text()) == solution.to_json()
     rows = (tmp_path / "schedule.csv").read_text().splitlines()
     assert len(rows) == len(solution["schedule"]) + 1
     first = dict(zip(rows[0].split(","), map(float, rows[1].split(","))))
@@ -55,8 +57,8 @@ def test_non_finite_numbers_become_null():
 
 def test_same_problem_gives_the_same_numbers(solution):
     again = eo.solve(eo.Problem("tiny", eo.ParkingOrbit(1.0), eo.Sail(1.0), eo.Segments(6, 2),
-                                eo.MinTime(), eo.CircularOrbit(0.723))).data
-    first = dict(solution.data)
+                                eo.MinTime(), eo.CircularOrbit(0.723))).to_json()
+    first = dict(solution.to_json())
     for d in (first, again):
         d.pop("solve_seconds")
         for row in d["refinement"]["rounds"]:
@@ -72,3 +74,49 @@ def test_a_file_of_another_schema_version_fails_with_one_clear_line(solution, tm
     written.write_text(json.dumps(old))
     with pytest.raises(InputError, match="schema version 1, but this esail_opt reads versions 2, 3"):
         Solution.load(written)
+
+
+def test_a_file_that_is_not_a_solution_fails_with_one_clear_line(solution, tmp_path):
+    written = solution.write(tmp_path, plots=False)[0]
+    data = json.loads(written.read_text())
+    del data["schedule"]
+    written.write_text(json.dumps(data))
+    with pytest.raises(InputError, match="solution.json has no valid field 'schedule'") as err:
+        Solution.load(written)
+    assert "\n" not in str(err.value)
+    written.write_text("{ not json")
+    with pytest.raises(InputError, match="cannot read solution.json") as err:
+        Solution.load(written)
+    assert "\n" not in str(err.value)
+
+
+def test_the_solution_is_typed_and_agrees_with_its_file(solution):
+    """Readers get typed fields: the schedule's rows, the verification's misses, the
+    problem's parts; each is the value the file holds under its key."""
+    d = solution.to_json()
+    assert solution.outcome.value == d["outcome"] and solution.outcome.found
+    assert [row.alpha_deg for row in solution.schedule] == [r["alpha_deg"] for r in d["schedule"]]
+    assert solution.verification.target_miss_r_km == d["verification"]["target_miss_r_km"]
+    assert solution.problem.target.kind == "CircularOrbit"
+    assert solution.problem.target.radius_au == 0.723
+    assert solution.problem.departure.a_au == 1.0
+    assert [r.sub_arcs for r in solution.rounds] == [r["sub_arcs"] for r in
+                                                     d["refinement"]["rounds"]]
+    # Frozen: a Solution is what was solved, not a scratch pad.
+    with pytest.raises(AttributeError):
+        solution.tof_days = 0.0
+    with pytest.raises(AttributeError):
+        solution.problem.target.radius_au = 1.0
+    # The README's read by the file's name.
+    assert solution["tof_days"] == solution.tof_days
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).resolve().parents[1] / "results")
+                                        .glob("**/solution.json")),
+                         ids=lambda p: p.parent.name)
+def test_every_shipped_solution_file_reads_back_to_the_same_content(path):
+    """The typed Solution loses nothing: a file read and written again holds the same
+    keys, in the same order, with the same values."""
+    data = json.loads(path.read_text())
+    again = Solution.load(path).to_json()
+    assert again == data and list(again) == list(data)

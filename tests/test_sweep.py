@@ -418,18 +418,18 @@ class _Unverified:
     """Stands in for a Solution that converged but whose flight missed the tolerance."""
 
     converged = True
+    status, tof_days, objective, iterations = "Solve_Succeeded", 300.0, 5.0, 20
+    flight_verified = False
+    polish = None
 
     def __init__(self, problem, note=None):
-        self.problem = problem
-        self.data = {"status": "Solve_Succeeded", "tof_days": 300.0, "objective": 5.0,
-                     "iterations": 20, "verified": False,
-                     "verification": {"target_miss_r_km": 1234.5, "target_miss_v_m_s": 6.5,
-                                      "error": None}}
-        if note:
-            self.data["verification_note"] = note
+        import types
 
-    def __getitem__(self, key):
-        return self.data[key]
+        self.problem = problem
+        self.verification = types.SimpleNamespace(
+            target_miss_r_km=1234.5, target_miss_v_m_s=6.5, miss_r_km=None, miss_v_m_s=None,
+            error=None)
+        self.verification_note = note
 
 
 def test_converged_but_not_verified_member_fails_in_its_row(tiny, monkeypatch):

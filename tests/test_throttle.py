@@ -19,7 +19,7 @@ import pytest
 
 import esail_opt as eo
 from esail_opt.errors import InputError
-from esail_opt.optimisation import exact as exact_refinement
+from esail_opt.optimisation import polish
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
 from esail_opt.optimisation.transcription import closed_form_segment, transcribe
@@ -116,7 +116,7 @@ def test_coasting_beats_the_always_on_sail_on_earth_mars():
         always_on, segments=dataclasses.replace(always_on.segments, equal=False))
     for problem in (always_on, free_on):
         result, tr = solve_problem(problem)
-        exact, _ = exact_refinement.polish(problem, result)
+        exact, _ = polish.polish(problem, result)
         assert exact.converged, exact.status
         on_days = units.time_to_days(float(np.sum(exact.durations)))
         assert throttled < on_days - COAST_GAIN_DAYS, (throttled, on_days)

@@ -266,9 +266,9 @@ def _add_solve(sub):
         "solve", help="optimise a problem file and verify the result on CVODES",
         description="Solve the problem defined in PROBLEM.py (a file that builds "
         "`problem = esail_opt.Problem(...)`) by closed-form multiple shooting and Ipopt, "
-        "refine the closed form (defect correction against Eqs. 1-2, more sub-arcs where "
-        "it is strained) until the schedule, flown on Eqs. 1-2 with CVODES, meets the "
-        "tolerance, and write solution.json, schedule.csv, trajectory.png and "
+        "control the closed form's error (defect correction against Eqs. 1-2, more "
+        "sub-arcs where it is strained) until the schedule, flown on Eqs. 1-2 with "
+        "CVODES, meets the tolerance, and write solution.json, schedule.csv, trajectory.png and "
         "timeline.png.  With --polish, then re-solve the same schedule on exact CVODES "
         "arcs of Eqs. 1-2 in time and verify that it flies to within 1 m and 1 mm/s.  "
         "Exit status 0 only for a converged and verified solve (and polish); 1 with one "
@@ -282,7 +282,7 @@ def _add_solve(sub):
     _add_tolerance(p)
     p.add_argument("--out", default=None, help="output directory (default results/<problem name>)")
     p.add_argument("--polish", action="store_true",
-                   help="refine the optimum on the exact Eqs. 1-2 (in time), held to 1 m and 1 mm/s")
+                   help="polish the optimum on the exact Eqs. 1-2 (in time), held to 1 m and 1 mm/s")
     p.set_defaults(run=_run_solve)
 
 
@@ -304,7 +304,7 @@ def _run_solve(args):
     print(sol.summary())
     if sol.verified:
         return 0
-    reason = sol["verification_note"] if not sol["verified"] else sol["polish"]["note"]
+    reason = sol.verification_note if not sol.flight_verified else sol.polish.note
     print(f"esail-opt solve: {reason}", file=sys.stderr)
     return 1
 

@@ -1,10 +1,12 @@
-"""Plots of a :class:`~esail_opt.app.solution.Solution`, drawn from its JSON data alone.
+"""Plots of a :class:`~esail_opt.app.solution.Solution`, drawn from its record alone
+(a solution loaded from its file plots as the fresh one did).
 
 ``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
 the departure and target orbits and the segment boundaries.  ``timeline.png``: r, v_r,
 v_theta, alpha_n (with the throttle kappa on a second axis when the problem has one) and
 the osculating a and e against time, then the closed form's local error per segment
-(where it is strained) and the flown miss of each refinement round against the tolerance.
+(where it is strained) and the flown miss of each error-control round against the
+tolerance.
 A polished solution adds the CVODES flight of its polished schedule to both, and the
 pitch panel shows that schedule.
 
@@ -180,23 +182,27 @@ def _orbit_xy(a, e, omega_rad=0.0, points=361):
     return r * np.cos(nu + omega_rad), r * np.sin(nu + omega_rad)
 
 
-def _xy(traj):
-    r = np.asarray(traj["r_au"], float)
-    th = np.radians(np.asarray(traj["theta_deg"], float))
+def _xy(r_au, theta_deg):
+    r = np.asarray(r_au, float)
+    th = np.radians(np.asarray(theta_deg, float))
     return r * np.cos(th), r * np.sin(th)
 
 
-def _draw_bodies(ax, d):
+def _samples_xy(samples):
+    return _xy(samples.r_au, samples.theta_deg)
+
+
+def _draw_bodies(ax, sol):
     """The departure and target bodies on their real orbits over the flight (ephemeris
     or elements, projected on the ecliptic), each at the departure and at the arrival."""
     from esail_opt.bodies import dates, lookup
 
-    prob = d["problem"]
-    start, end = (dates.jd_from_iso(d[k]) for k in ("departure_date", "arrival_date"))
+    prob = sol.problem
+    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
     jd = np.linspace(start, end, 200)
-    pairs = [(d["departure_body"]["name"], prob["departure"]["body"], "0.5")]
-    if d.get("target_body") is not None:
-        pairs.append((d["target_body"]["name"], prob["target"]["body"], "tab:green"))
+    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
+    if sol.target_body is not None:
+        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
     for label, body, colour in pairs:
         r, th = lookup.polar_states(lookup.resolve(body), jd)[:2]
         ax.plot(r * np.cos(th), r * np.sin(th), color=colour, lw=0.8, ls="--",
@@ -210,55 +216,51 @@ def trajectory_figure(solution, ax=None):
 
     Drawn into ``ax`` if given, else into a new figure; returns the figure.
     """
-    d = solution.data
-    prob = d["problem"]
+    sol = solution
+    prob = sol.problem
     created = ax is None
     fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
-    dep = prob["departure"]
-    if dep["kind"] == "ParkingOrbit":
-        ax.plot(*_orbit_xy(dep["a_au"], dep["e"], np.radians(dep["omega_deg"])), color="0.6",
+    dep = prob.departure
+    if dep.kind == "ParkingOrbit":
+        ax.plot(*_orbit_xy(dep.a_au, dep.e, np.radians(dep.omega_deg)), color="0.6",
                 lw=0.8, ls="--", label="departure orbit")
-    elif dep["kind"] != "BodyDeparture":  # a body's own orbit is drawn with the bodies
-        s = prob["departure_state"]
-        ax.plot(*_orbit_xy(s["a_au"], 0.0), color="0.6", lw=0.8, ls="--",
+    elif dep.kind != "BodyDeparture":  # a body's own orbit is drawn with the bodies
+        ax.plot(*_orbit_xy(prob.departure_state.a_au, 0.0), color="0.6", lw=0.8, ls="--",
                 label="departure a (circle)")
-    tgt = prob["target"]
-    if "departure_date" in d:
-        _draw_bodies(ax, d)
+    tgt = prob.target
+    if sol.dated:
+        _draw_bodies(ax, sol)
     elif tgt is not None:
-        if tgt["kind"] == "Orbit":
+        if tgt.kind == "Orbit":
             # The apse line is free: draw the circle of radius a as a guide.
-            xy = _orbit_xy(tgt["a_au"], 0.0)
-            label = f"target a = {tgt['a_au']} au (e = {tgt['e']}, free apse line)"
+            xy = _orbit_xy(tgt.a_au, 0.0)
+            label = f"target a = {tgt.a_au} au (e = {tgt.e}, free apse line)"
         else:
-            xy = _orbit_xy(tgt["radius_au"], 0.0)
+            xy = _orbit_xy(tgt.radius_au, 0.0)
             label = "target orbit"
         ax.plot(*xy, color="tab:green", lw=0.8, ls="--", label=label)
-    cf = d["trajectory"]["closed_form"]
-    ax.plot(*_xy(cf), color="tab:blue", lw=1.6, label="closed form (NLP)")
-    cv = d["trajectory"]["cvodes"]
+    cf = sol.trajectory_closed_form
+    ax.plot(*_samples_xy(cf), color="tab:blue", lw=1.6, label="closed form (NLP)")
+    cv = sol.trajectory_cvodes
     if cv is not None:
-        ax.plot(*_xy(cv), color="tab:red", lw=0.9, ls="-.", label="CVODES (Eqs. 1-2)")
-    exact = d["trajectory"].get("polished")
+        ax.plot(*_samples_xy(cv), color="tab:red", lw=0.9, ls="-.", label="CVODES (Eqs. 1-2)")
+    exact = sol.trajectory_polished
     if exact is not None:
-        ax.plot(*_xy(exact), color="tab:purple", lw=1.2, ls=":",
+        ax.plot(*_samples_xy(exact), color="tab:purple", lw=1.2, ls=":",
                 label="polished, CVODES (Eqs. 1-2)")
-    sched = d["schedule"]
-    starts = {"r_au": [], "theta_deg": []}
     # Segment boundaries: the closed form's nodes, found in its samples by theta.
-    th_cf = np.asarray(cf["theta_deg"], float)
-    r_cf = np.asarray(cf["r_au"], float)
-    for row in sched:
-        starts["theta_deg"].append(row["theta_deg"])
-        starts["r_au"].append(np.interp(row["theta_deg"], th_cf, r_cf))
-    ax.plot(*_xy(starts), "o", ms=3, color="k", label="segment starts")
+    th_cf = np.asarray(cf.theta_deg, float)
+    r_cf = np.asarray(cf.r_au, float)
+    th_starts = [row.theta_deg for row in sol.schedule]
+    r_starts = [np.interp(th, th_cf, r_cf) for th in th_starts]
+    ax.plot(*_xy(r_starts, th_starts), "o", ms=3, color="k", label="segment starts")
     ax.plot([0], [0], "*", color="orange", ms=12)
     ax.set_aspect("equal")
     ax.set_xlabel("x (au)")
     ax.set_ylabel("y (au)")
-    title = f"{prob['name']}: tof {d['tof_days']:.1f} d, {d['status']}"
-    if d.get("tof_days_exact") is not None:
-        title += f"\npolished: tof {d['tof_days_exact']:.2f} d, {d['polish']['status']}"
+    title = f"{prob.name}: tof {sol.tof_days:.1f} d, {sol.status}"
+    if sol.tof_days_exact is not None:
+        title += f"\npolished: tof {sol.tof_days_exact:.2f} d, {sol.polish.status}"
     # A title at a given height is not moved clear of ticks above the axes (there are
     # none): matplotlib skips measuring the y axis for it, once per title and draw.
     ax.set_title(title, y=1.0)
@@ -269,30 +271,30 @@ def trajectory_figure(solution, ax=None):
     return fig
 
 
-def _pitch_schedule(d, polished):
+def _pitch_schedule(sol, polished):
     """The schedule that the pitch panel shows: the polished one when there is one."""
-    return d["polish"]["schedule"] if polished else d["schedule"]
+    return sol.polish.schedule if polished else sol.schedule
 
 
 def _throttled(sched):
     """Whether a schedule has a throttle, which the pitch panel draws on its own axis."""
-    return bool(sched) and "throttle" in sched[0]
+    return len(sched) > 0 and sched.throttled
 
 
-def _pitch_panel(ax, d, polished):
+def _pitch_panel(ax, sol, polished):
     """The pitch schedule (the polished one when there is one) as steps against time,
     with the throttle on a right-hand axis when the problem has one."""
-    sched = _pitch_schedule(d, polished)
-    t = [row["t_days"] for row in sched]
-    alpha = [row["alpha_deg"] for row in sched]
-    t_end = d["tof_days_exact"] if polished else d["tof_days"]
+    sched = _pitch_schedule(sol, polished)
+    t = [row.t_days for row in sched]
+    alpha = [row.alpha_deg for row in sched]
+    t_end = sol.tof_days_exact if polished else sol.tof_days
     ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
             label="polished" if polished else None)
     ax.set_ylim(-95, 95)
     if _throttled(sched):
         # The throttle shares the pitch panel: it switches at the same times, and a
         # coast (kappa = 0) explains a pitch that wanders.
-        kappa = [row["throttle"] for row in sched]
+        kappa = [row.throttle for row in sched]
         twin = ax.twinx()
         twin.step(t + [t_end], kappa + kappa[-1:], where="post", color="tab:orange", lw=1.0)
         twin.set_ylim(-0.05, 1.05)
@@ -301,20 +303,18 @@ def _pitch_panel(ax, d, polished):
 
 def timeline_figure(solution, axes=None):
     """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
-    errors and the refinement rounds.
+    errors and the error-control rounds.
 
     Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into a new figure;
     returns the figure.
     """
-    d = solution.data
-    cf = d["trajectory"]["closed_form"]
-    cv = d["trajectory"]["cvodes"]
-    exact = d["trajectory"].get("polished")
+    sol = solution
+    cf, cv, exact = sol.trajectory_closed_form, sol.trajectory_cvodes, sol.trajectory_polished
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = exact is not None
     created = axes is None
     if created:
-        fig, axes = _timeline_axes(_throttled(_pitch_schedule(d, polished)))
+        fig, axes = _timeline_axes(_throttled(_pitch_schedule(sol, polished)))
     else:
         fig, axes = axes_or_new(axes)
     for ax in axes[:3].ravel():
@@ -323,59 +323,60 @@ def timeline_figure(solution, axes=None):
               (None, "alpha (deg)"), ("a_au", "osculating a (au)"), ("e", "osculating e")]
     for ax, (key, label) in zip(axes.ravel(), panels):
         if key is None:
-            _pitch_panel(ax, d, polished)
+            _pitch_panel(ax, sol, polished)
         else:
-            ax.plot(cf["t_days"], cf[key], color="tab:blue", lw=1.4, label="closed form")
+            ax.plot(cf.t_days, getattr(cf, key), color="tab:blue", lw=1.4, label="closed form")
             if cv is not None:
-                ax.plot(cv["t_days"], cv[key], color="tab:red", lw=0.9, ls="-.", label="CVODES")
+                ax.plot(cv.t_days, getattr(cv, key), color="tab:red", lw=0.9, ls="-.",
+                        label="CVODES")
             if polished:
-                ax.plot(exact["t_days"], exact[key], color="tab:purple", lw=1.0, ls=":",
+                ax.plot(exact.t_days, getattr(exact, key), color="tab:purple", lw=1.0, ls=":",
                         label="polished (CVODES)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7)
     for ax in axes[2]:
         ax.set_xlabel("t (days)")
-    _local_error_panel(axes[3, 0], d)
-    _refinement_panel(axes[3, 1], d)
-    verdict = "verified" if d.get("verified") else "NOT verified"
-    fig.suptitle(f"{d['problem']['name']}: {d['status']}, {verdict}"
-                 + (f"; polished {d['polish']['status']} (pitch: polished schedule)"
+    _local_error_panel(axes[3, 0], sol)
+    _error_control_panel(axes[3, 1], sol)
+    verdict = "verified" if sol.flight_verified else "NOT verified"
+    fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
+                 + (f"; polished {sol.polish.status} (pitch: polished schedule)"
                     if polished else ""))
     if created:
         _fit_columns(fig, axes)
     return fig
 
 
-def _local_error_panel(ax, d):
+def _local_error_panel(ax, sol):
     """The closed form's position error over each segment from its own start node."""
-    sched = d["schedule"]
-    errors = [row.get("local_error_km") for row in sched]
-    if not sched or any(e is None for e in errors):
-        ax.text(0.5, 0.5, "no local errors (not refined)", ha="center", transform=ax.transAxes)
+    sched = sol.schedule
+    errors = [row.local_error_km for row in sched]
+    if not len(sched) or any(e is None for e in errors):
+        ax.text(0.5, 0.5, "no local errors (no error control)", ha="center",
+                transform=ax.transAxes)
         return
-    t = [row["t_days"] for row in sched] + [d["tof_days"]]
+    t = [row.t_days for row in sched] + [sol.tof_days]
     ax.step(t, errors + errors[-1:], where="post", color="tab:green")
     ax.set_yscale("log")
     _plain_log_labels(ax.yaxis)
     ax.set_xlabel("t (days)")
     ax.set_ylabel("closed-form local error (km)")
-    ax.set_title(f"per segment, {d['problem']['sub_arcs']} sub-arcs each", fontsize=9, y=1.0)
+    ax.set_title(f"per segment, {sol.problem.sub_arcs} sub-arcs each", fontsize=9, y=1.0)
     ax.grid(alpha=0.3, which="both")
 
 
-def _refinement_panel(ax, d):
-    """The flown miss after each refinement round, against the tolerance."""
-    rounds = d["refinement"]["rounds"]
-    key = "target_miss_r_km" if d["problem"]["target"] is not None else "miss_r_km"
-    misses = [r[key] for r in rounds if r[key] is not None]
+def _error_control_panel(ax, sol):
+    """The flown miss after each error-control round, against the tolerance."""
+    key = "target_miss_r_km" if sol.problem.target is not None else "miss_r_km"
+    misses = [getattr(r, key) for r in sol.rounds if getattr(r, key) is not None]
     if not misses:
         ax.text(0.5, 0.5, "no flight to judge", ha="center", transform=ax.transAxes)
         return
     ax.semilogy(range(len(misses)), misses, "o-", color="tab:red", label="flown miss")
     _plain_log_labels(ax.yaxis)
-    ax.axhline(d["tolerance"]["position_km"], color="k", ls="--", lw=0.8, label="tolerance")
-    ax.set_xlabel("refinement round")
+    ax.axhline(sol.tolerance.position_km, color="k", ls="--", lw=0.8, label="tolerance")
+    ax.set_xlabel("error-control round")
     ax.set_ylabel("position miss (km)")
     ax.set_xticks(range(len(misses)))
     ax.legend(fontsize=7)

@@ -1,10 +1,12 @@
 """The schema of ``solution.json``: its version, and what each field holds.
 
-This is the one place the file's layout is written down; the solution, plot, search
-and sweep modules read it by these keys.  Units are one per quantity everywhere in the
-file, the polish included: lengths and position misses in km (au for radii and
-semimajor axes), speeds and velocity misses in m/s (km/s for state velocities), times in
-days, angles in degrees.
+This is the one place the file's layout is written down. Only
+:meth:`esail_opt.app.solution.Solution.to_json` and ``Solution.from_json`` use these
+keys; the plot, search and sweep modules read the typed Solution's fields, named as the
+keys are except where ``Solution``'s docstring says otherwise. Units are one per
+quantity everywhere in the file, the polish included: lengths and position misses in km
+(au for radii and semimajor axes), speeds and velocity misses in m/s (km/s for state
+velocities), times in days, angles in degrees.
 
 Version 2 added ``schema_version``, gave the polish's misses and bounds the same keys and
 units as the closed form's (km and m/s, where version 1 used m and mm/s), and made an
@@ -25,8 +27,9 @@ problem : object
     null), ``departure`` (``kind`` and fields), ``departure_state``, ``r_min_au``,
     ``q3_margin``, and ``throttle_bounds`` for a throttled sail.
 status, outcome, converged, acceptable : str, str, bool, bool
-    Ipopt's return status of the last solve; "converged" / "acceptable" / "infeasible" /
-    "failed"; True only for "Solve_Succeeded"; True for "Solved_To_Acceptable_Level".
+    Ipopt's return status of the last solve; its ``Outcome`` (``optimisation.outcome``)
+    as a word, "converged" / "acceptable" / "infeasible" / "failed"; whether that is
+    converged; whether it is acceptable.
 verified, verification_note : bool, str
     Converged, and the CVODES flight meets ``tolerance`` with the verifier's own error
     added; one line naming each missed bound.
@@ -53,8 +56,10 @@ verification : object
     ``verifier_error_r_km``, ``verifier_error_v_m_s`` (two CVODES flights at 3e-16 and
     1e-15 apart); ``error``; ``cvodes_final_state``, ``cvodes_tof_days``.
 refinement : object
-    ``rounds`` (per round: sub-arcs, status, iterations, tof and misses) and ``starts``
-    (the other starts tried when the first did not converge).
+    The error control's record (the key is older than the stage's name): ``rounds``
+    (per round: sub-arcs, status, iterations, tof and misses; empty when the closed form
+    found no optimum) and ``starts`` (``label``, ``status``, ``iterations`` of each start
+    tried when the first found no optimum).
 trajectory : object
     ``closed_form`` and ``cvodes`` samples (``r_au``, ``theta_deg``, ``vr_km_s``,
     ``vtheta_km_s``, ``a_au``, ``e``, ``t_days``), and ``polished`` after a polish.

@@ -1,13 +1,14 @@
 """The global search job: every revolution class of a minimum-time problem, flown and ranked.
 
 ``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`
-(one start per revolution class), then verifies every distinct optimum on CVODES and
-polishes it on exact arcs (:func:`esail_opt.app.solution.solution_of`), and ranks them on
-the exact time of flight of the polished schedules that fly to within 1 m and 1 mm/s
-(then, for any that do not, on the closed-form time).  It writes ``search.json`` and
-``search.csv`` (one row per optimum, all kept), ``search.png`` (revolutions against
-time of flight) and the best optimum's ``solution.json``, ``schedule.csv`` and plots
-under ``best/``.
+(one start per revolution class), then runs the rest of the pipeline on every distinct
+optimum (:func:`esail_opt.optimisation.pipeline.finish`: error control, CVODES
+verification, polish), keeps each one's :class:`~esail_opt.app.solution.Solution`, and
+ranks them on the exact time of flight of the polished schedules that fly to within 1 m
+and 1 mm/s (then, for any that do not, on the closed-form time). It writes
+``search.json`` and ``search.csv`` (one row per optimum, all kept), ``search.png``
+(revolutions against time of flight) and the best optimum's ``solution.json``,
+``schedule.csv`` and plots under ``best/``.
 """
 
 import csv
@@ -15,9 +16,9 @@ import io
 from pathlib import Path
 
 from esail_opt.app.files import json_ready, publish, save_figure, write_json
-from esail_opt.optimisation import multistart
+from esail_opt.app.solution import Solution
+from esail_opt.optimisation import multistart, pipeline
 from esail_opt.physics import constants as units
-from esail_opt.app.solution import solution_of
 
 FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous_k",
           "tof_days_closed_form", "tof_days_exact", "verified", "polish_status",
@@ -58,19 +59,20 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
     for i, c in enumerate(candidates, 1):
         say(f"{problem.name}: optimum {i}/{len(candidates)} ({c.revolutions:.2f} rev): "
             f"verifying{' and polishing' if polish else ''}")
-        sol = solution_of(problem, c.result, polish=polish, progress=progress)
-        p = sol.data.get("polish") or {}
+        sol = Solution.of(pipeline.finish(problem, c.result, polish=polish, progress=progress))
+        p = sol.polish
         rows.append({
             "revolutions": c.revolutions,
             "free_local_optimum": c.free,
             "window_rev": c.window,
             "rendezvous_k": c.revolutions_k,
-            "tof_days_closed_form": sol["tof_days"],
-            "tof_days_exact": p.get("tof_days"),
+            "tof_days_closed_form": sol.tof_days,
+            "tof_days_exact": None if p is None else p.tof_days,
             "verified": sol.verified,
-            "polish_status": p.get("status"),
-            "closed_form_target_miss_km": sol["verification"].get("target_miss_r_km"),
-            "polished_target_miss_km": (p.get("verification") or {}).get("target_miss_r_km"),
+            "polish_status": None if p is None else p.status,
+            "closed_form_target_miss_km": sol.verification.target_miss_r_km,
+            "polished_target_miss_km": (None if p is None or p.verification is None
+                                        else p.verification.target_miss_r_km),
             "found_from": c.found_from,
             "candidate": i - 1,
         })

@@ -1,17 +1,27 @@
-"""A solved problem, in the boundary's units: JSON and CSV writing and reading, a summary.
+"""A solved problem, in the boundary's units: its typed record, its files and its summary.
 
-:func:`solve` is the whole data path of a run -- Problem -> NLP -> Ipopt -> CVODES
-verification -> :class:`Solution` -- and is what ``esail-opt solve`` and scripts call.
-A Solution is a plain dict underneath (``.data``), exactly what ``solution.json`` holds,
-so one loaded back from disk prints and plots like a fresh one.
+:func:`solve` runs the pipeline (``optimisation.pipeline``) and returns the
+:class:`Solution` of its :class:`~esail_opt.optimisation.pipeline.Run`; it is what
+``esail-opt solve`` and scripts call.  This module runs no stage itself: it only turns a
+Run into boundary units and writes and reads it.
+
+A Solution is typed: every part of ``solution.json`` is a field of a frozen dataclass
+here, and :meth:`Solution.to_json` and :meth:`Solution.from_json` are the only places
+that know the file's keys (:mod:`esail_opt.app.schema` documents them).  A fresh
+Solution is made from its run's JSON form by the same :meth:`~Solution.from_json` that
+reads a file back (:meth:`Solution.of`), so a solution loaded from disk prints, plots
+and writes exactly as the one that wrote it.
 """
 
 import csv
+import dataclasses
 import functools
 import io
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Dict, List, Optional, Tuple
 
 import casadi as ca
 import numpy as np
@@ -19,12 +29,9 @@ import numpy as np
 from esail_opt.app import schema
 from esail_opt.app.files import json_ready, publish, write_json
 from esail_opt.bodies import dates, lookup
-from esail_opt.optimisation import exact as exact_refinement
-from esail_opt.optimisation import scan
-from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
-from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
-from esail_opt.optimisation.ipopt import solve_problem
-from esail_opt.optimisation.verify import verify, within
+from esail_opt.errors import InputError
+from esail_opt.optimisation import pipeline
+from esail_opt.optimisation.pipeline import Outcome, Round, StartTried
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
 
@@ -38,6 +45,688 @@ LOCAL_ERROR_FIELD = "local_error_km"
 #: replaces whole (anything else in the folder is the user's and stays).
 SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_polished.csv",
                   "trajectory.png", "timeline.png")
+STATE_FIELDS = ("r_au", "theta_deg", "vr_km_s", "vtheta_km_s", "a_au", "e")
+#: The misses every verification writes, in the file's order (a target's own extras,
+#: such as an (a, e) target's ``target_miss_a_km``, follow them).
+CORE_MISSES = ("miss_r_km", "miss_v_m_s", "miss_theta_deg", "verifier_error_r_km",
+               "verifier_error_v_m_s", "target_miss_r_km", "target_miss_v_m_s")
+
+
+def _bad_file(source, what):
+    return InputError(f"{source}: solution.json {what}; solve the problem again to rewrite it")
+
+
+# ---------------------------------------------------------------- the typed record
+
+
+@dataclass(frozen=True)
+class State:
+    """A polar state in boundary units, with its osculating a and e."""
+
+    r_au: Optional[float]
+    theta_deg: Optional[float]
+    vr_km_s: Optional[float]
+    vtheta_km_s: Optional[float]
+    a_au: Optional[float]
+    e: Optional[float]
+
+    @classmethod
+    def from_json(cls, d):
+        return cls(**{k: d[k] for k in STATE_FIELDS})
+
+    def to_json(self):
+        return {k: getattr(self, k) for k in STATE_FIELDS}
+
+
+@dataclass(frozen=True)
+class Samples:
+    """A sampled flight, boundary units, one list per quantity (None where NaN)."""
+
+    r_au: List[Optional[float]]
+    theta_deg: List[Optional[float]]
+    vr_km_s: List[Optional[float]]
+    vtheta_km_s: List[Optional[float]]
+    a_au: List[Optional[float]]
+    e: List[Optional[float]]
+    t_days: List[Optional[float]]
+
+    FIELDS = STATE_FIELDS + ("t_days",)
+
+    @classmethod
+    def from_json(cls, d):
+        return None if d is None else cls(**{k: list(d[k]) for k in cls.FIELDS})
+
+    def to_json(self):
+        return {k: list(getattr(self, k)) for k in self.FIELDS}
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One row of a schedule: its start, pitch and length; ``throttle`` only for a
+    throttled problem, ``local_error_km`` only on an error-controlled closed form."""
+
+    t_days: float
+    theta_deg: float
+    alpha_deg: float
+    duration_days: float
+    dtheta_deg: float
+    throttle: Optional[float] = None
+    local_error_km: Optional[float] = None
+
+    @classmethod
+    def from_json(cls, d):
+        return cls(**{k: d[k] for k in SCHEDULE_FIELDS},
+                   throttle=d.get(THROTTLE_FIELD), local_error_km=d.get(LOCAL_ERROR_FIELD))
+
+    def to_json(self, throttled, local_error):
+        out = {k: getattr(self, k) for k in SCHEDULE_FIELDS}
+        if throttled:
+            out[THROTTLE_FIELD] = self.throttle
+        if local_error:
+            out[LOCAL_ERROR_FIELD] = self.local_error_km
+        return out
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """A schedule's rows, and which of the optional columns it carries (a column may
+    be present with null values: a segment CVODES could not fly has no local error)."""
+
+    rows: Tuple[Segment, ...]
+    throttled: bool
+    local_errors: bool
+
+    @classmethod
+    def from_json(cls, rows):
+        first = rows[0] if rows else {}
+        return cls(tuple(Segment.from_json(r) for r in rows), THROTTLE_FIELD in first,
+                   LOCAL_ERROR_FIELD in first)
+
+    def to_json(self):
+        return [r.to_json(self.throttled, self.local_errors) for r in self.rows]
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def __len__(self):
+        return len(self.rows)
+
+    def __getitem__(self, i):
+        return self.rows[i]
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """A position and a velocity bound, km and m/s."""
+
+    position_km: float
+    velocity_m_s: float
+
+    @classmethod
+    def from_json(cls, d):
+        return cls(d["position_km"], d["velocity_m_s"])
+
+    def to_json(self):
+        return {"position_km": self.position_km, "velocity_m_s": self.velocity_m_s}
+
+
+@dataclass(frozen=True)
+class Flight:
+    """The CVODES verification of a schedule: its misses against the NLP's final state
+    and the target, the verifier's own error, and the flown final state.
+
+    ``extra`` holds a target's own misses beyond :data:`CORE_MISSES` (an (a, e)
+    target's ``target_miss_a_km`` and ``target_miss_e``, a body's
+    ``relative_speed_km_s`` and ``out_of_plane_km``), by their file names: which ones
+    exist depends on the target's kind.
+    """
+
+    miss_r_km: Optional[float]
+    miss_v_m_s: Optional[float]
+    miss_theta_deg: Optional[float]
+    verifier_error_r_km: Optional[float]
+    verifier_error_v_m_s: Optional[float]
+    target_miss_r_km: Optional[float]
+    target_miss_v_m_s: Optional[float]
+    nlp_target_miss_r_km: Optional[float] = None
+    extra: Dict[str, Optional[float]] = dataclasses.field(default_factory=dict)
+    error: Optional[str] = None
+    cvodes_final_state: Optional[State] = None
+    cvodes_tof_days: Optional[float] = None
+
+    @classmethod
+    def from_json(cls, d):
+        known = set(CORE_MISSES) | {"nlp_target_miss_r_km", "error", "cvodes_final_state",
+                                    "cvodes_tof_days"}
+        state = d.get("cvodes_final_state")
+        return cls(**{k: d[k] for k in CORE_MISSES},
+                   nlp_target_miss_r_km=d.get("nlp_target_miss_r_km"),
+                   extra={k: v for k, v in d.items() if k not in known},
+                   error=d.get("error"),
+                   cvodes_final_state=None if state is None else State.from_json(state),
+                   cvodes_tof_days=d.get("cvodes_tof_days"))
+
+    def to_json(self):
+        out = {k: getattr(self, k) for k in CORE_MISSES}
+        out.update(self.extra)
+        # A failed flight has no final state, nor an NLP-to-target miss of its own.
+        if self.error is None:
+            out["nlp_target_miss_r_km"] = self.nlp_target_miss_r_km
+        out["error"] = self.error
+        if self.error is None:
+            out["cvodes_final_state"] = self.cvodes_final_state.to_json()
+            out["cvodes_tof_days"] = self.cvodes_tof_days
+        return out
+
+    def miss(self, name):
+        """A target's own miss by its file name (None when it has none of that name)."""
+        return self.extra.get(name)
+
+
+class Part:
+    """A problem part (departure or target) as solved: its kind and its fields, which
+    depend on the kind (``part.a_au`` of a ParkingOrbit, ``part.body`` of a
+    BodyDeparture; a body is given as its description)."""
+
+    __slots__ = ("kind", "fields")
+
+    def __init__(self, kind, fields):
+        object.__setattr__(self, "kind", kind)
+        object.__setattr__(self, "fields", dict(fields))
+
+    def __setattr__(self, name, value):
+        raise dataclasses.FrozenInstanceError(f"cannot assign to field {name!r}")
+
+    def __getattr__(self, name):
+        try:
+            return object.__getattribute__(self, "fields")[name]
+        except (KeyError, AttributeError):
+            raise AttributeError(f"{type(self).__name__} has no field {name!r}") from None
+
+    def __eq__(self, other):
+        return (isinstance(other, Part) and self.kind == other.kind
+                and self.fields == other.fields)
+
+    def __repr__(self):
+        return f"Part({self.kind!r}, {self.fields!r})"
+
+    def __reduce__(self):
+        # Copies and pickles rebuild through __init__: __setattr__ refuses every field.
+        return (Part, (self.kind, self.fields))
+
+    def has(self, name):
+        """Whether this kind of part has field ``name``."""
+        return name in self.fields
+
+    @classmethod
+    def from_json(cls, d):
+        if d is None:
+            return None
+        return cls(d["kind"], {k: v for k, v in d.items() if k != "kind"})
+
+    def to_json(self):
+        return {"kind": self.kind, **self.fields}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The problem as solved (solution.json's ``problem``): ``segments`` is the count
+    used, also when a per-revolution rule set it; ``sub_arcs`` the count the error
+    control ended with; ``throttle_bounds`` only for a throttled sail."""
+
+    name: str
+    description: Optional[str]
+    ac_mm_s2: float
+    coefficients: List[float]
+    alpha_bounds_deg: List[float]
+    segments: int
+    segments_per_revolution: Optional[int]
+    sub_arcs: int
+    sub_arcs_requested: int
+    equal_segments: bool
+    objective: str
+    target: Optional[Part]
+    departure: Part
+    departure_state: State
+    r_min_au: Optional[float]
+    q3_margin: Optional[float]
+    throttle_bounds: Optional[List[float]] = None
+
+    SIMPLE = ("name", "description", "ac_mm_s2", "coefficients", "alpha_bounds_deg",
+              "segments", "segments_per_revolution", "sub_arcs", "sub_arcs_requested",
+              "equal_segments", "objective")
+
+    @classmethod
+    def from_json(cls, d):
+        return cls(**{k: d[k] for k in cls.SIMPLE}, target=Part.from_json(d["target"]),
+                   departure=Part.from_json(d["departure"]),
+                   departure_state=State.from_json(d["departure_state"]),
+                   r_min_au=d["r_min_au"], q3_margin=d["q3_margin"],
+                   throttle_bounds=d.get("throttle_bounds"))
+
+    def to_json(self):
+        out = {k: getattr(self, k) for k in self.SIMPLE}
+        out.update(target=None if self.target is None else self.target.to_json(),
+                   departure=self.departure.to_json(),
+                   departure_state=self.departure_state.to_json(),
+                   r_min_au=self.r_min_au, q3_margin=self.q3_margin)
+        # Only a throttled problem names its bounds: an unthrottled solution.json is
+        # exactly what it was before throttles existed.
+        if self.throttle_bounds is not None:
+            out["throttle_bounds"] = self.throttle_bounds
+        return out
+
+
+@dataclass(frozen=True)
+class DepartureBody:
+    """Where a dated departure leaves from: the body, its source, the distance from the
+    ecliptic the 2-D model drops, and the excess velocity (angle in [-180, 180))."""
+
+    name: str
+    source: str
+    out_of_plane_km: float
+    vinf_km_s: float
+    vinf_angle_deg: float
+
+    @classmethod
+    def from_json(cls, d):
+        return None if d is None else cls(**d)
+
+    def to_json(self):
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class TargetBody:
+    """The body a BodyRendezvous or BodyIntercept flies to, as the flight met it."""
+
+    name: str
+    source: str
+    kind: str
+    out_of_plane_km: Optional[float]
+    relative_speed_km_s: Optional[float]
+
+    @classmethod
+    def from_json(cls, d):
+        return None if d is None else cls(**d)
+
+    def to_json(self):
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class Polish:
+    """solution.json's ``polish``: the polished optimum and its verification, or, when
+    the closed form found nothing, only ``note`` (and ``status`` None).
+
+    ``verified`` is True only when Ipopt converged and the flight, its verifier's error
+    included, is within ``bounds`` (1 m, 1 mm/s) of both the target and the polished
+    NLP's final state.
+    """
+
+    status: Optional[str]
+    converged: bool
+    verified: bool
+    note: str
+    outcome: Optional[Outcome] = None
+    iterations: Optional[int] = None
+    seconds: Optional[float] = None
+    constraint_violation: Optional[float] = None
+    objective: Optional[float] = None
+    tof_days: Optional[float] = None
+    bounds: Optional[Bounds] = None
+    within_bounds_vs_nlp: Optional[bool] = None
+    within_bounds_vs_target: Optional[bool] = None
+    schedule: Optional[Schedule] = None
+    final_state: Optional[State] = None
+    verification: Optional[Flight] = None
+
+    @property
+    def ran(self):
+        """Whether the polish ran (False: the closed-form solve found no optimum)."""
+        return self.status is not None
+
+    @classmethod
+    def from_json(cls, d):
+        if d is None:
+            return None
+        if d.get("status") is None:
+            return cls(None, bool(d["converged"]), bool(d["verified"]), d["note"])
+        return cls(d["status"], d["converged"], d["verified"], d["note"],
+                   outcome=Outcome(d["outcome"]), iterations=d["iterations"],
+                   seconds=d["seconds"], constraint_violation=d["constraint_violation"],
+                   objective=d["objective"], tof_days=d["tof_days"],
+                   bounds=Bounds.from_json(d["bounds"]),
+                   within_bounds_vs_nlp=d["within_bounds_vs_nlp"],
+                   within_bounds_vs_target=d["within_bounds_vs_target"],
+                   schedule=Schedule.from_json(d["schedule"]),
+                   final_state=State.from_json(d["final_state"]),
+                   verification=Flight.from_json(d["verification"]))
+
+    def to_json(self):
+        if not self.ran:
+            return {"status": None, "converged": False, "verified": False, "note": self.note}
+        return {
+            "status": self.status, "converged": self.converged,
+            "outcome": self.outcome.value, "iterations": self.iterations,
+            "seconds": self.seconds, "constraint_violation": self.constraint_violation,
+            "objective": self.objective, "tof_days": self.tof_days,
+            "bounds": self.bounds.to_json(), "within_bounds_vs_nlp": self.within_bounds_vs_nlp,
+            "within_bounds_vs_target": self.within_bounds_vs_target,
+            "verified": self.verified, "note": self.note,
+            "schedule": self.schedule.to_json(), "final_state": self.final_state.to_json(),
+            "verification": self.verification.to_json(),
+        }
+
+
+@dataclass(frozen=True)
+class Solution:
+    """A solved problem: what ``solution.json`` holds, typed, with reading, writing and
+    printing.
+
+    Make one with :meth:`of` (from a pipeline Run), :func:`solve`, or :meth:`load`.
+    The fields follow the file's keys (:mod:`esail_opt.app.schema`), with these
+    differences of name: ``flight_verified`` is the file's ``verified`` (the closed
+    form's flight alone; :attr:`verified` adds the polish's verdict),
+    ``rounds`` and ``starts`` are ``refinement.rounds`` and ``refinement.starts``, and
+    ``trajectory_*`` are the parts of ``trajectory``.  Fields of the calendar and of
+    the polish are None where the file leaves them out.
+    """
+
+    schema_version: int
+    problem: Settings
+    status: str
+    converged: bool
+    acceptable: bool
+    outcome: Outcome
+    flight_verified: bool
+    verification_note: str
+    tolerance: Bounds
+    objective: Optional[float]
+    objective_meaning: str
+    tof_days: float
+    iterations: int
+    stages: Tuple[Tuple[str, int], ...]
+    solve_seconds: float
+    constraint_violation: Optional[float]
+    min_q3: Optional[float]
+    schedule: Schedule
+    final_state: State
+    verification: Flight
+    rounds: Tuple[Round, ...]
+    starts: Tuple[StartTried, ...]
+    trajectory_closed_form: Samples
+    trajectory_cvodes: Optional[Samples]
+    trajectory_polished: Optional[Samples] = None
+    departure_date: Optional[str] = None
+    arrival_date: Optional[str] = None
+    departure_body: Optional[DepartureBody] = None
+    target_body: Optional[TargetBody] = None
+    ac_mm_s2_required: Optional[float] = None
+    objective_closed_form: Optional[float] = None
+    objective_exact: Optional[float] = None
+    tof_days_exact: Optional[float] = None
+    polish: Optional[Polish] = None
+
+    # -- access
+    @property
+    def verified(self):
+        """Converged, and the flight on Eqs. 1-2 meets the tolerance (and, after a
+        polish, the polish's 1 m and 1 mm/s as well)."""
+        return bool(self.flight_verified) and (self.polish is None or bool(self.polish.verified))
+
+    @property
+    def dated(self):
+        """Whether the problem is on the calendar (a BodyDeparture)."""
+        return self.departure_date is not None
+
+    def __getitem__(self, key):
+        """The field ``key`` of solution.json, as :meth:`to_json` writes it: for scripts
+        that read the file's names (``sol["departure_date"]``)."""
+        return self.to_json()[key]
+
+    # -- the JSON form
+    @classmethod
+    def of(cls, run):
+        """The Solution of a pipeline :class:`~esail_opt.optimisation.pipeline.Run`.
+
+        It is built from the run's JSON form by :meth:`from_json`, the reader of files:
+        a fresh Solution and the same one loaded back are then equal by construction,
+        to the last digit.
+        """
+        return cls.from_json(json_ready(_run_data(run)))
+
+    @classmethod
+    def from_json(cls, data, source="solution.json"):
+        """A Solution from the content of a ``solution.json`` of a readable version.
+
+        Raises
+        ------
+        InputError
+            Another schema version, or a file that lacks a field of its version (one
+            line, naming ``source``).
+        """
+        schema.check(data, source)
+        try:
+            return cls._from_json(data)
+        except (KeyError, TypeError, ValueError) as err:
+            raise _bad_file(source, f"has no valid field {err}") from None
+
+    @classmethod
+    def _from_json(cls, d):
+        traj, refinement = d["trajectory"], d["refinement"]
+        return cls(
+            schema_version=d["schema_version"], problem=Settings.from_json(d["problem"]),
+            status=d["status"], converged=d["converged"], acceptable=d["acceptable"],
+            outcome=Outcome(d["outcome"]), flight_verified=d["verified"],
+            verification_note=d["verification_note"],
+            tolerance=Bounds.from_json(d["tolerance"]), objective=d["objective"],
+            objective_meaning=d["objective_meaning"], tof_days=d["tof_days"],
+            iterations=d["iterations"],
+            stages=tuple((s["status"], s["iterations"]) for s in d["stages"]),
+            solve_seconds=d["solve_seconds"], constraint_violation=d["constraint_violation"],
+            min_q3=d["min_q3"], schedule=Schedule.from_json(d["schedule"]),
+            final_state=State.from_json(d["final_state"]),
+            verification=Flight.from_json(d["verification"]),
+            rounds=tuple(Round(**r) for r in refinement["rounds"]),
+            starts=tuple(StartTried(**s) for s in refinement["starts"]),
+            trajectory_closed_form=Samples.from_json(traj["closed_form"]),
+            trajectory_cvodes=Samples.from_json(traj["cvodes"]),
+            trajectory_polished=Samples.from_json(traj.get("polished")),
+            departure_date=d.get("departure_date"), arrival_date=d.get("arrival_date"),
+            departure_body=DepartureBody.from_json(d.get("departure_body")),
+            target_body=TargetBody.from_json(d.get("target_body")),
+            ac_mm_s2_required=d.get("ac_mm_s2_required"),
+            objective_closed_form=d.get("objective_closed_form"),
+            objective_exact=d.get("objective_exact"), tof_days_exact=d.get("tof_days_exact"),
+            polish=Polish.from_json(d.get("polish")),
+        )
+
+    def to_json(self):
+        """The content of ``solution.json``: a new dict of plain JSON values each call."""
+        polished = self.polish is not None and self.polish.ran
+        out = {
+            "schema_version": self.schema_version, "problem": self.problem.to_json(),
+            "status": self.status, "converged": self.converged,
+            "acceptable": self.acceptable, "outcome": self.outcome.value,
+            "verified": self.flight_verified, "verification_note": self.verification_note,
+            "tolerance": self.tolerance.to_json(), "objective": self.objective,
+            "objective_meaning": self.objective_meaning, "tof_days": self.tof_days,
+            "iterations": self.iterations,
+            "stages": [{"status": st, "iterations": it} for st, it in self.stages],
+            "solve_seconds": self.solve_seconds,
+            "constraint_violation": self.constraint_violation, "min_q3": self.min_q3,
+            "schedule": self.schedule.to_json(), "final_state": self.final_state.to_json(),
+            "verification": self.verification.to_json(),
+            "refinement": {"rounds": [dataclasses.asdict(r) for r in self.rounds],
+                           "starts": [dataclasses.asdict(s) for s in self.starts]},
+            "trajectory": {
+                "closed_form": self.trajectory_closed_form.to_json(),
+                "cvodes": (None if self.trajectory_cvodes is None
+                           else self.trajectory_cvodes.to_json()),
+            },
+        }
+        if polished:
+            out["trajectory"]["polished"] = (None if self.trajectory_polished is None
+                                             else self.trajectory_polished.to_json())
+        if self.ac_mm_s2_required is not None:
+            out["ac_mm_s2_required"] = self.ac_mm_s2_required
+        if self.dated:
+            out.update(departure_date=self.departure_date, arrival_date=self.arrival_date,
+                       departure_body=self.departure_body.to_json())
+        if self.target_body is not None:
+            out["target_body"] = self.target_body.to_json()
+        if polished:
+            out.update(objective_closed_form=self.objective_closed_form,
+                       objective_exact=self.objective_exact,
+                       tof_days_exact=self.tof_days_exact)
+        if self.polish is not None:
+            out["polish"] = self.polish.to_json()
+        return out
+
+    # -- files
+    @classmethod
+    def load(cls, path):
+        """Read a ``solution.json`` back; one of another schema version, or one that is
+        not a solution file, is refused with a one-line InputError that says so."""
+        try:
+            data = json.loads(Path(path).read_text())
+        except (OSError, ValueError) as err:
+            raise InputError(f"{path}: cannot read solution.json ({err})") from None
+        return cls.from_json(data, path)
+
+    def schedule_csv(self, polished=False):
+        """The schedule as CSV text, one row per segment (same rows as ``schedule``, or
+        with ``polished`` as ``polish.schedule``), every number to the digit, so that
+        flying the file reproduces the flight that was verified.  (At 10 significant
+        digits a polished 2500-day schedule, flown from the CSV, ended 3.5 m from its
+        target where the same schedule at full precision ends 8 mm from it.)"""
+        schedule = self.polish.schedule if polished else self.schedule
+        fields = SCHEDULE_FIELDS + tuple(
+            f for f, on in ((THROTTLE_FIELD, schedule.throttled),
+                            (LOCAL_ERROR_FIELD, schedule.local_errors)) if on and len(schedule))
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(fields)
+        for row in schedule:
+            writer.writerow([repr(float(_nan_for_none(getattr(row, f)))) for f in fields])
+        return buf.getvalue()
+
+    def write(self, out_dir, plots=True):
+        """Write solution.json, schedule.csv (and schedule_polished.csv after a polish)
+        and (optionally) the two PNGs into ``out_dir``, as one set
+        (:func:`esail_opt.app.files.publish`): a reader of the folder sees the previous
+        run's files or these, never a mix, and files of the user's own stay.
+
+        Returns the list of paths written.
+
+        Raises
+        ------
+        OutputError
+            The folder cannot be written (one line; the old set stays as it was).
+        """
+        out = Path(out_dir)
+        with publish(out, family=SOLUTION_FILES) as stage:
+            names = ["solution.json", "schedule.csv"]
+            write_json(stage / names[0], self.to_json())
+            (stage / names[1]).write_text(self.schedule_csv())
+            if self.polish is not None and self.polish.ran:
+                names.append("schedule_polished.csv")
+                (stage / names[-1]).write_text(self.schedule_csv(polished=True))
+            if plots:
+                from esail_opt.app import plots as plotting
+
+                names += [p.name for p in plotting.write_plots(self, stage)]
+        return [out / name for name in names]
+
+    # -- printing
+    def summary(self):
+        v = self.verification
+        lines = [
+            f"{self.problem.name}: {self.status} "
+            f"({'converged' if self.converged else 'NOT converged'}), "
+            f"{self.iterations} iterations, {self.solve_seconds:.2f} s, "
+            f"{max(len(self.rounds) - 1, 0)} error-control round(s)",
+            f"  tof {self.tof_days:.3f} d (closed form), {len(self.schedule)} segments x "
+            f"{self.problem.sub_arcs} sub-arcs",
+            "  final (closed form): r {r_au:.6f} au, theta {theta_deg:.3f} deg, a {a_au:.6f} au, "
+            "e {e:.5f}".format(**self.final_state.to_json()),
+        ]
+        if v.error:
+            lines.append(f"  verification: {v.error}")
+        else:
+            cv = v.cvodes_final_state
+            lines.append(f"  CVODES: r {cv.r_au:.6f} au, a {cv.a_au:.6f} au, e {cv.e:.5f}; "
+                         f"miss vs NLP {v.miss_r_km:.4g} km, {v.miss_v_m_s:.4g} m/s, "
+                         f"{v.miss_theta_deg:.4g} deg")
+            if v.target_miss_r_km is not None:
+                extra = (f", {v.target_miss_v_m_s:.4g} m/s"
+                         if v.target_miss_v_m_s is not None else "")
+                lines.append(f"  CVODES miss vs target: {v.target_miss_r_km:.4g} km{extra}")
+        lines.append(f"  {self.verification_note}")
+        lines += self._polish_lines()
+        return "\n".join(lines)
+
+    def _polish_lines(self):
+        """Summary lines of the polish, if there was one."""
+        p = self.polish
+        if p is None:
+            return []
+        if not p.ran:
+            return [f"  polish: {p.note}"]
+        lines = [f"  polish: {p.status} ({'converged' if p.converged else 'NOT converged'}), "
+                 f"{p.iterations} iterations, {p.seconds:.2f} s; exact tof "
+                 f"{p.tof_days:.3f} d (closed form {self.tof_days:.3f} d)"]
+        v = p.verification
+        if v.error is None:
+            # At the polish's scale a km reads better as metres.
+            line = (f"  polished CVODES miss vs NLP {1e3 * v.miss_r_km:.3g} m, "
+                    f"{1e3 * v.miss_v_m_s:.3g} mm/s")
+            if v.target_miss_r_km is not None:
+                line += f"; vs target {1e3 * v.target_miss_r_km:.3g} m"
+                if v.target_miss_v_m_s is not None:
+                    line += f", {1e3 * v.target_miss_v_m_s:.3g} mm/s"
+            lines.append(line)
+        lines.append(f"  polish: {p.note}")
+        return lines
+
+    def __str__(self):
+        return self.summary()
+
+    def plot(self, out_dir=None):
+        """Draw trajectory.png and timeline.png figures; write them if ``out_dir`` is given."""
+        from esail_opt.app import plots as plotting
+
+        if out_dir is not None:
+            return plotting.write_plots(self, out_dir)
+        return plotting.trajectory_figure(self), plotting.timeline_figure(self)
+
+
+def _nan_for_none(value):
+    """A CSV cell's number: the file's null (a NaN the JSON could not hold) as NaN."""
+    return math.nan if value is None else value
+
+
+def solution_of(run):
+    """The :class:`Solution` of a pipeline Run (:meth:`Solution.of`)."""
+    return Solution.of(run)
+
+
+def solve(problem, segments=None, progress=None, samples=16, polish=False):
+    """Solve ``problem`` through the whole pipeline
+    (:func:`esail_opt.optimisation.pipeline.solve`, whose parameters these are) and
+    return its :class:`Solution`.
+
+    Raises
+    ------
+    InputError
+        ``segments`` is not an integer >= 1 (before any solve starts).
+    """
+    return Solution.of(pipeline.solve(problem, segments=segments, progress=progress,
+                                      samples=samples, polish=polish))
+
+
+# ---------------------------------------------------------------- a Run, in boundary units
 
 
 @functools.lru_cache(maxsize=None)
@@ -113,153 +802,6 @@ def _calendar_data(problem, result, check):
     return out
 
 
-class Solution:
-    """A solved problem: what ``solution.json`` holds, with reading, writing and printing.
-
-    Parameters
-    ----------
-    data : dict
-        The JSON content (see :func:`solve` for its fields).
-    """
-
-    def __init__(self, data):
-        self.data = data
-
-    # -- access
-    @property
-    def converged(self):
-        return bool(self.data["converged"])
-
-    @property
-    def verified(self):
-        """Converged, and the flight on Eqs. 1-2 meets the tolerance (and, after a
-        polish, the polish's 1 m and 1 mm/s as well)."""
-        polished = self.data.get("polish")
-        return bool(self.data["verified"]) and (polished is None or bool(polished["verified"]))
-
-    @property
-    def tof_days(self):
-        return self.data["tof_days"]
-
-    def __getitem__(self, key):
-        return self.data[key]
-
-    # -- files
-    @classmethod
-    def load(cls, path):
-        """Read a ``solution.json`` back; one of another schema version is refused with
-        an InputError that says so."""
-        data = json.loads(Path(path).read_text())
-        schema.check(data, path)
-        return cls(data)
-
-    def schedule_csv(self, polished=False):
-        """The schedule as CSV text, one row per segment (same rows as ``schedule``, or
-        with ``polished`` as ``polish["schedule"]``), every number to the digit, so that
-        flying the file reproduces the flight that was verified.  (At 10 significant
-        digits a polished 2500-day schedule, flown from the CSV, ended 3.5 m from its
-        target where the same schedule at full precision ends 8 mm from it.)"""
-        rows = self.data["polish"]["schedule"] if polished else self.data["schedule"]
-        fields = SCHEDULE_FIELDS + tuple(f for f in (THROTTLE_FIELD, LOCAL_ERROR_FIELD)
-                                         if rows and f in rows[0])
-        buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: repr(float(row[k])) for k in fields})
-        return buf.getvalue()
-
-    def write(self, out_dir, plots=True):
-        """Write solution.json, schedule.csv (and schedule_polished.csv after a polish)
-        and (optionally) the two PNGs into ``out_dir``, as one set
-        (:func:`esail_opt.app.files.publish`): a reader of the folder sees the previous
-        run's files or these, never a mix, and files of the user's own stay.
-
-        Returns the list of paths written.
-
-        Raises
-        ------
-        OutputError
-            The folder cannot be written (one line; the old set stays as it was).
-        """
-        out = Path(out_dir)
-        with publish(out, family=SOLUTION_FILES) as stage:
-            names = ["solution.json", "schedule.csv"]
-            write_json(stage / names[0], self.data)
-            (stage / names[1]).write_text(self.schedule_csv())
-            if "schedule" in self.data.get("polish", {}):
-                names.append("schedule_polished.csv")
-                (stage / names[-1]).write_text(self.schedule_csv(polished=True))
-            if plots:
-                from esail_opt.app import plots as plotting
-
-                names += [p.name for p in plotting.write_plots(self, stage)]
-        return [out / name for name in names]
-
-    # -- printing
-    def summary(self):
-        d = self.data
-        v = d["verification"]
-        rounds = d["refinement"]["rounds"]
-        lines = [
-            f"{d['problem']['name']}: {d['status']} ({'converged' if d['converged'] else 'NOT converged'}), "
-            f"{d['iterations']} iterations, {d['solve_seconds']:.2f} s, "
-            f"{max(len(rounds) - 1, 0)} refinement round(s)",
-            f"  tof {d['tof_days']:.3f} d (closed form), {len(d['schedule'])} segments x "
-            f"{d['problem']['sub_arcs']} sub-arcs",
-            "  final (closed form): r {r_au:.6f} au, theta {theta_deg:.3f} deg, a {a_au:.6f} au, "
-            "e {e:.5f}".format(**d["final_state"]),
-        ]
-        if v.get("error"):
-            lines.append(f"  verification: {v['error']}")
-        else:
-            cv = v["cvodes_final_state"]
-            lines.append(f"  CVODES: r {cv['r_au']:.6f} au, a {cv['a_au']:.6f} au, e {cv['e']:.5f}; "
-                         f"miss vs NLP {v['miss_r_km']:.4g} km, {v['miss_v_m_s']:.4g} m/s, "
-                         f"{v['miss_theta_deg']:.4g} deg")
-            if v.get("target_miss_r_km") is not None:
-                extra = (f", {v['target_miss_v_m_s']:.4g} m/s"
-                         if v.get("target_miss_v_m_s") is not None else "")
-                lines.append(f"  CVODES miss vs target: {v['target_miss_r_km']:.4g} km{extra}")
-        lines.append(f"  {d['verification_note']}")
-        lines += self._polish_lines()
-        return "\n".join(lines)
-
-    def _polish_lines(self):
-        """Summary lines of the exact refinement, if there was one."""
-        p = self.data.get("polish")
-        if p is None:
-            return []
-        if p.get("status") is None:
-            return [f"  polish: {p['note']}"]
-        lines = [f"  polish: {p['status']} ({'converged' if p['converged'] else 'NOT converged'}), "
-                 f"{p['iterations']} iterations, {p['seconds']:.2f} s; exact tof "
-                 f"{p['tof_days']:.3f} d (closed form {self.data['tof_days']:.3f} d)"]
-        v = p["verification"]
-        if v.get("error") is None:
-            # At the polish's scale a km reads better as metres.
-            line = (f"  polished CVODES miss vs NLP {1e3 * v['miss_r_km']:.3g} m, "
-                    f"{1e3 * v['miss_v_m_s']:.3g} mm/s")
-            if v.get("target_miss_r_km") is not None:
-                line += f"; vs target {1e3 * v['target_miss_r_km']:.3g} m"
-                if v.get("target_miss_v_m_s") is not None:
-                    line += f", {1e3 * v['target_miss_v_m_s']:.3g} mm/s"
-            lines.append(line)
-        lines.append(f"  polish: {p['note']}")
-        return lines
-
-    def __str__(self):
-        return self.summary()
-
-    def plot(self, out_dir=None):
-        """Draw trajectory.png and timeline.png figures; write them if ``out_dir`` is given."""
-        from esail_opt.app import plots as plotting
-
-        if out_dir is not None:
-            return plotting.write_plots(self, out_dir)
-        return plotting.trajectory_figure(self), plotting.timeline_figure(self)
-
-
 def _schedule(result, throttled=False):
     """Per-segment rows (boundary units) of an NLP result's schedule; with ``throttled``
     each row also carries its ``throttle`` kappa."""
@@ -288,155 +830,44 @@ def _verification_data(check):
     return out
 
 
-def _polish_data(problem, exact, check):
-    """The ``polish`` object of solution.json: the exact optimum and its verification.
-
-    ``verified`` is True only when Ipopt converged and the flight, its verifier's error
-    included, is within the polish's bounds (1 m, 1 mm/s) of both the target and the
-    polished NLP's final state.
-    """
-    m = check.misses
-    within_all, note = check.judge(problem, exact_refinement.TOLERANCE, against_nlp=True)
-    verified = exact.converged and within_all
-    if not exact.converged:
-        note = f"NOT verified: Ipopt did not converge ({exact.status}); {note}"
-    elif verified:
-        note = f"exact: {note}"
+def _polish_data(problem, polished):
+    """The ``polish`` object of solution.json from the run's PolishRun."""
+    if not polished.ran:
+        return {"status": None, "converged": False, "verified": False, "note": polished.note}
+    exact, check, bounds = polished.result, polished.check, polished.tolerance
     return {
-        "status": exact.status, "converged": exact.converged, "outcome": exact.outcome,
+        "status": exact.status, "converged": exact.converged, "outcome": exact.outcome.value,
         "iterations": exact.iterations, "seconds": exact.solve_seconds,
         "constraint_violation": exact.constraint_violation,
         "objective": exact.objective,
         "tof_days": units.time_to_days(float(np.sum(exact.durations))),
-        "bounds": {"position_km": exact_refinement.TOLERANCE.position_km,
-                   "velocity_m_s": exact_refinement.TOLERANCE.velocity_m_s},
-        "within_bounds_vs_nlp": within(m, exact_refinement.TOLERANCE, "nlp"),
-        "within_bounds_vs_target": problem.target is None or within(m, exact_refinement.TOLERANCE),
-        "verified": verified, "note": note,
+        "bounds": {"position_km": bounds.position_km, "velocity_m_s": bounds.velocity_m_s},
+        "within_bounds_vs_nlp": polished.within_nlp,
+        "within_bounds_vs_target": polished.within_target,
+        "verified": polished.verified, "note": polished.note,
         "schedule": _schedule(exact, problem.throttled()),
         "final_state": _polar_dict(exact.nodes[:4, -1]),
         "verification": _verification_data(check),
     }
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False):
-    """Solve ``problem``, refine it until its flight on Eqs. 1-2 meets the problem's
-    tolerance, and verify it: the whole data path of one run.
-
-    Parameters
-    ----------
-    problem : esail_opt.Problem
-    segments : int, optional
-        Override the problem's number of control segments N (>= 1).
-    progress : callable, optional
-        ``progress(text)`` is called at each stage and every few seconds of Ipopt.
-    samples : int
-        Plot samples per segment.
-    polish : bool
-        Then refine the optimum on the exact Eqs. 1-2 in time
-        (:func:`esail_opt.optimisation.exact.polish`) and verify that schedule too.
-
-    Returns
-    -------
-    Solution
-        Its ``data`` is what ``solution.json`` holds, as :mod:`esail_opt.app.schema`
-        writes down.
-    """
-    from esail_opt.errors import InputError
-
-    if segments is not None:
-        if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
-            raise InputError(f"segments = {segments!r} is outside [1, inf)")
-        problem = problem.with_segments(segments)
-    say = progress or (lambda text: None)
-    seg = problem.segments
-    count = (f"{seg.count} segments" if seg.per_revolution is None
-             else f"{seg.per_revolution} segments per revolution")
-    guess = None
-    if problem.free_date():
-        problem, guess = scan.seed_free_date(problem, say)
-    if guess is None:
-        guess = initial_guess(problem)
-        problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
-    say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
-    # A free date's guess is already the optimum of its best date: no staging from it.
-    result, tr = solve_problem(problem, guess=guess, progress=say,
-                               staged=not problem.free_date())
-    starts = []
-    if result.outcome not in ("converged", "acceptable"):
-        result, tr, starts = _other_starts(problem, result, tr, say)
-    say(f"{problem.name}: {result.status} after {result.iterations} iterations; "
-        "refining until the flight meets the tolerance")
-    return solution_of(problem, result, tr, samples=samples, polish=polish, progress=say,
-                       starts=starts, sub_arcs_requested=seg.sub_arcs)
-
-
-def _other_starts(problem, result, tr, say):
-    """Ipopt's "infeasible" from one start is a local statement: before giving up, try
-    the starts the global search would (other turn counts on a rendezvous body, other
-    constant-pitch seeds of an orbit transfer), and keep the first that converges.
-
-    Returns the (result, transcription) to go on with and one record per start tried.
-    """
-    from esail_opt.optimisation import multistart
-
-    records = [{"label": "the problem's own seed", "status": result.status,
-                "iterations": result.iterations}]
-    if problem.target is None or getattr(problem.departure, "free_anomaly", False):
-        return result, tr, records
-    for start in multistart.fallback_starts(problem, tr.guess):
-        say(f"{problem.name}: {result.status}; trying {start.label}")
-        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
-        records.append({"label": start.label, "status": other.status,
-                        "iterations": other.iterations})
-        if other.outcome in ("converged", "acceptable"):
-            other.iterations += sum(r["iterations"] for r in records[:-1])
-            return other, other_tr, records
-    return result, tr, records
-
-
-def solution_of(problem, result, tr=None, samples=16, polish=False, progress=None,
-                starts=None, sub_arcs_requested=None):
-    """The :class:`Solution` of a closed-form optimum already found: its error control
-    (``optimisation.refine``), its CVODES verification and, with ``polish``, its exact
-    refinement (see :func:`solve`, which is this after the solve; the global search
-    calls it for each optimum it keeps).
-
-    ``tr`` is the optimum's NLP (the refinement re-solves it warm; without it a new one
-    is built; either way the refinement and the polish keep ``result``'s revolution
-    class), ``starts`` the records of the starts tried before this one, and
-    ``sub_arcs_requested`` the problem file's sub-arcs when the seed already raised them.
-    """
-    requested = sub_arcs_requested or problem.segments.sub_arcs
-    say = progress or (lambda text: None)
-    refined = None
-    if result.outcome in ("converged", "acceptable"):
-        refined = refine(problem, result, tr, say)
-        iterations = result.iterations + sum(r["iterations"] for r in refined.history[1:])
-        seconds = result.solve_seconds + refined.history[-1]["seconds"]
-        problem, result, tr = refined.problem, refined.result, refined.transcription
-        result.iterations, result.solve_seconds = iterations, seconds
-    check = verify(problem, result, samples)
-    verified, note = check.judge(problem)
-    verified = verified and result.converged
-    if not result.converged:
-        note = f"NOT verified: Ipopt ended {result.status}" + (
-            "" if result.outcome != "infeasible" else
-            f" from {len(starts or [1])} start(s); no start found a feasible point, which "
-            "does not prove the target unreachable")
+def _run_data(run):
+    """What ``solution.json`` holds for ``run`` (before :func:`json_ready`)."""
+    problem, result, check = run.problem, run.result, run.check
+    controlled = run.error_control
     schedule = _schedule(result, problem.throttled())
-    if refined is not None:
-        for row, err in zip(schedule, refined.local_error_km):
-            row["local_error_km"] = float(err)
+    if controlled is not None:
+        for row, err in zip(schedule, controlled.local_error_km):
+            row[LOCAL_ERROR_FIELD] = float(err)
     data = {
         "schema_version": schema.SCHEMA_VERSION,
-        "problem": _problem_data(problem, result, requested),
+        "problem": _problem_data(problem, result, run.sub_arcs_requested),
         "status": result.status,
         "converged": result.converged,
-        "acceptable": result.outcome == "acceptable",
-        "outcome": result.outcome,
-        "verified": verified,
-        "verification_note": note,
+        "acceptable": result.outcome is Outcome.ACCEPTABLE,
+        "outcome": result.outcome.value,
+        "verified": run.verified,
+        "verification_note": run.note,
         "tolerance": {"position_km": problem.tolerance.position_km,
                       "velocity_m_s": problem.tolerance.velocity_m_s},
         "objective": result.objective,
@@ -450,17 +881,26 @@ def solution_of(problem, result, tr=None, samples=16, polish=False, progress=Non
         "schedule": schedule,
         "final_state": _polar_dict(result.nodes[:4, -1]),
         "verification": _verification_data(check),
-        "refinement": {"rounds": [] if refined is None else refined.history,
-                       "starts": starts or []},
+        "refinement": {"rounds": ([] if controlled is None
+                                  else [dataclasses.asdict(r) for r in controlled.history]),
+                       "starts": [dataclasses.asdict(s) for s in run.starts]},
         "trajectory": {
             "closed_form": _trajectory(check.closed_form),
             "cvodes": _trajectory(check.cvodes) if check.error is None else None,
         },
         **_calendar_data(problem, result, check),
     }
-    if polish:
-        _add_polish(data, problem, result, samples, say)
-    return Solution(json_ready(data))
+    polished = run.polish
+    if polished is not None:
+        if polished.ran:
+            exact = polished.result
+            data["objective_closed_form"] = polished.closed_form_objective
+            data["objective_exact"] = exact.objective
+            data["tof_days_exact"] = units.time_to_days(float(np.sum(exact.durations)))
+            data["trajectory"]["polished"] = (_trajectory(polished.check.cvodes)
+                                              if polished.check.error is None else None)
+        data["polish"] = _polish_data(problem, polished)
+    return data
 
 
 def _problem_data(problem, result, sub_arcs_requested):
@@ -485,23 +925,3 @@ def _problem_data(problem, result, sub_arcs_requested):
         # exactly what it was before throttles existed.
         out["throttle_bounds"] = list(problem.throttle_bounds())
     return out
-
-
-def _add_polish(data, problem, result, samples, say):
-    """Polish ``result`` on exact arcs and add what it found to ``data``."""
-    # A closed form that found no optimum has nothing worth refining.
-    if result.outcome not in ("converged", "acceptable"):
-        data["polish"] = {"status": None, "converged": False, "verified": False,
-                          "note": f"NOT polished: the closed-form solve ended {result.status}"}
-        return
-    say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
-    exact, _ = exact_refinement.polish(problem, result)
-    say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
-        "verifying on CVODES")
-    exact_check = verify(problem, exact, samples)
-    data["objective_closed_form"] = result.objective
-    data["objective_exact"] = exact.objective
-    data["tof_days_exact"] = units.time_to_days(float(np.sum(exact.durations)))
-    data["polish"] = _polish_data(problem, exact, exact_check)
-    data["trajectory"]["polished"] = (_trajectory(exact_check.cvodes)
-                                      if exact_check.error is None else None)

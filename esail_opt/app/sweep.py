@@ -186,15 +186,15 @@ def _empty_row(index, value):
 
 def _not_verified(sol, tolerance):
     """Why a converged member is not verified, in one line."""
-    note = sol.data.get("verification_note")
+    note = sol.verification_note
     if note:
         return f"not verified: {str(note).strip().splitlines()[0]}"
-    check = sol["verification"]
+    check = sol.verification
     # Against the target when there is one, else against the NLP's own final state:
     # what Tolerance is defined to bound.
-    r, v = check.get("target_miss_r_km"), check.get("target_miss_v_m_s")
+    r, v = check.target_miss_r_km, check.target_miss_v_m_s
     if r is None and v is None:
-        r, v = check.get("miss_r_km"), check.get("miss_v_m_s")
+        r, v = check.miss_r_km, check.miss_v_m_s
     parts = []
     if r is not None:
         parts.append(f"position miss {r:.4g} km (tolerance {tolerance.position_km:g} km)")
@@ -253,23 +253,23 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
             problem = load_problem(path)
         problem = variant(problem, name, value).with_tolerance(tol_km, tol_m_s)
         sol = solution.solve(problem, polish=polish)
-        check = sol["verification"]
-        verified = sol.data.get("verified")
-        row.update(converged=sol.converged, status=sol["status"], tof_days=sol["tof_days"],
-                   objective=sol["objective"], iterations=sol["iterations"],
-                   verified=None if verified is None else bool(verified),
-                   target_miss_r_km=check.get("target_miss_r_km"),
-                   target_miss_v_m_s=check.get("target_miss_v_m_s"))
-        exact = sol.data.get("polish")
+        check = sol.verification
+        verified = sol.flight_verified
+        row.update(converged=sol.converged, status=sol.status, tof_days=sol.tof_days,
+                   objective=sol.objective, iterations=sol.iterations,
+                   verified=bool(verified),
+                   target_miss_r_km=check.target_miss_r_km,
+                   target_miss_v_m_s=check.target_miss_v_m_s)
+        exact = sol.polish
         if exact is not None:
-            row.update(tof_days_exact=exact.get("tof_days"), exact_verified=exact["verified"],
-                       exact_target_miss_km=(exact.get("verification") or {}).get(
-                           "target_miss_r_km"))
+            row.update(tof_days_exact=exact.tof_days, exact_verified=exact.verified,
+                       exact_target_miss_km=(None if exact.verification is None
+                                             else exact.verification.target_miss_r_km))
         if not sol.converged:
-            row["error"] = f"not converged: Ipopt {sol['status']}"
-        elif check.get("error"):
-            row["error"] = f"verification: {check['error']}"
-        elif verified is not None and not verified:
+            row["error"] = f"not converged: Ipopt {sol.status}"
+        elif check.error:
+            row["error"] = f"verification: {check.error}"
+        elif not verified:
             row["error"] = _not_verified(sol, problem.tolerance)
     except Exception as err:  # a member may fail in any way; its row says how
         row["error"] = first_line(err)

@@ -110,6 +110,9 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
+# Only what an Ipopt status means: the reference's numbers owe nothing to the package.
+from esail_opt.optimisation.outcome import Outcome
+
 from esail_opt.physics import constants as units
 from esail_opt.physics.dynamics import rhs
 from esail_opt.physics.thrust import radial_transverse
@@ -314,7 +317,7 @@ class Transcription:
         return {
             "tf": tf, "Z": Z, "A": A, "N": self.N, "lam_v": lam[2:4],
             "status": stats["return_status"],
-            "ok": stats["return_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level"),
+            "ok": Outcome.of(stats["return_status"]).found,
             "iterations": stats["iter_count"],
             "seconds": time.perf_counter() - t0,
             "max_defect": float(np.max(np.abs(np.asarray(sol["g"])))),

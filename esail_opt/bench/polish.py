@@ -17,7 +17,7 @@ COLD_MAX_ITER = 1000
 
 def _flown_success(problem, result):
     """Converged, and the schedule flown on CVODES reaches the target to 1 m and 1 mm/s."""
-    from esail_opt.optimisation.exact import TOLERANCE
+    from esail_opt.optimisation.polish import TOLERANCE
     from esail_opt.optimisation.verify import verify, within
 
     misses = verify(problem, result, samples=1).misses
@@ -42,7 +42,7 @@ def _polish_case(problem):
     """Closed form + polish against cold exact shooting, both from the same seed."""
     import numpy as np
 
-    from esail_opt.optimisation.exact import exact_guess, polish, polish_options
+    from esail_opt.optimisation.polish import exact_guess, polish, polish_options
     from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
     from esail_opt.optimisation.transcription import (
         cvodes_time_segment, initial_guess, transcribe)

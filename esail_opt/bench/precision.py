@@ -109,20 +109,20 @@ def closed_form(segments=None, sub_arcs=3, per_revolution=None):
 
 def corrected(segments=None, sub_arcs=3, per_revolution=None, rounds=1):
     """The closed-form NLP followed by ``rounds`` rounds of the error control's defect
-    correction (``optimisation.refine``), asked for 1 m so that it never stops early:
+    correction (``optimisation.error_control``), asked for 1 m so that it never stops early:
     the closed form as ``esail-opt solve`` uses it."""
 
     def solve(problem):
         from esail_opt.optimisation.problem import Tolerance
-        from esail_opt.optimisation.refine import refine
+        from esail_opt.optimisation.error_control import control_error
         from esail_opt.optimisation.ipopt import solve_problem
 
         variant = dataclasses.replace(_with_count(problem, segments, per_revolution, sub_arcs),
                                       tolerance=Tolerance(position_km=1e-3))
         result, tr = solve_problem(variant)
-        if result.outcome not in ("converged", "acceptable"):
+        if not result.outcome.found:
             return result
-        return refine(variant, result, tr, max_rounds=rounds).result
+        return control_error(variant, result, tr, max_rounds=rounds).result
 
     return Method("corrected", {"segments": segments, "steps": sub_arcs,
                                 "per_revolution": per_revolution, "rounds": rounds}, solve)

@@ -1,7 +1,8 @@
 """The solve: Ipopt (MUMPS) on a :class:`~.transcription.Transcription`, status checked.
 
-CasADi's ``success`` flag is also true for "Solved_To_Acceptable_Level", so the outcome is
-read from ``stats()['return_status']`` instead: only "Solve_Succeeded" counts as converged.
+Every result carries Ipopt's ``return_status`` and its :class:`~.outcome.Outcome`
+(``optimisation.outcome`` alone says what a status means; CasADi's ``success`` flag is
+also true for an acceptable level, so it is never read).
 """
 
 import dataclasses
@@ -14,12 +15,8 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.errors import Terminated
+from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.transcription import Guess, initial_guess, transcribe
-
-CONVERGED = ("Solve_Succeeded",)
-ACCEPTABLE = ("Solved_To_Acceptable_Level",)
-INFEASIBLE = ("Infeasible_Problem_Detected", "Restoration_Failed",
-              "Search_Direction_Becomes_Too_Small", "Not_Enough_Degrees_Of_Freedom")
 
 
 def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
@@ -52,15 +49,15 @@ def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
 class NLPResult:
     """What Ipopt returned, in canonical units, plus its bookkeeping.
 
-    ``outcome`` is one of "converged", "acceptable" (Solved_To_Acceptable_Level: not
-    reported as converged), "infeasible" or "failed".  ``nodes`` are the 5 x N states
+    ``outcome`` is the :class:`~.outcome.Outcome` of ``status`` (acceptable is found,
+    not converged).  ``nodes`` are the 5 x N states
     [r, theta, v_r, v_theta, t] at the segments' ends, as in a :class:`Guess`, and the
     revolution class (``revolutions_k``, ``theta_window``) is the NLP's own, so that
     any later NLP started here (:meth:`as_guess`) stays in it.
     """
 
     status: str
-    outcome: str
+    outcome: Outcome
     objective: float
     iterations: int
     solve_seconds: float
@@ -86,7 +83,7 @@ class NLPResult:
 
     @property
     def converged(self):
-        return self.outcome == "converged"
+        return self.outcome.converged
 
     def as_guess(self, durations=False):
         """A start for another NLP (any mesh or segment kind) at this optimum; with
@@ -107,16 +104,6 @@ def wrap_pitch(alpha):
     """Pitch (rad) in [-pi/2, pi/2): the thrust depends on 2 alpha only, so this is the
     same attitude as an unwrapped NLP variable."""
     return (np.asarray(alpha, float) + np.pi / 2) % np.pi - np.pi / 2
-
-
-def outcome_of(status):
-    if status in CONVERGED:
-        return "converged"
-    if status in ACCEPTABLE:
-        return "acceptable"
-    if status in INFEASIBLE:
-        return "infeasible"
-    return "failed"
 
 
 #: Seconds between two progress lines of one Ipopt solve.
@@ -222,8 +209,8 @@ def build_solver(tr, options=None, warm=False, progress=None):
     """An Ipopt solver for ``tr`` with its :class:`_Monitor` (``solver.monitor``).
 
     ``warm`` chooses :func:`warm_options`; ``progress(text)`` receives the iteration
-    lines.  Building takes seconds for the closed form, so a refinement builds once and
-    re-solves.
+    lines.  Building takes seconds for the closed form, so the error control builds once
+    and re-solves.
     """
     opts = dict(ipopt_options() if options is None else options)
     if warm:
@@ -244,13 +231,13 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
     options : dict, optional
         Ipopt options; default :func:`ipopt_options`.
     defects : numpy.ndarray, optional
-        5 x N segment defects of the defect correction (``optimisation.refine``).
+        5 x N segment defects of the defect correction (``optimisation.error_control``).
     warm : NLPResult, optional
         Start from this result's primal and dual point (same NLP layout) with
         :func:`warm_options`, instead of from ``tr.x0``.
     solver : (casadi.Function, _Monitor), optional
-        :func:`build_solver`'s pair, already built for ``tr`` (a refinement re-solves
-        one NLP several times; building it again costs seconds).
+        :func:`build_solver`'s pair, already built for ``tr`` (the error control
+        re-solves one NLP several times; building it again costs seconds).
     progress : callable, optional
         ``progress(text)`` gets a line on Ipopt's iterations every few seconds.
 
@@ -285,7 +272,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
     violation = float(np.max(np.r_[0.0, tr.lbg - g, g - tr.ubg]))
     parts = [np.array(v) for v in tr.unpack(w, p)]
     return NLPResult(
-        status=status, outcome=outcome_of(status), objective=float(sol["f"]),
+        status=status, outcome=Outcome.of(status), objective=float(sol["f"]),
         iterations=int(stats.get("iter_count", -1)), solve_seconds=seconds,
         alpha=wrap_pitch(parts[0].ravel()), lengths=parts[1].ravel(), nodes=parts[2],
         durations=parts[3].ravel(), x_start=parts[4].ravel(), q3=parts[5].ravel(),
@@ -321,7 +308,7 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
         first = solve_transcription(transcribe(equal, segment, guess), options,
                                     progress=progress)
-        if first.outcome in ("converged", "acceptable"):
+        if first.outcome.found:
             guess = first.as_guess()
     tr = transcribe(problem, segment, guess)
     result = solve_transcription(tr, options, progress=progress)

@@ -76,8 +76,8 @@ class Candidate:
     ----------
     result : NLPResult
         The closed-form optimum (the best of the starts that reached it).  Its
-        ``theta_window`` is kept only when the window's bound is active (a refinement
-        must keep it then); a free optimum carries none.
+        ``theta_window`` is kept only when the window's bound is active (the error control
+        and the polish must keep it then); a free optimum carries none.
     revolutions : float
         Turns swept from departure to arrival, (theta_f - theta_0) / 2 pi.
     free : bool
@@ -263,7 +263,7 @@ def search(problem, extra_revolutions=2, progress=None):
     say(f"{problem.name}: start 1, the problem's own seed (free)")
     first, tr = solve_problem(problem, progress=progress)
     base_k = tr.guess.revolutions_k
-    if first.outcome == "converged":
+    if first.converged:
         centre = base_k if rendezvous else int(swept_angle(first) // (2 * math.pi))
     else:
         centre = base_k if rendezvous else int(float(tr.guess.nodes[1, -1]

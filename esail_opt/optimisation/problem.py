@@ -385,7 +385,7 @@ class Tolerance:
     A run is *verified* only when its flight meets both bounds: against the target,
     or, for a problem without one, against the NLP's own final state (so that a
     fixed-time objective is what it claims).  The closed form is refined until they
-    hold (``optimisation.refine``).
+    hold (``optimisation.error_control``).
 
     Attributes
     ----------

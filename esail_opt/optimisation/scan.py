@@ -15,7 +15,7 @@ along the scan, and keeps the better of the two.  A cell no neighbour can start 
 solved cold from its own seed, as a lone solve would.
 
 Every cell goes through the error control and the CVODES verification of a lone solve
-(``optimisation.refine``, ``optimisation.verify``): a scan's cell is verified exactly
+(``optimisation.error_control``, ``optimisation.verify``): a scan's cell is verified exactly
 when the same cell solved alone would be.
 """
 
@@ -32,11 +32,10 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
 from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
                                           solve_transcription)
-from esail_opt.optimisation.refine import MAX_SUB_ARCS, refine
+from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
 from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
 from esail_opt.optimisation.verify import verify
 
-SOLVED = ("converged", "acceptable")
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
 CLASS_ITERATIONS = 300
 
@@ -79,7 +78,7 @@ class Cell:
 
     @property
     def solved(self):
-        return self.result is not None and self.result.outcome in SOLVED
+        return self.result is not None and self.result.outcome.found
 
     @property
     def objective(self):
@@ -113,23 +112,27 @@ class CellSolver:
         warm_solver = None
         if cell.on_scan_nlp is not None:
             warm_solver = self.nlps[cell.on_scan_nlp.revolutions_k][1]
-        refined = (refine(problem, result, tr, solver=warm_solver, defects=cell.defects)
-                   if result.outcome in SOLVED and self.segment is None else None)
+        controlled = (control_error(problem, result, tr, solver=warm_solver,
+                                    defects=cell.defects)
+                      if result.outcome.found and self.segment is None else None)
         on_scan, defects = cell.on_scan_nlp, None
-        if refined is not None:
+        if controlled is not None:
             if on_scan is not None:
                 k = on_scan.revolutions_k
-                if refined.problem.segments != problem.segments:
+                if controlled.problem.segments != problem.segments:
                     # The error control needed more sub-arcs: the class's NLP takes the
                     # finer mesh from here on, rather than every later cell growing it.
-                    rtr = refined.transcription
-                    self.nlps[k] = (rtr, build_solver(rtr, warm=True), refined.problem.segments)
-                    self.segments = refined.problem.segments
+                    rtr = controlled.transcription
+                    self.nlps[k] = (rtr, build_solver(rtr, warm=True),
+                                    controlled.problem.segments)
+                    self.segments = controlled.problem.segments
                 # The next cell starts from the corrected optimum with its defects,
                 # which change little from cell to cell.
-                on_scan, defects = refined.result, refined.defects
-            problem, result, tr = refined.problem, refined.result, refined.transcription
-        check = refined.check if refined is not None else verify(problem, result, samples=1)
+                on_scan, defects = controlled.result, controlled.defects
+            problem, result, tr = (controlled.problem, controlled.result,
+                                   controlled.transcription)
+        check = (controlled.check if controlled is not None
+                 else verify(problem, result, samples=1))
         verified, note = check.judge(problem)
         verified = verified and result.converged
         if not result.converged:
@@ -163,7 +166,7 @@ class CellSolver:
         result, tr = solve_problem(problem, segment=self.segment, options=options, guess=guess)
         k = result.revolutions_k
         on_scan = None
-        if k not in self.nlps and result.outcome in SOLVED:
+        if k not in self.nlps and result.outcome.found:
             self.nlps[k] = (tr, build_solver(tr, warm=True), problem.segments)
             on_scan = result
         return self._candidate(problem, result, tr, started, label, on_scan)

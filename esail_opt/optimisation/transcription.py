@@ -17,7 +17,7 @@ Function is SX, expanded once, and ``map``-ped over the N segments inside an MX 
 the NLP holds one copy of the arc's graph however many segments there are.  The same
 builder accepts any segment Function of the same signature: the benchmarks swap in
 CVODES arcs (:func:`cvodes_segment`, or :func:`cvodes_time_segment` in time), and the
-exact refinement (``optimisation.exact``) RK4 arcs in time (``propagation.rk4``), with
+polish (``optimisation.polish``) RK4 arcs in time (``propagation.rk4``), with
 the segment durations as the length variables: ``transcribe(..., length_in="time")``.
 
 Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
@@ -49,7 +49,7 @@ GUESS_STEP = 0.05
 #: (Kepler's equation carries the rest of the clock exactly).  Sub-arcs are short: 4
 #: points left the shipped optima's times of flight unchanged to 1e-4 d at a third more
 #: per Ipopt iteration, and what is left of the clock's error the defect correction
-#: removes (``optimisation.refine``).
+#: removes (``optimisation.error_control``).
 QUAD_NODES = 2
 #: Guess steps per call of the (cached) rectified propagator.
 GUESS_CHUNK = 200
@@ -57,7 +57,7 @@ GUESS_CHUNK = 200
 #: (a~_c dtheta)^2, and an optimiser left free stretches single arcs far past where the
 #: closed form means anything (a 0.1 au spiral swung one arc out to 4 au).  It is kept
 #: by adding sub-arcs -- to the seed before the first solve, and to any optimum that
-#: breaks it (``optimisation.refine``) -- never as a constraint of the NLP: as one it made
+#: breaks it (``optimisation.error_control``) -- never as a constraint of the NLP: as one it made
 #: a 4-segment hop to 1.3 au infeasible, deciding the answer instead of the accuracy.
 STRAIN_CAP = 0.05
 
@@ -560,9 +560,9 @@ def _flight(problem, segment, v, p, scales, in_time):
     threads = min(segment_threads(), n) if segment.name() not in INTEGRATOR_SEGMENTS else 1
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
     ends, q3 = mapped(starts, ac, v["alpha"].T, length.T)
-    # The defect correction (optimisation.refine): a constant per segment, added to its
-    # end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter, so one
-    # solver serves every round of the refinement.
+    # The defect correction (optimisation.error_control): a constant per segment, added
+    # to its end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter,
+    # so one solver serves every round of the error control.
     defects = ca.MX.sym("defects", 5, n)
     swept = (nodes[1, :] - starts[1, :]).T
     elapsed = (nodes[4, :] - starts[4, :]).T
@@ -607,7 +607,7 @@ def transcribe(problem, segment=None, guess=None, length_in="theta"):
     segment : casadi.Function, optional
         ``(x0[5], ac, alpha, length) -> (x1[5], q3[m])``; default the closed form's
         :func:`closed_form_segment`.  The benchmark passes CVODES arcs here, and the
-        exact refinement RK4 arcs in time (with ``length_in="time"``).
+        polish RK4 arcs in time (with ``length_in="time"``).
     guess : Guess, optional
         Default :func:`initial_guess`.  Its size sets the number of segments N and its
         revolution class (turns, final-angle window) is kept.  With

@@ -1,6 +1,6 @@
 """A fixed-step Runge-Kutta segment of Eqs. 1-2, expanded into one SX graph.
 
-Two users need it.  The exact polish (``optimisation.exact``) transcribes Eqs. 1-2 with
+Two users need it.  The exact polish (``optimisation.polish``) transcribes Eqs. 1-2 with
 it and removes its truncation error by defect correction against CVODES, which is far
 cheaper per Ipopt iteration than differentiating CVODES itself.  The precision benchmark
 (``esail_opt.bench.precision``) uses it as the baseline a generic optimal-control tool

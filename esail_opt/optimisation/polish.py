@@ -1,4 +1,4 @@
-"""Exact refinement: the closed-form optimum re-solved on Eqs. 1-2.
+"""The polish: the closed-form optimum re-solved on Eqs. 1-2.
 
 The closed form is approximate, so its optimum misses the target by hundreds to thousands
 of km once flown on the full dynamics (THEORY.md §3.8, §5.2).  The polish keeps the same piecewise-constant
@@ -28,7 +28,7 @@ import numpy as np
 from esail_opt.optimisation.goals import state_miss
 from esail_opt.optimisation.ipopt import build_solver, ipopt_options, solve_transcription
 from esail_opt.optimisation.problem import Tolerance
-from esail_opt.optimisation.refine import segment_ends
+from esail_opt.optimisation.error_control import segment_ends
 from esail_opt.optimisation.transcription import cvodes_time_segment, transcribe
 from esail_opt.propagation.rk4 import rk4_segment
 from esail_opt.propagation.simulate import VERIFY_TOLERANCE, SimulationError, simulate
@@ -187,7 +187,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
     stages, iterations = list(exact.stages), exact.iterations
     solver, landed = None, False
     for round_ in range(max_rounds + 1):
-        if exact.outcome not in ("converged", "acceptable"):
+        if not exact.outcome.found:
             break
         try:
             landed = _lands(problem, exact)

@@ -36,6 +36,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -55,9 +56,31 @@ MAX_SUB_ARCS = 24
 STALL = 0.5
 
 
+@dataclass(frozen=True)
+class Round:
+    """One round of the error control, in boundary units (solution.json's
+    ``refinement.rounds`` rows): the mesh, Ipopt's record and the flight's misses of the
+    round's result (None where the flight failed or there is no target), and the seconds
+    since the error control started."""
+
+    round: int
+    segments: int
+    sub_arcs: int
+    status: str
+    iterations: int
+    objective: float
+    tof_days: float
+    target_miss_r_km: Optional[float]
+    target_miss_v_m_s: Optional[float]
+    miss_r_km: Optional[float]
+    miss_v_m_s: Optional[float]
+    max_local_error_km: Optional[float]
+    seconds: float
+
+
 @dataclass
-class Refinement:
-    """The outcome of :func:`refine`; the caller judges its final flight.
+class ErrorControl:
+    """The outcome of :func:`control_error`; the caller judges its final flight.
 
     Attributes
     ----------
@@ -66,8 +89,8 @@ class Refinement:
     result : NLPResult
         The last optimum.
     transcription : Transcription
-    history : list of dict
-        One row per round (boundary units), the last one ``result``'s.
+    history : list of Round
+        One per round, the last one ``result``'s.
     local_error_km : numpy.ndarray
         Per segment, the closed form's position error against Eqs. 1-2 over that
         segment from its own start node, km (NaN where a segment could not be flown).
@@ -114,15 +137,15 @@ def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TO
 
 def _row(rnd, problem, result, check, local_km, seconds):
     m = check.misses
-    return {"round": rnd, "segments": int(result.alpha.size),
-            "sub_arcs": problem.segments.sub_arcs, "status": result.status,
-            "iterations": result.iterations, "objective": result.objective,
-            "tof_days": units.time_to_days(float(np.sum(result.durations))),
-            "target_miss_r_km": m.get("target_miss_r_km"),
-            "target_miss_v_m_s": m.get("target_miss_v_m_s"),
-            "miss_r_km": m.get("miss_r_km"), "miss_v_m_s": m.get("miss_v_m_s"),
-            "max_local_error_km": None if local_km is None else float(np.max(local_km)),
-            "seconds": seconds}
+    return Round(round=rnd, segments=int(result.alpha.size),
+                 sub_arcs=problem.segments.sub_arcs, status=result.status,
+                 iterations=result.iterations, objective=result.objective,
+                 tof_days=units.time_to_days(float(np.sum(result.durations))),
+                 target_miss_r_km=m.get("target_miss_r_km"),
+                 target_miss_v_m_s=m.get("target_miss_v_m_s"),
+                 miss_r_km=m.get("miss_r_km"), miss_v_m_s=m.get("miss_v_m_s"),
+                 max_local_error_km=None if local_km is None else float(np.max(local_km)),
+                 seconds=seconds)
 
 
 def _flown_miss(problem, check):
@@ -132,9 +155,10 @@ def _flown_miss(problem, check):
     return np.inf if value is None else value
 
 
-def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
-           defects=None):
-    """Refine a closed-form optimum until its flight meets ``problem.tolerance``.
+def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
+                  defects=None):
+    """Correct and re-mesh a closed-form optimum until its flight meets
+    ``problem.tolerance`` (the rounds of this module's docstring).
 
     Parameters
     ----------
@@ -151,14 +175,14 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
         Rounds of correction at most.
     solver : tuple, optional
         ``ipopt.build_solver(tr, warm=True)``'s pair, already built for ``tr``: a scan
-        refines many cells on one NLP, and building its solver costs seconds.
+        error-controls many cells on one NLP, and building its solver costs seconds.
     defects : numpy.ndarray, optional
         The 5 x N defects ``result`` was solved with (a scan carries a neighbour's), so
-        that :attr:`Refinement.defects` says what the final result was solved with.
+        that :attr:`ErrorControl.defects` says what the final result was solved with.
 
     Returns
     -------
-    Refinement
+    ErrorControl
     """
     say = progress or (lambda text: None)
     fresh = tr is None
@@ -175,14 +199,14 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
             local_km = np.array([state_miss(a, b)[0] for a, b in zip(exact.T, plain.T)])
         except SimulationError as err:
             exact = None
-            say(f"refinement: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")
+            say(f"error control: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")
         history.append(_row(rnd, problem, result, check, local_km,
                             time.perf_counter() - started))
         miss = _flown_miss(problem, check)
-        say(f"refinement round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
+        say(f"error-control round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
             f"{miss:.4g} km (tolerance {problem.tolerance.position_km:g} km)")
         if (verified or rnd == max_rounds or exact is None
-                or result.outcome not in ("converged", "acceptable")):
+                or not result.outcome.found):
             break
         sub = problem.segments.sub_arcs
         worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,
@@ -201,7 +225,7 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
                     problem.segments, sub_arcs=min(grown, MAX_SUB_ARCS)))
                 tr = transcribe(problem, guess=result.as_guess())
                 plain = segment_ends(problem, result)[1]
-                say(f"refinement: {'strained' if strained else 'slow'} closed form; "
+                say(f"error control: {'strained' if strained else 'slow'} closed form; "
                     f"{problem.segments.sub_arcs} sub-arcs per segment")
             applied = exact - plain
             result = solve_transcription(tr, defects=applied, progress=progress)
@@ -213,4 +237,4 @@ def refine(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solve
             result = solve_transcription(tr, defects=applied, warm=result, solver=solver,
                                          progress=progress)
     # Every way out of the loop is a break after flying the final result.
-    return Refinement(problem, result, tr, history, local_km, check, applied)
+    return ErrorControl(problem, result, tr, history, local_km, check, applied)

@@ -1,0 +1,287 @@
+"""The data path of one run: seed -> closed-form NLP -> Ipopt -> other starts -> error
+control -> CVODES verification -> polish, returned as a typed :class:`Run`.
+
+This is the one module that strings the optimisation stages together; the application
+(``app.solution``, the global search, sweeps) calls :func:`solve` or :func:`finish` and
+only writes down what they return.  Whether a stage runs is decided from the
+:class:`Outcome` of the stage before it (``Outcome.found``: converged or acceptable), and
+``Outcome`` itself lives in ``optimisation.outcome``, below ``optimisation.ipopt``:
+``ipopt`` tags each result with it and this module, which imports ``ipopt``, exports it,
+so the two never import each other.
+
+Numbers are those of the stages themselves: nothing here changes a result, it only
+decides what runs next and adds up Ipopt's iterations and seconds over the run.
+"""
+
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+from esail_opt.errors import InputError
+from esail_opt.optimisation import multistart, scan
+from esail_opt.optimisation import polish as polishing
+from esail_opt.optimisation.error_control import MAX_SUB_ARCS, ErrorControl, Round, control_error
+from esail_opt.optimisation.ipopt import NLPResult, solve_problem
+from esail_opt.optimisation.outcome import Outcome
+from esail_opt.optimisation.problem import Problem, Tolerance
+from esail_opt.optimisation.transcription import (Transcription, initial_guess,
+                                                  sub_arcs_within_cap)
+from esail_opt.optimisation.verify import Verification, verify, within
+
+__all__ = ["Outcome", "Round", "StartTried", "PolishRun", "Run", "solve", "finish",
+           "POLISH_TOLERANCE"]
+
+#: What a polished schedule must meet (1 m and 1 mm/s), against the target and against
+#: the polished NLP's own final node.
+POLISH_TOLERANCE: Tolerance = polishing.TOLERANCE
+
+
+@dataclass(frozen=True)
+class StartTried:
+    """One start of the closed-form NLP: where it came from and how Ipopt ended."""
+
+    label: str
+    status: str
+    iterations: int
+
+
+@dataclass(frozen=True)
+class PolishRun:
+    """The polish of a run: the optimum re-solved on Eqs. 1-2 in time, and its flight.
+
+    Attributes
+    ----------
+    result : NLPResult or None
+        The polished optimum (``optimisation.polish.polish``); None when the closed form
+        found nothing to polish (its ``note`` says so).
+    check : Verification or None
+        The CVODES flight of the polished schedule.
+    verified : bool
+        Ipopt converged and the flight, its verifier's error included, is within
+        :attr:`tolerance` of both the target and the polished NLP's final node.
+    note : str
+        One line: the verdict and, when not verified, why.
+    tolerance : Tolerance
+        :data:`POLISH_TOLERANCE`.
+    within_nlp, within_target : bool
+        The two halves of the verdict (``within_target`` is True without a target).
+    closed_form_objective : float
+        The objective of the closed-form optimum the polish started from.
+    """
+
+    result: Optional[NLPResult]
+    check: Optional[Verification]
+    verified: bool
+    note: str
+    tolerance: Tolerance = POLISH_TOLERANCE
+    within_nlp: bool = False
+    within_target: bool = False
+    closed_form_objective: Optional[float] = None
+
+    @property
+    def ran(self):
+        """Whether the polish ran (False: the closed form found nothing to polish)."""
+        return self.result is not None
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of the pipeline, in canonical units, as the stages left it.
+
+    Attributes
+    ----------
+    problem : Problem
+        The problem as last solved: its ``segments`` are the count used and the sub-arcs
+        the error control ended with.
+    result : NLPResult
+        The closed-form optimum after the error control (or the last solve, when Ipopt
+        found nothing); ``iterations`` and ``solve_seconds`` cover every solve of the
+        run up to the polish.
+    transcription : Transcription or None
+        Its NLP.
+    starts : tuple of StartTried
+        The starts tried when the first did not find a point (empty otherwise).
+    error_control : ErrorControl or None
+        Its rounds and per-segment local errors; None when the closed form found nothing.
+    check : Verification
+        The CVODES flight of ``result``'s schedule.
+    verified : bool
+        Converged, and ``check`` meets ``problem.tolerance`` with the verifier's error
+        added.  The polish's own verdict is in ``polish``.
+    note : str
+        One line: the verdict, and why when not verified.
+    sub_arcs_requested : int
+        The problem file's sub-arcs, before the seed or the error control raised them.
+    polish : PolishRun or None
+        Only when asked for.
+    """
+
+    problem: Problem
+    result: NLPResult
+    transcription: Optional[Transcription]
+    starts: Tuple[StartTried, ...]
+    error_control: Optional[ErrorControl]
+    check: Verification
+    verified: bool
+    note: str
+    sub_arcs_requested: int
+    polish: Optional[PolishRun] = None
+
+    @property
+    def outcome(self):
+        """The :class:`Outcome` of the closed-form solve the run ended with."""
+        return self.result.outcome
+
+
+def _quiet(text):
+    """The progress callback of a caller that wants none."""
+
+
+def solve(problem, segments=None, progress=None, samples=16, polish=False):
+    """Run the whole pipeline on ``problem``.
+
+    Parameters
+    ----------
+    problem : Problem
+    segments : int, optional
+        Override the problem's number of control segments N (>= 1).
+    progress : callable, optional
+        ``progress(text)`` is called at each stage and every few seconds of Ipopt.
+    samples : int
+        Flight samples per segment for the plots (the verdicts do not depend on them).
+    polish : bool
+        Then polish the optimum (``optimisation.polish``) and verify that schedule too.
+
+    Returns
+    -------
+    Run
+
+    Raises
+    ------
+    InputError
+        ``segments`` is not an integer >= 1 (before any solve starts).
+    """
+    if segments is not None:
+        if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
+            raise InputError(f"segments = {segments!r} is outside [1, inf)")
+        problem = problem.with_segments(segments)
+    say = progress or _quiet
+    seg = problem.segments
+    count = (f"{seg.count} segments" if seg.per_revolution is None
+             else f"{seg.per_revolution} segments per revolution")
+    guess = None
+    if problem.free_date():
+        problem, guess = scan.seed_free_date(problem, say)
+    if guess is None:
+        guess = initial_guess(problem)
+        problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
+    say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
+    # A free date's guess is already the optimum of its best date: no staging from it.
+    result, tr = solve_problem(problem, guess=guess, progress=say,
+                               staged=not problem.free_date())
+    starts = ()
+    if not result.outcome.found:
+        result, tr, starts = _other_starts(problem, result, tr, say)
+    say(f"{problem.name}: {result.status} after {result.iterations} iterations; "
+        "error control until the flight meets the tolerance")
+    return finish(problem, result, tr, samples=samples, polish=polish, progress=say,
+                  starts=starts, sub_arcs_requested=seg.sub_arcs)
+
+
+def _other_starts(problem, result, tr, say):
+    """Ipopt's "infeasible" from one start is a local statement: before giving up, try
+    the starts the global search would (other turn counts on a rendezvous body, other
+    constant-pitch seeds of an orbit transfer), and keep the first that finds a point.
+
+    Returns the (result, transcription) to go on with and a StartTried per start.
+    """
+    records = [StartTried("the problem's own seed", result.status, result.iterations)]
+    if problem.target is None or getattr(problem.departure, "free_anomaly", False):
+        return result, tr, tuple(records)
+    for start in multistart.fallback_starts(problem, tr.guess):
+        say(f"{problem.name}: {result.status}; trying {start.label}")
+        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
+        records.append(StartTried(start.label, other.status, other.iterations))
+        if other.outcome.found:
+            other.iterations += sum(r.iterations for r in records[:-1])
+            return other, other_tr, tuple(records)
+    return result, tr, tuple(records)
+
+
+def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
+           sub_arcs_requested=None):
+    """The stages after a closed-form optimum is found: error control, CVODES
+    verification and, with ``polish``, the polish.
+
+    :func:`solve` is this after the solve; the global search calls it for each optimum
+    it keeps.
+
+    Parameters
+    ----------
+    problem : Problem
+    result : NLPResult
+        A closed-form optimum of ``problem`` (any outcome: one not found is only
+        verified, and its note says why it is not).
+    tr : Transcription, optional
+        ``result``'s NLP: the error control re-solves it warm; without it a new one is
+        built.  Either way the error control and the polish keep ``result``'s revolution
+        class.
+    samples, polish, progress
+        As for :func:`solve`.
+    starts : sequence of StartTried
+        The starts tried before this one.
+    sub_arcs_requested : int, optional
+        The problem file's sub-arcs when the seed already raised them (default the
+        problem's).
+
+    Returns
+    -------
+    Run
+    """
+    requested = sub_arcs_requested or problem.segments.sub_arcs
+    say = progress or _quiet
+    controlled = None
+    if result.outcome.found:
+        controlled = control_error(problem, result, tr, say)
+        # The run's Ipopt record covers the first solve and every round after it.
+        iterations = result.iterations + sum(r.iterations for r in controlled.history[1:])
+        seconds = result.solve_seconds + controlled.history[-1].seconds
+        problem, result, tr = controlled.problem, controlled.result, controlled.transcription
+        result.iterations, result.solve_seconds = iterations, seconds
+    check = verify(problem, result, samples)
+    verified, note = check.judge(problem)
+    verified = verified and result.converged
+    if not result.converged:
+        note = f"NOT verified: Ipopt ended {result.status}" + (
+            "" if result.outcome is not Outcome.INFEASIBLE else
+            f" from {len(starts) or 1} start(s); no start found a feasible point, which "
+            "does not prove the target unreachable")
+    polished = _polish(problem, result, samples, say) if polish else None
+    return Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
+               error_control=controlled, check=check, verified=verified, note=note,
+               sub_arcs_requested=requested, polish=polished)
+
+
+def _polish(problem, result, samples, say):
+    """Polish ``result`` and judge the polished flight against :data:`POLISH_TOLERANCE`."""
+    # A closed form that found no optimum has nothing worth polishing.
+    if not result.outcome.found:
+        return PolishRun(None, None, False,
+                         f"NOT polished: the closed-form solve ended {result.status}",
+                         closed_form_objective=result.objective)
+    say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
+    exact, _ = polishing.polish(problem, result)
+    say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
+        "verifying on CVODES")
+    check = verify(problem, exact, samples)
+    within_all, note = check.judge(problem, POLISH_TOLERANCE, against_nlp=True)
+    verified = exact.converged and within_all
+    if not exact.converged:
+        note = f"NOT verified: Ipopt did not converge ({exact.status}); {note}"
+    elif verified:
+        note = f"exact: {note}"
+    return PolishRun(exact, check, verified, note, POLISH_TOLERANCE,
+                     within_nlp=within(check.misses, POLISH_TOLERANCE, "nlp"),
+                     within_target=(problem.target is None
+                                    or within(check.misses, POLISH_TOLERANCE)),
+                     closed_form_objective=result.objective)
+
