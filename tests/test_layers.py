@@ -6,7 +6,6 @@ errors and processes, physics, bodies, propagation, optimisation, app, bench.
 """
 
 import ast
-from pathlib import Path
 
 import pytest
 

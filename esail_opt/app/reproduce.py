@@ -15,7 +15,6 @@ import numpy as np
 from esail_opt.app.files import save_figure, write_json
 from esail_opt.app.plots import axes_or_new
 from esail_opt.app.propagate import FixedAttitudeCase, eps_over_swept_angles
-from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
 from esail_opt.physics.closed_form import theta_max_circular
 from esail_opt.physics.elements import ac_tilde
