@@ -416,7 +416,8 @@ def solution_of(problem, result, tr=None, samples=16, polish=False, progress=Non
         seconds = result.solve_seconds + refined.history[-1]["seconds"]
         problem, result, tr = refined.problem, refined.result, refined.transcription
         result.iterations, result.solve_seconds = iterations, seconds
-    check = verify(problem, result, samples)
+    check = verify(problem, result, samples,
+                   defects=None if refined is None else refined.defects)
     verified, note = check.judge(problem)
     verified = verified and result.converged
     if not result.converged:
