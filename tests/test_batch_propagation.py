@@ -83,7 +83,7 @@ def test_batched_second_order_arcs_against_dop853():
     x0 = [1.0, 0.0, 0.0, 1.0]
     xs, q3 = propagate_batch(x0, np.repeat(np.radians(alphas_deg)[:, None], arcs, 1),
                              np.full((4, arcs), horizon / arcs), acs, length_in="time",
-                             invariant=True, order=2)
+                             model=ArcModel(sub_arcs=1, nodes=PANEL_NODES))
     assert np.all(q3 > 0)
     bound = acs.max() ** 2
     for m in range(4):

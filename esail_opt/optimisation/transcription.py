@@ -12,8 +12,9 @@ Decision variables (each scaled to order one):
 A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q with one Picard sweep that makes
 it second order in a~_c, Eqs. 9-11 for the state, the time by Gauss-Legendre quadrature
 of dt/dtheta) chained with rectification at each sub-arc's start, all at one pitch, and
-optionally Richardson-extrapolated.  The segment
-Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
+optionally Richardson-extrapolated: the problem's :func:`arc_model`
+(``propagation.arcs.ArcModel``), which the verification's closed-form curve flies too.
+The segment Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
 the NLP holds one copy of the arc's graph however many segments there are.  The same
 builder accepts any segment Function of the same signature: the benchmarks swap in
 CVODES arcs (:func:`cvodes_segment`, or :func:`cvodes_time_segment` in time), and the
@@ -51,8 +52,9 @@ GUESS_STEP = 0.05
 GUESS_MODEL = FIRST_ORDER
 #: Guess steps per call of the (cached) rectified propagator.
 GUESS_CHUNK = 200
-#: Largest a~_c dtheta of one closed-form sub-arc: the arc's first-order error grows as
-#: (a~_c dtheta)^2, and an optimiser left free stretches single arcs far past where the
+#: Largest a~_c dtheta of one closed-form sub-arc: an arc's error grows with a~_c dtheta
+#: (as its square for first-order arcs, its cube for the NLP's second-order ones;
+#: THEORY.md §3.8), and an optimiser left free stretches single arcs far past where the
 #: closed form means anything (a 0.1 au spiral swung one arc out to 4 au).  It is kept
 #: by adding sub-arcs -- to the seed before the first solve, and to any optimum that
 #: breaks it (``optimisation.refine``) -- never as a constraint of the NLP: as one it made
