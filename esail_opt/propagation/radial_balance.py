@@ -120,7 +120,6 @@ def radial_balance_function(samples):
     x[4 x samples]``; the scalar arguments are shared by all times.
     """
     t, r0, ac, R, T, theta0 = (ca.SX.sym(n) for n in ("t", "r0", "ac", "R", "T", "theta0"))
-    point = ca.Function(
-        "radial_balance_point", [t, r0, ac, R, T, theta0], [radial_balance_state(t, r0, ac, R, T, theta0)]
-    )
+    point = ca.Function("radial_balance_point", [t, r0, ac, R, T, theta0],
+                        [radial_balance_state(t, r0, ac, R, T, theta0)])
     return point.map("radial_balance", "serial", samples, [1, 2, 3, 4, 5], [])

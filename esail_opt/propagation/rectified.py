@@ -37,8 +37,9 @@ from esail_opt.propagation.compiled import compiled
 
 @functools.lru_cache(maxsize=None)
 def panel_function(*, coefficients=EXACT, nodes=PANEL_NODES):
-    """One first-order closed-form arc between two of its angles: ``(x0[5], ac, alpha, phi_a, phi_b)
-    -> (state at phi_b [4], time from phi_a to phi_b, q3 at phi_b)``, an SX Function."""
+    """One first-order closed-form arc between two of its angles: ``(x0[5], ac, alpha,
+    phi_a, phi_b) -> (state at phi_b [4], time from phi_a to phi_b, q3 at phi_b)``, an SX
+    Function."""
     x0 = ca.SX.sym("x0", 5)
     ac, alpha = ca.SX.sym("ac"), ca.SX.sym("alpha")
     phi_a, phi_b = ca.SX.sym("phi_a"), ca.SX.sym("phi_b")
