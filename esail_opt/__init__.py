@@ -1,5 +1,6 @@
 """esail_opt: trajectory optimisation of Electric Solar Wind Sails on the paper's
-first-order closed form, verified on Eqs. 1-2 with CVODES.
+closed form of fixed-attitude arcs (carried to second order in the thrust), verified on
+Eqs. 1-2 with CVODES.
 
 A problem file does ``import esail_opt as eo`` and builds ``problem = eo.Problem(...)``
 from the names below (see :mod:`esail_opt.optimisation.problem`); ``eo.solve(problem)``

@@ -12,6 +12,7 @@ from esail_opt.app.cli import main
 from esail_opt.app.propagate import GRID_COLUMNS, FixedAttitudeCase, eps_over_swept_angle
 from esail_opt.bench import propagate as bench
 from esail_opt.physics import constants as units
+from esail_opt.propagation.arcs import FIRST_ORDER, PANEL_NODES, ArcModel
 from esail_opt.propagation.batch import arcs_at_angles, propagate_batch
 from esail_opt.propagation.rectified import propagate
 
@@ -27,18 +28,21 @@ def _cases(m, n, seed):
 
 
 @pytest.mark.parametrize("options", [
-    {},
-    {"samples": 3},
-    {"length_in": "time", "invariant": True, "order": 2},
-    {"length_in": "time", "samples": 2},
+    {"model": FIRST_ORDER},
+    {"samples": 3, "model": FIRST_ORDER},
+    {"length_in": "time", "model": ArcModel(sub_arcs=1, nodes=PANEL_NODES)},
+    {"length_in": "time", "samples": 2, "model": FIRST_ORDER},
+    {"samples": 2},
 ])
 def test_batch_equals_the_single_case_propagator_case_by_case(options):
     x0, alphas, lengths, ac = _cases(6, 4, seed=3)
     throttles = np.linspace(0.2, 1.0, 4)
-    xs, q3 = propagate_batch(x0, alphas, lengths, ac, throttles, **options)
-    assert xs.shape == (6, 5, 4 * options.get("samples", 1) + 1) and q3.shape == (6, 4)
+    xs, q3 = propagate_batch(x0, alphas, lengths, ac, throttles=throttles, **options)
+    arcs = 4 * options.get("model", ArcModel()).sub_arcs
+    assert xs.shape == (6, 5, arcs * options.get("samples", 1) + 1) and q3.shape == (6, arcs)
     for m in range(6):
-        one, q3_one = propagate(x0[m], alphas[m], lengths[m], ac[m], throttles, **options)
+        one, q3_one = propagate(x0[m], alphas[m], lengths[m], ac[m], throttles=throttles,
+                                **options)
         # The same Function on the same numbers: equal to rounding.
         np.testing.assert_allclose(xs[m], one, rtol=1e-13, atol=1e-14)
         np.testing.assert_allclose(q3[m], q3_one, rtol=1e-13, atol=1e-14)
@@ -50,7 +54,8 @@ def test_arcs_at_angles_of_different_counts_equal_one_arc_each():
     angles = [span * (np.arange(n + 1) / n) for n in counts]
     arcs = arcs_at_angles(x0, ac, alphas[:, 0], angles)
     for m, (xs, q3) in enumerate(arcs):
-        one, q3_one = propagate(x0[m], alphas[m], [span], ac[m], samples=counts[m])
+        one, q3_one = propagate(x0[m], alphas[m], [span], ac[m], samples=counts[m],
+                                model=FIRST_ORDER)
         assert xs.shape == one.shape and q3.shape == (counts[m],)
         np.testing.assert_allclose(xs, one, rtol=1e-13, atol=1e-14)
         assert q3[-1] == pytest.approx(q3_one[-1], rel=1e-13)
@@ -78,7 +83,7 @@ def test_batched_second_order_arcs_against_dop853():
     x0 = [1.0, 0.0, 0.0, 1.0]
     xs, q3 = propagate_batch(x0, np.repeat(np.radians(alphas_deg)[:, None], arcs, 1),
                              np.full((4, arcs), horizon / arcs), acs, length_in="time",
-                             invariant=True, order=2)
+                             model=ArcModel(sub_arcs=1, nodes=PANEL_NODES))
     assert np.all(q3 > 0)
     bound = acs.max() ** 2
     for m in range(4):

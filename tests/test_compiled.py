@@ -13,6 +13,7 @@ import pytest
 
 from conftest import solved_under
 from esail_opt.propagation import compiled as cc
+from esail_opt.propagation.arcs import ArcModel
 from esail_opt.propagation.rectified import panel_function
 
 #: A representative panel input: an eccentric start (e ~ 0.1), a~_c ~ 0.17, 40 deg pitch,
@@ -158,8 +159,9 @@ def test_compiled_segment_is_the_expanded_segment_with_its_derivatives():
     from esail_opt.optimisation.transcription import closed_form_segment
 
     for extrapolate in (True, False):
-        fast = closed_form_segment(3, extrapolate=extrapolate, native=True)
-        slow = closed_form_segment(3, extrapolate=extrapolate, native=False)
+        fast = closed_form_segment(model=ArcModel(sub_arcs=3, extrapolate=extrapolate))
+        slow = closed_form_segment(model=ArcModel(sub_arcs=3, extrapolate=extrapolate,
+                                                  native=False))
         assert fast.class_name() == "External" and slow.is_a("SXFunction")
         _agree(fast, slow, 1e-11)
 
@@ -181,9 +183,9 @@ def test_compiled_segment_graph_matches_its_virtual_machine_graph(monkeypatch):
     against the same graph run by CasADi's virtual machine."""
     from esail_opt.optimisation import transcription
 
-    fast = transcription.closed_form_segment(2, native=True)
+    fast = transcription.closed_form_segment(model=ArcModel(sub_arcs=2))
     _graph_on_the_virtual_machine(monkeypatch)
-    slow = transcription.closed_form_segment(2, native=True)
+    slow = transcription.closed_form_segment(model=ArcModel(sub_arcs=2))
     assert fast.class_name() == "External" and slow.is_a("MXFunction")
     _agree(fast, slow, 1e-12)
 
@@ -241,7 +243,7 @@ def test_a_failed_compile_of_the_segment_graph_keeps_it_on_compiled_arcs(monkeyp
     monkeypatch.setattr(transcription, "closed_form_segment",
                         transcription.closed_form_segment.__wrapped__)
     with caplog.at_level(logging.WARNING, logger="esail_opt"):
-        segment = transcription.closed_form_segment(1, native=True)
+        segment = transcription.closed_form_segment(model=ArcModel(sub_arcs=1))
     assert segment.is_a("MXFunction")
     assert [r.getMessage() for r in caplog.records if "out of luck" in r.getMessage()]
     assert not list(shared_cache.glob("segment-*.so"))

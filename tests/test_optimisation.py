@@ -16,7 +16,8 @@ from esail_opt.optimisation import transcription as tr
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.physics import constants as units
-from esail_opt.propagation.rectified import propagate, propagate_extrapolated
+from esail_opt.propagation.arcs import QUAD_NODES, ArcModel
+from esail_opt.propagation.rectified import propagate
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -43,16 +44,20 @@ def test_segment_chain_is_the_rectified_propagation(extrapolate):
     alpha = rng.uniform(-1.2, 1.2, 5)
     lengths = rng.uniform(0.1, 0.6, 5)
     nodes = tr.flown_segments(p, alpha, lengths, p.x0())
+    # The arcs written out, not taken from the transcription: second order, the exact
+    # angular momentum, the NLP's quadrature.
+    one = ArcModel(order=2, invariant=True, sub_arcs=1, nodes=QUAD_NODES)
     if not extrapolate:
         ref, _ = propagate(p.x0(), np.repeat(alpha, 3), np.repeat(lengths / 3, 3), p.sail.ac,
-                           nodes=tr.QUAD_NODES, invariant=True, order=2)
+                           model=one)
         np.testing.assert_allclose(nodes, ref[:, ::3], rtol=0, atol=1e-12)
     # Extrapolation combines each segment's whole and halved sub-arc chains, restarted at
     # every node: compare segment by segment from the NLP's own nodes.
     for k in range(5):
-        fly = propagate_extrapolated if extrapolate else propagate
-        ref, _ = fly(nodes[:4, k], np.full(3, alpha[k]), np.full(3, lengths[k] / 3), p.sail.ac,
-                     nodes=tr.QUAD_NODES, invariant=True, order=2)
+        model = ArcModel(order=2, invariant=True, extrapolate=extrapolate, sub_arcs=1,
+                         nodes=QUAD_NODES)
+        ref, _ = propagate(nodes[:4, k], np.full(3, alpha[k]), np.full(3, lengths[k] / 3),
+                           p.sail.ac, model=model)
         np.testing.assert_allclose(ref[:4, -1], nodes[:4, k + 1], rtol=0, atol=1e-12)
         assert ref[4, -1] == pytest.approx(nodes[4, k + 1] - nodes[4, k], abs=1e-12)
 
@@ -71,7 +76,8 @@ def test_fixed_pitch_solve_reproduces_rectified_propagation():
     for k in range(6):
         ref, _ = propagate(starts[:, k], np.full(2, math.radians(30.0)),
                            np.full(2, res.lengths[k] / 2), p.sail.ac,
-                           nodes=tr.QUAD_NODES, invariant=True, order=2)
+                           model=ArcModel(order=2, invariant=True, sub_arcs=1,
+                                          nodes=QUAD_NODES))
         np.testing.assert_allclose(res.nodes[:4, k], ref[:4, -1], rtol=0, atol=1e-9)
         assert ref[4, -1] == pytest.approx(res.durations[k], abs=1e-9)
     assert units.time_to_days(res.durations.sum()) == pytest.approx(200.0, abs=1e-7)

@@ -1,6 +1,7 @@
 """The rectified closed-form propagator against the physics core (one arc, no
 rectification) and against CVODES on the paper's 10-year orbit raising (Figs. 5-7)."""
 
+import dataclasses
 import math
 
 import casadi as ca
@@ -12,12 +13,8 @@ from esail_opt.physics.closed_form import arc_end, arc_frame, arc_state
 from esail_opt.physics.constants import accel_from_mm_s2, time_from_years
 from esail_opt.physics.thrust import radial_transverse
 from esail_opt.physics.elements import classical_from_polar
-from esail_opt.propagation.rectified import (
-    kepler_angle,
-    propagate,
-    propagate_extrapolated,
-    timed_arc_function,
-)
+from esail_opt.propagation.arcs import FIRST_ORDER
+from esail_opt.propagation.rectified import kepler_angle, propagate, timed_arc_function
 from esail_opt.propagation.simulate import simulate
 
 AC = accel_from_mm_s2(0.1)
@@ -28,6 +25,9 @@ CIRCLE = np.array([1.0, 0.0, 0.0, 1.0])
 #: Samples per arc for the comparisons: a quarter of an arc is ~45 deg at 1 au,
 #: fine enough to catch the largest radial deviation within a few per mille of it.
 SAMPLES = 4
+#: What this file tests: the paper's rectification, one first-order arc a segment.
+PLAIN = FIRST_ORDER
+RICHARDSON = dataclasses.replace(FIRST_ORDER, extrapolate=True)
 
 
 def six_month_arcs(arcs=ARCS):
@@ -58,7 +58,7 @@ ONE_ARC_CASES = [  # (x0, alpha_deg, dtheta)
 def test_one_segment_is_the_plain_closed_form(x0, alpha_deg, dtheta):
     alpha = math.radians(alpha_deg)
     R, T = (float(v) for v in radial_transverse(alpha))
-    xs, q3 = propagate(x0, [alpha], [dtheta], AC, samples=4)
+    xs, q3 = propagate(x0, [alpha], [dtheta], AC, samples=4, model=PLAIN)
     # arc_end with 4 panels is the same quadrature as 4 samples of one segment.
     end, dt, q3_end = (np.array(v, float).ravel() for v in arc_end(x0, dtheta, AC, R, T, panels=4))
     scale = np.abs(end) + 1
@@ -78,7 +78,7 @@ def test_one_timed_segment_ends_where_the_clock_says(x0, alpha_deg, dtheta):
     alpha = math.radians(alpha_deg)
     R, T = (float(v) for v in radial_transverse(alpha))
     end, dt, _ = (np.array(v, float).ravel() for v in arc_end(x0, dtheta, AC, R, T, panels=4))
-    xs, _ = propagate(x0, [alpha], [dt[0]], AC, samples=4, length_in="time")
+    xs, _ = propagate(x0, [alpha], [dt[0]], AC, samples=4, length_in="time", model=PLAIN)
     assert abs(xs[1, -1] - end[1]) < 1e-12
     assert np.all(np.abs(xs[:4, -1] - end) <= 1e-12 * (np.abs(end) + 1))
 
@@ -89,7 +89,8 @@ def test_one_timed_segment_ends_where_the_clock_says(x0, alpha_deg, dtheta):
 @pytest.fixture(scope="module")
 def paper_run():
     alphas = np.full(ARCS, ALPHA)
-    xs, q3 = propagate(CIRCLE, alphas, six_month_arcs(), AC, samples=SAMPLES, length_in="time")
+    xs, q3 = propagate(CIRCLE, alphas, six_month_arcs(), AC, samples=SAMPLES, length_in="time",
+                       model=PLAIN)
     return xs, q3, cvodes_at_same_times(xs, alphas, SAMPLES)
 
 
@@ -124,7 +125,8 @@ def test_newton_clock_residual_is_tiny(paper_run):
     # ...and CVODES was flown to the same times.
     assert np.max(np.abs(flown[4] - xs[4])) < 1e-12
     # The same with one panel per arc, as the bench runs it (measured 1.4e-14 TU).
-    ends, _ = propagate(CIRCLE, np.full(ARCS, ALPHA), six_month_arcs(), AC, length_in="time")
+    ends, _ = propagate(CIRCLE, np.full(ARCS, ALPHA), six_month_arcs(), AC, length_in="time",
+                        model=PLAIN)
     assert np.max(np.abs(ends[4] - asked)) < 1e-12
 
 
@@ -136,7 +138,7 @@ def test_attitude_switch_at_a_rectification_point():
 
     def max_error(alphas, upto=None):
         xs, _ = propagate(CIRCLE, alphas, six_month_arcs(), AC, samples=SAMPLES,
-                          length_in="time")
+                          length_in="time", model=PLAIN)
         flown = cvodes_at_same_times(xs, alphas, SAMPLES)
         return np.max(np.abs(xs[0] - flown[0])[:upto]), xs, flown
 
@@ -196,7 +198,7 @@ def test_newton_converges_on_a_long_eccentric_arc():
     alpha = math.radians(alpha_deg)
     R, T = (float(v) for v in radial_transverse(alpha))
     dt = float(arc_end(x0, dtheta, AC, R, T, panels=4)[1])
-    xs, q3, residual = timed_arc_function(4)(np.r_[x0, 0.0], AC, alpha, dt)
+    xs, q3, residual = timed_arc_function(4, model=PLAIN)(np.r_[x0, 0.0], AC, alpha, dt)
     # Measured 1e-11 rad and 6e-12 TU (the starting-rate guess left 1e-3 rad).
     assert abs(float(np.array(xs)[1, -1]) - x0[1] - dtheta) < 1e-10
     assert abs(float(residual)) < 1e-10
@@ -207,7 +209,7 @@ def test_timed_arc_derivatives_finite_from_a_circle():
     # optimiser's first arc starts exactly there.
     x = ca.MX.sym("x", 5)
     d = ca.MX.sym("d")
-    out = timed_arc_function(1)(x, AC, ALPHA, d)[0]
+    out = timed_arc_function(1, model=PLAIN)(x, AC, ALPHA, d)[0]
     z = ca.vertcat(x, d)
     jac = ca.Function("jacobian", [x, d], [ca.jacobian(out, z)])
     hess = ca.Function("hessian", [x, d], [ca.hessian(ca.sum1(out), z)[0]])
@@ -216,7 +218,7 @@ def test_timed_arc_derivatives_finite_from_a_circle():
     assert np.all(np.isfinite(np.array(hess(*point))))
     # The angle's derivative in the duration is the angular rate at the end, since
     # on the closed form dt/dtheta = r0^1.5 / (q3 s^2) = r / v_theta exactly.
-    xs = np.array(timed_arc_function(1)(*point[:1], AC, ALPHA, point[1])[0])
+    xs = np.array(timed_arc_function(1, model=PLAIN)(*point[:1], AC, ALPHA, point[1])[0])
     rate = xs[3, -1] / xs[0, -1]
     assert np.array(jac(*point))[1, 5] == pytest.approx(rate, rel=1e-10)
 
@@ -229,37 +231,39 @@ def truth_at_ten_years():
     return simulate(CIRCLE, [ALPHA], [time_from_years(YEARS)], AC)[:, -1]
 
 
-def final_r_error(run, arcs, truth):
-    xs, q3 = run(CIRCLE, [ALPHA] * arcs, six_month_arcs(arcs), AC, length_in="time")
+def final_r_error(model, arcs, truth):
+    xs, q3 = propagate(CIRCLE, [ALPHA] * arcs, six_month_arcs(arcs), AC, length_in="time",
+                       model=model)
     assert np.all(q3 > 0)
     return abs(xs[0, -1] - truth[0])
 
 
 def test_error_falls_like_one_over_arcs(truth_at_ten_years):
     # THEORY.md §5.2: 1/N.  Measured 1.025e-3 au at 320 arcs, 5.40e-4 au at 640.
-    coarse = final_r_error(propagate, 320, truth_at_ten_years)
-    fine = final_r_error(propagate, 640, truth_at_ten_years)
+    coarse = final_r_error(PLAIN, 320, truth_at_ten_years)
+    fine = final_r_error(PLAIN, 640, truth_at_ten_years)
     assert 0.45 < fine / coarse < 0.6
-    assert fine < 0.1 * final_r_error(propagate, ARCS, truth_at_ten_years)
+    assert fine < 0.1 * final_r_error(PLAIN, ARCS, truth_at_ten_years)
 
 
 def test_richardson_beats_plain_at_lower_cost(truth_at_ten_years):
     # 2 x_{2N} - x_N from 160 and 320 arcs costs 480 arcs; plain 640 costs more.
     # Measured 2.30e-4 au against 5.40e-4 au.
-    extrapolated = final_r_error(propagate_extrapolated, 160, truth_at_ten_years)
-    assert extrapolated < 0.5 * final_r_error(propagate, 640, truth_at_ten_years)
+    extrapolated = final_r_error(RICHARDSON, 160, truth_at_ten_years)
+    assert extrapolated < 0.5 * final_r_error(PLAIN, 640, truth_at_ten_years)
     # Second order: halving the arcs' length quarters the error (measured 0.242).
-    finer = final_r_error(propagate_extrapolated, 320, truth_at_ten_years)
+    finer = final_r_error(RICHARDSON, 320, truth_at_ten_years)
     assert 0.2 < finer / extrapolated < 0.3
 
 
 def test_richardson_is_the_combination_of_whole_and_half_arcs():
     lengths = six_month_arcs(4)
-    xs, _ = propagate_extrapolated(CIRCLE, [ALPHA, -ALPHA, 0.3, 0.0], lengths, AC,
-                                   throttles=[1.0, 0.5, 1.0, 0.0], length_in="time")
+    xs, _ = propagate(CIRCLE, [ALPHA, -ALPHA, 0.3, 0.0], lengths, AC,
+                      throttles=[1.0, 0.5, 1.0, 0.0], length_in="time", model=RICHARDSON)
     whole, _ = propagate(CIRCLE, [ALPHA, -ALPHA, 0.3, 0.0], lengths, AC,
-                         throttles=[1.0, 0.5, 1.0, 0.0], length_in="time")
+                         throttles=[1.0, 0.5, 1.0, 0.0], length_in="time", model=PLAIN)
     halves, _ = propagate(CIRCLE, np.repeat([ALPHA, -ALPHA, 0.3, 0.0], 2),
                           np.repeat(lengths / 2, 2), AC,
-                          throttles=np.repeat([1.0, 0.5, 1.0, 0.0], 2), length_in="time")
+                          throttles=np.repeat([1.0, 0.5, 1.0, 0.0], 2), length_in="time",
+                          model=PLAIN)
     assert np.allclose(xs, 2 * halves[:, ::2] - whole, rtol=1e-14, atol=1e-14)

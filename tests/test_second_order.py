@@ -11,11 +11,14 @@ from scipy.integrate import solve_ivp
 from esail_opt.physics.closed_form import element_rate
 from esail_opt.physics.constants import accel_from_mm_s2
 from esail_opt.physics.elements import q_from_polar
+from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
 from esail_opt.propagation.rectified import end_function, panel_function, propagate
 
 B1, B2 = 0.75, 0.25
 #: The NLP's Gauss-Legendre points per sub-arc (transcription.QUAD_NODES).
 QUAD_NODES = 2
+#: One second-order arc without the invariant, on the 8-point panels.
+PLAIN_SECOND = ArcModel(invariant=False, sub_arcs=1, nodes=PANEL_NODES)
 AC = accel_from_mm_s2(1.0)
 
 
@@ -41,14 +44,15 @@ def fly(x0, ac, alpha, dtheta):
 
 
 def first_order(x0, ac, alpha, dtheta):
-    state, dt, _ = panel_function((B1, B2), QUAD_NODES)(np.r_[x0, 0.0], ac, alpha, 0.0,
-                                                        dtheta)
+    panel = panel_function(coefficients=(B1, B2), nodes=QUAD_NODES)
+    state, dt, _ = panel(np.r_[x0, 0.0], ac, alpha, 0.0, dtheta)
     state = np.array(state).ravel()
     return np.r_[state[0], state[2], state[3], float(dt)]
 
 
 def second_order(x0, ac, alpha, dtheta):
-    state, dt, _ = end_function((B1, B2), QUAD_NODES)(np.r_[x0, 0.0], ac, alpha, dtheta)
+    end = end_function(coefficients=(B1, B2), nodes=QUAD_NODES)
+    state, dt, _ = end(np.r_[x0, 0.0], ac, alpha, dtheta)
     state = np.array(state).ravel()
     return np.r_[state[0], state[2], state[3], float(dt)]
 
@@ -111,14 +115,17 @@ def test_a_chain_of_second_order_arcs_converges_as_one_over_n_squared():
     errors = []
     for n in (16, 32, 64):
         xs, _ = propagate(x0, np.full(n, alpha), np.full(n, math.pi / n), AC,
-                          coefficients=(B1, B2), nodes=QUAD_NODES, invariant=True, order=2)
+                          coefficients=(B1, B2),
+                          model=ArcModel(order=2, invariant=True, sub_arcs=1,
+                                         nodes=QUAD_NODES))
         errors.append(abs(xs[0, -1] - truth[0]))
     ratios = np.array(errors[:-1]) / np.array(errors[1:])
     assert np.all(ratios > 3.4), ratios
     # The paper's first-order arcs over the same 64 arcs are over 100 times further off
     # (they converge as 1/N only, THEORY.md §5.2).
     xs, _ = propagate(x0, np.full(64, alpha), np.full(64, math.pi / 64), AC,
-                      coefficients=(B1, B2), nodes=QUAD_NODES, invariant=True, order=1)
+                      coefficients=(B1, B2),
+                      model=ArcModel(order=1, invariant=True, sub_arcs=1, nodes=QUAD_NODES))
     assert errors[-1] < abs(xs[0, -1] - truth[0]) / 100
 
 
@@ -140,7 +147,7 @@ def test_timed_second_order_arc_lands_on_its_own_clock(x0, ac_mm_s2, alpha_deg, 
     x5 = np.r_[x0, 0.0]
     end, dt, q3 = (np.array(v, float).ravel() for v in end_function()(x5, ac, alpha, dtheta))
     xs, q3_timed, residual = (np.array(v, float) for v in
-                              timed_arc_function(1, order=2)(x5, ac, alpha, dt[0]))
+                              timed_arc_function(1, model=PLAIN_SECOND)(x5, ac, alpha, dt[0]))
     # Measured at most 4e-10 rad and 2e-10 TU (on the e = 0.28 arc; five Newton steps
     # from the Keplerian guess left 2.3e-9 rad there).
     assert abs(xs[1, -1] - x0[1] - dtheta) < 1e-9

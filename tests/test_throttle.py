@@ -23,6 +23,7 @@ from esail_opt.optimisation import polish
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
 from esail_opt.optimisation.transcription import closed_form_segment, transcribe
+from esail_opt.propagation.arcs import ArcModel
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
 
@@ -87,7 +88,7 @@ def test_throttle_fixed_at_one_reproduces_the_unthrottled_nlp():
 def test_coasting_segment_is_keplerian():
     # kappa = 0 is a coast: the closed form must keep the osculating a and e exactly
     # (Kepler's problem), whatever the pitch.
-    seg = closed_form_segment(3)
+    seg = closed_form_segment(model=ArcModel(sub_arcs=3))
     x0 = np.array([1.1, 0.3, 0.05, 0.9, 0.0])
     x1 = np.array(seg(x0, 0.0, 0.7, 1.2)[0]).ravel()
     before = np.array([float(v) for v in classical_from_polar(x0[:4])[:2]])

@@ -20,6 +20,7 @@ from esail_opt.errors import InputError, check_range
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar, polar_from_classical
 from esail_opt.physics.thrust import EXACT
+from esail_opt.propagation.arcs import FIRST_ORDER
 from esail_opt.propagation.batch import arcs_at_angles
 from esail_opt.propagation.rectified import rectified_function
 from esail_opt.propagation.simulate import SimulationError, simulate
@@ -110,7 +111,8 @@ def _arc(case, samples):
     """``run(angle) -> (xs, q3)``: the closed form's one arc over ``angle`` rad of theta,
     xs of shape (5, samples + 1) from the departure, canonical units."""
     x0 = np.r_[case.state0(), 0.0]
-    arc = rectified_function(1, samples, "theta", case.coefficients)
+    arc = rectified_function(1, samples=samples, coefficients=case.coefficients,
+                             model=FIRST_ORDER)
     ac, alpha = case.ac, case.alpha
 
     def run(angle):
@@ -285,7 +287,8 @@ def eps_over_swept_angles(cases, samples=None):
     # The angles arc_function would take for equal steps, to the last bit.
     angles = [span * (np.arange(n + 1) / n) for span, n in zip(spans, counts)]
     arcs = arcs_at_angles([c.state0() for c in cases], [c.ac for c in cases],
-                          [c.alpha for c in cases], angles, cases[0].coefficients)
+                          [c.alpha for c in cases], angles,
+                          coefficients=cases[0].coefficients)
     out = []
     for case, span, n, (closed, q3) in zip(cases, spans, counts, arcs):
         if not _valid(closed, q3[-1]):

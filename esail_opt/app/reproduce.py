@@ -7,6 +7,7 @@ maps a name to ``fn(out, progress=None)``, which writes both files and returns t
 paths; ``progress(text)``, if given, hears how far a long figure has got.
 """
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -214,21 +215,24 @@ def raising_curves():
     angle it was found to span: the same arcs from the same states, only with plot
     points in between (the time propagator's cost grows with its sample count).
     """
+    from esail_opt.propagation.arcs import FIRST_ORDER
     from esail_opt.propagation.rectified import propagate
-    from esail_opt.propagation.ref10 import ref10_function
+    from esail_opt.propagation.radial_balance import radial_balance_function
     from esail_opt.propagation.simulate import simulate
 
     x0, alpha, ac, horizon = _raising_inputs()
     arcs = RAISING["arcs"]
-    points, _ = propagate(x0, [alpha] * arcs, [horizon / arcs] * arcs, ac, length_in="time")
+    points, _ = propagate(x0, [alpha] * arcs, [horizon / arcs] * arcs, ac, length_in="time",
+                          model=FIRST_ORDER)
     closed, q3 = propagate(x0, [alpha] * arcs, np.diff(points[1]), ac,
-                           samples=SAMPLES_PER_ARC)
+                           samples=SAMPLES_PER_ARC, model=FIRST_ORDER)
     if np.any(q3 <= 0):
         raise RuntimeError("an arc of the closed form went past theta_max (q3 <= 0)")
     cvodes = simulate(x0, [alpha], [horizon], ac, samples=DENSE_POINTS)
     R, T = radial_transverse(alpha)
     t = np.linspace(0.0, horizon, DENSE_POINTS + 1)
-    ref10 = np.vstack([np.array(ref10_function(t.size)(t[None, :], x0[0], ac, R, T, 0.0)), t])
+    ref10 = np.vstack([np.array(radial_balance_function(t.size)(t[None, :], x0[0], ac, R, T,
+                                                                 0.0)), t])
     # CVODES again at exactly the closed form's and the rectification points' times,
     # for the errors reported beside the plots.
     at_closed = simulate(x0, [alpha] * (arcs * SAMPLES_PER_ARC), np.diff(closed[4]), ac)
@@ -414,17 +418,22 @@ def convergence_errors(arcs=CONVERGENCE_ARCS, progress=None):
 
     Each also with Richardson extrapolation from N and 2N arcs (cost 3N arcs).
     """
-    from esail_opt.propagation.rectified import propagate, propagate_extrapolated
+    from esail_opt.propagation.arcs import FIRST_ORDER
+    from esail_opt.propagation.rectified import propagate
     from esail_opt.propagation.simulate import simulate
 
     x0, alpha, ac, horizon = _raising_inputs()
     truth = simulate(x0, [alpha], [horizon], ac)[:, -1]
     span = truth[1] - x0[1]
     rows = {key: [] for key in ("plain", "richardson")}
+    models = {"plain": FIRST_ORDER,
+              "richardson": dataclasses.replace(FIRST_ORDER, extrapolate=True)}
     for n in arcs:
-        for key, run in (("plain", propagate), ("richardson", propagate_extrapolated)):
-            timed, q3_t = run(x0, [alpha] * n, [horizon / n] * n, ac, length_in="time")
-            angled, q3_a = run(x0, [alpha] * n, [span / n] * n, ac, length_in="theta")
+        for key, model in models.items():
+            timed, q3_t = propagate(x0, [alpha] * n, [horizon / n] * n, ac, length_in="time",
+                                    model=model)
+            angled, q3_a = propagate(x0, [alpha] * n, [span / n] * n, ac, length_in="theta",
+                                     model=model)
             if min(q3_t.min(), q3_a.min()) <= 0:
                 raise RuntimeError(f"{n} arcs: an arc went past theta_max")
             rows[key].append({

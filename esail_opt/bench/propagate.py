@@ -37,28 +37,29 @@ def _functions():
 
     from esail_opt.physics import constants as units
     from esail_opt.physics.thrust import radial_transverse
+    from esail_opt.propagation.arcs import FIRST_ORDER
     from esail_opt.propagation.rectified import rectified_function
-    from esail_opt.propagation.ref10 import ref10_function
+    from esail_opt.propagation.radial_balance import radial_balance_function
     from esail_opt.propagation.simulate import schedule_function, segment_integrator
 
     ac, alpha = units.accel_from_mm_s2(AC_MM_S2), math.radians(ALPHA_DEG)
     horizon = units.time_from_years(YEARS)
     args = _schedule(ARCS)
     x0, row = args[0], np.ones((1, ARCS))
-    closed = rectified_function(ARCS, 1, "time")
+    closed = rectified_function(ARCS, length_in="time", model=FIRST_ORDER)
     # The arcs' angles come from the timed run, so the angle form flies the same 20 arcs.
     angles = np.diff(np.r_[0.0, np.array(closed(*args)[0])[1]])[None, :]
     R, T = (float(v) for v in radial_transverse(alpha))
     times = horizon / ARCS * np.arange(1, ARCS + 1)[None, :]
     return {
         "closed_form": (closed, args),
-        "closed_form_theta_lengths": (rectified_function(ARCS, 1, "theta"),
+        "closed_form_theta_lengths": (rectified_function(ARCS, model=FIRST_ORDER),
                                       (x0, ac * row, alpha * row, angles)),
         "cvodes": (schedule_function(ARCS, 1, "time"), args),
         # The attitude never changes in this case, so CVODES can also fly all 10 years
         # without restarts; timed too, though only the schedule form serves any schedule.
         "cvodes_single_call": (segment_integrator(ARCS, "time"), (x0, ac, alpha, horizon)),
-        "ref10": (ref10_function(ARCS), (times, 1.0, ac, R, T, 0.0)),
+        "ref10": (radial_balance_function(ARCS), (times, 1.0, ac, R, T, 0.0)),
     }
 
 
@@ -113,13 +114,13 @@ def _schedule(arcs):
 def race(repeats):
     """Call time against final error for the ten years, each method at several settings.
 
-    * ``closed_form``: the closed form as the NLP flies it (second-order arcs ending on
-      the exact angular momentum, ``rectified_function(..., invariant=True, order=2)``),
-      here in time, at :data:`RACE_ARCS` arcs;
+    * ``closed_form``: the NLP's kind of arc (second order, ending on the exact angular
+      momentum: ``ArcModel(sub_arcs=1, nodes=8)``), here in time, at :data:`RACE_ARCS`
+      arcs;
     * ``closed_form_richardson``: the first-order arcs the NLP flew before, Richardson-
-      extrapolated and ending on the exact angular momentum (``invariant_function``),
-      at the same arc counts;
-    * ``closed_form_plain``: the paper's rectification (``rectified_function``) at the
+      extrapolated and ending on the exact angular momentum (``ArcModel(order=1,
+      extrapolate=True, ...)``), at the same arc counts;
+    * ``closed_form_plain``: the paper's rectification (``arcs.FIRST_ORDER``) at the
       same arc counts;
     * ``cvodes``: the case's 20 arcs at :data:`RACE_TOLERANCES`.
 
@@ -143,18 +144,19 @@ def race(repeats):
     import numpy as np
 
     from esail_opt.bench.precision import seconds_at_miss
-    from esail_opt.propagation.rectified import invariant_function, rectified_function
+    from esail_opt.propagation.arcs import FIRST_ORDER, PANEL_NODES, ArcModel
+    from esail_opt.propagation.rectified import rectified_function
     from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
 
     truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE)(
         *_schedule(ARCS)))[:, -1]
-    entries = [("closed_form", f"{n} arcs",
-                rectified_function(n, 1, "time", invariant=True, order=2), _schedule(n))
-               for n in RACE_ARCS]
-    entries += [("closed_form_richardson", f"{n} arcs", invariant_function(n, "time"),
-                 _schedule(n)) for n in RACE_ARCS]
-    entries += [("closed_form_plain", f"{n} arcs", rectified_function(n, 1, "time"),
-                 _schedule(n)) for n in RACE_ARCS]
+    # One arc a segment at the 8-point panels, in time (where arcs are never compiled).
+    models = {"closed_form": ArcModel(sub_arcs=1, nodes=PANEL_NODES),
+              "closed_form_richardson": ArcModel(order=1, extrapolate=True, sub_arcs=1,
+                                                 nodes=PANEL_NODES),
+              "closed_form_plain": FIRST_ORDER}
+    entries = [(method, f"{n} arcs", rectified_function(n, length_in="time", model=model),
+                _schedule(n)) for method, model in models.items() for n in RACE_ARCS]
     entries += [("cvodes", f"tol {tol:g}", schedule_function(ARCS, 1, "time", tol=tol),
                  _schedule(ARCS)) for tol in RACE_TOLERANCES]
     points = []
@@ -205,7 +207,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     The cases are the case above with pitch and a_c on ``grid`` (default
     :data:`BATCH_GRID`).  The closed form is the race's (second-order arcs on the exact
     angular momentum, in time), all cases in one compiled mapped call
-    (``propagation.batch.batch_function(..., native=True)``; its compile, once per
+    (``propagation.batch.batch_function(..., jit=True)``; its compile, once per
     process, is reported apart as ``compile_seconds``; ``native`` False keeps it on
     CasADi's virtual machine).  Each case's final error is the
     distance of its final position from CVODES at ``simulate.VERIFY_TOLERANCE``, as the
@@ -232,6 +234,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     import numpy as np
 
     from esail_opt.bench.precision import seconds_at_miss
+    from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
     from esail_opt.propagation.batch import batch_function
     from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
 
@@ -244,7 +247,8 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
                np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
     start = time.perf_counter()
-    closed = batch_function(ARCS, cases, 1, "time", invariant=True, order=2, native=native)
+    closed = batch_function(ARCS, cases, length_in="time",
+                            model=ArcModel(sub_arcs=1, nodes=PANEL_NODES), jit=native)
     compile_seconds = time.perf_counter() - start
     closed_seconds = median_seconds(lambda: closed(*stacked), repeats)
     xs, q3 = (np.array(v) for v in closed(*stacked))

@@ -247,7 +247,8 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         seconds = result.solve_seconds + controlled.history[-1].seconds
         problem, result, tr = controlled.problem, controlled.result, controlled.transcription
         result.iterations, result.solve_seconds = iterations, seconds
-    check = verify(problem, result, samples)
+    check = verify(problem, result, samples,
+                   defects=None if controlled is None else controlled.defects)
     verified, note = check.judge(problem)
     verified = verified and result.converged
     if not result.converged:

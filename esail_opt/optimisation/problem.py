@@ -37,6 +37,7 @@ from esail_opt.optimisation.goals import (
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import orbital_energy, polar_from_classical
 from esail_opt.physics.thrust import BEST_FIT, EXACT
+from esail_opt.propagation.arcs import ArcModel
 
 __all__ = [
     "ParkingOrbit", "PolarState", "BodyDeparture", "Sail", "Segments", "MinTime", "MaxRadius",
@@ -327,9 +328,10 @@ class Segments:
     """
 
     count: Optional[int] = None
-    sub_arcs: int = 2
+    # The arc model's defaults, so that a default problem flies ArcModel()'s arcs.
+    sub_arcs: int = ArcModel.sub_arcs
     equal: bool = True
-    extrapolate: bool = False
+    extrapolate: bool = ArcModel.extrapolate
     per_revolution: Optional[int] = None
 
     def __post_init__(self):

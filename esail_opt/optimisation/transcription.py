@@ -12,8 +12,9 @@ Decision variables (each scaled to order one):
 A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q with one Picard sweep that makes
 it second order in a~_c, Eqs. 9-11 for the state, the time by Gauss-Legendre quadrature
 of dt/dtheta) chained with rectification at each sub-arc's start, all at one pitch, and
-optionally Richardson-extrapolated.  The segment
-Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
+optionally Richardson-extrapolated: the problem's :func:`arc_model`
+(``propagation.arcs.ArcModel``), which the verification's closed-form curve flies too.
+The segment Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
 the NLP holds one copy of the arc's graph however many segments there are.  The same
 builder accepts any segment Function of the same signature: the benchmarks swap in
 CVODES arcs (:func:`cvodes_segment`, or :func:`cvodes_time_segment` in time), and the
@@ -35,8 +36,9 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.propagation import compiled
-from esail_opt.propagation.rectified import (invariant_function, native_panel,
-                                             piece_function, propagate, rectified_function)
+from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
+from esail_opt.propagation.rectified import (flies_native, piece_function, propagate,
+                                             rectified_function)
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.bodies import dates
 from esail_opt.errors import InputError
@@ -45,16 +47,14 @@ from esail_opt.physics.thrust import EXACT
 #: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
 #: a_c = 1 mm/s^2 (THEORY.md §5.2: sub-arcs of about a tenth of a radian).
 GUESS_STEP = 0.05
-#: Gauss-Legendre points of each sub-arc's time quadrature of the first-order remainder
-#: (Kepler's equation carries the rest of the clock exactly).  Sub-arcs are short: 4
-#: points left the shipped optima's times of flight unchanged to 1e-4 d at a third more
-#: per Ipopt iteration, and what is left of the clock's error the defect correction
-#: removes (``optimisation.error_control``).
-QUAD_NODES = 2
+#: The seed's constant-pitch propagation: the paper's first-order arcs, GUESS_STEP
+#: long (a seed needs no more, and it is what the shipped problems were seeded with).
+GUESS_MODEL = FIRST_ORDER
 #: Guess steps per call of the (cached) rectified propagator.
 GUESS_CHUNK = 200
-#: Largest a~_c dtheta of one closed-form sub-arc: the arc's first-order error grows as
-#: (a~_c dtheta)^2, and an optimiser left free stretches single arcs far past where the
+#: Largest a~_c dtheta of one closed-form sub-arc: an arc's error grows with a~_c dtheta
+#: (as its square for first-order arcs, its cube for the NLP's second-order ones;
+#: THEORY.md §3.8), and an optimiser left free stretches single arcs far past where the
 #: closed form means anything (a 0.1 au spiral swung one arc out to 4 au).  It is kept
 #: by adding sub-arcs -- to the seed before the first solve, and to any optimum that
 #: breaks it (``optimisation.error_control``) -- never as a constraint of the NLP: as one it made
@@ -107,39 +107,35 @@ def sub_arcs_within_cap(problem, guess, most):
                                                                      sub_arcs=sub))
 
 
-@functools.lru_cache(maxsize=None)
-def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=False,
-                        order=2):
-    """One constant-pitch segment of ``sub_arcs`` rectified closed-form arcs.
+def arc_model(problem):
+    """The arcs ``problem``'s NLP flies: :class:`ArcModel`'s default with the problem's
+    sub-arcs and extrapolation, compiled unless compiling is off (``ESAIL_OPT_COMPILE=0``;
+    ``propagation.compiled``).  The verification's closed-form curve flies the same."""
+    seg = problem.segments
+    return ArcModel(sub_arcs=seg.sub_arcs, extrapolate=seg.extrapolate,
+                    native=compiled.enabled())
 
-    The arcs are second order in a~_c by default (``closed_form.SecondOrderArc``, one
-    Picard sweep on Eq. 12 over the clock's own quadrature nodes, THEORY.md §3.8): on
-    the benchmarks' NLPs they flew closer to Eqs. 1-2 in less time than the first-order
-    arcs, extrapolated or not.  Extrapolating them gains about what one more sub-arc
-    does at the same cost, so it is off by default.  Every arc ends with the exact
-    angular momentum (``rectified.invariant_function``, THEORY.md §5.3a).
+
+@functools.lru_cache(maxsize=None)
+def closed_form_segment(*, coefficients=EXACT, model=ArcModel()):
+    """One constant-pitch segment of ``model.sub_arcs`` rectified closed-form arcs.
+
+    It is ``rectified.rectified_function`` of one segment on ``model``'s arcs (by
+    default second order, ending on the exact angular momentum, ``arcs.QUAD_NODES``
+    Gauss-Legendre points, not extrapolated: ``propagation.arcs.ArcModel`` says why);
+    the NLP restarts every segment from its node.
 
     Parameters
     ----------
-    sub_arcs : int
-        Rectified arcs chained in the segment, each dtheta / sub_arcs long.
     coefficients : tuple
         (b1, b2) of Eqs. 3-4.
-    extrapolate : bool
-        Richardson-extrapolate the segment (its chain of sub-arcs flown as it is and
-        with every sub-arc halved, combined at the segment's end as 2 x_halves - x_whole
-        for first-order arcs and (4 x_halves - x_whole) / 3 for second-order ones; every
-        segment restarts from its node), cancelling the leading error term at three
-        times the arcs (THEORY.md §5.3).
-    order : int
-        1 for the paper's first-order arcs, 2 for the second-order ones.
-    native : bool
-        Fly compiled arcs (``propagation.compiled``): the same arithmetic, with the
-        derivatives Ipopt asks for run as C, and the segment's own graph of arc calls
-        and its derivatives compiled too (a library linked against the arcs').  Where
-        nothing can be compiled the segment is the expanded SX one, as with
-        ``native=False``; where only the segment's graph fails to compile, it is that
-        MX graph over the compiled arcs.
+    model : ArcModel
+        The arcs.  With ``model.native`` they are compiled (``propagation.compiled``):
+        the same arithmetic, with the derivatives Ipopt asks for run as C, and the
+        segment's own graph of arc calls and its derivatives compiled too (a library
+        linked against the arcs').  Where nothing can be compiled the segment is the
+        expanded SX one, as with ``native=False``; where only the segment's graph fails
+        to compile, it is that MX graph over the compiled arcs.
 
     Returns
     -------
@@ -149,19 +145,14 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=
         smallest over its whole and half arcs).  SX and expanded, or an ``External``
         (or MX) over the compiled arcs.
     """
-    native = native and native_panel(coefficients, QUAD_NODES, order) is not None
-    if extrapolate:
-        chain = invariant_function(sub_arcs, "theta", coefficients, QUAD_NODES, native, order)
-    else:
-        chain = rectified_function(sub_arcs, 1, "theta", coefficients, QUAD_NODES,
-                                   invariant=True, native=native, order=order)
+    native = flies_native(coefficients=coefficients, model=model)
+    chain = rectified_function(1, coefficients=coefficients, model=model)
     sym = ca.MX if native else ca.SX
     if not native:
         chain = chain.expand()
     x0 = sym.sym("x0", 5)
     ac, alpha, dtheta = sym.sym("ac"), sym.sym("alpha"), sym.sym("dtheta")
-    ones = ca.DM.ones(1, sub_arcs)
-    xs, q3 = chain(x0, ac * ones, alpha * ones, dtheta / sub_arcs * ones)
+    xs, q3 = chain(x0, ac, alpha, dtheta)
     # Inlined compiled arcs each recompute the pitch's thrust factors; shared once,
     # the derivatives of the graph are cheaper.
     segment = ca.Function("segment", [x0, ac, alpha, dtheta], [xs[:, -1], q3.T],
@@ -170,17 +161,15 @@ def closed_form_segment(sub_arcs, coefficients=EXACT, extrapolate=False, native=
         # The chain rule between the arcs compiled as well, calling the arcs' library:
         # on CasADi's virtual machine it was a large part of every Hessian and
         # constraint Jacobian.  One library per sub-arc count and extrapolation setting.
-        segment = compiled.compiled(segment, (piece_function(coefficients, QUAD_NODES,
-                                                             order),))
+        segment = compiled.compiled(segment, (piece_function(coefficients=coefficients,
+                                                             model=model),))
     return segment
 
 
 def problem_segment(problem):
-    """The closed-form segment of ``problem``'s NLP: compiled unless compiling is off
-    (``ESAIL_OPT_COMPILE=0``; ``propagation.compiled``)."""
-    seg = problem.segments
-    return closed_form_segment(seg.sub_arcs, problem.sail.coefficients, seg.extrapolate,
-                               compiled.enabled())
+    """The closed-form segment of ``problem``'s NLP, on its :func:`arc_model`."""
+    return closed_form_segment(coefficients=problem.sail.coefficients,
+                               model=arc_model(problem))
 
 
 @functools.lru_cache(maxsize=None)
@@ -280,7 +269,7 @@ def _fly_until(problem, x0, alpha, stop, what):
     deg = math.degrees(alpha)
     while flown < limit:
         xs, q3 = propagate(state, np.full(GUESS_CHUNK, alpha), np.full(GUESS_CHUNK, GUESS_STEP),
-                           ac, samples=1, coefficients=coeff)
+                           ac, samples=1, coefficients=coeff, model=GUESS_MODEL)
         xs[4] += t0
         hit = stop(xs)
         if hit is not None:

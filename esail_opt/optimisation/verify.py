@@ -10,6 +10,11 @@ The verifier is itself an integrator with an error, so it flies every schedule t
 at CVODES tolerances of 3e-16 and 1e-15 (``simulate.VERIFY_TOLERANCE`` and
 ``CHECK_TOLERANCE``), and reports the difference of the two final states as its own
 error.  :func:`judge` counts a bound as met only when the miss plus that error is below it.
+
+Beside the flight, :func:`verify` draws the closed form the NLP solved: every segment
+flown from its own node on the NLP's own arcs (``transcription.arc_model``: order,
+invariant, sub-arcs, extrapolation and quadrature), so that the curve's segment ends are
+the NLP's nodes and the gap between the two curves is the closed form's error alone.
 """
 
 from dataclasses import dataclass
@@ -18,6 +23,7 @@ from typing import Optional
 import numpy as np
 
 from esail_opt.optimisation.goals import state_miss
+from esail_opt.optimisation.transcription import arc_model
 from esail_opt.propagation.rectified import propagate
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate
 
@@ -35,7 +41,7 @@ class Verification:
     """CVODES flight of the schedule and its misses (boundary units in the dict)."""
 
     cvodes: np.ndarray  # 5 x M samples [r, theta, vr, vt, t]
-    closed_form: np.ndarray  # 5 x M samples of the rectified closed form
+    closed_form: np.ndarray  # 5 x M samples of the NLP's closed form, from its nodes
     misses: dict
     error: Optional[str] = None
 
@@ -108,44 +114,65 @@ def judge(problem, misses, error, tolerance, against_nlp=False):
                   f"and {tolerance.velocity_m_s:g} m/s of " + " and ".join(c[0] for c in checks))
 
 
-def verify(problem, result, samples=16):
-    """Fly ``result``'s schedule with CVODES and with the rectified closed form.
+def closed_form_curve(problem, result, samples=16, defects=None):
+    """The closed form the NLP solved, sampled: 5 x (1 + N S m) states, S sub-arcs and
+    m = max(1, samples // S) samples per sub-arc, so that column k S m is node k.
+
+    Every segment is flown from its NLP node on the NLP's arcs (``arc_model(problem)``)
+    at its pitch, angle and throttle, and its time continues from the node's.  A
+    segment the NLP solved with a defect (the defect correction, ``optimisation.error_control``)
+    ends on its node only with the defect added; the NLP knows the defect at the end
+    alone, so the curve adds it in proportion to the angle flown, which keeps the curve
+    continuous and changes no segment end.
+    """
+    model = arc_model(problem)
+    ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
+    x0 = np.asarray(result.x_start, float)
+    kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
+             else np.asarray(result.throttle, float))
+    per_sub = max(1, samples // model.sub_arcs)
+    starts = np.column_stack([np.r_[x0, 0.0], result.nodes[:, :-1]])
+    pieces = [np.r_[x0, 0.0][:, None]]
+    for k in range(result.alpha.size):
+        xs, _ = propagate(starts[:4, k], [result.alpha[k]], [result.lengths[k]], ac,
+                          throttles=[kappa[k]], samples=per_sub, coefficients=coeff,
+                          model=model)
+        xs = xs[:, 1:]
+        xs[4] += starts[4, k]
+        if defects is not None:
+            xs += np.outer(np.asarray(defects, float)[:, k],
+                           np.arange(1, xs.shape[1] + 1) / xs.shape[1])
+        pieces.append(xs)
+    return np.column_stack(pieces)
+
+
+def verify(problem, result, samples=16, defects=None):
+    """Fly ``result``'s schedule with CVODES, and draw the closed form the NLP solved.
 
     Parameters
     ----------
     problem : Problem
+        As solved (its sub-arcs and extrapolation set the closed form's arcs).
     result : NLPResult
-        Its ``x_start``, ``alpha``, ``durations``, ``lengths`` and ``throttle`` (kappa
-        per segment; None is full thrust) define the schedule.
+        Its ``x_start``, ``alpha``, ``durations``, ``lengths``, ``nodes`` and
+        ``throttle`` (kappa per segment; None is full thrust) define the schedule.
     samples : int
         Output points per segment (time-equal for CVODES, theta-equal per sub-arc for
-        the closed form); only the plots use them.
+        the closed form, :func:`closed_form_curve`); only the plots use them.
+    defects : numpy.ndarray, optional
+        The 5 x N segment defects ``result`` was solved with (``refine.Refinement``'s
+        ``defects``), for the closed-form curve.
 
     Returns
     -------
     Verification
     """
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
-    sub = problem.segments.sub_arcs
-    x0 = np.asarray(result.x_start, float)
     # CVODES flies from the exact departure (a body's ephemeris, not the NLP's track).
     x0_exact = problem.start_state(result)
     kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
              else np.asarray(result.throttle, float))
-    # The plotted closed form restarts every segment at its NLP node (plain sub-arcs,
-    # sampled): the NLP's extrapolated segment ends are exactly the next nodes.
-    per_sub = max(1, samples // sub)
-    starts = np.column_stack([x0, result.nodes[:4, :-1]])
-    t0 = np.r_[0.0, np.cumsum(result.durations)[:-1]]
-    pieces = [np.r_[x0, 0.0][:, None]]
-    for k in range(result.alpha.size):
-        xs, _ = propagate(starts[:, k], np.full(sub, result.alpha[k]),
-                          np.full(sub, result.lengths[k] / sub), ac,
-                          throttles=np.full(sub, kappa[k]), samples=per_sub,
-                          coefficients=coeff)
-        xs[4] += t0[k]
-        pieces.append(xs[:, 1:])
-    closed = np.column_stack(pieces)
+    closed = closed_form_curve(problem, result, samples, defects)
     error = None
     try:
         flown = simulate(x0_exact, result.alpha, result.durations, ac, throttles=kappa,

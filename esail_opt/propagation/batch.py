@@ -15,7 +15,7 @@ Two shapes are batched:
   (:func:`angles_batch_function`, numbers through :func:`arcs_at_angles`), so that arcs
   of different sample counts (Fig. 4 has hundreds) share one call.
 
-``native`` compiles the mapped Function to C with CasADi's own just-in-time compiler,
+``jit`` compiles the mapped Function to C with CasADi's own just-in-time compiler,
 for this process only.  Why not ``propagation.compiled``'s disk cache: it compiles a
 Function together with its Jacobian and Hessian blocks, which the NLP needs; the timed
 second-order arc (about 17,500 SX instructions, Newton's method on its clock inside)
@@ -32,7 +32,8 @@ import numpy as np
 
 from esail_opt.physics.thrust import EXACT
 from esail_opt.propagation import compiled
-from esail_opt.propagation.rectified import NODES, angles_function, rectified_function
+from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
+from esail_opt.propagation.rectified import angles_function, rectified_function
 
 log = logging.getLogger("esail_opt")
 
@@ -59,19 +60,21 @@ def _native(fun):
 
 
 @functools.lru_cache(maxsize=None)
-def batch_function(segments, cases, samples=1, length_in="theta", coefficients=EXACT,
-                   nodes=NODES, invariant=False, order=1, native=False):
+def batch_function(segments, cases, *, samples=1, length_in="theta", coefficients=EXACT,
+                   model=ArcModel(), jit=False):
     """``rectified.rectified_function`` (same arguments) mapped over ``cases``.
 
     ``(x0[5 x M], ac[1 x M N], alpha[1 x M N], length[1 x M N]) ->
-    (xs[5 x M N samples], q3[1 x M N])``: case m's columns are the m-th block of each
-    (its N segments, its N samples-per-segment states).  With ``native`` the whole
-    map is compiled to C (see the module's docstring).
+    (xs[5 x M N S samples], q3[1 x M N S])``, S = ``model.sub_arcs``: case m's columns
+    are the m-th block of each (its N S arcs, its N S samples-per-arc states).  With
+    ``jit`` the whole map is compiled to C in this process (see the module's docstring);
+    that is apart from ``model.native``, which flies the arcs on the disk cache's
+    compiled panels.
     """
-    single = rectified_function(segments, samples, length_in, coefficients, nodes,
-                                invariant, order=order)
+    single = rectified_function(segments, samples=samples, length_in=length_in,
+                                coefficients=coefficients, model=model)
     mapped = single.map(cases)
-    return _native(mapped) if native else mapped
+    return _native(mapped) if jit else mapped
 
 
 def _rows(values, cases, width, name):
@@ -87,8 +90,8 @@ def _rows(values, cases, width, name):
     return values
 
 
-def propagate_batch(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="theta",
-                    coefficients=EXACT, nodes=NODES, invariant=False, order=1, native=False):
+def propagate_batch(x0, alphas, lengths, ac, *, throttles=None, samples=1, length_in="theta",
+                    coefficients=EXACT, model=ArcModel(), jit=False):
     """:func:`rectified.propagate` for M cases in one call.
 
     Parameters
@@ -103,17 +106,18 @@ def propagate_batch(x0, alphas, lengths, ac, throttles=None, samples=1, length_i
         Characteristic acceleration per case, canonical units.
     throttles : array_like, shape (M, N) or (N,), optional
         Factor on ac per segment, default 1.
-    samples, length_in, coefficients, nodes, invariant, order
+    samples, length_in, coefficients, model
         As :func:`rectified.propagate`.
-    native : bool
+    jit : bool
         Compile the mapped Function to C (see the module's docstring).
 
     Returns
     -------
-    xs : numpy.ndarray, shape (M, 5, N * samples + 1)
-        Each case's [r, theta, v_r, v_theta, t] at its start and at every sample.
-    q3 : numpy.ndarray, shape (M, N)
-        Validity margins at each segment's end.
+    xs : numpy.ndarray, shape (M, 5, N * S * samples + 1)
+        Each case's [r, theta, v_r, v_theta, t] at its start and at every sample
+        (S = ``model.sub_arcs``).
+    q3 : numpy.ndarray, shape (M, N * S)
+        Validity margins at each arc's end.
     """
     starts = np.atleast_2d(np.asarray(x0, float))
     n = np.shape(np.atleast_2d(alphas))[1]
@@ -124,24 +128,27 @@ def propagate_batch(x0, alphas, lengths, ac, throttles=None, samples=1, length_i
     kappa = _rows(1.0 if throttles is None else throttles, cases, n, "throttles")
     acs = np.broadcast_to(np.asarray(ac, float).reshape(-1, 1), (cases, 1))
     starts = np.column_stack([_rows(starts, cases, 4, "x0"), np.zeros(cases)])
-    fun = batch_function(n, cases, samples, length_in, coefficients, nodes, invariant,
-                         order, native)
+    fun = batch_function(n, cases, samples=samples, length_in=length_in,
+                         coefficients=coefficients, model=model, jit=jit)
     xs, q3 = fun(starts.T, (acs * kappa).reshape(1, -1), alphas.reshape(1, -1),
                  lengths.reshape(1, -1))
-    xs = np.array(xs).reshape(5, cases, n * samples).transpose(1, 0, 2)
-    return np.concatenate([starts[:, :, None], xs], axis=2), np.array(q3).reshape(cases, n)
+    arcs = n * model.sub_arcs
+    xs = np.array(xs).reshape(5, cases, arcs * samples).transpose(1, 0, 2)
+    return (np.concatenate([starts[:, :, None], xs], axis=2),
+            np.array(q3).reshape(cases, arcs))
 
 
 @functools.lru_cache(maxsize=None)
-def angles_batch_function(samples, cases, coefficients=EXACT, nodes=NODES, native=False):
+def angles_batch_function(samples, cases, *, coefficients=EXACT, nodes=PANEL_NODES, jit=False):
     """``rectified.angles_function`` mapped over ``cases``: ``(x0[5 x M], ac[1 x M],
     alpha[1 x M], phis[1 x M (samples + 1)]) -> (states[4 x M samples],
     elapsed[1 x M samples], q3[1 x M samples])``."""
-    mapped = angles_function(samples, coefficients, nodes).map(cases)
-    return _native(mapped) if native else mapped
+    mapped = angles_function(samples, coefficients=coefficients, nodes=nodes).map(cases)
+    return _native(mapped) if jit else mapped
 
 
-def arcs_at_angles(x0, ac, alphas, angles, coefficients=EXACT, nodes=NODES, native=False):
+def arcs_at_angles(x0, ac, alphas, angles, *, coefficients=EXACT, nodes=PANEL_NODES,
+                   jit=False):
     """The paper's single first-order arc of M cases at angles given per case, one call.
 
     Parameters
@@ -153,7 +160,7 @@ def arcs_at_angles(x0, ac, alphas, angles, coefficients=EXACT, nodes=NODES, nati
     angles : sequence of array_like
         Case m's sample angles from its start (rad), increasing from 0; the cases may
         have different counts.
-    coefficients, nodes, native
+    coefficients, nodes, jit
         The thrust model, the time quadrature's Gauss-Legendre points per panel, and
         whether to compile (:func:`batch_function`).
 
@@ -170,7 +177,8 @@ def arcs_at_angles(x0, ac, alphas, angles, coefficients=EXACT, nodes=NODES, nati
     width = max(counts)
     # Shorter arcs are padded with their last angle: empty panels (see angles_function).
     phis = np.array([np.r_[a, np.full(width - len(a), a[-1])] for a in angles], float)
-    fun = angles_batch_function(width - 1, cases, coefficients, nodes, native)
+    fun = angles_batch_function(width - 1, cases, coefficients=coefficients, nodes=nodes,
+                                jit=jit)
     x5 = np.column_stack([starts, np.zeros(cases)])
     states, elapsed, q3 = fun(x5.T, np.broadcast_to(np.asarray(ac, float), (cases,))[None, :],
                               np.broadcast_to(np.asarray(alphas, float), (cases,))[None, :],

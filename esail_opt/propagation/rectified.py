@@ -1,6 +1,12 @@
-"""The rectified closed-form propagator: first-order arcs restarted segment by segment.
+"""The rectified closed-form propagator: closed-form arcs restarted arc by arc.
 
-At each rectification point the paper's arc is restarted from the current
+How the arcs are flown -- the paper's first-order arc or the second-order one, the exact
+angular momentum imposed or not, sub-arcs, Richardson extrapolation, the quadrature's
+nodes -- is one value, :class:`.arcs.ArcModel`, which every builder here takes as
+``model``; its default is the NLP's model (second-order arcs), and the paper's
+first-order rectification is ``arcs.FIRST_ORDER``.
+
+At each rectification point the arc is restarted from the current
 osculating orbit: new r0, new a~_c, and a new reference direction, here the
 current radius (``esail_opt.physics.closed_form.arc_frame``), which is defined
 for every orbit, circular ones included.  The pitch and the throttle may change
@@ -11,9 +17,9 @@ The chain is one ``casadi.Function``: an SX arc, wrapped (for durations) in a
 Newton rootfinder, accumulated over the segments with ``mapaccum``.  Its state is
 ``[r, theta, v_r, v_theta, t]``, canonical units, as in :mod:`.simulate`.
 
-The error after N arcs falls like 1/N; :func:`propagate_extrapolated` cancels
-that leading term by Richardson extrapolation from N and 2N arcs, and
-:func:`invariant_function` does the same on arcs that keep the exact angular momentum.
+With N first-order arcs the error falls like 1/N, with second-order ones like 1/N^2;
+``model.extrapolate`` cancels that leading term by Richardson extrapolation from N and
+2N arcs (:func:`rectified_function`).
 """
 
 import functools
@@ -25,16 +31,15 @@ import numpy as np
 from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state, clock_rate
 from esail_opt.physics.dynamics import angular_momentum
 from esail_opt.physics.thrust import EXACT, radial_transverse
+from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
 from esail_opt.propagation.compiled import compiled
-
-#: Gauss-Legendre points per sample interval for the time of flight.
-NODES = 8
 
 
 @functools.lru_cache(maxsize=None)
-def panel_function(coefficients=EXACT, nodes=NODES):
-    """One closed-form arc between two of its angles: ``(x0[5], ac, alpha, phi_a, phi_b)
-    -> (state at phi_b [4], time from phi_a to phi_b, q3 at phi_b)``, an SX Function."""
+def panel_function(*, coefficients=EXACT, nodes=PANEL_NODES):
+    """One first-order closed-form arc between two of its angles: ``(x0[5], ac, alpha,
+    phi_a, phi_b) -> (state at phi_b [4], time from phi_a to phi_b, q3 at phi_b)``, an SX
+    Function."""
     x0 = ca.SX.sym("x0", 5)
     ac, alpha = ca.SX.sym("ac"), ca.SX.sym("alpha")
     phi_a, phi_b = ca.SX.sym("phi_a"), ca.SX.sym("phi_b")
@@ -47,7 +52,7 @@ def panel_function(coefficients=EXACT, nodes=NODES):
     )
 
 
-def end_function(coefficients=EXACT, nodes=NODES):
+def end_function(*, coefficients=EXACT, nodes=PANEL_NODES):
     """One second-order arc from its start to an angle (``closed_form.SecondOrderArc``):
     ``(x0[5], ac, alpha, phi) -> (state at phi [4], time from 0 to phi, q3 at phi)``,
     an SX Function; q3 is the first-order arc's validity margin."""
@@ -63,26 +68,35 @@ def end_function(coefficients=EXACT, nodes=NODES):
     )
 
 
-def piece_function(coefficients=EXACT, nodes=NODES, order=1):
-    """The Function an arc of ``order`` (1 or 2) is sampled with: :func:`panel_function`
-    (from one sample to the next) or :func:`end_function` (from the arc's start)."""
-    if order not in (1, 2):
-        raise ValueError(f"order must be 1 or 2, not {order!r}")
-    return panel_function(coefficients, nodes) if order == 1 else end_function(coefficients,
-                                                                               nodes)
+def piece_function(*, coefficients=EXACT, model=ArcModel()):
+    """The Function an arc of ``model.order`` is sampled with, at ``model.nodes``:
+    :func:`panel_function` (order 1, from one sample to the next) or
+    :func:`end_function` (order 2, from the arc's start)."""
+    if model.order == 1:
+        return panel_function(coefficients=coefficients, nodes=model.nodes)
+    return end_function(coefficients=coefficients, nodes=model.nodes)
 
 
-def native_panel(coefficients=EXACT, nodes=NODES, order=1):
+def native_panel(*, coefficients=EXACT, model=ArcModel()):
     """The compiled :func:`piece_function` (``propagation.compiled``), or None when it
     stays on CasADi's virtual machine (compiling off, no compiler, a failed compile)."""
-    piece = piece_function(coefficients, nodes, order)
+    piece = piece_function(coefficients=coefficients, model=model)
     fast = compiled(piece)
     return None if fast is piece else fast
 
 
+def flies_native(*, coefficients=EXACT, model=ArcModel(), length_in="theta"):
+    """Whether ``model``'s arcs are flown compiled: asked for (``model.native``), lengths
+    in theta (timed arcs are one SX root-finding expression), and a compiled
+    :func:`native_panel` exists."""
+    return (model.native and length_in == "theta"
+            and native_panel(coefficients=coefficients, model=model) is not None)
+
+
 @functools.lru_cache(maxsize=None)
-def angles_function(samples, coefficients=EXACT, nodes=NODES):
-    """One first-order arc sampled at angles the caller gives.
+def angles_function(samples, *, coefficients=EXACT, nodes=PANEL_NODES):
+    """One first-order arc (the paper's, by construction: free panels between the
+    caller's angles) sampled at angles the caller gives.
 
     ``(x0[5], ac, alpha, phis[1 x (samples + 1)]) -> (states[4 x samples],
     elapsed[1 x samples], q3[1 x samples])``: the panels run from ``phis[k]`` to
@@ -94,7 +108,7 @@ def angles_function(samples, coefficients=EXACT, nodes=NODES):
     """
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, phis = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("phis", 1, samples + 1)
-    piece = panel_function(coefficients, nodes).map(samples)
+    piece = panel_function(coefficients=coefficients, nodes=nodes).map(samples)
     states, dts, q3s = piece(x0, ac, alpha, phis[:, :-1], phis[:, 1:])
     return ca.Function("angles", [x0, ac, alpha, phis], [states, ca.cumsum(dts, 1), q3s],
                        ["x0", "ac", "alpha", "phis"], ["states", "elapsed", "q3"])
@@ -108,30 +122,35 @@ FLAT = {"always_inline": True}
 
 
 @functools.lru_cache(maxsize=None)
-def arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, native=False,
-                 order=1):
-    """One closed-form arc sampled at phi_k = dtheta k / samples, k = 1..samples.
+def arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
+    """One closed-form arc of ``model`` sampled at phi_k = dtheta k / samples,
+    k = 1..samples.
 
     Returns a Function ``(x0[5], ac, alpha, dtheta) -> (xs[5 x samples], q3)``
     where ``ac`` already includes any throttle, the time row of ``xs`` continues from
     x0's, and ``q3`` is the validity margin at the arc's end (positive is valid).
-    The sample intervals double as the panels of the time quadrature.  The samples
-    are a ``map`` of one panel Function, so building it costs the same for any count;
-    ``expand()`` it where one flat SX expression is wanted.  With ``invariant`` every
-    sample's v_theta is replaced by h / r, h the exact angular momentum at the
-    sample's (quadrature) time (see :func:`invariant_function`); r, v_r and t stay
-    the closed form's, and so does q3, which measures the first-order arc's validity.
-    With ``native`` the panels are the compiled ones (:func:`native_panel`), called
-    once per sample, and the arc is inlined wherever it is called (see :data:`FLAT`).
-    ``order`` 2 flies the second-order arc (:func:`end_function`): each sample is then
-    its own arc end from x0, with the nodes of its own quadratures.
+    One arc: ``model.sub_arcs`` and ``model.extrapolate`` belong to the chains of
+    :func:`rectified_function`.  With ``model.order`` 1 the sample intervals double as
+    the panels of the time quadrature.  ``model.order`` 2 flies the second-order arc
+    (:func:`end_function`): each sample is then its own arc end from x0, with the
+    nodes of its own quadratures, so the arc's end does not depend on ``samples``.
+    The samples are a ``map`` of one panel Function, so building it costs the same for
+    any count; ``expand()`` it where one flat SX expression is wanted.  With
+    ``model.invariant`` every sample's v_theta is replaced by h / r, h the exact
+    angular momentum at the sample's (quadrature) time; r, v_r and t stay the closed
+    form's, and so does q3, which measures the first-order arc's validity.  With
+    ``model.native`` (where :func:`flies_native`) the panels are the compiled ones
+    (:func:`native_panel`), called once per sample, and the arc is inlined wherever it
+    is called (see :data:`FLAT`).
     """
+    order, nodes, invariant = model.order, model.nodes, model.invariant
+    native = flies_native(coefficients=coefficients, model=model)
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, dtheta = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("dtheta")
     if native:
         # Angles and running times as plain expressions, not slices of a row: every
         # node of this graph is differentiated in every direction the NLP asks for.
-        piece = native_panel(coefficients, nodes, order)
+        piece = native_panel(coefficients=coefficients, model=model)
         ends = [dtheta * (k / samples) for k in range(1, samples)] + [dtheta]
         if order == 1:
             calls = [piece(x0, ac, alpha, a, b) for a, b in zip([0] + ends[:-1], ends)]
@@ -143,10 +162,10 @@ def arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, nati
     else:
         phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
         if order == 1:
-            states, elapsed, q3s = angles_function(samples, coefficients, nodes)(
-                x0, ac, alpha, phis)
+            states, elapsed, q3s = angles_function(samples, coefficients=coefficients,
+                                                   nodes=nodes)(x0, ac, alpha, phis)
         else:
-            piece = piece_function(coefficients, nodes, order).map(samples)
+            piece = piece_function(coefficients=coefficients, model=model).map(samples)
             states, elapsed, q3s = piece(x0, ac, alpha, phis[:, 1:])
     times = x0[4] + elapsed
     if invariant:
@@ -245,8 +264,8 @@ def clock_guess(arc, duration):
 
 
 @functools.lru_cache(maxsize=None)
-def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False, order=1):
-    """As :func:`arc_function` (``invariant`` and ``order`` as there), but the last input
+def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
+    """As :func:`arc_function` (``model`` as there, never compiled), but the last input
     is a duration (TU).
 
     The arc angle is the root of t(dtheta) = duration on the closed form's clock, by a
@@ -268,6 +287,7 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False
 
     A third output is the clock's remaining residual (TU).
     """
+    order, nodes = model.order, model.nodes
     x0 = ca.SX.sym("x0", 5)
     ac, alpha, duration = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("duration")
     R, T = radial_transverse(alpha, coefficients)
@@ -308,7 +328,8 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False
             slope = ca.if_else(usable, secant, rate)
         previous = (angle, residual)
         angle = angle - residual / slope
-    xs, q3 = arc_function(samples, coefficients, nodes, invariant, order=order).expand()(
+    plain = ArcModel(order, model.invariant, False, 1, nodes, native=False)
+    xs, q3 = arc_function(samples, coefficients=coefficients, model=plain).expand()(
         x0, ac, alpha, angle)
     # The expanded arc rebuilds the arc's constants that the Newton steps already
     # formed; eliminating common subexpressions saves 15 % of the instructions
@@ -320,27 +341,68 @@ def timed_arc_function(samples, coefficients=EXACT, nodes=NODES, invariant=False
 
 
 @functools.lru_cache(maxsize=None)
-def rectified_function(segments, samples=1, length_in="theta", coefficients=EXACT,
-                       nodes=NODES, invariant=False, native=False, order=1):
-    """The whole schedule as one Function.
+def rectified_function(segments, *, samples=1, length_in="theta", coefficients=EXACT,
+                       model=ArcModel()):
+    """A schedule of ``segments`` constant-pitch segments flown on ``model``'s arcs, as
+    one Function.
 
-    ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) -> (xs[5 x N*samples], q3[1 x N])``
-    with ``ac`` per segment (characteristic acceleration times throttle).  With
-    ``invariant`` each arc imposes the exact angular momentum, and with ``native`` its
-    panels are compiled and the chain is unrolled and inlined (:func:`arc_function`;
-    in theta only).  ``order`` 2 flies second-order arcs.
+    ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) -> (xs[5 x N S samples],
+    q3[1 x N S])`` with ``ac`` per segment (characteristic acceleration times throttle)
+    and S = ``model.sub_arcs``: every segment is S arcs of a S-th of its length, each
+    sampled at ``samples`` points (:func:`arc_function`, or :func:`timed_arc_function`
+    for ``length_in="time"``, where a sub-arc lasts a S-th of the segment's duration),
+    and q3 is each arc's validity margin at its end.
+
+    With ``model.extrapolate`` the whole chain is flown twice, as it is and with every
+    arc halved, and the two are combined at every sample they share, which are all of
+    them in theta: (2^p x_halves - x_whole) / (2^p - 1), p = ``model.order``, the order
+    in the arcs' length of the error at a fixed point of the trajectory (THEORY.md
+    §5.2-5.3); q3 is then the smallest margin of an arc and its two halves.  The chains
+    restart from their own arcs' ends, not from the combined states: the extrapolation
+    is of the chain, and a caller that restarts every segment from a node of its own
+    (the NLP) calls this per segment.  The cost is three times the arcs.  In time the
+    samples inside an arc are at angles the whole and the halves do not share, so there
+    an extrapolated chain has one sample per arc.
+
+    With ``model.native`` (where :func:`flies_native`) the chain is unrolled over the
+    compiled arcs and inlined (:data:`FLAT`); otherwise the accumulated map holds one
+    copy of the arc for any N.
     """
-    if length_in == "theta":
-        arc = arc_function(samples, coefficients, nodes, invariant, native, order)
-    elif length_in == "time":
-        arc = timed_arc_function(samples, coefficients, nodes, invariant, order)
-    else:
+    if length_in not in ("theta", "time"):
         raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
+    if model.extrapolate and length_in == "time" and samples != 1:
+        raise ValueError(f"an extrapolated chain in time has one sample per arc, not {samples}")
+    sub, arc = model.sub_arcs, model.one_arc()
+    build = _extrapolated if model.extrapolate else _chain
+    chain = build(segments * sub, samples, length_in, coefficients, arc)
+    if sub == 1:
+        return chain
+    native = flies_native(coefficients=coefficients, model=model, length_in=length_in)
     x0 = ca.MX.sym("x0", 5)
     acs, alphas, lengths = (ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "length"))
+    # Divided once, then repeated: the arithmetic of a segment built arc by arc.
+    xs, q3 = chain(x0, _repeated(acs, sub), _repeated(alphas, sub),
+                   _repeated(lengths / sub, sub))
+    return ca.Function(
+        "rectified", [x0, acs, alphas, lengths], [xs, q3],
+        ["x0", "ac", "alpha", "length"], ["xs", "q3"], FLAT if native else {},
+    )
+
+
+@functools.lru_cache(maxsize=None)
+def _chain(arcs, samples, length_in, coefficients, model):
+    """``arcs`` arcs of the one-arc ``model``, chained: :func:`rectified_function` with
+    one arc a segment and no extrapolation."""
+    native = flies_native(coefficients=coefficients, model=model, length_in=length_in)
+    if length_in == "theta":
+        arc = arc_function(samples, coefficients=coefficients, model=model)
+    else:
+        arc = timed_arc_function(samples, coefficients=coefficients, model=model)
+    x0 = ca.MX.sym("x0", 5)
+    acs, alphas, lengths = (ca.MX.sym(n, 1, arcs) for n in ("ac", "alpha", "length"))
     if native:
         x, blocks, q3s = x0, [], []
-        for k in range(segments):
+        for k in range(arcs):
             xs, q3 = arc(x, acs[k], alphas[k], lengths[k])[:2]
             blocks.append(xs)
             q3s.append(q3)
@@ -352,15 +414,45 @@ def rectified_function(segments, samples=1, length_in="theta", coefficients=EXAC
         ac, alpha, length = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("length")
         xs, q3 = arc(xa, ac, alpha, length)[:2]
         step = ca.Function("step", [xa, ac, alpha, length], [xs[:, -1], xs, q3])
-        _, blocks, q3s = step.mapaccum("chain", segments, [0], [0])(x0, acs, alphas, lengths)
+        _, blocks, q3s = step.mapaccum("chain", arcs, [0], [0])(x0, acs, alphas, lengths)
     return ca.Function(
         "rectified", [x0, acs, alphas, lengths], [blocks, q3s],
         ["x0", "ac", "alpha", "length"], ["xs", "q3"], FLAT if native else {},
     )
 
 
-def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="theta",
-              coefficients=EXACT, nodes=NODES, invariant=False, order=1):
+def _repeated(row, times):
+    """Each column of ``row`` ``times`` times, side by side.  Slices of the result are the
+    original entries again (no matrix product between them), which keeps an inlined
+    graph small."""
+    return ca.horzcat(*[row[:, k] for k in range(row.shape[1]) for _ in range(times)])
+
+
+@functools.lru_cache(maxsize=None)
+def _extrapolated(arcs, samples, length_in, coefficients, model):
+    """(2^p x_halves - x_whole) / (2^p - 1) at every sample of ``arcs`` chained arcs of
+    the one-arc ``model``, p its order, with the smallest q3 of an arc and its halves."""
+    native = flies_native(coefficients=coefficients, model=model, length_in=length_in)
+    whole = _chain(arcs, samples, length_in, coefficients, model)
+    halves = _chain(2 * arcs, samples, length_in, coefficients, model)
+    x0 = ca.MX.sym("x0", 5)
+    ac, alpha, length = (ca.MX.sym(n, 1, arcs) for n in ("ac", "alpha", "length"))
+    coarse, q3_coarse = whole(x0, ac, alpha, length)
+    fine, q3_fine = halves(x0, _repeated(ac, 2), _repeated(alpha, 2), _repeated(length, 2) / 2)
+    # Sample j of a whole arc sits where sample 2j + 1 of its two halves does.
+    shared = fine[:, 1::2]
+    # The smallest validity margin met by either run: an extrapolation is only as
+    # valid as the arcs it is built from.
+    q3 = ca.fmin(q3_coarse, ca.fmin(q3_fine[:, 0::2], q3_fine[:, 1::2]))
+    combined = 2 * shared - coarse if model.order == 1 else (4 * shared - coarse) / 3
+    return ca.Function(
+        "extrapolated", [x0, ac, alpha, length], [combined, q3],
+        ["x0", "ac", "alpha", "length"], ["xs", "q3"], FLAT if native else {},
+    )
+
+
+def propagate(x0, alphas, lengths, ac, *, throttles=None, samples=1, length_in="theta",
+              coefficients=EXACT, model=ArcModel()):
     """Rectified closed-form propagation of a piecewise-constant pitch schedule.
 
     Parameters
@@ -375,27 +467,30 @@ def propagate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="the
     throttles : array_like, shape (N,), optional
         Factor on ac per segment (0 is a coast), default 1.
     samples : int
-        Points per segment, equally spaced in theta; they also set the time
-        quadrature's panels.
-    nodes : int
-        Gauss-Legendre points per panel of the time quadrature.
-    invariant : bool
-        End every sample with the exact angular momentum (:func:`arc_function`).
-    order : int
-        1 for the paper's first-order arcs, 2 for second-order ones.
+        Points per arc, equally spaced in theta; with first-order arcs they also set
+        the time quadrature's panels.
+    coefficients : tuple
+        (b1, b2) of Eqs. 3-4.
+    model : ArcModel
+        How the arcs are flown (:func:`rectified_function`); default the NLP's.  The
+        paper's plain rectification is ``arcs.FIRST_ORDER``.
 
     Returns
     -------
-    xs : numpy.ndarray, shape (5, N * samples + 1)
-        [r, theta, v_r, v_theta, t] at the start and at every sample; the
-        rectification points are every ``samples``-th column.
-    q3 : numpy.ndarray, shape (N,)
-        Validity margin at each segment's end; non-positive means the
-        first-order arc went past theta_max.
+    xs : numpy.ndarray, shape (5, N * S * samples + 1)
+        [r, theta, v_r, v_theta, t] at the start and at every sample, S =
+        ``model.sub_arcs``: the rectification points are every ``samples``-th column,
+        the segments' ends every ``S * samples``-th.  Extrapolated, the independent
+        variable's row (t for lengths in time, theta for angles) is exact and the
+        others carry the extrapolated estimate.
+    q3 : numpy.ndarray, shape (N * S,)
+        Validity margin at each arc's end (extrapolated: the smallest of the arc and its
+        halves); non-positive means the first-order arc went past theta_max.
     """
     n = np.size(alphas)
-    return _fly(rectified_function(n, samples, length_in, coefficients, nodes, invariant,
-                                   order=order), x0, alphas, lengths, ac, throttles)
+    fun = rectified_function(n, samples=samples, length_in=length_in,
+                             coefficients=coefficients, model=model)
+    return _fly(fun, x0, alphas, lengths, ac, throttles)
 
 
 def _fly(fun, x0, alphas, lengths, ac, throttles):
@@ -405,93 +500,3 @@ def _fly(fun, x0, alphas, lengths, ac, throttles):
     start = np.r_[np.asarray(x0, float), 0.0]
     xs, q3 = fun(start, ac * kappa, alphas, np.atleast_1d(np.asarray(lengths, float)))
     return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
-
-
-@functools.lru_cache(maxsize=None)
-def extrapolated_function(segments, length_in="theta", coefficients=EXACT, nodes=NODES,
-                          order=1):
-    """Richardson extrapolation of the schedule to infinitely many arcs, one Function.
-
-    The rectified closed form's error at a fixed point of the trajectory falls like
-    1/N with N arcs (THEORY.md §5.2-5.3; measured by ``esail-opt reproduce
-    convergence``), so the leading term cancels in 2 x_{2N} - x_N: every segment is
-    flown once whole and once as two halves, and the two end states are combined.
-    The cost is 3N arcs.  ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) ->
-    (xs[5 x N], q3[1 x N])``, xs at the segment ends.
-    """
-    return _extrapolated(segments, length_in, coefficients, nodes, False, order=order)
-
-
-@functools.lru_cache(maxsize=None)
-def invariant_function(segments, length_in="theta", coefficients=EXACT, nodes=NODES,
-                       native=False, order=1):
-    """Richardson-extrapolated chains (as :func:`extrapolated_function`) whose every arc,
-    whole and half alike, ends on the exact angular momentum.
-
-    Eq. 2 gives h = h0 + a_c r_E T (t - t0) exactly along a constant-pitch arc, which the
-    closed form keeps only approximately; each arc ends with v_theta = h / r, h at the
-    arc's quadrature time and r the closed form's, and then the whole and half chains are
-    combined.  v_theta rather than q3 = 1/h (which would move r too) because the q3 form
-    flew worse than plain Richardson on some stored optima where the v_theta form never
-    did (THEORY.md §5.3a).  The cost is a few SX instructions an arc.
-
-    ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) -> (xs[5 x N], q3[1 x N])``, xs at
-    the segment ends, q3 the smallest margin of the whole and half arcs.  ``native``
-    flies compiled panels (:func:`arc_function`).  The combined end state carries h only
-    to the product of the two chains' differences, which is second order.
-    """
-    return _extrapolated(segments, length_in, coefficients, nodes, True, native, order)
-
-
-def _doubled(row):
-    """Each column of ``row`` twice, side by side.  Slices of the result are the original
-    entries again (no matrix product between them), which keeps an inlined graph small."""
-    return ca.horzcat(*[row[:, k] for k in range(row.shape[1]) for _ in range(2)])
-
-
-def _extrapolated(segments, length_in, coefficients, nodes, invariant, native=False,
-                  order=1):
-    """(2^p x_halves - x_whole) / (2^p - 1) at each segment's end, p the arcs' order of
-    convergence (1 for first-order arcs, 2 for second-order ones), with the smallest q3
-    of either run."""
-    whole = rectified_function(segments, 1, length_in, coefficients, nodes, invariant, native,
-                               order)
-    halves = rectified_function(2 * segments, 1, length_in, coefficients, nodes, invariant,
-                                native, order)
-    x0 = ca.MX.sym("x0", 5)
-    ac, alpha, length = (ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "length"))
-    coarse, q3_coarse = whole(x0, ac, alpha, length)
-    fine, q3_fine = halves(x0, _doubled(ac), _doubled(alpha), _doubled(length) / 2)
-    fine_ends = fine[:, 1::2]
-    # The smallest validity margin met by either run: an extrapolation is only as
-    # valid as the arcs it is built from.
-    q3 = ca.fmin(q3_coarse, ca.fmin(q3_fine[:, 0::2], q3_fine[:, 1::2]))
-    combined = 2 * fine_ends - coarse if order == 1 else (4 * fine_ends - coarse) / 3
-    name = "invariant" if invariant else "extrapolated"
-    return ca.Function(
-        name, [x0, ac, alpha, length], [combined, q3],
-        ["x0", "ac", "alpha", "length"], ["xs", "q3"], FLAT if native else {},
-    )
-
-
-def propagate_extrapolated(x0, alphas, lengths, ac, throttles=None, length_in="theta",
-                           coefficients=EXACT, nodes=NODES, invariant=False, order=1):
-    """Richardson-extrapolated rectified propagation (see :func:`extrapolated_function`,
-    and :func:`invariant_function` with ``invariant``).
-
-    Parameters are those of :func:`propagate` (without samples: only the segment
-    ends are extrapolated; ``nodes``, ``invariant`` and ``order`` as there).
-
-    Returns
-    -------
-    xs : numpy.ndarray, shape (5, N + 1)
-        [r, theta, v_r, v_theta, t] at the start and at every segment's end.  The
-        independent variable's row (t for lengths in time, theta for angles) is
-        exact; the others carry the extrapolated estimate.
-    q3 : numpy.ndarray, shape (N,)
-        Smallest validity margin of the whole and half arcs of each segment.
-    """
-    n = np.size(alphas)
-    build = invariant_function if invariant else extrapolated_function
-    return _fly(build(n, length_in, coefficients, nodes, order=order), x0, alphas, lengths, ac,
-                throttles)

@@ -1,4 +1,8 @@
-"""The approximate model of the paper's Ref. [10], used as a baseline (Sec. 3).
+"""Radial balance: the paper's Ref. [10] approximation, r'' neglected in Eq. 1, used as
+a baseline (Sec. 3).
+
+The module is named for what it models: with r'' = 0 gravity, the centrifugal term and
+the radial thrust balance at every instant, so the orbit stays quasi-circular.
 
 Quarta and Mengali (JGCD 36(3), 2013) approximate a low-acceleration E-sail with
 constant attitude leaving a circular orbit of radius r0, in 2-D.  Only their
@@ -74,7 +78,7 @@ def _log1p_over(x):
     return ca.if_else(small, series, ca.log1p(x_safe) / x_safe)
 
 
-def ref10_state(t, r0, ac, R, T, theta0=0):
+def radial_balance_state(t, r0, ac, R, T, theta0=0):
     """Polar state of Ref. [10]'s model (Eqs. 1-2 with r'' = 0) at time t.
 
     Parameters
@@ -109,14 +113,13 @@ def ref10_state(t, r0, ac, R, T, theta0=0):
 
 
 @functools.lru_cache(maxsize=None)
-def ref10_function(samples):
-    """Compiled :func:`ref10_state` over a row of ``samples`` times.
+def radial_balance_function(samples):
+    """Compiled :func:`radial_balance_state` over a row of ``samples`` times.
 
     Returns a ``casadi.Function`` ``(t[1 x samples], r0, ac, R, T, theta0) ->
     x[4 x samples]``; the scalar arguments are shared by all times.
     """
     t, r0, ac, R, T, theta0 = (ca.SX.sym(n) for n in ("t", "r0", "ac", "R", "T", "theta0"))
-    point = ca.Function(
-        "ref10_point", [t, r0, ac, R, T, theta0], [ref10_state(t, r0, ac, R, T, theta0)]
-    )
-    return point.map("ref10", "serial", samples, [1, 2, 3, 4, 5], [])
+    point = ca.Function("radial_balance_point", [t, r0, ac, R, T, theta0],
+                        [radial_balance_state(t, r0, ac, R, T, theta0)])
+    return point.map("radial_balance", "serial", samples, [1, 2, 3, 4, 5], [])

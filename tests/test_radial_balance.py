@@ -13,13 +13,13 @@ from scipy.integrate import quad, solve_ivp
 from esail_opt.physics.constants import accel_from_mm_s2, time_from_years
 from esail_opt.physics.dynamics import rhs
 from esail_opt.physics.thrust import radial_transverse
-from esail_opt.propagation.ref10 import ref10_function, ref10_state
+from esail_opt.propagation.radial_balance import radial_balance_function, radial_balance_state
 
 AC = accel_from_mm_s2(0.1)
 R45, T45 = (float(v) for v in radial_transverse(math.radians(45)))
 
 _t, _r0, _ac, _R, _T = (ca.SX.sym(n) for n in ("t", "r0", "ac", "R", "T"))
-_x = ref10_state(_t, _r0, _ac, _R, _T)
+_x = radial_balance_state(_t, _r0, _ac, _R, _T)
 _h = _x[0] * _x[3]
 _ARGS = [_t, _r0, _ac, _R, _T]
 STATE = ca.Function("state", _ARGS, [_x])
@@ -116,7 +116,7 @@ def test_limits_are_finite(ac, T):
 
 def test_zero_acceleration_is_the_circular_orbit():
     t, r0 = np.linspace(0.0, 50.0, 11), 1.7
-    xs = np.array(ref10_function(t.size)(t[None, :], r0, 0.0, R45, T45, 0.3))
+    xs = np.array(radial_balance_function(t.size)(t[None, :], r0, 0.0, R45, T45, 0.3))
     assert np.allclose(xs[0], r0, rtol=1e-15)
     assert np.allclose(xs[1], 0.3 + t / r0**1.5, rtol=1e-14)
     assert np.all(xs[2] == 0.0)
@@ -146,9 +146,9 @@ def test_initial_offset_from_parking_orbit():
 
 def test_mapped_function_matches_pointwise():
     t = np.array([0.0, 3.0, 17.5, 60.0])
-    xs = np.array(ref10_function(t.size)(t[None, :], 1.1, AC, R45, T45, -0.4))
+    xs = np.array(radial_balance_function(t.size)(t[None, :], 1.1, AC, R45, T45, -0.4))
     for k, tk in enumerate(t):
-        expected = np.array(ref10_state(tk, 1.1, AC, R45, T45, -0.4)).ravel()
+        expected = np.array(radial_balance_state(tk, 1.1, AC, R45, T45, -0.4)).ravel()
         assert np.allclose(xs[:, k], expected, rtol=1e-15, atol=1e-15)
 
 
@@ -167,7 +167,7 @@ def test_secular_radius_on_the_paper_case():
         t_eval=t,
     )
     assert flown.success
-    model = np.array(ref10_function(t.size)(t[None, :], 1.0, AC, R45, T45, 0.0))
+    model = np.array(radial_balance_function(t.size)(t[None, :], 1.0, AC, R45, T45, 0.0))
     error = np.abs(model[0] - flown.y[0])
     # Measured: max |dr| / r0 = 0.0226 (the short-term oscillation the model leaves
     # out); the secular trend is right: at 10 years r = 1.6407 flown, 1.6337 modelled.

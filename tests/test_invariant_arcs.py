@@ -1,6 +1,7 @@
-"""The closed form with the exact angular momentum imposed (``rectified.invariant_function``),
+"""The closed form with the exact angular momentum imposed (``ArcModel(invariant=True)``),
 checked against the invariant itself and against CVODES on Eqs. 1-2."""
 
+import dataclasses
 import math
 
 import casadi as ca
@@ -8,11 +9,8 @@ import numpy as np
 import pytest
 
 from esail_opt.physics.constants import accel_from_mm_s2, time_from_years
-from esail_opt.propagation.rectified import (
-    extrapolated_function,
-    invariant_function,
-    rectified_function,
-)
+from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
+from esail_opt.propagation.rectified import rectified_function
 from esail_opt.propagation.simulate import simulate
 
 CIRCLE = np.array([1.0, 0.0, 0.0, 1.0])
@@ -20,6 +18,12 @@ B1, B2 = 0.75, 0.25
 #: The NLP's Gauss-Legendre points per sub-arc (transcription.QUAD_NODES): the accuracy
 #: that matters is the one the optimiser sees.
 QUAD_NODES = 2
+#: First-order arcs (as these measurements were made), one a segment, Richardson-
+#: extrapolated, without and with the invariant; on the virtual machine.
+RICHARDSON = ArcModel(order=1, invariant=False, extrapolate=True, sub_arcs=1,
+                      nodes=QUAD_NODES, native=False)
+INVARIANT = ArcModel(order=1, invariant=True, extrapolate=True, sub_arcs=1, nodes=QUAD_NODES,
+                     native=False)
 
 #: Earth-Mars at 1 mm/s^2, the stored 578-day optimum coarsened to 15 segments (pitch in
 #: degrees, angle in rad): a realistic spiral out and braking, flown from a circle.
@@ -34,15 +38,15 @@ def transverse(alpha):
     return B2 * math.sin(2 * alpha)
 
 
-def fly_segments(fun, sub_arcs, x0, alphas, angles, ac):
+def fly_segments(model, sub_arcs, x0, alphas, angles, ac):
     """Chain ``sub_arcs``-arc segments as the NLP does: every segment restarts from the
     previous one's end, its sub-arcs at one pitch.  Returns the 5 x (N+1) node states."""
-    seg = fun(sub_arcs, "theta", (B1, B2), QUAD_NODES)
-    ones = np.ones(sub_arcs)
+    seg = rectified_function(1, coefficients=(B1, B2),
+                             model=dataclasses.replace(model, sub_arcs=sub_arcs))
     x = np.r_[x0, 0.0]
     nodes = [x]
     for alpha, angle in zip(alphas, angles):
-        xs, q3 = seg(x, ac * ones, alpha * ones, angle / sub_arcs * ones)
+        xs, q3 = seg(x, ac, alpha, angle)
         assert np.all(np.array(q3) > 0)
         x = np.array(xs[:, -1]).ravel()
         nodes.append(x)
@@ -59,7 +63,9 @@ def test_every_sample_keeps_the_exact_angular_momentum(length_in):
     lengths = np.array([0.6, 1.1, 0.4, 0.9]) * (1.0 if length_in == "theta" else 0.8)
     ac = accel_from_mm_s2(1.0)
     samples = 3
-    fun = rectified_function(4, samples, length_in, (B1, B2), QUAD_NODES, True)
+    fun = rectified_function(4, samples=samples, length_in=length_in, coefficients=(B1, B2),
+                             model=ArcModel(order=1, sub_arcs=1, nodes=QUAD_NODES,
+                                            native=False))
     xs, q3 = fun(np.r_[x0, 0.0], ac * throttles, alphas, lengths)
     xs = np.column_stack([np.r_[x0, 0.0], np.array(xs)])
     assert np.all(np.array(q3) > 0)
@@ -76,10 +82,10 @@ def test_beats_richardson_on_a_transfer_flown_by_cvodes():
     alphas = np.radians(SPIRAL_PITCH_DEG)
     truth = simulate(CIRCLE, alphas, SPIRAL_ANGLE, ac, length_in="theta", tol=1e-13)
     err = {}
-    for fun in (extrapolated_function, invariant_function):
-        nodes = fly_segments(fun, 3, CIRCLE, alphas, SPIRAL_ANGLE, ac)
-        err[fun] = np.abs(nodes - truth)[[0, 2, 3, 4]].max(axis=1)
-    rich, inv = err[extrapolated_function], err[invariant_function]
+    for model in (RICHARDSON, INVARIANT):
+        nodes = fly_segments(model, 3, CIRCLE, alphas, SPIRAL_ANGLE, ac)
+        err[model] = np.abs(nodes - truth)[[0, 2, 3, 4]].max(axis=1)
+    rich, inv = err[RICHARDSON], err[INVARIANT]
     assert np.all(inv[:3] < 0.35 * rich[:3])
     assert inv[3] < 0.5 * rich[3]
     assert inv[0] < 3e-4  # au
@@ -94,15 +100,16 @@ def test_paper_ten_year_case_second_order_and_better_than_richardson():
     span = time_from_years(10.0)
     truth = simulate(CIRCLE, [alpha], [span], ac)[:, -1]
 
-    def final(fun, arcs):
+    def final(model, arcs):
         start = np.r_[CIRCLE, 0.0]
-        xs, q3 = fun(arcs, "time")(start, np.full(arcs, ac), np.full(arcs, alpha),
-                                   np.full(arcs, span / arcs))
+        fun = rectified_function(arcs, length_in="time",
+                                 model=dataclasses.replace(model, nodes=PANEL_NODES))
+        xs, q3 = fun(start, np.full(arcs, ac), np.full(arcs, alpha), np.full(arcs, span / arcs))
         assert np.all(np.array(q3) > 0)
         return np.abs(np.array(xs[:, -1]).ravel() - truth)
 
-    rich = final(extrapolated_function, 20)
-    coarse, fine = final(invariant_function, 20), final(invariant_function, 40)
+    rich = final(RICHARDSON, 20)
+    coarse, fine = final(INVARIANT, 20), final(INVARIANT, 40)
     assert coarse[0] < 0.1 * rich[0]
     assert coarse[1] < 0.1 * rich[1]
     assert fine[1] / coarse[1] < 0.3  # at least second order in theta
@@ -110,7 +117,7 @@ def test_paper_ten_year_case_second_order_and_better_than_richardson():
 
 def test_derivatives_finite_and_correct_from_a_circle():
     # The NLP differentiates the segment twice, and its first node is a circle (e = 0).
-    seg = invariant_function(3, "theta", (B1, B2), QUAD_NODES).expand()
+    seg = rectified_function(3, coefficients=(B1, B2), model=INVARIANT).expand()
     x0 = ca.SX.sym("x0", 5)
     p = ca.SX.sym("p", 3)  # ac, alpha, dtheta
     xs, q3 = seg(x0, p[0] * ca.DM.ones(1, 3), p[1] * ca.DM.ones(1, 3),
