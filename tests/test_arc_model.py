@@ -23,7 +23,7 @@ from esail_opt.propagation.rectified import propagate, rectified_function
 
 #: Shipped problems that take minutes at their defaults (a scan of departure dates).
 SLOW = {"earth_mars_window"}
-SHIPPED = sorted(PROBLEMS.glob("*.py"))
+SHIPPED = sorted(p for p in PROBLEMS.glob("*.py") if p.name != "__init__.py")
 #: Closed-form samples per segment drawn by the check below.
 SAMPLES = 6
 
@@ -87,7 +87,7 @@ def _solved(problem):
         guess = initial_guess(problem)
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     result, tr = solve_problem(problem, guess=guess, staged=not problem.free_date())
-    assert result.outcome in ("converged", "acceptable"), result.status
+    assert result.outcome.found, result.status
     refined = control_error(problem, result, tr)
     return refined.problem, refined.result, refined.defects
 
