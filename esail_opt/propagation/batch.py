@@ -26,6 +26,8 @@ forward evaluation alone compiles in about 6 s.  Without a compiler, or with
 
 import functools
 import logging
+import os
+import tempfile
 
 import casadi as ca
 import numpy as np
@@ -40,6 +42,9 @@ log = logging.getLogger("esail_opt")
 #: Flags of the just-in-time compile.  -O2 and -O3 -march=native ran the 1,000-case
 #: batch of the 10-year raising no faster than -O1 (0.31 s each) and compiled slower.
 JIT_FLAGS = ("-O1",)
+#: Where the compile's source and library live while the batch is loaded: the system's
+#: temporary folder, not the working directory (which may be read-only, or the user's).
+_JIT_FOLDER = tempfile.gettempdir() + os.sep
 
 
 def _native(fun):
@@ -52,7 +57,8 @@ def _native(fun):
         return ca.Function(f"{fun.name()}_jit", symbols, fun(*symbols), fun.name_in(),
                            fun.name_out(), {"jit": True, "compiler": "shell",
                                             "jit_options": {"flags": list(JIT_FLAGS),
-                                                            "verbose": False}})
+                                                            "verbose": False,
+                                                            "directory": _JIT_FOLDER}})
     except RuntimeError as err:
         log.warning("esail-opt: compiling the batch %s failed (%s); it stays on CasADi's "
                     "virtual machine", fun.name(), str(err).strip().splitlines()[-1])
