@@ -52,6 +52,7 @@ def panel_function(*, coefficients=EXACT, nodes=PANEL_NODES):
     )
 
 
+@functools.lru_cache(maxsize=None)
 def end_function(*, coefficients=EXACT, nodes=PANEL_NODES):
     """One second-order arc from its start to an angle (``closed_form.SecondOrderArc``):
     ``(x0[5], ac, alpha, phi) -> (state at phi [4], time from 0 to phi, q3 at phi)``,
