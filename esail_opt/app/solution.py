@@ -652,6 +652,7 @@ class Solution:
             "  final (closed form): r {r_au:.6f} au, theta {theta_deg:.3f} deg, a {a_au:.6f} au, "
             "e {e:.5f}".format(**self.final_state.to_json()),
         ]
+        lines += self._mission_lines()
         if v.error:
             lines.append(f"  verification: {v.error}")
         else:
@@ -666,6 +667,23 @@ class Solution:
         lines.append(f"  {self.verification_note}")
         lines += self._polish_lines()
         return "\n".join(lines)
+
+    def _mission_lines(self):
+        """The dates, the a_c a MinAcceleration found and what the plane hides at a
+        body: the answers a dated or sail-sizing problem was asked for."""
+        lines = []
+        if self.departure_date is not None:
+            lines.append(f"  departs {self.departure_date}, arrives {self.arrival_date} (TDB)")
+        if self.ac_mm_s2_required is not None:
+            lines.append(f"  a_c needed: {self.ac_mm_s2_required:.6g} mm/s^2 (the schedule's "
+                         "throttles are fractions of it)")
+        body = self.target_body
+        if body is not None and body.out_of_plane_km is not None:
+            speed = ("" if body.relative_speed_km_s is None else
+                     f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
+            lines.append(f"  {body.name}: {body.out_of_plane_km:.4g} km from the ecliptic at "
+                         f"arrival, which the planar model ignores{speed}")
+        return lines
 
     def _polish_lines(self):
         """Summary lines of the polish, if there was one."""

@@ -92,7 +92,10 @@ def jd_from_iso(text, field="date"):
 
 
 def iso_from_jd(jd):
-    """ISO 8601 date ``YYYY-MM-DDTHH:MM:SS`` (TDB) of a Julian date, rounded to the second.
+    """ISO 8601 date ``YYYY-MM-DDTHH:MM:SS[.fff]`` (TDB) of a Julian date, rounded to the
+    millisecond, which is written only when it is not zero.  A second of a planet's
+    motion is some 30 km, more than a verified miss may be; a millisecond is 30 m, and a
+    JD's float resolves about 40 microseconds.
 
     Raises
     ------
@@ -109,12 +112,14 @@ def iso_from_jd(jd):
     # seconds since year 1 (a JD has ~40 microseconds of resolution, enough for this).
     days_from_2000 = value - _JD_2000_MIDNIGHT
     whole = math.floor(days_from_2000)
-    seconds = round((days_from_2000 - whole) * units.DAY)
+    milliseconds = round((days_from_2000 - whole) * units.DAY * 1000)
     try:
-        stamp = _dt.datetime.fromordinal(_ORDINAL_2000 + whole) + _dt.timedelta(seconds=seconds)
+        stamp = (_dt.datetime.fromordinal(_ORDINAL_2000 + whole)
+                 + _dt.timedelta(milliseconds=milliseconds))
     except (ValueError, OverflowError):
         raise InputError(f"jd = {jd!r} is outside the years 1-9999") from None
-    return f"{stamp.year:04d}-{stamp.month:02d}-{stamp.day:02d}T{stamp:%H:%M:%S}"
+    text = f"{stamp.year:04d}-{stamp.month:02d}-{stamp.day:02d}T{stamp:%H:%M:%S}"
+    return text + (f".{stamp.microsecond // 1000:03d}" if stamp.microsecond else "")
 
 
 def tu_from_jd(jd):

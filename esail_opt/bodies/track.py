@@ -29,7 +29,7 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.bodies import ephemeris
-from esail_opt.bodies.dates import iso_from_jd, tu_from_jd
+from esail_opt.bodies.dates import iso_from_jd, jd_from_tu, tu_from_jd
 from esail_opt.bodies.keplerian import SmallBody
 from esail_opt.errors import InputError, check_range
 from esail_opt.physics import constants as units
@@ -131,10 +131,14 @@ class Track:
         bad = ~((times >= first - slack) & (times <= last + slack))
         if np.any(bad):
             worst = float(np.atleast_1d(times)[np.atleast_1d(bad)][0])
+            when = (f"on {iso_from_jd(jd_from_tu(worst))} TDB" if math.isfinite(worst)
+                    else f"at t = {worst!r}")
+            # Reached by a flight, not by a date the user wrote (those are checked on
+            # their own): say which dates would fit.
             raise InputError(
-                f"t = {worst!r} TU is outside the track of {self.name}, "
-                f"[{first:.6g}, {last:.6g}] TU = [{iso_from_jd(self.jd_range[0])}, "
-                f"{iso_from_jd(self.jd_range[1])}] TDB"
+                f"{self.name} is needed {when}, outside the dates it is known at "
+                f"[{iso_from_jd(self.jd_range[0])}, {iso_from_jd(self.jd_range[1])}] TDB: "
+                "depart earlier, shorten the flight or bound the arrival (arrival_window)"
             )
 
     def _measure(self, source, jd_grid):

@@ -182,7 +182,8 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     if not result.outcome.found:
         result, tr, starts = _other_starts(problem, result, tr, say)
     say(f"{problem.name}: {result.status} after {result.iterations} iterations; "
-        "error control until the flight meets the tolerance")
+        + ("error control until the flight meets the tolerance" if result.outcome.found
+           else "no start found a point; flying the last iterate to report its miss"))
     return finish(problem, result, tr, samples=samples, polish=polish, progress=say,
                   starts=starts, sub_arcs_requested=seg.sub_arcs)
 
@@ -197,13 +198,19 @@ def _other_starts(problem, result, tr, say):
     records = [StartTried("the problem's own seed", result.status, result.iterations)]
     if problem.target is None or getattr(problem.departure, "free_anomaly", False):
         return result, tr, tuple(records)
+    seconds = result.solve_seconds
     for start in multistart.fallback_starts(problem, tr.guess):
         say(f"{problem.name}: {result.status}; trying {start.label}")
         other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
         records.append(StartTried(start.label, other.status, other.iterations))
+        # The run's Ipopt record covers every start it took to get here.
         if other.outcome.found:
             other.iterations += sum(r.iterations for r in records[:-1])
+            other.solve_seconds += seconds
             return other, other_tr, tuple(records)
+        seconds += other.solve_seconds
+    result.iterations = sum(r.iterations for r in records)
+    result.solve_seconds = seconds
     return result, tr, tuple(records)
 
 
