@@ -649,8 +649,10 @@ class Solution:
             f"{max(len(self.rounds) - 1, 0)} error-control round(s)",
             f"  tof {self.tof_days:.3f} d (closed form), {len(self.schedule)} segments x "
             f"{self.problem.sub_arcs} sub-arcs",
-            "  final (closed form): r {r_au:.6f} au, theta {theta_deg:.3f} deg, a {a_au:.6f} au, "
-            "e {e:.5f}".format(**self.final_state.to_json()),
+            # A dated problem's theta counts turns since 2000: the angle reads better.
+            "  final (closed form): r {r_au:.6f} au, theta {theta:.3f} deg, a {a_au:.6f} au, "
+            "e {e:.5f}".format(theta=self.final_state.theta_deg % 360.0,
+                               **self.final_state.to_json()),
         ]
         lines += self._mission_lines()
         if v.error:
@@ -679,8 +681,9 @@ class Solution:
                          "throttles are fractions of it)")
         body = self.target_body
         if body is not None and body.out_of_plane_km is not None:
-            speed = ("" if body.relative_speed_km_s is None else
-                     f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
+            # A rendezvous's relative speed is its velocity miss, printed below.
+            speed = ("" if body.relative_speed_km_s is None or body.kind != "BodyIntercept"
+                     else f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
             lines.append(f"  {body.name}: {body.out_of_plane_km:.4g} km from the ecliptic at "
                          f"arrival, which the planar model ignores{speed}")
         return lines
