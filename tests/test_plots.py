@@ -172,17 +172,3 @@ def test_formatter_writes_superscripts():
     f = plots.PlainLogFormatter(10)
     assert [f(v) for v in (1e-3, 1.0, 10.0, 2e3)] == ["10⁻³", "10⁰", "10¹", "2×10³"]
 
-
-def test_figures_drawn_at_once_are_the_bytes_drawn_one_after_the_other(polished, tmp_path):
-    """write_plots draws the timeline in a forked child: the files must be exactly
-    those the same figures give when drawn here, one after the other."""
-    at_once, serial = tmp_path / "at_once", tmp_path / "serial"
-    at_once.mkdir()
-    serial.mkdir()
-    paths = plots.write_plots(polished, at_once)
-    assert [p.name for p in paths] == ["trajectory.png", "timeline.png"]
-    plots.save_figure(plots.trajectory_figure(polished), serial / "trajectory.png",
-                      dpi=plots.DPI)
-    plots.save_figure(plots.timeline_figure(polished), serial / "timeline.png", dpi=plots.DPI)
-    for name in ("trajectory.png", "timeline.png"):
-        assert (at_once / name).read_bytes() == (serial / name).read_bytes(), name

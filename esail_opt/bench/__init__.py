@@ -10,8 +10,6 @@ Each is the ``run`` of its own module:
   holds what they share);
 * ``porkchop``: a launch-window scan as shipped (one NLP, warm starts) against RK4
   segments with the same reuse and against every cell solved cold;
-* ``plots``: the main job's two figures drawn at once (``app.plots.write_plots``)
-  against one after the other;
 * ``precision``: solve time against verified accuracy for the closed form, RK4
   (``propagation.rk4``) and CVODES segments.
 
@@ -23,8 +21,7 @@ the tests' reference optima came from.  The benches import the layers below and 
 application modules, none of which imports them.
 """
 
-from esail_opt.bench import (lowthrust, plots, polish, porkchop, precision, propagate,
-                             solve_speed, sweep)
+from esail_opt.bench import lowthrust, polish, porkchop, precision, propagate, solve_speed, sweep
 
 BENCHES = {
     "propagate": propagate.run,
@@ -34,7 +31,6 @@ BENCHES = {
     "sweep": sweep.run,
     "precision": precision.run,
     "porkchop": porkchop.run,
-    "plots": plots.run,
 }
 
 __all__ = ["BENCHES"]
