@@ -317,8 +317,19 @@ class Settings:
         return out
 
 
+class _FlatRecord:
+    """A record the file holds as one flat object (or null): its fields are its keys."""
+
+    @classmethod
+    def from_json(cls, d):
+        return None if d is None else cls(**d)
+
+    def to_json(self):
+        return dataclasses.asdict(self)
+
+
 @dataclass(frozen=True)
-class DepartureBody:
+class DepartureBody(_FlatRecord):
     """Where a dated departure leaves from: the body, its source, the distance from the
     ecliptic the 2-D model drops, and the excess velocity (angle in [-180, 180))."""
 
@@ -328,16 +339,9 @@ class DepartureBody:
     vinf_km_s: float
     vinf_angle_deg: float
 
-    @classmethod
-    def from_json(cls, d):
-        return None if d is None else cls(**d)
-
-    def to_json(self):
-        return dataclasses.asdict(self)
-
 
 @dataclass(frozen=True)
-class TargetBody:
+class TargetBody(_FlatRecord):
     """The body a BodyRendezvous or BodyIntercept flies to, as the flight met it."""
 
     name: str
@@ -345,13 +349,6 @@ class TargetBody:
     kind: str
     out_of_plane_km: Optional[float]
     relative_speed_km_s: Optional[float]
-
-    @classmethod
-    def from_json(cls, d):
-        return None if d is None else cls(**d)
-
-    def to_json(self):
-        return dataclasses.asdict(self)
 
 
 @dataclass(frozen=True)
