@@ -21,8 +21,9 @@ QUAD_NODES = 2
 PANEL_NODES = 8
 #: Most Gauss-Legendre points a quadrature may ask for.
 MAX_NODES = 64
-#: Most rectified arcs in one segment.
-MAX_SUB_ARCS = 10_000
+#: Most rectified arcs in one segment the model accepts (the error control stops far
+#: below, at ``optimisation.error_control.MAX_SUB_ARCS``).
+SUB_ARCS_LIMIT = 10_000
 
 
 def _check_flag(name, value):
@@ -92,7 +93,7 @@ class ArcModel:
         _check_flag("invariant", self.invariant)
         _check_flag("extrapolate", self.extrapolate)
         _check_flag("native", self.native)
-        _check_int("sub_arcs", self.sub_arcs, 1, MAX_SUB_ARCS)
+        _check_int("sub_arcs", self.sub_arcs, 1, SUB_ARCS_LIMIT)
         _check_int("nodes", self.nodes, 1, MAX_NODES)
 
     def one_arc(self):
