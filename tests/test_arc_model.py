@@ -82,7 +82,8 @@ def _solved(problem):
     """The pipeline's closed-form optimum of ``problem`` after its error control, as
     ``esail_opt.solve`` reaches it: (problem as solved, result, defects)."""
     if problem.free_date():
-        problem, guess = scan.seed_free_date(problem)
+        seed = scan.seed_free_date(problem)
+        problem, guess = seed.problem, seed.guess
     else:
         guess = initial_guess(problem)
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)

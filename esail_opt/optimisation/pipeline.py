@@ -168,9 +168,10 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     seg = problem.segments
     count = (f"{seg.count} segments" if seg.per_revolution is None
              else f"{seg.per_revolution} segments per revolution")
-    guess = None
+    guess, seed = None, None
     if problem.free_date():
-        problem, guess = scan.seed_free_date(problem, say)
+        seed = scan.seed_free_date(problem, say)
+        problem, guess = seed.problem, seed.guess
     if guess is None:
         guess = initial_guess(problem)
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
@@ -181,6 +182,10 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     starts = ()
     if not result.outcome.found:
         result, tr, starts = _other_starts(problem, result, tr, say)
+    if seed is not None:
+        # The scan that chose the date is part of the run's Ipopt record.
+        result.iterations += seed.iterations
+        result.solve_seconds += seed.seconds
     say(f"{problem.name}: {result.status} after {result.iterations} iterations; "
         + ("error control until the flight meets the tolerance" if result.outcome.found
            else "no start found a point; flying the last iterate to report its miss"))

@@ -331,24 +331,34 @@ SEED_SPACING_DAYS = 60.0
 SEED_CELLS = (4, 16)
 
 
+@dataclass(frozen=True)
+class Seed:
+    """What :func:`seed_free_date` found: the problem on the scan's mesh, the start at its
+    best cell (None when no cell converged), and the scan's cost (the Ipopt iterations
+    of the cells it kept, its wall seconds), which belongs to the run it seeds."""
+
+    problem: object
+    guess: Optional[object]
+    iterations: int
+    seconds: float
+
+
 def seed_free_date(problem, progress=None):
     """A start for a problem whose departure date is free in a window: the best cell of
-    a coarse scan of the window at fixed dates.
-
-    Returns (problem with the scan's mesh, Guess at the best cell), or (problem, None)
-    when no cell converged.
-    """
+    a coarse scan of the window at fixed dates (a :class:`Seed`)."""
+    started = time.perf_counter()
     lo, hi = problem.departure.window_jd
     count = int(np.clip(math.ceil((hi - lo) / SEED_SPACING_DAYS) + 1, *SEED_CELLS))
     say = progress or (lambda text: None)
     say(f"{problem.name}: seeding the free departure date by a scan of {count} dates")
     cells = scan([at_date(problem, jd) for jd in np.linspace(lo, hi, count)], progress,
                  explore=True)
+    iterations = sum(c.result.iterations for c in cells if c.result is not None)
     solved = [c for c in cells if c.solved]
     if not solved:
-        return problem, None
+        return Seed(problem, None, iterations, time.perf_counter() - started)
     best = min(solved, key=_rank)
     start = best.on_scan_nlp or best.result
     meshed = dataclasses.replace(problem, segments=dataclasses.replace(
         best.problem.segments, count=start.alpha.size, per_revolution=None))
-    return meshed, start.as_guess()
+    return Seed(meshed, start.as_guess(), iterations, time.perf_counter() - started)
