@@ -32,6 +32,48 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
+#: Most values one START:STOP:COUNT range may give.
+MAX_RANGE_COUNT = 10_000
+
+
+def number_range(field, text, max_count=MAX_RANGE_COUNT):
+    """``START:STOP:COUNT`` -> COUNT numbers from START to STOP, both ends included.
+
+    The grid is numpy's linspace, so it ends exactly on STOP and the same text always
+    gives the same floats; COUNT = 1 needs START = STOP.  This is the one reader of a
+    numeric range for every command (a sweep's parameter, a porkchop's times of flight,
+    the propagation's grids), so they all take and refuse the same texts.
+
+    Raises
+    ------
+    InputError
+        One line naming ``field``: not three parts, START or STOP not finite numbers,
+        COUNT not an integer in [1, ``max_count``], or COUNT = 1 between two ends.
+    """
+    import numpy as np
+
+    parts = str(text).split(":")
+    if len(parts) != 3:
+        raise InputError(f"{field} = {text!r}: expected START:STOP:COUNT")
+    try:
+        start, stop = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise InputError(f"{field} = {text!r}: START and STOP must be numbers") from None
+    if not (math.isfinite(start) and math.isfinite(stop)):
+        raise InputError(f"{field} = {text!r}: START and STOP must be finite")
+    try:
+        count = int(parts[2])
+    except ValueError:
+        raise InputError(f"{field} = {text!r}: COUNT = {parts[2]!r} is not an integer"
+                         ) from None
+    if not 1 <= count <= max_count:
+        raise InputError(f"{field} = {text!r}: COUNT = {count} is outside [1, {max_count}]")
+    if count == 1 and start != stop:
+        # One value between two ends could mean either end: the user says which.
+        raise InputError(f"{field} = {text!r}: COUNT = 1 needs START = STOP")
+    return np.linspace(start, stop, count).tolist()
+
+
 def check_range(name, value, low=-math.inf, high=math.inf, low_open=False, high_open=False,
                 unit=""):
     """Return ``float(value)`` if it lies in the stated interval, else raise InputError.

@@ -110,7 +110,9 @@ def test_variant_maps_names_to_fields(tiny):
 def test_parse_param_grid():
     assert sweep.parse_param("ac_mm_s2=0.2:2:10") == (
         "ac_mm_s2", [0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0])
-    assert sweep.parse_param("ac_mm_s2=0.5:9:1") == ("ac_mm_s2", [0.5])
+    assert sweep.parse_param("ac_mm_s2=0.5:0.5:1") == ("ac_mm_s2", [0.5])
+    with pytest.raises(InputError, match="COUNT = 1 needs START = STOP"):
+        sweep.parse_param("ac_mm_s2=0.5:9:1")
     assert sweep.parse_param("segments=10:40:4") == ("segments", [10, 20, 30, 40])
 
 
@@ -119,7 +121,8 @@ def test_parse_param_grid():
     ("ac_mm_s2=1:2", "expected NAME=START:STOP:COUNT"),
     ("=1:2:3", "expected NAME=START:STOP:COUNT"),
     ("ac=1:2:3", "is not one of: ac_mm_s2, segments, sub_arcs"),
-    ("ac_mm_s2=1:2:0", "COUNT = 0 is outside [1, inf)"),
+    ("ac_mm_s2=1:2:0", "COUNT = 0 is outside [1, 10000]"),
+    ("ac_mm_s2=1:2:20000", "COUNT = 20000 is outside [1, 10000]"),
     ("ac_mm_s2=1:2:x", "COUNT = 'x' is not an integer"),
     ("ac_mm_s2=a:2:3", "START and STOP must be numbers"),
     ("ac_mm_s2=nan:2:3", "must be finite"),

@@ -12,7 +12,7 @@ import re
 import signal
 import sys
 
-from esail_opt.errors import InputError, OutputError, Terminated
+from esail_opt.errors import InputError, OutputError, Terminated, number_range
 
 EXIT_INPUT = 2
 #: An output that cannot be written (a full disk, a read-only folder): not 1, which
@@ -36,46 +36,24 @@ def _number(text):
 
 #: Values or ranges a propagate option takes: START:STOP:COUNT, both ends included.
 RANGE_HELP = "; or START:STOP:COUNT, both ends included, to fly a grid"
-#: Most values one range may take.
-MAX_RANGE_COUNT = 10_000
 
 
 def _value_or_range(option, text):
-    """A propagate option's values: one number, or COUNT equal steps from START to STOP.
+    """A propagate option's values: one number, or a START:STOP:COUNT range
+    (:func:`esail_opt.errors.number_range`).
 
     Raises
     ------
     InputError
         If the text is neither (one line naming the option and what it takes).
     """
-    import numpy as np
-
-    parts = text.split(":")
-    if len(parts) == 1:
-        try:
-            return [float(text)]
-        except ValueError:
-            raise InputError(f"--{option} = {text!r} is not a number or START:STOP:COUNT"
-                             ) from None
-    if len(parts) != 3:
-        raise InputError(f"--{option} = {text!r} is not a number or START:STOP:COUNT")
+    if ":" in text:
+        return number_range(f"--{option}", text)
     try:
-        start, stop = float(parts[0]), float(parts[1])
+        return [float(text)]
     except ValueError:
-        raise InputError(f"--{option} = {text!r}: START and STOP must be numbers") from None
-    try:
-        count = int(parts[2])
-    except ValueError:
-        raise InputError(f"--{option} = {text!r}: COUNT must be an integer in "
-                         f"[1, {MAX_RANGE_COUNT}]") from None
-    if not 1 <= count <= MAX_RANGE_COUNT:
-        raise InputError(f"--{option} = {text!r}: COUNT = {count} is outside "
-                         f"[1, {MAX_RANGE_COUNT}]")
-    if not (np.isfinite(start) and np.isfinite(stop)):
-        raise InputError(f"--{option} = {text!r}: START and STOP must be finite")
-    if count == 1 and start != stop:
-        raise InputError(f"--{option} = {text!r}: COUNT = 1 needs START = STOP")
-    return np.linspace(start, stop, count).tolist()
+        raise InputError(f"--{option} = {text!r} is not a number or START:STOP:COUNT"
+                         ) from None
 
 
 def _add_propagate(sub):

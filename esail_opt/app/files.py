@@ -402,6 +402,23 @@ def save_figure(fig, path, dpi=150):
         fig.savefig(tmp, dpi=dpi, format=fmt, **options)
 
 
+def write_table_set(out_dir, names, csv_text, data, fig):
+    """A scan's table, record and picture (``names``: the CSV, JSON and PNG file names)
+    written into ``out_dir`` as one set (:func:`publish`).  Returns their paths.
+
+    Raises
+    ------
+    OutputError
+        The folder cannot be written (one line; the old set stays as it was).
+    """
+    out = Path(out_dir)
+    with publish(out, family=names) as stage:
+        (stage / names[0]).write_text(csv_text)
+        write_json(stage / names[1], json_ready(data))
+        save_figure(fig, stage / names[2])
+    return [out / name for name in names]
+
+
 def json_ready(obj):
     """``obj`` with NaN/inf as None and numpy scalars as Python ones, so the JSON stays
     standard (:func:`write_json` forbids NaN)."""

@@ -29,10 +29,10 @@ from pathlib import Path
 import numpy as np
 
 from esail_opt.app import parallel, sweep
-from esail_opt.app.files import json_ready, publish, save_figure, write_json
+from esail_opt.app.files import write_table_set
 from esail_opt.app.parallel import first_line
 from esail_opt.bodies import dates, lookup
-from esail_opt.errors import InputError, check_range
+from esail_opt.errors import MAX_RANGE_COUNT, InputError, check_range, number_range
 from esail_opt.optimisation import scan
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.physics import constants as units
@@ -81,20 +81,17 @@ def _count(text, whole, field):
         count = int(text)
     except ValueError:
         raise InputError(f"{field} = {whole!r}: COUNT must be a whole number") from None
-    if not 1 <= count <= 10000:
-        raise InputError(f"{field} COUNT = {count} is outside [1, 10000]")
+    if not 1 <= count <= MAX_RANGE_COUNT:
+        raise InputError(f"{field} COUNT = {count} is outside [1, {MAX_RANGE_COUNT}]")
     return count
 
 
 def parse_tofs(text):
     """``START:STOP:COUNT`` in days -> list of times of flight."""
-    parts = str(text).split(":")
-    if len(parts) != 3:
-        raise InputError(f"tof = {text!r}: expected START:STOP:COUNT in days, e.g. 200:400:12")
-    lo = check_range("tof START", parts[0], 0, 36525, low_open=True, unit="days")
-    hi = check_range("tof STOP", parts[1], lo, 36525, unit="days")
-    count = _count(parts[2], text, "tof")
-    return list(np.linspace(lo, hi, count)) if count > 1 else [lo]
+    tofs = number_range("tof", text)
+    lo = check_range("tof START", tofs[0], 0, 36525, low_open=True, unit="days")
+    check_range("tof STOP", tofs[-1], lo, 36525, unit="days")
+    return tofs
 
 
 @dataclasses.dataclass(frozen=True)
@@ -355,11 +352,6 @@ def figure(result):
 
 def write(result, out_dir):
     """porkchop.csv, porkchop.json and porkchop.png in ``out_dir``, as one set
-    (:func:`~esail_opt.app.files.publish`); the journal stays beside them.  Returns the
-    paths."""
-    out = Path(out_dir)
-    with publish(out, family=PORKCHOP_FILES) as stage:
-        (stage / PORKCHOP_FILES[0]).write_text(table_csv(result))
-        write_json(stage / PORKCHOP_FILES[1], json_ready(result))
-        save_figure(figure(result), stage / PORKCHOP_FILES[2])
-    return [out / name for name in PORKCHOP_FILES]
+    (:func:`~esail_opt.app.files.write_table_set`); the journal stays beside them.
+    Returns the paths."""
+    return write_table_set(out_dir, PORKCHOP_FILES, table_csv(result), result, figure(result))

@@ -30,19 +30,16 @@ import errno
 import hashlib
 import io
 import json
-import math
 import os
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 from esail_opt.app import parallel
-from esail_opt.app.files import (atomic_path, check_output_dir, json_ready, publish,
-                                 save_figure, write_json)
+from esail_opt.app.files import atomic_path, check_output_dir, json_ready, write_table_set
 from esail_opt.app.parallel import first_line
-from esail_opt.errors import InputError, OutputError
+from esail_opt.errors import InputError, OutputError, number_range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,7 +89,7 @@ def parse_param(text):
     ----------
     text : str
         E.g. ``"ac_mm_s2=0.2:2:10"``: COUNT values equally spaced from START to STOP,
-        both included (COUNT = 1 gives START alone).
+        both included (COUNT = 1 needs START = STOP).
 
     Returns
     -------
@@ -111,24 +108,9 @@ def parse_param(text):
         raise InputError(f"param = {text!r}: {form}")
     if name not in SWEEPABLE:
         raise InputError(f"param name = {name!r} is not one of: {', '.join(SWEEPABLE)}")
-    parts = spec.split(":")
-    if len(parts) != 3:
+    if len(spec.split(":")) != 3:
         raise InputError(f"param = {text!r}: {form}")
-    try:
-        start, stop = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise InputError(f"param = {text!r}: START and STOP must be numbers") from None
-    if not (math.isfinite(start) and math.isfinite(stop)):
-        raise InputError(f"param = {text!r}: START and STOP must be finite")
-    try:
-        count = int(parts[2])
-    except ValueError:
-        raise InputError(f"param = {text!r}: COUNT = {parts[2]!r} is not an integer") from None
-    if count < 1:
-        raise InputError(f"param COUNT = {count} is outside [1, inf)")
-    # linspace rather than repeated addition: the grid ends exactly on STOP, and the
-    # same text always gives the same floats.
-    grid = [start] if count == 1 else np.linspace(start, stop, count).tolist()
+    grid = number_range("param", spec)
     # 12 significant digits drop linspace's last-bit noise (0.6000000000000001), so a
     # member solves, and its row shows, the value the user meant.
     grid = [float(f"{v:.12g}") for v in grid]
@@ -792,11 +774,6 @@ SWEEP_FILES = ("sweep.csv", "sweep.json", "sweep.png")
 
 def write(result, out_dir):
     """Write sweep.csv, sweep.json and sweep.png into ``out_dir`` as one set
-    (:func:`~esail_opt.app.files.publish`); the journal stays beside them.
+    (:func:`~esail_opt.app.files.write_table_set`); the journal stays beside them.
     OutputError if the folder cannot be written."""
-    out = Path(out_dir)
-    with publish(out, family=SWEEP_FILES) as stage:
-        (stage / SWEEP_FILES[0]).write_text(table_csv(result))
-        write_json(stage / SWEEP_FILES[1], json_ready(result))
-        save_figure(figure(result), stage / SWEEP_FILES[2])
-    return [out / name for name in SWEEP_FILES]
+    return write_table_set(out_dir, SWEEP_FILES, table_csv(result), result, figure(result))
