@@ -129,28 +129,49 @@ def test_a_chain_of_second_order_arcs_converges_as_one_over_n_squared():
     assert errors[-1] < abs(xs[0, -1] - truth[0]) / 100
 
 
+def fly_for(x0, ac, alpha, duration):
+    """[r, theta, v_r, v_theta] after ``duration`` (TU) of Eqs. 1-2 at fixed pitch."""
+    radial, transverse = thrust(alpha)
+
+    def rhs(_t, y):
+        r, _theta, vr, vt = y
+        return [vr, vt / r, vt**2 / r - 1 / r**2 + ac * radial / r,
+                -vr * vt / r + ac * transverse / r]
+
+    sol = solve_ivp(rhs, [0.0, duration], x0, method="DOP853", rtol=1e-13, atol=1e-15)
+    return sol.y[:, -1]
+
+
+def distance(a, b):
+    """Distance between the positions of two polar states."""
+    return math.hypot(a[0] * math.cos(a[1]) - b[0] * math.cos(b[1]),
+                      a[0] * math.sin(a[1]) - b[0] * math.sin(b[1]))
+
+
 @pytest.mark.parametrize("x0, ac_mm_s2, alpha_deg, dtheta", [
     # Half a revolution from the circle at the bench's largest a_c.
     (np.array([1.0, 0.0, 0.0, 1.0]), 0.2, 45.0, 3.2),
-    # Two revolutions of an inward spiral at 0.42 au (a~_c = 6e-3), where the rate
-    # misses the clock's derivative by 2 % and plain Newton steps converged linearly.
+    # Two revolutions of an inward spiral at 0.42 au (a~_c = 6e-3).
     (np.array([0.42, 0.3, 0.004, 1.0 / math.sqrt(0.42) * 1.01]), 0.2, -34.0, 11.5),
     # An arc of more than a revolution on an orbit of e = 0.28.
     (np.array([0.8, 1.0, -0.25, 1.2]), 0.1, 30.0, 7.0),
 ])
-def test_timed_second_order_arc_lands_on_its_own_clock(x0, ac_mm_s2, alpha_deg, dtheta):
-    """A duration equal to the second-order arc's own time over dtheta (from
-    ``end_function``, no root) is flown to dtheta and to that arc's end state."""
+def test_timed_second_order_arc_ends_on_time_as_close_as_its_own_arc(x0, ac_mm_s2,
+                                                                      alpha_deg, dtheta):
+    """Asked for the second-order arc's own time over dtheta, the timed arc ends at
+    exactly that time, and as close to Eqs. 1-2 there as the arc's own end: flying the
+    clock guess's miss on the Taylor series rather than finding the clock's root costs
+    at most a tenth of the closed form's own error (measured 0.3 %, 5 % and 8 %, with
+    misses of 4e-3, 5e-3 and 6e-2 TU)."""
     from esail_opt.propagation.rectified import timed_arc_function
 
     ac, alpha = accel_from_mm_s2(ac_mm_s2), math.radians(alpha_deg)
     x5 = np.r_[x0, 0.0]
-    end, dt, q3 = (np.array(v, float).ravel() for v in end_function()(x5, ac, alpha, dtheta))
-    xs, q3_timed, residual = (np.array(v, float) for v in
-                              timed_arc_function(1, model=PLAIN_SECOND)(x5, ac, alpha, dt[0]))
-    # Measured at most 4e-10 rad and 2e-10 TU (on the e = 0.28 arc; five Newton steps
-    # from the Keplerian guess left 2.3e-9 rad there).
-    assert abs(xs[1, -1] - x0[1] - dtheta) < 1e-9
-    assert abs(residual.item()) < 1e-9
-    assert np.all(np.abs(xs[:4, -1] - end) <= 1e-9 * (np.abs(end) + 1))
-    assert q3_timed.item() == pytest.approx(q3[0], abs=1e-9)
+    end, dt, _ = (np.array(v, float).ravel() for v in end_function()(x5, ac, alpha, dtheta))
+    xs, _, remainder = (np.array(v, float) for v in
+                        timed_arc_function(1, model=PLAIN_SECOND)(x5, ac, alpha, dt[0]))
+    assert xs[4, -1] == dt[0]
+    # The series did fly a part of the arc, so this is a check of it.
+    assert abs(remainder.item()) > 1e-3
+    truth = fly_for(x0, ac, alpha, dt[0])
+    assert distance(xs[:4, -1], truth) <= 1.1 * distance(end, truth)

@@ -1,5 +1,7 @@
 """The full equations of motion, Eqs. 1-2, in canonical units."""
 
+import functools
+
 import casadi as ca
 
 
@@ -35,3 +37,30 @@ def angular_momentum(x0, ac, T, dt):
     h = r0 v_theta0 + ac T dt exactly (r_E = 1 au, canonical units; THEORY.md §2.4).
     """
     return x0[0] * x0[3] + ac * T * dt
+
+
+
+@functools.lru_cache(maxsize=None)
+def _taylor_function(order):
+    y, h = ca.SX.sym("x", 4), ca.SX.sym("dt")
+    ac, R, T = ca.SX.sym("ac"), ca.SX.sym("R"), ca.SX.sym("T")
+    rate = rhs(y, ac, R, T)
+    term, series, factorial = rate, y, 1.0
+    for k in range(1, order + 1):
+        factorial *= k
+        series = series + term * h**k / factorial
+        term = ca.jtimes(term, y, rate)
+    return ca.Function("taylor_step", [y, ac, R, T, h], [series])
+
+
+def taylor_step(x, ac, R, T, dt, order):
+    """Polar state ``[r, theta, v_r, v_theta]`` after ``dt`` (TU) of constant pitch from
+    ``x``, by the Taylor series of Eqs. 1-2 about ``x`` to ``order`` in ``dt``.
+
+    The k-th term is (dt^k / k!) (f . grad)^(k-1) f, each derivative the Jacobian-vector
+    product of the one before, formed on free symbols (so that they are derivatives of
+    Eqs. 1-2, not of whatever expression ``x`` is) and then evaluated at ``x``; any
+    argument may be a CasADi expression.  The truncation error falls like
+    dt^(order + 1); it is meant for steps that are a small part of an orbit.
+    """
+    return _taylor_function(order)(x, ac, R, T, dt)

@@ -17,11 +17,11 @@ Two shapes are batched:
 
 ``jit`` compiles the mapped Function to C with CasADi's own just-in-time compiler,
 for this process only.  Why not ``propagation.compiled``'s disk cache: it compiles a
-Function together with its Jacobian and Hessian blocks, which the NLP needs; the timed
-second-order arc (about 17,500 SX instructions, Newton's method on its clock inside)
-has a Hessian far too large to compile for a call that is never differentiated.  The
-forward evaluation alone compiles in about 6 s.  Without a compiler, or with
-``ESAIL_OPT_COMPILE=0``, the Function stays on CasADi's virtual machine.
+Function together with its Jacobian and Hessian blocks, which the NLP needs; a timed
+second-order arc (its clock guess and Taylor series inside) has a Hessian far too large
+to compile for a call that is never differentiated, while its forward evaluation alone
+compiles in seconds.  Without a compiler, or with ``ESAIL_OPT_COMPILE=0``, the
+Function stays on CasADi's virtual machine.
 """
 
 import functools
@@ -39,8 +39,9 @@ from esail_opt.propagation.rectified import angles_function, rectified_function
 
 log = logging.getLogger("esail_opt")
 
-#: Flags of the just-in-time compile.  -O2 and -O3 -march=native ran the 1,000-case
-#: batch of the 10-year raising no faster than -O1 (0.31 s each) and compiled slower.
+#: Flags of the just-in-time compile.  On the bench's batch -O2 and -O3 ran within the
+#: timing noise of -O1 and compiled slower; -march=native, a little faster, is left out
+#: because a compiler that refuses it would leave the batch on the virtual machine.
 JIT_FLAGS = ("-O1",)
 #: Where the compile's source and library live while the batch is loaded: the system's
 #: temporary folder, not the working directory (which may be read-only, or the user's).

@@ -10,11 +10,13 @@ At each rectification point the arc is restarted from the current
 osculating orbit: new r0, new a~_c, and a new reference direction, here the
 current radius (``esail_opt.physics.closed_form.arc_frame``), which is defined
 for every orbit, circular ones included.  The pitch and the throttle may change
-there.  A segment's length is an angle, or a duration whose end is found on the
-closed form's own clock by Newton's method.
+there.  A segment's length is an angle, or a duration, which a first-order arc meets
+on the closed form's own clock by Newton's method and a second-order arc by a short
+Taylor series of Eqs. 1-2 from the angle a cheap clock guesses
+(:func:`timed_arc_function`).
 
-The chain is one ``casadi.Function``: an SX arc, wrapped (for durations) in a
-Newton rootfinder, accumulated over the segments with ``mapaccum``.  Its state is
+The chain is one ``casadi.Function``: an SX arc (for durations with its root or its
+series unrolled inside), accumulated over the segments with ``mapaccum``.  Its state is
 ``[r, theta, v_r, v_theta, t]``, canonical units, as in :mod:`.simulate`.
 
 With N first-order arcs the error falls like 1/N, with second-order ones like 1/N^2;
@@ -29,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state, clock_rate
-from esail_opt.physics.dynamics import angular_momentum
+from esail_opt.physics.dynamics import angular_momentum, taylor_step
 from esail_opt.physics.thrust import EXACT, radial_transverse
 from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
 from esail_opt.propagation.compiled import compiled
@@ -179,14 +181,13 @@ def arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
     )
 
 
-#: Steps on the closed form's clock from the guess of :func:`clock_guess`: the first a
-#: Newton step on the clock's own rate, the others secant steps (see
-#: :func:`timed_arc_function`).  So the arc's clock is evaluated CLOCK_STEPS + 1 times,
-#: the last at the angle it is flown to.  On the bench's grid of the 10-year raising
-#: (1,025 cases, 20 arcs, second order) the largest residual is 5.6e-10 TU and 0.13 %
-#: of the arcs are above 1e-12 TU; five Newton steps from the Keplerian guess, at two
-#: clock evaluations more (2,900 SX instructions each), left 1.3e-9 TU and 0.2 %.
-CLOCK_STEPS = 3
+#: Order of the Taylor series of Eqs. 1-2 (``physics.dynamics.taylor_step``) that flies
+#: a timed second-order arc from the angle :func:`clock_guess` finds to the asked
+#: duration (see :func:`timed_arc_function`).  The series' truncation falls like the
+#: step to the sixth power, far below the closed form's own error even at the guess's
+#: largest misses (arcs of two revolutions); order 3 would save a tenth of the arc's
+#: instructions for a truncation that falls only like the fourth.
+TAYLOR_ORDER = 5
 #: Newton steps of the first-order arcs' clock, from the Keplerian guess alone.  There
 #: the rate is the clock's derivative to its quadrature, so Newton's method converges
 #: quadratically: on the paper's scenario the residual is at rounding level; on an
@@ -248,7 +249,7 @@ def clock_guess(arc, duration):
     2 x nodes of first- and second-order ones.  On the bench's grid the guess's
     residual falls from 8e-2 to 3e-4 TU (median) and from 0.26 to 3e-2 TU (largest;
     2 panels left 0.1 TU, from arcs of two revolutions, where few panels alias the
-    orbit's period).  It is only a guess: its error costs steps, never accuracy.
+    orbit's period).
     """
     kep = arc.kepler
     angle = kepler_angle(arc, duration)
@@ -267,26 +268,28 @@ def clock_guess(arc, duration):
 @functools.lru_cache(maxsize=None)
 def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
     """As :func:`arc_function` (``model`` as there, never compiled), but the last input
-    is a duration (TU).
+    is a duration (TU), and the arc ends exactly that long after x0.
 
-    The arc angle is the root of t(dtheta) = duration on the closed form's clock, by a
-    fixed number of steps unrolled in SX, so that the whole arc stays one flat
-    expression.  Each step costs one evaluation of the clock, by far the arc's largest
-    part, and the arc flown at the last angle is one more.
+    * Order 1: the arc angle is the root of t(dtheta) = duration on the closed form's
+      clock, by :data:`NEWTON_STEPS` Newton steps from :func:`kepler_angle`, unrolled
+      in SX, on the rate dt/dtheta = r0^{3/2} / (q3 s^2) of the first-order elements,
+      which is the clock's derivative to its quadrature.
+    * Order 2: the arc is flown to the angle of :func:`clock_guess`, and the part of
+      the duration that its clock did not cover (the third output) is flown by the
+      Taylor series of Eqs. 1-2 to :data:`TAYLOR_ORDER` (``dynamics.taylor_step``).
+      Each evaluation of the second-order clock costs as much as the arc, so a root
+      on it cost four arcs' worth (a Newton step and secant steps) where this costs
+      one and a short series.  The part left is the guess's miss, a small fraction of
+      the arc, and it is flown on the exact equations: the arc's end differs from
+      the end at the clock's root by how far the closed form's own error moves over
+      that part, not by the series' truncation.  With ``model.invariant`` v_theta is
+      then h / r at the asked time.
 
-    * Order 1: :data:`NEWTON_STEPS` Newton steps from :func:`kepler_angle`, on the rate
-      dt/dtheta = r0^{3/2} / (q3 s^2) of the first-order elements, which is the
-      clock's derivative to its quadrature.
-    * Order 2: :data:`CLOCK_STEPS` steps from :func:`clock_guess`.  The first is a
-      Newton step on the rate of the second-order elements at the angle, which differs
-      from the clock's derivative by O(a~_c^3) and by the quadrature's error (2 % over
-      the two revolutions of an inward spiral at 0.4 au); the others are secant steps,
-      which need no derivative and converge superlinearly whatever the rate's error.
-      Five Newton steps from :func:`kepler_angle` served here before: six evaluations
-      of the clock against four now, for a larger residual on the bench's grid
-      (:data:`CLOCK_STEPS`).
-
-    A third output is the clock's remaining residual (TU).
+    Intermediate samples stay at equal fractions of the angle the arc was flown to.
+    The outputs are ``(xs, q3, remainder)``: the states, the validity margin at the
+    arc's end, and the part of the duration the closed form's clock did not cover
+    (TU): for order 1 what the Newton steps left (the end is then that early), for
+    order 2 what the series flew.
     """
     order, nodes = model.order, model.nodes
     x0 = ca.SX.sym("x0", 5)
@@ -294,50 +297,29 @@ def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
     R, T = radial_transverse(alpha, coefficients)
     arc = arc_frame(x0[:4], ac, R, T)
     time_unit = x0[0] ** 1.5
-
-    def clock(phi):
-        """(time from 0 to phi, TU; its rate dt/dphi at phi, TU/rad)."""
-        if order == 2:  # the last sample's arc end is the arc's whole clock
-            second = SecondOrderArc(arc, phi, nodes)
-            return time_unit * second.time, time_unit * clock_rate(second.q_end, phi)
-        return time_unit * sum(
-            arc.time(phi * (k - 1) / samples, phi * k / samples, nodes)
-            for k in range(1, samples + 1)
-        ), time_unit * arc.clock_rate(phi)
-
     if order == 2:
-        angle, steps = clock_guess(arc, duration / time_unit), CLOCK_STEPS
+        angle = clock_guess(arc, duration / time_unit)
     else:
-        angle, steps = kepler_angle(arc, duration / time_unit), NEWTON_STEPS
-    previous = None
-    for _ in range(steps):
-        time, rate = clock(angle)
-        residual = time - duration
-        slope = rate
-        if order == 2 and previous is not None:
-            # The secant through the last two iterates: the clock's own slope to the
-            # step's size, where the rate is the clock's to O(a~_c^2) and, over arcs
-            # of several revolutions, to its quadrature only (2 % off at 2 revolutions
-            # of the bench's inward spirals, which left Newton's method linear).  On
-            # steps so small that rounding would dominate the difference, or where
-            # the secant strays from the rate by half of it (a guard, never met on the
-            # bench's grid), the rate serves; the quotient never sees 0 / 0.
-            step = angle - previous[0]
-            usable = ca.fabs(step) > 1e-9 * (1 + ca.fabs(angle))
-            secant = (residual - previous[1]) / ca.if_else(usable, step, 1)
-            usable = ca.logic_and(usable, ca.fabs(secant - rate) < 0.5 * ca.fabs(rate))
-            slope = ca.if_else(usable, secant, rate)
-        previous = (angle, residual)
-        angle = angle - residual / slope
+        angle = kepler_angle(arc, duration / time_unit)
+        for _ in range(NEWTON_STEPS):
+            time = time_unit * sum(arc.time(angle * (k - 1) / samples, angle * k / samples,
+                                            nodes) for k in range(1, samples + 1))
+            angle = angle - (time - duration) / (time_unit * arc.clock_rate(angle))
     plain = ArcModel(order, model.invariant, False, 1, nodes, native=False)
     xs, q3 = arc_function(samples, coefficients=coefficients, model=plain).expand()(
         x0, ac, alpha, angle)
-    # The expanded arc rebuilds the arc's constants that the Newton steps already
-    # formed; eliminating common subexpressions saves 15 % of the instructions
-    # (and ~10 % of the time) without changing any arithmetic.
+    remainder = x0[4] + duration - xs[4, -1]
+    if order == 2:
+        end = taylor_step(xs[:4, -1], ac, R, T, remainder, TAYLOR_ORDER)
+        if model.invariant:
+            end = ca.vertcat(end[:3], angular_momentum(x0, ac, T, duration) / end[0])
+        xs = ca.horzcat(xs[:, :-1], ca.vertcat(end, x0[4] + duration))
+    # The expanded arc rebuilds the arc's constants that the guess already formed;
+    # eliminating common subexpressions saves instructions without changing any
+    # arithmetic.
     return ca.Function(
-        "timed_arc", [x0, ac, alpha, duration], [xs, q3, xs[4, -1] - x0[4] - duration],
-        ["x0", "ac", "alpha", "duration"], ["xs", "q3", "residual"], {"cse": True},
+        "timed_arc", [x0, ac, alpha, duration], [xs, q3, remainder],
+        ["x0", "ac", "alpha", "duration"], ["xs", "q3", "remainder"], {"cse": True},
     )
 
 
