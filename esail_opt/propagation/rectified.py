@@ -30,7 +30,7 @@ import itertools
 import casadi as ca
 import numpy as np
 
-from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state, clock_rate
+from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
 from esail_opt.physics.dynamics import angular_momentum, taylor_step
 from esail_opt.physics.thrust import EXACT, radial_transverse
 from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
