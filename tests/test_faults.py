@@ -582,3 +582,19 @@ def test_a_problem_file_that_exits_is_an_input_error(tmp_path, call):
     lines = _messages(run.stderr)
     assert len(lines) == 1 and "exits.py: the file called sys.exit(" in lines[0], lines
     assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------- the process's end
+
+
+def test_the_command_returns_mains_status_with_the_collector_frozen(tmp_path):
+    """``esail-opt`` (``cli.console``) returns what the run returned, and leaves the
+    process's objects frozen (``gc.freeze``) so that the interpreter's last collection
+    skips them."""
+    script = ("import gc, sys; from esail_opt.app import cli; "
+              f"sys.argv = ['esail-opt', 'solve', {str(tmp_path / 'missing.py')!r}]; "
+              "status = cli.console(); print(status, gc.get_freeze_count() > 0)")
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         env=_env(), timeout=120)
+    assert run.stdout.split() == ["2", "True"]
+    assert "missing.py" in run.stderr
