@@ -10,10 +10,12 @@ velocities), times in days, angles in degrees.
 
 Version 2 added ``schema_version``, gave the polish's misses and bounds the same keys and
 units as the closed form's (km and m/s, where version 1 used m and mm/s), and made an
-(a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.  Version 3 (this
-one) added the calendar: the fields under "On the calendar" below, a body's name in
+(a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.  Version 3 added the calendar: the fields under "On the calendar" below, a body's name in
 ``problem.departure`` and ``problem.target``, and a body target's
-``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.
+``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.  Version 4 (this
+one) gave the polish its own ``departure_state`` and calendar fields (a polish may move
+the departure and the a_c), and made ``problem.departure_state`` the state the
+verification flies from (for a body, its ephemeris rather than the NLP's track of it).
 
 Top level
 ---------
@@ -25,7 +27,8 @@ problem : object
     ``sub_arcs`` (what the error control ended with), ``sub_arcs_requested``,
     ``equal_segments``, ``objective`` (its kind), ``target`` (``kind`` and fields, or
     null), ``departure`` (``kind`` and fields), ``departure_state``, ``r_min_au``,
-    ``q3_margin``, and ``throttle_bounds`` for a throttled sail.
+    ``q3_margin``, and ``throttle_bounds`` for a throttled sail.  ``departure_state``
+    is the state the schedule is flown from.
 status, outcome, converged, acceptable : str, str, bool, bool
     Ipopt's return status of the last solve; its ``Outcome`` (``optimisation.outcome``)
     as a word, "converged" / "acceptable" / "infeasible" / "failed"; whether that is
@@ -67,8 +70,8 @@ trajectory : object
 On the calendar (a BodyDeparture; absent otherwise)
 ---------------------------------------------------
 departure_date, arrival_date : str
-    ISO 8601, TDB (``YYYY-MM-DDTHH:MM:SS``); the arrival is the departure plus the NLP's
-    time of flight.
+    ISO 8601, TDB, to the millisecond (``YYYY-MM-DDTHH:MM:SS.sss``, the fraction left
+    out when it is zero); the arrival is the departure plus the NLP's time of flight.
 departure_body : object
     ``name``, ``source`` (the ephemeris or the elements), ``out_of_plane_km`` (the body's
     distance from the ecliptic at departure, which the 2-D model drops), ``vinf_km_s`` and
@@ -87,16 +90,22 @@ polish : object
     ``status``, ``converged``, ``outcome``, ``iterations``, ``seconds``,
     ``constraint_violation``, ``objective``, ``tof_days``, ``bounds`` (``position_km``,
     ``velocity_m_s``: 1 m and 1 mm/s), ``within_bounds_vs_nlp``,
-    ``within_bounds_vs_target``, ``verified``, ``note``, ``schedule``, ``final_state`` and
-    ``verification`` (the keys of the top-level one).
+    ``within_bounds_vs_target``, ``verified``, ``note``, ``schedule``, ``final_state``,
+    ``verification`` (the keys of the top-level one), and the polished flight's own
+    ``departure_state`` and (as at the top level, where they apply)
+    ``departure_date``, ``arrival_date``, ``departure_body``, ``target_body`` and
+    ``ac_mm_s2_required``: ``schedule`` flown from ``departure_state`` is the flight
+    verified.  The top-level ``verified`` judges the closed form's flight alone; the
+    command's exit status is 0 only when ``polish.verified`` holds too.
 """
 
 from esail_opt.errors import InputError
 
-SCHEMA_VERSION = 3
-#: Versions this code reads: version 3 only added fields, so a version-2 file reads as
-#: one of a problem off the calendar.
-READABLE = (2, 3)
+SCHEMA_VERSION = 4
+#: Versions this code reads: versions 3 and 4 only added fields, so a version-2 file
+#: reads as one of a problem off the calendar and a version-3 polish has no start of its
+#: own.
+READABLE = (2, 3, 4)
 
 
 def check(data, source):

@@ -358,7 +358,9 @@ class Polish:
 
     ``verified`` is True only when Ipopt converged and the flight, its verifier's error
     included, is within ``bounds`` (1 m, 1 mm/s) of both the target and the polished
-    NLP's final state.
+    NLP's final state.  ``departure_state`` and the calendar fields are the polished
+    flight's own: flown from that state (at ``ac_mm_s2_required`` for MinAcceleration)
+    the polished schedule is the flight verified.  A version-3 file has none of them.
     """
 
     status: Optional[str]
@@ -377,6 +379,15 @@ class Polish:
     schedule: Optional[Schedule] = None
     final_state: Optional[State] = None
     verification: Optional[Flight] = None
+    departure_state: Optional[State] = None
+    departure_date: Optional[str] = None
+    arrival_date: Optional[str] = None
+    departure_body: Optional[DepartureBody] = None
+    target_body: Optional[TargetBody] = None
+    ac_mm_s2_required: Optional[float] = None
+
+    #: The keys of the polished flight's own start, dates, bodies and a_c (version 4).
+    OWN = ("departure_date", "arrival_date", "ac_mm_s2_required")
 
     @property
     def ran(self):
@@ -398,7 +409,12 @@ class Polish:
                    within_bounds_vs_target=d["within_bounds_vs_target"],
                    schedule=Schedule.from_json(d["schedule"]),
                    final_state=State.from_json(d["final_state"]),
-                   verification=Flight.from_json(d["verification"]))
+                   verification=Flight.from_json(d["verification"]),
+                   departure_state=(None if d.get("departure_state") is None
+                                    else State.from_json(d["departure_state"])),
+                   departure_body=DepartureBody.from_json(d.get("departure_body")),
+                   target_body=TargetBody.from_json(d.get("target_body")),
+                   **{k: d.get(k) for k in cls.OWN})
 
     def to_json(self):
         if not self.ran:
@@ -413,6 +429,11 @@ class Polish:
             "verified": self.verified, "note": self.note,
             "schedule": self.schedule.to_json(), "final_state": self.final_state.to_json(),
             "verification": self.verification.to_json(),
+            **({} if self.departure_state is None
+               else {"departure_state": self.departure_state.to_json()}),
+            **{k: getattr(self, k) for k in self.OWN if getattr(self, k) is not None},
+            **{k: getattr(self, k).to_json() for k in ("departure_body", "target_body")
+               if getattr(self, k) is not None},
         }
 
 
@@ -866,6 +887,10 @@ def _polish_data(problem, polished):
         "schedule": _schedule(exact, problem.throttled()),
         "final_state": _polar_dict(exact.nodes[:4, -1]),
         "verification": _verification_data(check),
+        # What the polished schedule is flown from and with: a polish may move the
+        # departure (a free date, anomaly or excess-velocity angle) and the a_c.
+        "departure_state": _polar_dict(problem.start_state(exact)),
+        **_calendar_data(problem, exact, check),
     }
 
 
@@ -935,7 +960,9 @@ def _problem_data(problem, result, sub_arcs_requested):
         "equal_segments": seg.equal, "objective": type(problem.objective).__name__,
         "target": _target_dict(problem.target),
         "departure": _fields(dep),
-        "departure_state": _polar_dict(result.x_start),
+        # The state the verification flies from: for a body, its ephemeris, not the
+        # NLP's smooth track of it.
+        "departure_state": _polar_dict(problem.start_state(result)),
         "r_min_au": problem.path.r_min_au, "q3_margin": problem.path.q3_margin,
     }
     if problem.throttled():

@@ -106,6 +106,15 @@ def polar_state(body, jd, field="body"):
     return x, float(z)
 
 
+def track_correction(body, t):
+    """The body's exact polar state less its smooth track's at time ``t`` (TU since
+    J2000 TDB): what moves the track onto the ephemeris (or the elements) at that time.
+    The track meets its source to tens of metres (``bodies.track``), so this is that
+    small; the polish adds it so that its 1 m holds against the source itself."""
+    exact, _ = polar_state(body, jd_from_tu(float(t)))
+    return exact - np.ravel(track(body).polar(float(t)))
+
+
 @functools.lru_cache(maxsize=None)
 def _mean_radius(key):
     if isinstance(key, SmallBody):

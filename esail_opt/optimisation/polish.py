@@ -29,7 +29,8 @@ from esail_opt.optimisation.goals import state_miss
 from esail_opt.optimisation.ipopt import build_solver, ipopt_options, solve_transcription
 from esail_opt.optimisation.problem import Tolerance
 from esail_opt.optimisation.error_control import segment_ends
-from esail_opt.optimisation.transcription import cvodes_time_segment, transcribe
+from esail_opt.optimisation.transcription import (body_corrections, cvodes_time_segment,
+                                                  transcribe)
 from esail_opt.propagation.rk4 import rk4_segment
 from esail_opt.propagation.simulate import VERIFY_TOLERANCE, SimulationError, simulate
 
@@ -137,6 +138,20 @@ def _lands(problem, result):
     return r_km <= LANDING_KM and v_m_s <= LANDING_M_S
 
 
+def _on_ephemeris(tr, problem, result):
+    """``tr`` holding its bodies to their ephemeris (or elements) at ``result``'s dates
+    rather than to their smooth tracks (``transcription.body_corrections``).
+
+    The tracks' tens of metres are nothing against the closed form's error, but they
+    are more than the polish's 1 m: flown from the ephemeris's departure and judged
+    against its arrival, a polish on the tracks missed by tens to hundreds of metres,
+    since a departure that far off grows along the flight.  The corrections
+    are taken at the dates of the last solve and renewed every round; between rounds
+    the dates move by seconds, and the corrections with them by millimetres.
+    """
+    return dataclasses.replace(tr, corrections=body_corrections(problem, result))
+
+
 def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS):
     """Re-solve ``problem`` on Eqs. 1-2 in time, warm-started from ``result``.
 
@@ -181,7 +196,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         segment = rk4_segment(steps[0], problem.sail.coefficients, "time")
     else:
         segment = rk4_polish_segment(problem, result.x_start, start, steps)
-    tr = transcribe(problem, segment, start, length_in="time")
+    tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time"), problem, result)
     opts = {"ipopt.mu_init": START_MU, **(polish_options() if options is None else options)}
     exact = solve_transcription(tr, opts)
     stages, iterations = list(exact.stages), exact.iterations
@@ -197,6 +212,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         except SimulationError:
             break  # an arc CVODES cannot fly: the fallback below tries CVODES arcs
         defects = flown - model
+        tr = _on_ephemeris(tr, problem, exact)
         solver = solver or build_solver(tr, opts, warm=True)
         exact = solve_transcription(tr, defects=defects, warm=exact, solver=solver)
         stages += exact.stages
@@ -206,8 +222,8 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         # window of the Earth-Mars search ran out of iterations 1.2e8 km from the target,
         # and the k = 1 rendezvous converged to a schedule whose flight missed by 1.4e6
         # km.  CVODES arcs are slower but steadier.
-        tr = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), start,
-                        length_in="time")
+        tr = _on_ephemeris(transcribe(problem, cvodes_time_segment(problem.sail.coefficients),
+                                      start, length_in="time"), problem, result)
         exact = solve_transcription(tr, opts)
         stages, iterations = stages + exact.stages, iterations + exact.iterations
     exact.stages, exact.iterations = stages, iterations

@@ -40,7 +40,7 @@ from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.rectified import (flies_native, piece_function, propagate,
                                              rectified_function)
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
-from esail_opt.bodies import dates
+from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError
 from esail_opt.physics.thrust import EXACT
 
@@ -371,6 +371,10 @@ class Transcription:
     # the fixed time of flight (TU; 0 without one).  A scan changes them, not the NLP.
     epoch: float = 0.0
     tof: float = 0.0
+    # Then the bodies' corrections: ephemeris less smooth track, [r, theta, v_r, v_theta]
+    # of the departure body at departure and of the target body at arrival
+    # (:func:`body_corrections`); zero unless a caller holds the NLP to the ephemeris.
+    corrections: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(8))
 
     @property
     def segments(self):
@@ -378,9 +382,10 @@ class Transcription:
 
     def parameters(self, defects=None):
         """The NLP's parameter vector: the segment defects of the defect correction
-        (5 x N; default none), then the epoch and the time of flight."""
+        (5 x N; default none), then the epoch, the time of flight and the bodies'
+        corrections."""
         d = np.zeros(5 * self.segments) if defects is None else np.ravel(defects, order="F")
-        return np.r_[d, self.epoch, self.tof]
+        return np.r_[d, self.epoch, self.tof, self.corrections]
 
     def at(self, problem):
         """This NLP with the parameters of ``problem``, a variant of the problem it was
@@ -393,6 +398,21 @@ class Transcription:
         """The constraint values g at the flat point ``w`` (numpy), with the segment
         defects of the defect correction (5 x N; default none)."""
         return np.array(self.nlp_g(w, self.parameters(defects))).ravel()
+
+
+def body_corrections(problem, result):
+    """:attr:`Transcription.corrections` at the dates of ``result`` (an NLPResult): the
+    departure body's ephemeris less its track at the departure epoch, then the target
+    body's at the arrival (``bodies.lookup.track_correction``); zeros for a problem off
+    the calendar and for a target that is not a real body."""
+    out = np.zeros(8)
+    if not problem.dated():
+        return out
+    out[:4] = lookup.track_correction(problem.departure.body, result.epoch)
+    body = getattr(problem.target, "body", None)
+    if body is not None:
+        out[4:] = lookup.track_correction(body, result.epoch + float(np.sum(result.durations)))
+    return out
 
 
 class _Blocks:
@@ -538,7 +558,7 @@ def _flight(problem, segment, v, p, scales, in_time):
     epoch = scales.epoch + v["epoch"][0] if v["epoch"].numel() else p["epoch"]
     if problem.dated():
         angle = v["vinf_angle"][0] if v["vinf_angle"].numel() else dep.seed_angle()
-        x_start = dep.nlp_state(epoch, angle)
+        x_start = dep.nlp_state(epoch, angle) + p["corrections"][:4]
     else:
         x_start = dep.state(v["nu0"][0]) if v["nu0"].numel() else ca.DM(problem.x0())
     starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
@@ -576,7 +596,11 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     if problem.fixed_tof() is not None:
         g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
     if problem.target is not None:
-        target = problem.target.constraints(flight["xf"], flight["tf"], guess.revolutions_k,
+        # A body target's rows compare the final state with the body's track; its
+        # correction moves the track onto the ephemeris (zero for other targets).
+        real = getattr(problem.target, "body", None) is not None
+        xf = flight["xf"] - (p["corrections"][4:] if real else 0)
+        target = problem.target.constraints(xf, flight["tf"], guess.revolutions_k,
                                             flight["epoch"])
         g.add("target", ca.vertcat(*target), 0, 0)
         window = getattr(problem.target, "arrival_jd", None)
@@ -619,12 +643,14 @@ def transcribe(problem, segment=None, guess=None, length_in="theta"):
     guess = initial_guess(problem) if guess is None else guess
     scales = _Scales.of(guess)
     v, variables = _variables(problem, guess, scales, in_time)
-    params = {"epoch": ca.MX.sym("epoch"), "tof": ca.MX.sym("tof")}
+    params = {"epoch": ca.MX.sym("epoch"), "tof": ca.MX.sym("tof"),
+              "corrections": ca.MX.sym("corrections", 8)}
     flight = _flight(problem, segment, v, params, scales, in_time)
     g = _constraints(problem, guess, v, params, flight, scales, in_time)
     w, lbx, ubx, w0 = variables.stacked()
     g_expr, lbg, ubg, _ = g.stacked()
-    p = ca.vertcat(ca.vec(flight["defects"]), params["epoch"], params["tof"])
+    p = ca.vertcat(ca.vec(flight["defects"]), params["epoch"], params["tof"],
+                   params["corrections"])
     if problem.objective.free_acceleration:
         f = problem.sail.ac * flight["ac_scale"]
     else:
