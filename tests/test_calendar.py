@@ -138,6 +138,12 @@ def test_a_polished_mars_rendezvous_meets_mars_itself_to_a_metre():
     (lambda: eo.BodyRendezvous(body="vulcan"), "target.body"),
     (lambda: eo.BodyIntercept(body="mars", arrival_window=("2033-01-01", "2032-01-01")),
      "target.arrival_window"),
+    # A fixed-time flight that would end after the bodies' last tracked date.
+    (lambda: eo.Problem(name="late", departure=eo.BodyDeparture(body="earth",
+                                                                date="2059-06-01"),
+                        sail=eo.Sail(ac_mm_s2=1.0), segments=eo.Segments(count=10),
+                        objective=eo.MaxRadius(tof_days=900.0), target=None),
+     "objective.tof_days"),
 ])
 def test_bad_calendar_input_names_its_field(build, field):
     with pytest.raises(InputError, match=field.replace(".", r"\.")):

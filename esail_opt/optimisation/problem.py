@@ -470,10 +470,26 @@ class Problem:
         if self.target is None and not self.objective.fixed_time:
             raise InputError("objective = MinTime needs a target (target = None leaves "
                              "nothing to reach); use a fixed-time objective")
+        if dated and self.objective.fixed_time:
+            self._check_arrival_tracked()
         if self.guess_alpha_deg is not None:
             lo, hi = self.sail.alpha_min_deg, self.sail.alpha_max_deg
             check_range("guess_alpha_deg", self.guess_alpha_deg, lo, hi, unit="deg")
         check_range("max_revolutions", self.max_revolutions, 0, 1000, low_open=True)
+
+    def _check_arrival_tracked(self):
+        """A fixed time of flight from a body says when the flight ends: refuse, before
+        any solve, one that ends after the last date the bodies are tracked on."""
+        dep = self.departure
+        latest = dep.window_jd[1] if dep.window is not None else dep.epoch_jd()
+        end = latest + self.objective.tof_days
+        last = dates.jd_from_iso(lookup.TRACK_SPAN[1])
+        if end > last:
+            raise InputError(
+                f"objective.tof_days = {self.objective.tof_days:g} d: leaving "
+                f"{dates.iso_from_jd(latest)} the flight ends {dates.iso_from_jd(end)} TDB, "
+                f"after {lookup.TRACK_SPAN[1]}, the last date bodies are tracked on; "
+                "shorten the flight or depart earlier")
 
     def with_segments(self, count):
         """The same problem with ``count`` control segments (``--segments``; it replaces
