@@ -135,5 +135,12 @@ def jd_from_tu(t):
     return _same_kind(J2000_JD + units.time_to_days(np.asarray(t, dtype=float)), t)
 
 
+def jd_split_from_tu(t):
+    """A canonical time as a Julian date in two parts, (J2000's JD, days since J2000):
+    the sum is :func:`jd_from_tu`'s, but the parts keep the microseconds that one float
+    of a Julian date rounds away (the ephemeris and the elements take both parts)."""
+    return J2000_JD, _same_kind(units.time_to_days(np.asarray(t, dtype=float)), t)
+
+
 def _same_kind(value, like):
     return float(value) if np.ndim(like) == 0 else value

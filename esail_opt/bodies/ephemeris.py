@@ -93,7 +93,7 @@ def planet_key(name, field="body"):
     return key
 
 
-def ecliptic_state(name, jd, field="body"):
+def ecliptic_state(name, jd, field="body", jd2=0.0):
     """Heliocentric ecliptic-J2000 Cartesian state of a planet, canonical units.
 
     Parameters
@@ -104,6 +104,11 @@ def ecliptic_state(name, jd, field="body"):
         Julian date(s), TDB, within :data:`SPAN_JD`.
     field : str
         The name used for ``name`` in error messages (the date is ``<field>.date``).
+    jd2 : float or array_like
+        A second part of the date, added to ``jd`` (days).  One float of a Julian date
+        resolves about 40 microseconds, a metre of a planet's motion; a date split as
+        J2000 plus the days since (:func:`esail_opt.bodies.dates.jd_split_from_tu`)
+        keeps the microseconds that a metre-level polish is judged on.
 
     Returns
     -------
@@ -112,11 +117,18 @@ def ecliptic_state(name, jd, field="body"):
         for M dates.
     """
     key = planet_key(name, field)
-    scalar = np.ndim(jd) == 0
+    scalar = np.ndim(jd) == 0 and np.ndim(jd2) == 0
     dates = np.atleast_1d(np.asarray(jd, dtype=float))
-    check_span(dates, f"{field}.date")
+    extra = np.broadcast_to(np.asarray(jd2, dtype=float), dates.shape)
+    check_span(dates + extra, f"{field}.date")
     eph = _load()
-    equatorial = eph.compute(_SEGMENT.get(key, key), dates) - eph.compute("sun", dates)
+
+    def state(segment):
+        bundle = eph.compute_bundle(segment, dates, extra)
+        return np.concatenate((eph.position_from_bundle(bundle),
+                               eph.velocity_from_bundle(bundle)))
+
+    equatorial = state(_SEGMENT.get(key, key)) - state("sun")
     state = np.empty_like(equatorial)
     for block in (0, 3):
         x, y, z = equatorial[block], equatorial[block + 1], equatorial[block + 2]
@@ -158,8 +170,9 @@ def polar_from_ecliptic(state):
     return polar, (float(z) if np.ndim(z) == 0 else z)
 
 
-def polar_state(name, jd, field="body"):
-    """A planet's state projected onto the ecliptic of J2000, as the package's polar state.
+def polar_state(name, jd, field="body", jd2=0.0):
+    """A planet's state projected onto the ecliptic of J2000, as the package's polar state
+    (arguments as :func:`ecliptic_state`).
 
     Returns
     -------
@@ -169,4 +182,4 @@ def polar_state(name, jd, field="body"):
     z : float or numpy.ndarray
         The ecliptic latitude's height, au, that the projection drops.
     """
-    return polar_from_ecliptic(ecliptic_state(name, jd, field))
+    return polar_from_ecliptic(ecliptic_state(name, jd, field, jd2))

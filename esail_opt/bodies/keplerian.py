@@ -18,7 +18,7 @@ from dataclasses import dataclass, field as _field
 
 import numpy as np
 
-from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, tu_from_jd
+from esail_opt.bodies.dates import iso_from_jd, jd_from_iso
 from esail_opt.bodies.ephemeris import polar_from_ecliptic
 from esail_opt.errors import InputError, check_range
 from esail_opt.physics import constants as units
@@ -140,7 +140,7 @@ class SmallBody:
         """Orbital period, days."""
         return units.time_to_days(2 * math.pi / self.mean_motion)
 
-    def ecliptic_state(self, jd, field="body"):
+    def ecliptic_state(self, jd, field="body", jd2=0.0):
         """Heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU).
 
         Parameters
@@ -149,19 +149,26 @@ class SmallBody:
             Julian date(s), TDB.  Any finite date: the two-body model has no span.
         field : str
             Name used in error messages (``<field>.date``).
+        jd2 : float or array_like
+            A second part of the date, days, as for the planets
+            (:func:`esail_opt.bodies.ephemeris.ecliptic_state`).
 
         Returns
         -------
         numpy.ndarray
             Shape (6,) for a scalar date, (6, M) for M dates.
         """
-        scalar = np.ndim(jd) == 0
+        scalar = np.ndim(jd) == 0 and np.ndim(jd2) == 0
         dates = np.atleast_1d(np.asarray(jd, dtype=float))
-        if not np.all(np.isfinite(dates)):
+        extra = np.broadcast_to(np.asarray(jd2, dtype=float), dates.shape)
+        if not np.all(np.isfinite(dates + extra)):
             raise InputError(f"{field}.date = {jd!r} is not a finite Julian date")
         a, e = self.a_au, self.e
         n = self.mean_motion
-        m = math.radians(self.mean_anomaly_deg) + n * (tu_from_jd(dates) - tu_from_jd(self.epoch_jd))
+        # The days since the epoch are formed before the second part is added, so that
+        # a split date keeps its microseconds.
+        since = units.time_from_days((dates - self.epoch_jd) + extra)
+        m = math.radians(self.mean_anomaly_deg) + n * since
         big_e = eccentric_anomaly(m, e)
         cos_e, sin_e = np.cos(big_e), np.sin(big_e)
         root = math.sqrt(1 - e * e)
@@ -173,12 +180,12 @@ class SmallBody:
         state = np.vstack([rotation @ p, rotation @ v])
         return state[:, 0] if scalar else state
 
-    def polar_state(self, jd, field="body"):
+    def polar_state(self, jd, field="body", jd2=0.0):
         """State projected onto the ecliptic as ``([r, theta, v_r, v_theta], z)``.
 
         Same contract as :func:`esail_opt.bodies.ephemeris.polar_state`.
         """
-        return polar_from_ecliptic(self.ecliptic_state(jd, field))
+        return polar_from_ecliptic(self.ecliptic_state(jd, field, jd2))
 
     def _perifocal_to_ecliptic(self):
         """The 3x2 matrix R3(-node) R1(-i) R3(-argument of perihelion), first two columns."""

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from esail_opt.bodies import ephemeris
-from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, jd_from_tu, tu_from_jd
+from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, jd_from_tu, jd_split_from_tu, tu_from_jd
 from esail_opt.bodies.keplerian import SmallBody
 from esail_opt.bodies.track import track_of
 from esail_opt.errors import InputError
@@ -92,18 +92,27 @@ def span_tu():
     return tuple(tu_from_jd(jd_from_iso(d)) for d in TRACK_SPAN)
 
 
-def polar_state(body, jd, field="body"):
-    """Exact polar state [r, theta, v_r, v_theta] (canonical) at Julian date ``jd`` (TDB)
-    with theta on the track's branch, and the out-of-plane distance z (au)."""
+def polar_state(body, jd, field="body", jd2=0.0):
+    """Exact polar state [r, theta, v_r, v_theta] (canonical) at Julian date ``jd`` (TDB;
+    plus ``jd2`` days, a date's second part) with theta on the track's branch, and the
+    out-of-plane distance z (au)."""
     body = _key(body)
     if isinstance(body, SmallBody):
-        x, z = body.polar_state(jd)
+        x, z = body.polar_state(jd, field, jd2)
     else:
-        x, z = ephemeris.polar_state(body, jd, field)
+        x, z = ephemeris.polar_state(body, jd, field, jd2)
     x = np.array(x, float).ravel()
-    branch = float(np.ravel(track(body).polar(tu_from_jd(jd)))[1])
+    branch = float(np.ravel(track(body).polar(tu_from_jd(jd + jd2)))[1])
     x[1] += 2 * math.pi * round((branch - x[1]) / (2 * math.pi))
     return x, float(z)
+
+
+def polar_state_at(body, t, field="body"):
+    """:func:`polar_state` at canonical time ``t`` (TU since J2000 TDB), the date kept in
+    two parts (``dates.jd_split_from_tu``): what the verification and the polish hold a
+    flight to, where a metre of a planet's motion is a few tens of microseconds."""
+    jd, days = jd_split_from_tu(float(t))
+    return polar_state(body, jd, field, days)
 
 
 def track_correction(body, t):
@@ -111,7 +120,7 @@ def track_correction(body, t):
     J2000 TDB): what moves the track onto the ephemeris (or the elements) at that time.
     The track meets its source to tens of metres (``bodies.track``), so this is that
     small; the polish adds it so that its 1 m holds against the source itself."""
-    exact, _ = polar_state(body, jd_from_tu(float(t)))
+    exact, _ = polar_state_at(body, t)
     return exact - np.ravel(track(body).polar(float(t)))
 
 

@@ -371,8 +371,7 @@ class _BodyTarget:
         """Distance (and, for a rendezvous, relative speed) to the body's ephemeris
         state at the arrival time t0 + t, with the relative speed at encounter and the
         out-of-plane distance the two-dimensional model ignored there."""
-        jd = dates.jd_from_tu(t0 + t)
-        state, z_au = lookup.polar_state(self.body, jd, "target.body")
+        state, z_au = lookup.polar_state_at(self.body, t0 + t, "target.body")
         dr, dv, _ = state_miss(np.ravel(x)[:4], state)
         return _miss(dr, dv if self.matches_velocity else None,
                      relative_speed_km_s=dv / 1e3,

@@ -138,6 +138,27 @@ def _lands(problem, result):
     return r_km <= LANDING_KM and v_m_s <= LANDING_M_S
 
 
+def _on_bodies(problem, result):
+    """Whether the NLP's departure and final states sit within :data:`LANDING_KM` and
+    :data:`LANDING_M_S` of the bodies' ephemeris at its own dates (True off the
+    calendar and for targets that are not real bodies).
+
+    The corrections that put them there were taken at the previous round's dates, and a
+    round can move the dates by minutes: over those the track's error changes by up to a
+    metre, so a round whose dates moved is followed by another."""
+    if not problem.dated():
+        return True
+    r_km, v_m_s, _ = state_miss(result.x_start, problem.start_state(result))
+    if r_km > LANDING_KM or v_m_s > LANDING_M_S:
+        return False
+    if getattr(problem.target, "body", None) is None:
+        return True
+    miss = problem.target.miss(result.nodes[:4, -1], float(np.sum(result.durations)),
+                               result.epoch)
+    v_m_s = miss["target_miss_v_m_s"]
+    return miss["target_miss_r_km"] <= LANDING_KM and (v_m_s is None or v_m_s <= LANDING_M_S)
+
+
 def _on_ephemeris(tr, problem, result):
     """``tr`` holding its bodies to their ephemeris (or elements) at ``result``'s dates
     rather than to their smooth tracks (``transcription.body_corrections``).
@@ -205,7 +226,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         if not exact.outcome.found:
             break
         try:
-            landed = _lands(problem, exact)
+            landed = _lands(problem, exact) and _on_bodies(problem, exact)
             if landed or round_ == max_rounds:
                 break
             flown, model = segment_ends(problem, exact, segment, "time", VERIFY_TOLERANCE)

@@ -229,7 +229,7 @@ class BodyDeparture:
     def state_at(self, t0, angle=None):
         """Exact polar state (ephemeris, canonical) at epoch t0 (TU since J2000) with the
         excess velocity at ``angle`` (rad; default :meth:`seed_angle`)."""
-        x, _ = lookup.polar_state(self.body, dates.jd_from_tu(float(t0)), "departure.body")
+        x, _ = lookup.polar_state_at(self.body, t0, "departure.body")
         dvr, dvt = self._excess(self.seed_angle() if angle is None else angle)
         return x + np.array([0.0, 0.0, float(dvr), float(dvt)])
 
