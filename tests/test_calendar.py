@@ -177,6 +177,24 @@ def test_bad_calendar_input_names_its_field(build, field):
         build()
 
 
+def test_a_porkchop_cell_is_checked_with_its_own_flight_time():
+    """A late departure that the problem file's 900-day flight would carry past the
+    tracked dates still makes cells of 300 and 400 days; a longest flight that ends past
+    them is refused before any solve, naming the field."""
+    from esail_opt.app.porkchop import Grid, cell_problem, check
+    from esail_opt.bodies import dates
+
+    late = eo.Problem(name="late", departure=eo.BodyDeparture(body="earth", date="2031-01-01"),
+                      sail=eo.Sail(ac_mm_s2=2.0), segments=eo.Segments(count=12),
+                      objective=eo.MinAcceleration(tof_days=900.0),
+                      target=eo.BodyRendezvous(body="venus"))
+    grid = Grid((dates.jd_from_iso("2058-06-01"),), (300.0, 400.0))
+    check(late, grid)
+    assert [cell_problem(late, grid, i).objective.tof_days for i in (0, 1)] == [300.0, 400.0]
+    with pytest.raises(InputError, match=r"objective\.tof_days = 700"):
+        check(late, Grid(grid.departures, (300.0, 700.0)))
+
+
 def test_a_body_target_needs_a_dated_departure():
     with pytest.raises(InputError, match="BodyDeparture"):
         eo.Problem(name="x", departure=eo.ParkingOrbit(a_au=1.0), sail=eo.Sail(ac_mm_s2=1.0),

@@ -153,8 +153,7 @@ class Grid:
 def cell_problem(problem, grid, index):
     """``problem`` at the grid's cell ``index``: its date, and its time of flight."""
     jd, tof = grid.cell(index)
-    variant = scan.at_date(problem, jd)
-    return variant if tof is None else scan.at_tof(variant, tof)
+    return scan.at_date(problem, jd, tof)
 
 
 def _row(index, grid, cell=None, error=None):
@@ -207,8 +206,10 @@ def check(problem, grid):
     if grid.tofs is not None and not problem.objective.fixed_time:
         raise InputError(f"objective = {type(problem.objective).__name__}: --tof needs a "
                          "fixed-time objective (e.g. MinAcceleration(tof_days=...))")
+    longest = None if grid.tofs is None else max(grid.tofs)
     for jd in grid.departures:
-        scan.at_date(problem, jd)  # dates outside the ephemeris fail here, one line
+        # Dates outside the ephemeris, and flights that would end past it, fail here.
+        scan.at_date(problem, jd, longest)
 
 
 def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=None,

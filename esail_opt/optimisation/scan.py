@@ -40,22 +40,26 @@ from esail_opt.optimisation.verify import verify
 CLASS_ITERATIONS = 300
 
 
-def at_date(problem, jd):
-    """``problem`` departing at the Julian date ``jd`` (TDB), its date fixed."""
+def at_date(problem, jd, tof_days=None):
+    """``problem`` departing at the Julian date ``jd`` (TDB), its date fixed, and with
+    ``tof_days`` given its fixed time of flight replaced too: one change, so that the
+    problem's checks see the cell's own date and flight together (a date that the
+    file's time of flight would carry past the ephemeris may suit the cell's)."""
     if not problem.dated():
         raise InputError(f"departure = {type(problem.departure).__name__}: a scan over "
                          "departure dates needs departure = BodyDeparture(...)")
     departure = dataclasses.replace(problem.departure, date=dates.iso_from_jd(jd), window=None)
-    return dataclasses.replace(problem, departure=departure)
+    if tof_days is None:
+        return dataclasses.replace(problem, departure=departure)
+    return dataclasses.replace(problem, departure=departure,
+                               objective=_objective_at(problem, tof_days))
 
 
-def at_tof(problem, tof_days):
-    """``problem`` with its fixed time of flight replaced, days."""
+def _objective_at(problem, tof_days):
     if not problem.objective.fixed_time:
         raise InputError(f"objective = {type(problem.objective).__name__}: a scan over times "
                          "of flight needs a fixed-time objective (e.g. MinAcceleration)")
-    return dataclasses.replace(problem, objective=dataclasses.replace(problem.objective,
-                                                                      tof_days=tof_days))
+    return dataclasses.replace(problem.objective, tof_days=tof_days)
 
 
 @dataclass
