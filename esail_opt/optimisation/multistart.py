@@ -213,7 +213,10 @@ def fallback_starts(problem, guess):
     for an orbit transfer the other constant-pitch seeds of :func:`seed_pitches`."""
     if problem.tracks_body():
         k = guess.revolutions_k
-        return rendezvous_starts(problem, [c for c in (k + 1, k - 1, k + 2) if c >= 0])
+        # A real body's k counts from the turns both bodies made since 2000, so it may
+        # be negative; an idealised body's counts from its phase at departure.
+        real = getattr(problem.target, "body", None) is not None
+        return rendezvous_starts(problem, [c for c in (k + 1, k - 1, k + 2) if real or c >= 0])
     seeds = constant_pitch_seeds(problem)
     own = guess_alpha(problem)
     return [Start(f"constant pitch {math.degrees(a):.4g} deg", 0, g)
