@@ -61,8 +61,8 @@ def _rebuild(rows):
     from esail_opt.app.solution import solve
 
     started = time.perf_counter()
-    verified = [solve(p).verified for row, _ in rows for p in row]
-    return time.perf_counter() - started, verified
+    solutions = [solve(p) for row, _ in rows for p in row]
+    return time.perf_counter() - started, solutions
 
 
 def _rk4_steps(problem, coeff):
@@ -89,9 +89,10 @@ def run(out, repeats=1):
     print(f"bench porkchop: RK4 segments, {steps} steps a segment ...", flush=True)
     rk_seconds, rk_cells = _scan(rows, rk4_segment(steps, coeff, "theta"))
     print("bench porkchop: each cell solved alone ...", flush=True)
-    rb_seconds, rb_verified = _rebuild(rows)
+    rb_seconds, rb_solutions = _rebuild(rows)
     counts = {"closed_form": sum(c.verified for c in cf_cells),
-              "rk4": sum(c.verified for c in rk_cells), "rebuild": sum(rb_verified)}
+              "rk4": sum(c.verified for c in rk_cells),
+              "rebuild": sum(s.verified for s in rb_solutions)}
     seconds = {"closed_form": cf_seconds, "rk4": rk_seconds, "rebuild": rb_seconds}
     per_cell = {k: (seconds[k] / counts[k] if counts[k] else None) for k in seconds}
 
@@ -111,6 +112,8 @@ def run(out, repeats=1):
                                  if c.verified else None for c in cf_cells],
         "ac_mm_s2_rk4": [c.result.ac_scale * c.problem.sail.ac_mm_s2
                          if c.verified else None for c in rk_cells],
+        "ac_mm_s2_rebuild": [s.ac_mm_s2_required if s.verified else None
+                             for s in rb_solutions],
     }
     print_table("bench porkchop (seconds per verified cell)",
                 [(k, v if v is not None else "none verified", "s") for k, v in per_cell.items()]

@@ -207,6 +207,32 @@ def rendezvous_starts(problem, classes):
     return starts
 
 
+#: Turn counts tried on each side of the first by :func:`descend_turns`.
+TURN_STEPS = 8
+
+
+def descend_turns(k0, best, solve, better, steps=TURN_STEPS):
+    """The best solve over the turn counts k on a body reached from ``k0`` one turn at a
+    time, each way, while each does better than the best so far.
+
+    A MinAcceleration rendezvous needs this: the a_c needed can change by whole factors
+    from one k to the next, and the seed's k is only what a constant pitch happens to
+    wind.  ``best`` is the solve at ``k0``; ``solve(k)`` returns a solve of class k (or
+    None), ``better(a, b)`` whether solve a beats solve b.  Returns the best and every
+    solve made, in order; a direction stops at the first k that does no better.
+    """
+    made = []
+    for step in (-1, 1):
+        k = k0 + step
+        for _ in range(steps):
+            other = solve(k)
+            made.append(other)
+            if other is None or not better(other, best):
+                break
+            best, k = other, k + step
+    return best, made
+
+
 def fallback_starts(problem, guess):
     """Other starts for a solve whose first start did not converge, free of any window:
     for a rendezvous the turn counts around ``guess``'s (one below, one and two above),

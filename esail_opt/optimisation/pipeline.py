@@ -221,46 +221,34 @@ def _other_starts(problem, result, tr, say):
     return result, tr, tuple(records)
 
 
-#: Turn counts tried on each side of the seed's by :func:`_least_acceleration_class`.
-MAX_CLASS_STEPS = 8
-
-
 def _least_acceleration_class(problem, result, tr, say):
     """The least a_c over the turn counts k on the target body, for a MinAcceleration
-    rendezvous: from the seed's k, step one turn at a time each way while the a_c
-    found keeps falling.
-
-    The seed's k is only what a constant pitch happens to wind, and the a_c needed can
-    change by whole factors from one k to the next: a warm-started scan drifts to the
-    better k where a lone solve would stay, and the two then disagree on what the same
-    cell needs.  A class costs one cold solve; the descent stops at the first k that
-    does no better, or finds nothing (``test_a_lone_min_acceleration_solve_beats_the_
-    turn_counts_beside_it``).
+    rendezvous (``multistart.descend_turns`` from the seed's k, each k a cold solve
+    from its own seed).  A warm-started scan drifts to the better k where a lone solve
+    would stay, and the two would then disagree on what the same cell needs
+    (``test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it``).
 
     Returns the (result, transcription) of the least a_c found and a StartTried per
     class solved.
     """
-    k0 = result.revolutions_k
-    records = [StartTried(f"the problem's own seed (k = {k0})", result.status,
-                          result.iterations)]
-    best, best_tr = result, tr
-    seconds = result.solve_seconds
-    for step in (-1, 1):
-        k = k0 + step
-        for _ in range(MAX_CLASS_STEPS):
-            start = multistart.rendezvous_starts(problem, [k])[0]
-            say(f"{problem.name}: k = {best.revolutions_k} needs "
-                f"{best.ac_scale * problem.sail.ac_mm_s2:.4g} mm/s^2; trying k = {k}")
-            other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
-            records.append(StartTried(start.label, other.status, other.iterations))
-            seconds += other.solve_seconds
-            if not (other.outcome.found and other.objective < best.objective):
-                break
-            best, best_tr = other, other_tr
-            k += step
+    records = [StartTried(f"the problem's own seed (k = {result.revolutions_k})",
+                          result.status, result.iterations)]
+    seconds = [result.solve_seconds]
+
+    def solve_class(k):
+        start = multistart.rendezvous_starts(problem, [k])[0]
+        say(f"{problem.name}: trying the turn count k = {k}")
+        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
+        records.append(StartTried(start.label, other.status, other.iterations))
+        seconds.append(other.solve_seconds)
+        return (other, other_tr) if other.outcome.found else None
+
+    (best, best_tr), _ = multistart.descend_turns(
+        result.revolutions_k, (result, tr), solve_class,
+        lambda a, b: a[0].objective < b[0].objective)
     # The run's Ipopt record covers every class it solved.
     best.iterations = sum(r.iterations for r in records)
-    best.solve_seconds = seconds
+    best.solve_seconds = sum(seconds)
     return best, best_tr, tuple(records)
 
 

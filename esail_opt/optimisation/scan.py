@@ -12,7 +12,10 @@ between cells (a rendezvous that gains one more turn on the body, say).  So afte
 forward pass every cell that ended worse than a neighbour -- not converged, not
 verified, or a larger objective -- is solved again from that neighbour, the other way
 along the scan, and keeps the better of the two.  A cell no neighbour can start is
-solved cold from its own seed, as a lone solve would.
+solved cold from its own seed, as a lone solve would.  A MinAcceleration cell also steps
+through the turn counts on the body beside its best while the a_c falls, as a lone
+solve does (``multistart.descend_turns``): the best count drifts across a chart, and a
+warm chain would keep its own.
 
 Every cell goes through the error control and the CVODES verification of a lone solve
 (``optimisation.error_control``, ``optimisation.verify``): a scan's cell is verified exactly
@@ -294,9 +297,35 @@ def _first_solves(solver, problem, previous, chains, explore=False):
         if own not in {c.result.revolutions_k for c in tried if c.result is not None}:
             tried.append(solver.warm(problem, chains.get(own), f"class {own}")
                          or solver.cold(problem, _class_seed(problem, own), f"class {own}"))
+        if problem.objective.free_acceleration:
+            # The best count drifts across a chart (by whole turns over a few months of
+            # departure dates), and a warm chain keeps its own: every cell looks on.
+            _descend(solver, problem, chains, tried)
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
     return tried
+
+
+def _descend(solver, problem, chains, tried):
+    """For a MinAcceleration rendezvous, the turn counts beyond the best one ``tried``
+    while the a_c keeps falling (``multistart.descend_turns``, as a lone solve does), so
+    that a cell ends in the class a lone solve of it would.  Classes the scan has solved
+    before start warm from their last cell.  The solves made are added to ``tried``."""
+    solved = {c.result.revolutions_k: c for c in tried if c.solved}
+    if not solved:
+        return
+
+    def solve_class(k):
+        if k in solved:
+            return solved[k]
+        cell = (solver.warm(problem, chains.get(k), f"class {k}")
+                or solver.cold(problem, _class_seed(problem, k), f"class {k}"))
+        tried.append(cell)
+        return cell if cell.solved else None
+
+    best = min(solved.values(), key=lambda c: c.objective)
+    multistart.descend_turns(best.result.revolutions_k, best, solve_class,
+                             lambda a, b: a.objective < b.objective)
 
 
 def _spike(i, out, cells, neighbours):
