@@ -268,6 +268,9 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
             "objective_unit": next((r["objective_unit"] for r in ordered if r["objective_unit"]),
                                    None),
             "target": _target_name(problem),
+            # What "verified" held each cell to, as sweep.json records it.
+            "tolerance": {"position_km": problem.tolerance.position_km,
+                          "velocity_m_s": problem.tolerance.velocity_m_s},
             "departures": [dates.iso_from_jd(jd) for jd in grid.departures],
             "tofs_days": None if grid.tofs is None else list(grid.tofs),
             "shape": list(grid.shape), "cells": total, "verified_cells": len(verified),

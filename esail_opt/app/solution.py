@@ -694,9 +694,12 @@ class Solution:
         lines = []
         if self.departure_date is not None:
             lines.append(f"  departs {self.departure_date}, arrives {self.arrival_date} (TDB)")
-        if self.ac_mm_s2_required is not None:
+        if self.ac_mm_s2_required is not None and self.converged:
             lines.append(f"  a_c needed: {self.ac_mm_s2_required:.6g} mm/s^2 (the schedule's "
                          "throttles are fractions of it)")
+        elif self.ac_mm_s2_required is not None:
+            lines.append(f"  a_c of Ipopt's last iterate: {self.ac_mm_s2_required:.6g} mm/s^2 "
+                         "(not converged: no answer)")
         body = self.target_body
         if body is not None and body.out_of_plane_km is not None:
             # A rendezvous's relative speed is its velocity miss, printed below.
@@ -725,6 +728,9 @@ class Solution:
                 line += f"; vs target {1e3 * v.target_miss_r_km:.3g} m"
                 if v.target_miss_v_m_s is not None:
                     line += f", {1e3 * v.target_miss_v_m_s:.3g} mm/s"
+            # Misses this small are only as good as the verifier that measured them.
+            if v.verifier_error_r_km is not None:
+                line += f" (verifier's own error {1e3 * v.verifier_error_r_km:.2g} m)"
             lines.append(line)
         lines.append(f"  polish: {p.note}")
         return lines
