@@ -143,9 +143,9 @@ def _on_bodies(problem, result):
     :data:`LANDING_M_S` of the bodies' ephemeris at its own dates (True off the
     calendar and for targets that are not real bodies).
 
-    The corrections that put them there were taken at the previous round's dates, and a
-    round can move the dates by minutes: over those the track's error changes by up to a
-    metre, so a round whose dates moved is followed by another."""
+    The corrections that put them there were taken at the previous round's dates; a
+    round that moved the dates leaves its ends off by what the track's error changed
+    over the move, and another round follows."""
     if not problem.dated():
         return True
     r_km, v_m_s, _ = state_miss(result.x_start, problem.start_state(result))
