@@ -9,7 +9,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import esail_opt as eo
-from esail_opt.app import plots
+from esail_opt.app import plot_worker, plots
 from esail_opt.app.solution import Solution
 
 DIGITS = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
@@ -172,3 +172,52 @@ def test_formatter_writes_superscripts():
     f = plots.PlainLogFormatter(10)
     assert [f(v) for v in (1e-3, 1.0, 10.0, 2e3)] == ["10⁻³", "10⁰", "10¹", "2×10³"]
 
+
+
+# ---------------------------------------------------------------- drawn beside the solve
+
+
+def _written(paths):
+    return {p.name: p.read_bytes() for p in paths}
+
+
+@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
+def test_the_worker_writes_what_drawing_here_writes(polished, tmp_path):
+    """The same files, byte for byte, as plots.write_plots, from the worker's processes;
+    and the worker is gone once they are written."""
+    for name in ("here", "there"):
+        (tmp_path / name).mkdir()
+    here = plots.write_plots(polished, tmp_path / "here")
+    with plot_worker.PlotWorker() as worker:
+        process = worker._process
+        worker.start(polished, tmp_path / "there")
+        there = worker.written()
+        assert not process.is_alive()
+    assert [p.name for p in there] == [p.name for p in here] == [n for n, _ in plots.FIGURES]
+    assert _written(there) == _written(here)
+
+
+@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
+def test_a_dead_worker_is_replaced_by_drawing_here(polished, tmp_path):
+    with plot_worker.PlotWorker() as worker:
+        worker._process.kill()
+        worker._process.join()
+        worker.start(polished, tmp_path)
+        paths = worker.written()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(n for n, _ in plots.FIGURES)
+    assert all(p.stat().st_size > 0 for p in paths)
+
+
+@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
+def test_a_figure_that_fails_in_the_worker_fails_here_too(polished, tmp_path, monkeypatch):
+    """A figure's own fault is met again in the caller's process, where it raises as it
+    would without a worker (the worker, forked after the patch, fails the same way)."""
+    def broken(solution):
+        raise ValueError("no figure today")
+
+    monkeypatch.setattr(plots, "FIGURES", (("trajectory.png", plots.trajectory_figure),
+                                           ("timeline.png", broken)))
+    with plot_worker.PlotWorker() as worker:
+        worker.start(polished, tmp_path)
+        with pytest.raises(ValueError, match="no figure today"):
+            worker.written()

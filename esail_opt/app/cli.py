@@ -269,16 +269,18 @@ def _run_solve(args):
     from pathlib import Path
 
     from esail_opt.app import solution
-
     from esail_opt.app.files import check_output_dir
+    from esail_opt.app.plot_worker import PlotWorker
 
     problem = _load(args)
     out = Path(args.out) if args.out else Path("results") / problem.name
     check_output_dir(out, name=None if args.out else problem.name)  # before the solve
     progress = progress_printer("solve")
-    sol = solution.solve(problem, progress=progress, polish=args.polish)
-    progress.done()
-    for path in sol.write(out):
+    with PlotWorker() as worker:  # matplotlib loads on the other core meanwhile
+        sol = solution.solve(problem, progress=progress, polish=args.polish)
+        progress.done()
+        written = sol.write(out, worker=worker)
+    for path in written:
         print(f"wrote {path}")
     print(sol.summary())
     if sol.verified:
@@ -539,9 +541,9 @@ def console():
 def run_command(label, run, args):
     """Run ``run(args)`` as a command does, and return the exit status.
 
-    Matplotlib draws to files only, the package's log lines go to stderr, SIGTERM
-    stops the run as Ctrl-C does, and each exception a user can meet becomes one line
-    ``<label>: error: ...`` on stderr and its exit status (see :data:`EPILOG`).  The
+    The package's log lines go to stderr, SIGTERM stops the run as Ctrl-C does, and
+    each exception a user can meet becomes one line ``<label>: error: ...`` on stderr
+    and its exit status (see :data:`EPILOG`).  The
     benchmarks' own command (``esail-opt-bench``) runs through here too, so that it
     exits as this one does.
 
@@ -554,10 +556,6 @@ def run_command(label, run, args):
     args : argparse.Namespace
         The parsed options, passed to ``run``.
     """
-    # The command line only writes files; library callers keep whatever backend they chose.
-    import matplotlib
-
-    matplotlib.use("Agg")
     _show_library_log()
     import threading
 

@@ -382,10 +382,19 @@ def _error_control_panel(ax, sol):
     ax.grid(alpha=0.3, which="both")
 
 
+#: The figures every solution writes: each file's name and the function that draws it.
+FIGURES = (("trajectory.png", trajectory_figure), ("timeline.png", timeline_figure))
+
+
+def write_figure(fig, path):
+    """Write one of :data:`FIGURES`'s figures atomically, at :data:`DPI`."""
+    save_figure(fig, path, dpi=DPI)
+
+
 def write_plots(solution, out_dir):
-    """Write trajectory.png and timeline.png atomically; return their paths."""
+    """Write the :data:`FIGURES` of ``solution`` into ``out_dir`` atomically, one after
+    the other; return their paths."""
     out = Path(out_dir)
-    paths = [out / "trajectory.png", out / "timeline.png"]
-    save_figure(trajectory_figure(solution), paths[0], dpi=DPI)
-    save_figure(timeline_figure(solution), paths[1], dpi=DPI)
-    return paths
+    for name, draw in FIGURES:
+        write_figure(draw(solution), out / name)
+    return [out / name for name, _ in FIGURES]

@@ -630,11 +630,13 @@ class Solution:
             writer.writerow([repr(float(_nan_for_none(getattr(row, f)))) for f in fields])
         return buf.getvalue()
 
-    def write(self, out_dir, plots=True):
+    def write(self, out_dir, plots=True, worker=None):
         """Write solution.json, schedule.csv (and schedule_polished.csv after a polish)
         and (optionally) the two PNGs into ``out_dir``, as one set
         (:func:`esail_opt.app.files.publish`): a reader of the folder sees the previous
-        run's files or these, never a mix, and files of the user's own stay.
+        run's files or these, never a mix, and files of the user's own stay.  Given a
+        :class:`~esail_opt.app.plot_worker.PlotWorker`, the figures are drawn by it
+        while the other files are written; else they are drawn here.
 
         Returns the list of paths written.
 
@@ -645,13 +647,17 @@ class Solution:
         """
         out = Path(out_dir)
         with publish(out, family=SOLUTION_FILES) as stage:
+            if plots and worker is not None:
+                worker.start(self, stage)
             names = ["solution.json", "schedule.csv"]
             write_json(stage / names[0], self.to_json())
             (stage / names[1]).write_text(self.schedule_csv())
             if self.polish is not None and self.polish.ran:
                 names.append("schedule_polished.csv")
                 (stage / names[-1]).write_text(self.schedule_csv(polished=True))
-            if plots:
+            if plots and worker is not None:
+                names += [p.name for p in worker.written()]
+            elif plots:
                 from esail_opt.app import plots as plotting
 
                 names += [p.name for p in plotting.write_plots(self, stage)]

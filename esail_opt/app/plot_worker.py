@@ -1,0 +1,189 @@
+"""A solution's figures drawn beside its solve, in processes of their own.
+
+Matplotlib's import and the drawing of the two figures took more of a short solve's
+whole run than the solve did, and neither needs the solver's core.  So the command
+line starts a :class:`PlotWorker` before it solves: a forked process that imports
+matplotlib and :mod:`esail_opt.app.plots` on the other core while the solve runs,
+then waits.  Given the solution, it forks once more per figure but the last, so that
+the figures are drawn at the same time, and reports back when every file is written.
+
+The worker writes where :meth:`~esail_opt.app.solution.Solution.write` tells it, which
+is the staging folder of the set (:func:`esail_opt.app.files.publish`): nothing
+reaches the output folder before the whole set does.  Any failure of the worker (it
+died, or a figure raised) makes :meth:`PlotWorker.write_plots` draw the figures here
+instead, where the same fault, if it is one of the figures', raises as it always has.
+
+Only where ``fork`` is the platform's own way to start a process (Linux): a spawned
+worker would import the package again first, and forking is not safe on macOS once
+its system libraries have started threads.  Elsewhere the figures are drawn in the
+calling process, as without a worker.
+"""
+
+import multiprocessing
+import signal
+import sys
+from pathlib import Path
+
+
+#: The longest wait for the worker to be ready, and then for its figures, seconds: both
+#: take a second or two; a worker stuck far beyond that is ended and the figures drawn
+#: here.
+WAIT_SECONDS = 60.0
+
+
+def _forks():
+    return sys.platform.startswith("linux")
+
+
+class PlotWorker:
+    """A process, started now, that will draw one solution's figures.
+
+    Use it as a context manager around the solve and the write, and give it to
+    :meth:`~esail_opt.app.solution.Solution.write`, which calls :meth:`start` before it
+    writes the set's other files and :meth:`written` after.
+    """
+
+    def __init__(self):
+        self._conn = self._process = self._job = None
+        if not _forks():
+            return
+        context = multiprocessing.get_context("fork")
+        ours, theirs = context.Pipe()
+        # Not a daemon, which multiprocessing forbids to start processes of its own:
+        # close() ends it, and so does its pipe's closing when this process dies.
+        self._process = context.Process(target=_serve, args=(theirs, ours),
+                                        name="esail-opt figures")
+        self._process.start()
+        theirs.close()
+        self._conn = ours
+
+    def start(self, solution, out_dir):
+        """Hand the worker ``solution`` to draw into ``out_dir``; :meth:`written` waits.
+        A worker that is not ready within :data:`WAIT_SECONDS` is ended, and the
+        figures are drawn here."""
+        self._job = (solution, Path(out_dir))
+        if self._conn is None:
+            return
+        try:
+            ready = self._conn.poll(WAIT_SECONDS) and self._conn.recv() == "ready"
+            if ready:
+                self._conn.send((solution, str(out_dir)))
+        except (OSError, EOFError):
+            ready = False
+        if not ready:
+            self.close(wait=False)  # written() draws here
+
+    def written(self):
+        """The paths of the figures of the solution given to :meth:`start`, written by
+        the worker when it is there and sound, else drawn here now.  Raises what
+        drawing them here raises (:func:`esail_opt.app.plots.write_plots`)."""
+        reply = None
+        if self._conn is not None:
+            try:
+                reply = self._conn.recv() if self._conn.poll(WAIT_SECONDS) else None
+            except (OSError, EOFError):
+                reply = None
+            self.close(wait=reply is not None)
+        if reply is not None and reply[0] == "written":
+            return [Path(p) for p in reply[1]]
+        from esail_opt.app import plots
+
+        return plots.write_plots(*self._job)
+
+    def close(self, wait=True):
+        """End the worker: it ends by itself once its pipe closes, or (without ``wait``,
+        or when it does not within seconds) it is killed."""
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+        if self._process is not None:
+            self._process.join(timeout=5 if wait else 0)
+            if self._process.is_alive():
+                self._process.kill()
+                self._process.join()
+            self._process = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, traceback):
+        # After a failure or an interrupt, what the worker draws has nowhere to go.
+        self.close(wait=kind is None)
+        return False
+
+
+def _quiet():
+    """A worker's signals: Ctrl-C reaches the whole process group, and the parent alone
+    answers it (closing the pipe ends the worker); SIGTERM simply ends it, rather than
+    raising the parent's inherited handler's exception in it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _serve(conn, parent_end):
+    """The worker: import the plots, wait for one solution, draw its figures, report."""
+    parent_end.close()  # so that the parent's end closing, or its death, reads as EOF
+    _quiet()
+    from esail_opt.app import plots
+
+    try:
+        conn.send("ready")
+        solution, out = conn.recv()
+    except (OSError, EOFError):
+        return
+    try:
+        reply = ("written", [str(p) for p in _draw_all(plots, solution, Path(out))])
+    except Exception as err:  # the parent draws again, and meets it itself
+        reply = ("failed", repr(err))
+    try:
+        conn.send(reply)
+    except OSError:
+        pass  # the parent stopped waiting (its run failed or was interrupted)
+
+
+def _draw_all(plots, solution, out):
+    """Every figure of :data:`esail_opt.app.plots.FIGURES`, each but the last in a forked
+    process of its own, the last here; raises if any of them failed."""
+    context = multiprocessing.get_context("fork")
+    figures = [(out / name, draw) for name, draw in plots.FIGURES]
+    others = []
+    for path, draw in figures[:-1]:
+        ours, theirs = context.Pipe(duplex=False)
+        child = context.Process(target=_draw_one, args=(solution, path, draw, theirs),
+                                daemon=True)
+        child.start()
+        theirs.close()
+        others.append((child, ours))
+    path, draw = figures[-1]
+    failures = []
+    try:
+        plots.write_figure(draw(solution), path)
+    except Exception as err:
+        failures.append(repr(err))
+    for child, ours in others:
+        try:
+            failure = ours.recv()
+        except EOFError:
+            failure = "a figure's process ended without a word"
+        child.join()
+        if failure is not None:
+            failures.append(failure)
+    if failures:
+        raise RuntimeError("; ".join(failures))
+    return [path for path, _ in figures]
+
+
+def _draw_one(solution, path, draw, conn):
+    """A figure's process: draw and write it, then send None, or what went wrong."""
+    from esail_opt.app import plots
+
+    _quiet()
+    try:
+        plots.write_figure(draw(solution), path)
+        failure = None
+    except Exception as err:
+        failure = repr(err)
+    try:
+        conn.send(failure)
+    except OSError:
+        pass
