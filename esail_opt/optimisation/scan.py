@@ -246,17 +246,20 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
     # every neighbour with the same objective (a spike: the same time of flight, for a
     # fixed-time scan), from each of them that did better.  Smooth slopes are left
     # alone: a neighbour's start there only finds the optimum the cell already has.
+    # A start already taken for a cell gives the same solve again: each is taken once.
+    taken = {}  # (cell, neighbour) -> the neighbour's start last taken for the cell
     for order in (range(n - 1, -1, -1), range(n)):
         for i in order:
             for j in neighbours[i]:
                 other = out[j]
-                if other.on_scan_nlp is None:
+                if other.on_scan_nlp is None or taken.get((i, j)) is other.on_scan_nlp:
                     continue
                 k = other.on_scan_nlp.revolutions_k
                 if k in classes[i] and not (_spike(i, out, cells, neighbours)
                                             and _rank(other) < _rank(out[i])):
                     continue
                 classes[i].add(k)
+                taken[(i, j)] = other.on_scan_nlp
                 again = solver.warm(cells[i], other, f"from {j}")
                 # Only a better closed-form optimum is worth its error control.
                 if again is not None and again.solved and (again.objective < out[i].objective or not out[i].verified):
@@ -280,30 +283,36 @@ def _settle(solver, tried):
 
 def _first_solves(solver, problem, previous, chains, explore=False):
     """A cell's solves in the forward pass: warm from the previous cell, and for a body
-    target the classes its own seed favours."""
+    target the classes its own seed favours (for a MinAcceleration cell that the warm
+    start solved, the classes beside the best instead)."""
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
     if problem.tracks_body():
-        # A warm start keeps its neighbour's turn count on the body; the cell's own
-        # seed says which count its geometry favours, and that class is solved too.
-        # A run's first cell has no neighbour: the counts either side of its seed's
-        # are solved as well, so that the run does not start in a poorer class.
-        own = initial_guess(problem).revolutions_k
-        if previous is None or explore:
-            for k in (own - 1, own + 1):
-                if k not in {c.result.revolutions_k for c in tried if c.result is not None}:
-                    tried.append(solver.warm(problem, chains.get(k), f"class {k}")
-                                 or solver.cold(problem, _class_seed(problem, k),
-                                                f"class {k}"))
-        if own not in {c.result.revolutions_k for c in tried if c.result is not None}:
-            tried.append(solver.warm(problem, chains.get(own), f"class {own}")
-                         or solver.cold(problem, _class_seed(problem, own), f"class {own}"))
-        if problem.objective.free_acceleration:
+        sizing = problem.objective.free_acceleration
+        if explore or not (sizing and any(c.solved for c in tried)):
+            _own_classes(solver, problem, previous, chains, tried, explore)
+        if sizing:
             # The best count drifts across a chart (by whole turns over a few months of
             # departure dates), and a warm chain keeps its own: every cell looks on.
+            # That look replaces the own seed's count, which a lone solve too only
+            # starts from (on Venus it needed three to four times the chain's a_c).
             _descend(solver, problem, chains, tried)
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
     return tried
+
+
+def _own_classes(solver, problem, previous, chains, tried, explore):
+    """The turn count the cell's own seed favours, solved (added to ``tried``): a warm
+    start keeps its neighbour's count on the body, and the seed says which count the
+    cell's geometry favours.  A run's first cell has no neighbour: the counts either
+    side of its seed's are solved as well, so that the run does not start in a poorer
+    class."""
+    own = initial_guess(problem).revolutions_k
+    wanted = [own - 1, own + 1, own] if previous is None or explore else [own]
+    for k in wanted:
+        if k not in {c.result.revolutions_k for c in tried if c.result is not None}:
+            tried.append(solver.warm(problem, chains.get(k), f"class {k}")
+                         or solver.cold(problem, _class_seed(problem, k), f"class {k}"))
 
 
 def _descend(solver, problem, chains, tried):
