@@ -147,9 +147,7 @@ class _Monitor(ca.Callback):
         name = ca.nlpsol_out(i)
         if name == "f":
             return ca.Sparsity.dense(1)
-        if name in ("x", "lam_x"):
-            return ca.Sparsity.dense(self.nx)
-        if name in ("g", "lam_g"):
+        if name == "g":
             return ca.Sparsity.dense(self.ng)
         return ca.Sparsity(0, 0)
 
