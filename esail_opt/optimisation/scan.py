@@ -41,6 +41,13 @@ from esail_opt.optimisation.verify import verify
 
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
 CLASS_ITERATIONS = 300
+#: A MinAcceleration scan looks at the turn counts beside a cell's best at every cell,
+#: but a count that needed at least LOOK_MARGIN times the best a_c where it was last
+#: solved is not looked at again within LOOK_CELLS cells of that one: between
+#: neighbouring cells of a chart (weeks apart) a count's a_c changes by a few per cent,
+#: so a count that needed twice the best's does not become the best two cells on.
+LOOK_MARGIN = 2.0
+LOOK_CELLS = 3
 
 
 def at_date(problem, jd, tof_days=None):
@@ -233,11 +240,18 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
     out = []
     classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
+    looks = {}  # revolution class -> (the last cell that solved it, its objective / best)
     for i, problem in enumerate(cells):
-        tried = _first_solves(solver, problem, out[-1] if out else None, chains, explore)
+        far = {k for k, (j, ratio) in looks.items()
+               if ratio >= LOOK_MARGIN and i - j < LOOK_CELLS}
+        tried = _first_solves(solver, problem, out[-1] if out else None, chains, explore,
+                              far)
         for c in tried:
             if c.on_scan_nlp is not None:
                 chains[c.on_scan_nlp.revolutions_k] = c
+        best = min((c.objective for c in tried if c.solved), default=math.inf)
+        looks.update({c.result.revolutions_k: (i, c.objective / best)
+                      for c in tried if c.solved and best > 0})
         out.append(_settle(solver, tried))
         classes.append({c.result.revolutions_k for c in tried if c.result is not None})
         say(_line(i, n, out[-1]))
@@ -281,10 +295,10 @@ def _settle(solver, tried):
     return min(done, key=_rank)
 
 
-def _first_solves(solver, problem, previous, chains, explore=False):
+def _first_solves(solver, problem, previous, chains, explore=False, far=()):
     """A cell's solves in the forward pass: warm from the previous cell, and for a body
     target the classes its own seed favours (for a MinAcceleration cell that the warm
-    start solved, the classes beside the best instead)."""
+    start solved, the classes beside the best instead, but those of ``far``)."""
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
     if problem.tracks_body():
         sizing = problem.objective.free_acceleration
@@ -295,7 +309,7 @@ def _first_solves(solver, problem, previous, chains, explore=False):
             # departure dates), and a warm chain keeps its own: every cell looks on.
             # That look replaces the own seed's count, which a lone solve too only
             # starts from (on Venus it needed three to four times the chain's a_c).
-            _descend(solver, problem, chains, tried)
+            _descend(solver, problem, chains, tried, far)
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
     return tried
@@ -315,11 +329,12 @@ def _own_classes(solver, problem, previous, chains, tried, explore):
                          or solver.cold(problem, _class_seed(problem, k), f"class {k}"))
 
 
-def _descend(solver, problem, chains, tried):
+def _descend(solver, problem, chains, tried, far=()):
     """For a MinAcceleration rendezvous, the turn counts beyond the best one ``tried``
     while the a_c keeps falling (``multistart.descend_turns``, as a lone solve does), so
     that a cell ends in the class a lone solve of it would.  Classes the scan has solved
-    before start warm from their last cell.  The solves made are added to ``tried``."""
+    before start warm from their last cell; those of ``far`` are taken as no better
+    (see :data:`LOOK_MARGIN`).  The solves made are added to ``tried``."""
     solved = {c.result.revolutions_k: c for c in tried if c.solved}
     if not solved:
         return
@@ -327,6 +342,8 @@ def _descend(solver, problem, chains, tried):
     def solve_class(k):
         if k in solved:
             return solved[k]
+        if k in far:
+            return None
         cell = (solver.warm(problem, chains.get(k), f"class {k}")
                 or solver.cold(problem, _class_seed(problem, k), f"class {k}"))
         tried.append(cell)
