@@ -182,13 +182,17 @@ def _written(paths):
 
 
 @pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
-def test_the_worker_writes_what_drawing_here_writes(polished, tmp_path):
-    """The same files, byte for byte, as plots.write_plots, from the worker's processes;
-    and the worker is gone once they are written."""
+@pytest.mark.parametrize("which", ["polished", "throttled"])
+@pytest.mark.parametrize("frame", [None, False, True])
+def test_the_worker_writes_what_drawing_here_writes(which, frame, request, tmp_path):
+    """The same files, byte for byte, as plots.write_plots, from the worker's processes,
+    with the timeline drawn into a frame made ahead for the right case, for the wrong
+    one, or without one; and the worker is gone once they are written."""
+    polished = request.getfixturevalue(which)
     for name in ("here", "there"):
         (tmp_path / name).mkdir()
     here = plots.write_plots(polished, tmp_path / "here")
-    with plot_worker.PlotWorker() as worker:
+    with plot_worker.PlotWorker(throttled=frame) as worker:
         process = worker._process
         worker.start(polished, tmp_path / "there")
         there = worker.written()

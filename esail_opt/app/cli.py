@@ -276,7 +276,8 @@ def _run_solve(args):
     out = Path(args.out) if args.out else Path("results") / problem.name
     check_output_dir(out, name=None if args.out else problem.name)  # before the solve
     progress = progress_printer("solve")
-    with PlotWorker() as worker:  # matplotlib loads on the other core meanwhile
+    # Matplotlib loads, and the timeline's frame is made, on the other core meanwhile.
+    with PlotWorker(throttled=problem.throttled()) as worker:
         sol = solution.solve(problem, progress=progress, polish=args.polish)
         progress.done()
         written = sol.write(out, worker=worker)

@@ -4,13 +4,14 @@ Matplotlib's import and the drawing of the two figures took more of a short solv
 whole run than the solve did, and neither needs the solver's core.  So the command
 line starts a :class:`PlotWorker` before it solves: a forked process that imports
 matplotlib and :mod:`esail_opt.app.plots` on the other core while the solve runs,
-then waits.  Given the solution, it forks once more per figure but the last, so that
-the figures are drawn at the same time, and reports back when every file is written.
+makes the timeline's frame (:func:`esail_opt.app.plots.timeline_frame`), then waits.
+Given the solution, it forks once more per figure but the last, so that the figures
+are drawn at the same time, and reports back when every file is written.
 
 The worker writes where :meth:`~esail_opt.app.solution.Solution.write` tells it, which
 is the staging folder of the set (:func:`esail_opt.app.files.publish`): nothing
 reaches the output folder before the whole set does.  Any failure of the worker (it
-died, or a figure raised) makes :meth:`PlotWorker.write_plots` draw the figures here
+died, or a figure raised) makes :meth:`PlotWorker.written` draw the figures here
 instead, where the same fault, if it is one of the figures', raises as it always has.
 
 Only where ``fork`` is the platform's own way to start a process (Linux): a spawned
@@ -19,6 +20,8 @@ its system libraries have started threads.  Elsewhere the figures are drawn in t
 calling process, as without a worker.
 """
 
+import functools
+import gc
 import multiprocessing
 import signal
 import sys
@@ -43,7 +46,10 @@ class PlotWorker:
     writes the set's other files and :meth:`written` after.
     """
 
-    def __init__(self):
+    def __init__(self, throttled=None):
+        """``throttled``: whether the problem has a throttle, for the timeline's frame
+        (:func:`esail_opt.app.plots.timeline_frame`), which the worker makes while it
+        waits; None makes none."""
         self._conn = self._process = self._job = None
         if not _forks():
             return
@@ -51,8 +57,12 @@ class PlotWorker:
         ours, theirs = context.Pipe()
         # Not a daemon, which multiprocessing forbids to start processes of its own:
         # close() ends it, and so does its pipe's closing when this process dies.
-        self._process = context.Process(target=_serve, args=(theirs, ours),
+        self._process = context.Process(target=_serve, args=(theirs, ours, throttled),
                                         name="esail-opt figures")
+        # Python's advice before a fork without exec: the collector's passes over the
+        # objects alive now would write to every page the two processes still share,
+        # and copying those pages slowed this process's solve by a tenth of a second.
+        gc.freeze()
         self._process.start()
         theirs.close()
         self._conn = ours
@@ -102,6 +112,7 @@ class PlotWorker:
                 self._process.kill()
                 self._process.join()
             self._process = None
+            gc.unfreeze()
 
     def __enter__(self):
         return self
@@ -120,19 +131,25 @@ def _quiet():
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def _serve(conn, parent_end):
-    """The worker: import the plots, wait for one solution, draw its figures, report."""
+def _serve(conn, parent_end, throttled):
+    """The worker: import the plots, make the timeline's frame, wait for one solution,
+    draw its figures, report."""
     parent_end.close()  # so that the parent's end closing, or its death, reads as EOF
     _quiet()
     from esail_opt.app import plots
 
+    figures = list(plots.FIGURES)
+    if throttled is not None:
+        frame = plots.timeline_frame(throttled)
+        figures = [(name, functools.partial(draw, frame=frame)
+                    if draw is plots.timeline_figure else draw) for name, draw in figures]
     try:
         conn.send("ready")
         solution, out = conn.recv()
     except (OSError, EOFError):
         return
     try:
-        reply = ("written", [str(p) for p in _draw_all(plots, solution, Path(out))])
+        reply = ("written", [str(p) for p in _draw_all(plots, figures, solution, Path(out))])
     except Exception as err:  # the parent draws again, and meets it itself
         reply = ("failed", repr(err))
     try:
@@ -141,11 +158,13 @@ def _serve(conn, parent_end):
         pass  # the parent stopped waiting (its run failed or was interrupted)
 
 
-def _draw_all(plots, solution, out):
-    """Every figure of :data:`esail_opt.app.plots.FIGURES`, each but the last in a forked
-    process of its own, the last here; raises if any of them failed."""
+def _draw_all(plots, figures, solution, out):
+    """Every figure of ``figures`` (:data:`esail_opt.app.plots.FIGURES`), each but the
+    last in a forked process of its own, the last (the timeline, with its frame) here;
+    raises if any of them failed."""
     context = multiprocessing.get_context("fork")
-    figures = [(out / name, draw) for name, draw in plots.FIGURES]
+    figures = [(out / name, draw) for name, draw in figures]
+    gc.freeze()  # as before the worker's own fork (PlotWorker)
     others = []
     for path, draw in figures[:-1]:
         ours, theirs = context.Pipe(duplex=False)

@@ -15,6 +15,7 @@ caller's axes or, given none, into a Figure of its own made by :func:`axes_or_ne
 """
 
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -139,6 +140,41 @@ def _timeline_axes(throttled):
     series = fig.add_gridspec(3, 2, **columns, **TIMELINE_SERIES_ROWS).subplots()
     errors = fig.add_gridspec(1, 2, **columns, **TIMELINE_ERROR_ROW).subplots(squeeze=False)
     return fig, np.vstack([series, errors])
+
+
+#: Ticks a timeline frame makes ahead: major ones on every axis, and minor ones on the
+#: error panels' log axes (a decade's eight, over several decades).  More than a figure
+#: shows cost nothing when it is drawn: an axis draws only the ticks its locator places.
+FRAME_TICKS = 10
+FRAME_MINOR_TICKS = 64
+
+
+@dataclass(frozen=True)
+class TimelineFrame:
+    """A timeline figure not drawn yet, its axes and their ticks made
+    (:func:`timeline_frame`), for :func:`timeline_figure` to draw one solution into."""
+
+    fig: Figure
+    axes: np.ndarray
+    throttled: bool
+
+
+def timeline_frame(throttled):
+    """A :class:`TimelineFrame` for a problem with or without a throttle.
+
+    Making an axis's ticks is much of what drawing the timeline costs (each is five
+    artists, made with their properties one by one), and an axis reuses the ticks it
+    has.  So the figure's frame can be made before its data exist, while a solve runs
+    (:mod:`esail_opt.app.plot_worker`), and the figure drawn into it is the one drawn
+    without it, pixel for pixel.
+    """
+    fig, axes = _timeline_axes(throttled)
+    for ax in axes.ravel():
+        ax.xaxis.get_major_ticks(FRAME_TICKS)
+        ax.yaxis.get_major_ticks(FRAME_TICKS)
+    for ax in axes[3]:
+        ax.yaxis.get_minor_ticks(FRAME_MINOR_TICKS)
+    return TimelineFrame(fig, axes, throttled)
 
 
 #: Digits and minus as Unicode superscripts, for :class:`PlainLogFormatter`.
@@ -300,20 +336,24 @@ def _pitch_panel(ax, sol, polished):
         twin.set_ylabel("throttle kappa", color="tab:orange")
 
 
-def timeline_figure(solution, axes=None):
+def timeline_figure(solution, axes=None, frame=None):
     """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
     errors and the error-control rounds.
 
-    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into a new figure;
-    returns the figure.
+    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into ``frame`` (a
+    :class:`TimelineFrame` made for whether the solution has a throttle; one made for
+    the other case is left alone), else into a new figure; returns the figure.
     """
     sol = solution
     cf, cv, exact = sol.trajectory_closed_form, sol.trajectory_cvodes, sol.trajectory_polished
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = exact is not None
     created = axes is None
-    if created:
-        fig, axes = _timeline_axes(_throttled(_pitch_schedule(sol, polished)))
+    throttled = _throttled(_pitch_schedule(sol, polished))
+    if created and frame is not None and frame.throttled == throttled:
+        fig, axes = frame.fig, frame.axes
+    elif created:
+        fig, axes = _timeline_axes(throttled)
     else:
         fig, axes = axes_or_new(axes)
     for ax in axes[:3].ravel():
