@@ -177,6 +177,28 @@ def test_sigterm_stops_a_solve_with_143_and_leaves_the_old_set(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
+def test_ctrl_c_during_a_cvodes_flight_is_an_interrupt_not_a_failed_flight():
+    """SIGINT while CVODES flies (the verifier's flights, the error control's segments):
+    KeyboardInterrupt once the flight returns, not a SimulationError, which the
+    verification would report as a flight that failed (exit 1 instead of 130)."""
+    import threading
+
+    import numpy as np
+
+    from esail_opt.propagation.simulate import simulate
+
+    n = 6000  # about a second of CVODES at 1e-13
+    timer = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            simulate([1.0, 0.0, 0.0, 1.0], np.zeros(n), np.ones(n), 1e-3, samples=4,
+                     tol=1e-13)
+    finally:
+        timer.cancel()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def _children(pid):
     """Pids of every live descendant of ``pid``, from /proc."""
     parents = {}

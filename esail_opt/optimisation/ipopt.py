@@ -6,15 +6,13 @@ also true for an acceptable level, so it is never read).
 """
 
 import dataclasses
-import signal
-import threading
 import time
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from esail_opt.errors import Terminated
+from esail_opt.errors import SignalsHeld
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.transcription import Guess, initial_guess, transcribe
 
@@ -115,9 +113,9 @@ class _Monitor(ca.Callback):
 
     Ipopt runs in C++, where Python's KeyboardInterrupt cannot reach it; CasADi's own
     check stopped only the running solve and the next stage went on from there.  So
-    while a solve runs, SIGINT only raises a flag, the callback asks Ipopt to stop at
-    the next iteration, and :func:`solve_transcription` raises KeyboardInterrupt once
-    Ipopt has returned.
+    while a solve runs the signal is held (:class:`~esail_opt.errors.SignalsHeld`), the
+    callback asks Ipopt to stop at the next iteration, and leaving ``with monitor``
+    raises KeyboardInterrupt (or Terminated) once Ipopt has returned.
     """
 
     def __init__(self, tr, progress):
@@ -128,7 +126,7 @@ class _Monitor(ca.Callback):
         self.progress = progress
         self.iteration = 0
         self.last = time.monotonic()
-        self.interrupted = False
+        self.held = SignalsHeld()
         self.construct("monitor", {})
 
     def get_n_in(self):
@@ -161,35 +159,14 @@ class _Monitor(ca.Callback):
             self.progress(f"Ipopt iteration {self.iteration}: objective "
                           f"{float(args[1]) * self.scale:.6g}{self.unit}, "
                           f"constraint violation {violation:.2g}")
-        return [1 if self.interrupted else 0]
+        return [1 if self.held.interrupted else 0]
 
     def __enter__(self):
-        self.saved = {}
-        self.signum = None
-        if threading.current_thread() is threading.main_thread():
-            self.saved[signal.SIGINT] = signal.signal(signal.SIGINT, self._on_interrupt)
-            # SIGTERM only where a Python handler already turns it into an exception
-            # (the command line's): a library caller's default SIGTERM stays a kill.
-            if callable(signal.getsignal(signal.SIGTERM)):
-                self.saved[signal.SIGTERM] = signal.signal(signal.SIGTERM,
-                                                           self._on_interrupt)
+        self.held.__enter__()
         return self
 
-    def _on_interrupt(self, signum, frame):
-        self.interrupted = True
-        self.signum = signum
-
     def __exit__(self, *exc):
-        for signum, handler in self.saved.items():
-            signal.signal(signum, handler)
-        return False
-
-    def stopped(self):
-        """The exception for the signal that stopped the solve: KeyboardInterrupt for
-        SIGINT, :class:`~esail_opt.errors.Terminated` for SIGTERM."""
-        if self.signum is not None and self.signum != signal.SIGINT:
-            return Terminated(self.signum)
-        return KeyboardInterrupt()
+        return self.held.__exit__(*exc)
 
 
 def warm_options(options):
@@ -258,8 +235,6 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         else:
             sol = solver(x0=warm.w, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=tr.lbx,
                          ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
-    if monitor.interrupted:
-        raise monitor.stopped()
     seconds = time.perf_counter() - start
     stats = solver.stats()
     status = stats.get("return_status", "unknown")

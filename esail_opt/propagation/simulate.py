@@ -14,6 +14,7 @@ import os
 import casadi as ca
 import numpy as np
 
+from esail_opt.errors import SignalsHeld
 from esail_opt.physics.dynamics import rhs, rhs_in_theta
 from esail_opt.physics.thrust import EXACT, radial_transverse
 
@@ -116,7 +117,7 @@ def fly_segments(starts, ac, alphas, lengths, length_in="time", coefficients=EXA
     n = np.shape(starts)[1]
     fun = _segments_function(n, length_in, coefficients, tol)
     try:
-        with quiet_stderr():
+        with SignalsHeld(), quiet_stderr():
             return np.array(fun(starts, np.reshape(ac, (1, -1)), np.reshape(alphas, (1, -1)),
                                 np.reshape(lengths, (1, -1))))
     except RuntimeError as err:
@@ -160,7 +161,8 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time
     fun = schedule_function(n, samples, length_in, coefficients, tol)
     start = np.r_[np.asarray(x0, float), 0.0]
     try:
-        with quiet_stderr():
+        # Ctrl-C waits for the flight: raised inside it, it made CVODES fail instead.
+        with SignalsHeld(), quiet_stderr():
             xs = np.array(fun(start, ac * kappa, alphas, lengths))
     except RuntimeError as err:
         raise SimulationError(str(err).strip().splitlines()[-1]) from None
