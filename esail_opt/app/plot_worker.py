@@ -23,9 +23,12 @@ calling process, as without a worker.
 import functools
 import gc
 import multiprocessing
+import os
 import signal
 import sys
 from pathlib import Path
+
+from esail_opt.processes import die_with_parent
 
 
 #: The longest wait for the worker to be ready, and then for its figures, seconds: both
@@ -57,7 +60,8 @@ class PlotWorker:
         ours, theirs = context.Pipe()
         # Not a daemon, which multiprocessing forbids to start processes of its own:
         # close() ends it, and so does its pipe's closing when this process dies.
-        self._process = context.Process(target=_serve, args=(theirs, ours, throttled),
+        self._process = context.Process(target=_serve,
+                                        args=(theirs, ours, throttled, os.getpid()),
                                         name="esail-opt figures")
         # Python's advice before a fork without exec: the collector's passes over the
         # objects alive now would write to every page the two processes still share,
@@ -109,7 +113,7 @@ class PlotWorker:
         if self._process is not None:
             self._process.join(timeout=5 if wait else 0)
             if self._process.is_alive():
-                self._process.kill()
+                self._process.kill()  # its figures' processes end with it
                 self._process.join()
             self._process = None
             gc.unfreeze()
@@ -123,19 +127,22 @@ class PlotWorker:
         return False
 
 
-def _quiet():
-    """A worker's signals: Ctrl-C reaches the whole process group, and the parent alone
-    answers it (closing the pipe ends the worker); SIGTERM simply ends it, rather than
-    raising the parent's inherited handler's exception in it."""
+def _quiet(parent):
+    """A drawing process's signals, and its end with ``parent``: Ctrl-C reaches the
+    whole process group, and the parent alone answers it (closing the pipe, or killing
+    this process); SIGTERM ends it, rather than raising the parent's inherited
+    handler's exception in it; and it never outlives its parent, however that ends
+    (:func:`esail_opt.processes.die_with_parent`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    die_with_parent(parent)
 
 
-def _serve(conn, parent_end, throttled):
+def _serve(conn, parent_end, throttled, parent):
     """The worker: import the plots, make the timeline's frame, wait for one solution,
     draw its figures, report."""
-    parent_end.close()  # so that the parent's end closing, or its death, reads as EOF
-    _quiet()
+    parent_end.close()  # so that the parent's end closing reads as EOF
+    _quiet(parent)
     from esail_opt.app import plots
 
     figures = list(plots.FIGURES)
@@ -168,8 +175,8 @@ def _draw_all(plots, figures, solution, out):
     others = []
     for path, draw in figures[:-1]:
         ours, theirs = context.Pipe(duplex=False)
-        child = context.Process(target=_draw_one, args=(solution, path, draw, theirs),
-                                daemon=True)
+        child = context.Process(target=_draw_one,
+                                args=(solution, path, draw, theirs, os.getpid()), daemon=True)
         child.start()
         theirs.close()
         others.append((child, ours))
@@ -192,11 +199,11 @@ def _draw_all(plots, figures, solution, out):
     return [path for path, _ in figures]
 
 
-def _draw_one(solution, path, draw, conn):
+def _draw_one(solution, path, draw, conn, parent):
     """A figure's process: draw and write it, then send None, or what went wrong."""
     from esail_opt.app import plots
 
-    _quiet()
+    _quiet(parent)
     try:
         plots.write_figure(draw(solution), path)
         failure = None
