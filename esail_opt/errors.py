@@ -93,7 +93,8 @@ def number_range(field, text, max_count=MAX_RANGE_COUNT):
     ------
     InputError
         One line naming ``field``: not three parts, START or STOP not finite numbers,
-        COUNT not an integer in [1, ``max_count``], or COUNT = 1 between two ends.
+        COUNT not an integer in [1, ``max_count``], COUNT = 1 between two ends, or
+        COUNT > 1 between equal ones.
     """
     import numpy as np
 
@@ -116,6 +117,9 @@ def number_range(field, text, max_count=MAX_RANGE_COUNT):
     if count == 1 and start != stop:
         # One value between two ends could mean either end: the user says which.
         raise InputError(f"{field} = {text!r}: COUNT = 1 needs START = STOP")
+    if count > 1 and start == stop:
+        raise InputError(f"{field} = {text!r}: COUNT = {count} needs START != STOP "
+                         "(every value would be the same)")
     return np.linspace(start, stop, count).tolist()
 
 

@@ -208,7 +208,8 @@ def test_the_command_line_refuses_a_malformed_scan_with_nothing_written(tmp_path
                        "ac_mm_s2=1.0), target=eo.BodyRendezvous(body='mars'))\n")
     out = tmp_path / "out"
     for depart in ("2031-01-01:2030-01-01:3", "2031-01-01:2031-13-01:3", "2031-01-01:x:3",
-                   "1950-01-01:1951-01-01:3"):
+                   "1950-01-01:1951-01-01:3", "2031-01-01:2031-01-01:3",
+                   "2031-01-01:2031-02-01:1"):
         run = subprocess.run([sys.executable, "-m", "esail_opt.app.cli", "porkchop",
                               str(problem), "--depart", depart, "--out", str(out)],
                              capture_output=True, text=True)

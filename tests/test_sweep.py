@@ -113,6 +113,8 @@ def test_parse_param_grid():
     assert sweep.parse_param("ac_mm_s2=0.5:0.5:1") == ("ac_mm_s2", [0.5])
     with pytest.raises(InputError, match="COUNT = 1 needs START = STOP"):
         sweep.parse_param("ac_mm_s2=0.5:9:1")
+    with pytest.raises(InputError, match="COUNT = 3 needs START != STOP"):
+        sweep.parse_param("ac_mm_s2=0.5:0.5:3")
     assert sweep.parse_param("segments=10:40:4") == ("segments", [10, 20, 30, 40])
 
 

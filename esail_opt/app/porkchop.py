@@ -63,6 +63,11 @@ def parse_dates(text, field="depart"):
     count = _count(count_text, text, field)
     if hi < lo:
         raise InputError(f"{field} = {text!r}: STOP comes before START")
+    if count == 1 and hi != lo:
+        raise InputError(f"{field} = {text!r}: COUNT = 1 needs START = STOP")
+    if count > 1 and hi == lo:
+        raise InputError(f"{field} = {text!r}: COUNT = {count} needs STOP after START "
+                         "(the cells would be one date)")
     return list(np.linspace(lo, hi, count)) if count > 1 else [lo]
 
 
