@@ -219,6 +219,23 @@ def test_the_command_line_refuses_a_malformed_scan_with_nothing_written(tmp_path
         assert not out.exists() or not any(out.iterdir())
 
 
+def test_a_porkchop_resumed_from_another_journal_names_the_porkchop(tmp_path):
+    problem = tmp_path / "p.py"
+    problem.write_text("import esail_opt as eo\nproblem = eo.Problem(name='p', departure="
+                       "eo.BodyDeparture(body='earth', date='2031-01-01'), sail=eo.Sail("
+                       "ac_mm_s2=1.0), target=eo.BodyRendezvous(body='mars'))\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "porkchop.jsonl").write_text('{"journal": "esail-opt sweep"}\n')
+    run = subprocess.run([sys.executable, "-m", "esail_opt.app.cli", "porkchop", str(problem),
+                          "--depart", "2031-01-01:2031-02-01:2", "--resume", "--out", str(out)],
+                         capture_output=True, text=True)
+    assert run.returncode == 2, run.stderr
+    assert run.stderr.strip().splitlines() == [
+        f"esail-opt porkchop: error: resume: {out / 'porkchop.jsonl'} is not a porkchop "
+        "journal (line 1 is not its header); run without --resume to start fresh"]
+
+
 def test_a_version_2_solution_file_still_loads(tmp_path):
     from esail_opt.app.solution import Solution
 

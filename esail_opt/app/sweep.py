@@ -395,15 +395,17 @@ class Journal:
             header = json.loads(lines[0][1]) if lines else None
         except json.JSONDecodeError:
             header = None
+        # "sweep" or "porkchop": the run whose journal this should be.
+        kind = self.header["journal"].split()[-1]
         if not isinstance(header, dict) or header.get("journal") != self.header["journal"]:
-            raise InputError(f"resume: {self.path} is not a sweep journal (line 1 is not its "
-                             "header); run without --resume to start fresh")
+            raise InputError(f"resume: {self.path} is not a {kind} journal (line 1 is not "
+                             "its header); run without --resume to start fresh")
         for key in ("problem", "source_sha256", "param", "values", "polish", "tolerance"):
             if header.get(key) != self.header[key]:
                 what = ("the problem file changed since it was written" if key == "source_sha256"
                         else f"its {key} is {_short(header.get(key))}, not "
                              f"{_short(self.header[key])}")
-                raise InputError(f"resume: {self.path} belongs to another sweep: {what}; "
+                raise InputError(f"resume: {self.path} belongs to another {kind}: {what}; "
                                  "run without --resume to start fresh")
         kept = {}
         for number, line in lines[1:]:
