@@ -18,6 +18,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import pytest
 
 from esail_opt.app import cli, parallel, sweep
@@ -72,6 +73,11 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
         # A 1 au -> 1.524 au transfer at 0.5-1.5 mm/s^2 takes roughly 1.5-3 years.
         assert 400 < row["tof_days"] < 1200
         assert row["target_miss_r_km"] is not None and math.isfinite(row["target_miss_r_km"])
+    # The objective panel in days: a minimum-time objective is then the time of flight.
+    panel = sweep.figure(pool).axes[1]
+    assert panel.get_ylabel() == "objective [d]"
+    assert np.allclose(panel.get_lines()[0].get_ydata(), [r["tof_days"] for r in others],
+                       rtol=1e-9)
 
     # A real Dask scheduler with two single-threaded worker processes on loopback.
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",

@@ -487,7 +487,9 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     Returns
     -------
     dict
-        ``problem``, ``problem_file``, ``param``, ``field``, ``unit``, ``values``,
+        ``problem``, ``problem_file``, ``param``, ``field``, ``unit``,
+        ``objective_meaning``, ``objective_shown_as`` ([factor, unit]: the objective
+        column's canonical numbers times the factor are in that unit), ``values``,
         ``executor``, ``wall_seconds``, ``polished``, ``tolerance``, ``failed`` (count
         of rows with an error), ``rows`` (one per value, in grid order), ``journal``
         (its path or None), ``resumed`` (indices taken from the journal), ``solved``
@@ -658,6 +660,9 @@ def _result(request, rows, journal, executor, seconds, lost):
     spec = SWEEPABLE[request.name]
     return {"problem": request.problem.name, "problem_file": request.problem_file,
             "param": request.name, "field": spec.path, "unit": spec.unit,
+            "objective_meaning": request.problem.objective.meaning,
+            # What the objective column's canonical numbers are in a user's units.
+            "objective_shown_as": list(request.problem.objective.shown_as()),
             "values": request.values, "executor": executor, "wall_seconds": seconds,
             "polished": request.polish,
             "tolerance": dataclasses.asdict(request.problem.tolerance),
@@ -703,13 +708,15 @@ def figure(result, axes=None):
         from matplotlib.figure import Figure
 
         axes = Figure(figsize=(6.4, 8.0)).subplots(3, 1, sharex=True)
+    factor, unit = result.get("objective_shown_as") or (1.0, "")
     panels = (("tof_days", "time of flight [days]", "linear"),
-              ("objective", "objective", "linear"),
+              ("objective", f"objective [{unit.strip()}]" if unit.strip()
+               else "objective (canonical)", "linear"),
               # The closed form is approximate: how far its schedule, flown on Eqs. 1-2,
               # ends from the target belongs beside the optimum it claims.
               ("target_miss_r_km", "verified target miss [km]", "log"))
     for ax, (key, ylabel, scale) in zip(axes, panels):
-        _panel(ax, result, key, scale)
+        _panel(ax, result, key, scale, factor if key == "objective" else 1.0)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
@@ -731,11 +738,14 @@ _EXACT = {"tof_days": ("tof_days_exact", 1.0),
           "target_miss_r_km": ("exact_target_miss_km", 1e-3)}
 
 
-def _panel(ax, result, key, scale):
-    """One panel: column ``key`` of the converged members, then the failed ones."""
+def _panel(ax, result, key, scale, factor=1.0):
+    """One panel: column ``key`` (times ``factor``) of the converged members, then the
+    failed ones."""
     rows = result["rows"]
-    good = [(r["value"], r[key]) for r in rows if r["error"] is None and r[key] is not None]
-    bad = [(r["value"], r[key]) for r in rows if r["error"] is not None]
+    good = [(r["value"], factor * r[key]) for r in rows
+            if r["error"] is None and r[key] is not None]
+    bad = [(r["value"], None if r[key] is None else factor * r[key]) for r in rows
+           if r["error"] is not None]
     if good:
         ax.plot(*zip(*good), "o-", color="C0",
                 label="converged (closed form)" if result.get("polished") else "converged")
