@@ -22,7 +22,8 @@ EXIT_OUTPUT = 3
 #: The shell's convention for a run stopped by SIGINT (128 + 2).
 EXIT_INTERRUPTED = 130
 EPILOG = ("exit status: 0 converged and verified; 1 not converged or not verified (one "
-          "line says which bound was missed); 2 bad input (nothing solved); 3 an output "
+          "line says which bound was missed); 2 bad input (nothing written; refused before the "
+          "solve, or after it for a flight found to end past the ephemeris); 3 an output "
           "could not be written (full disk, read-only or unsafe folder; the old files "
           "stay); 1 also when a Dask cluster is lost (the journal keeps what finished); 130 interrupted by SIGINT, 143 by SIGTERM (nothing half-written)")
 
