@@ -201,11 +201,18 @@ def test_a_body_target_needs_a_dated_departure():
                    target=eo.BodyRendezvous(body="mars"))
 
 
-def test_the_command_line_refuses_a_malformed_scan_with_nothing_written(tmp_path):
+def _mars_file(tmp_path):
+    """A problem file of an Earth-Mars rendezvous departing 2031-01-01, for the command
+    line's scans."""
     problem = tmp_path / "p.py"
     problem.write_text("import esail_opt as eo\nproblem = eo.Problem(name='p', departure="
                        "eo.BodyDeparture(body='earth', date='2031-01-01'), sail=eo.Sail("
                        "ac_mm_s2=1.0), target=eo.BodyRendezvous(body='mars'))\n")
+    return problem
+
+
+def test_the_command_line_refuses_a_malformed_scan_with_nothing_written(tmp_path):
+    problem = _mars_file(tmp_path)
     out = tmp_path / "out"
     for depart in ("2031-01-01:2030-01-01:3", "2031-01-01:2031-13-01:3", "2031-01-01:x:3",
                    "1950-01-01:1951-01-01:3", "2031-01-01:2031-01-01:3",
@@ -220,10 +227,7 @@ def test_the_command_line_refuses_a_malformed_scan_with_nothing_written(tmp_path
 
 
 def test_a_porkchop_resumed_from_another_journal_names_the_porkchop(tmp_path):
-    problem = tmp_path / "p.py"
-    problem.write_text("import esail_opt as eo\nproblem = eo.Problem(name='p', departure="
-                       "eo.BodyDeparture(body='earth', date='2031-01-01'), sail=eo.Sail("
-                       "ac_mm_s2=1.0), target=eo.BodyRendezvous(body='mars'))\n")
+    problem = _mars_file(tmp_path)
     out = tmp_path / "out"
     out.mkdir()
     (out / "porkchop.jsonl").write_text('{"journal": "esail-opt sweep"}\n')
