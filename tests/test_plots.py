@@ -225,3 +225,20 @@ def test_a_figure_that_fails_in_the_worker_fails_here_too(polished, tmp_path, mo
         worker.start(polished, tmp_path)
         with pytest.raises(ValueError, match="no figure today"):
             worker.written()
+
+
+@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
+def test_a_worker_that_cannot_be_forked_leaves_the_figures_to_be_drawn_here(
+        polished, tmp_path, monkeypatch):
+    import multiprocessing.process
+
+    def no_fork(self):
+        raise OSError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(multiprocessing.process.BaseProcess, "start", no_fork)
+    with plot_worker.PlotWorker() as worker:
+        assert worker._process is None
+        worker.start(polished, tmp_path)
+        paths = worker.written()
+    assert sorted(p.name for p in paths) == sorted(n for n, _ in plots.FIGURES)
+    assert all(p.stat().st_size > 0 for p in paths)

@@ -59,17 +59,22 @@ class PlotWorker:
         context = multiprocessing.get_context("fork")
         ours, theirs = context.Pipe()
         # Not a daemon, which multiprocessing forbids to start processes of its own:
-        # close() ends it, and so does its pipe's closing when this process dies.
-        self._process = context.Process(target=_serve,
-                                        args=(theirs, ours, throttled, os.getpid()),
-                                        name="esail-opt figures")
+        # close() ends it, and it dies with this process (die_with_parent).
+        process = context.Process(target=_serve, args=(theirs, ours, throttled, os.getpid()),
+                                  name="esail-opt figures")
         # Python's advice before a fork without exec: the collector's passes over the
         # objects alive now would write to every page the two processes still share,
         # and copying those pages slowed this process's solve by a tenth of a second.
         gc.freeze()
-        self._process.start()
-        theirs.close()
-        self._conn = ours
+        try:
+            process.start()
+        except OSError:  # no fork to be had (memory, a process limit): drawn here
+            gc.unfreeze()
+            ours.close()
+            return
+        finally:
+            theirs.close()
+        self._process, self._conn = process, ours
 
     def start(self, solution, out_dir):
         """Hand the worker ``solution`` to draw into ``out_dir``; :meth:`written` waits.
