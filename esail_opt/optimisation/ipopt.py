@@ -180,6 +180,17 @@ def warm_options(options):
     return opts
 
 
+def primal_warm_options(options):
+    """Ipopt options for a solve from a point that is an optimum of a nearby problem but
+    whose multipliers do not fit this NLP (a free departure date started from its best
+    fixed date): a small barrier parameter, and the start barely pushed off its bounds,
+    so that Ipopt descends from it.  From the default barrier, Earth-Mars's free date
+    left its seed's 658 d for an optimum of 798 d a year earlier."""
+    opts = dict(options)
+    opts.update({"ipopt.mu_init": 1e-6, "ipopt.bound_push": 1e-8, "ipopt.bound_frac": 1e-8})
+    return opts
+
+
 def build_solver(tr, options=None, warm=False, progress=None):
     """An Ipopt solver for ``tr`` with its :class:`_Monitor` (``solver.monitor``).
 

@@ -20,7 +20,8 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart, scan
 from esail_opt.optimisation import polish as polishing
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, ErrorControl, Round, control_error
-from esail_opt.optimisation.ipopt import NLPResult, solve_problem
+from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
+                                          solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
 from esail_opt.optimisation.transcription import (Transcription, initial_guess,
@@ -172,13 +173,15 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     if problem.free_date():
         seed = scan.seed_free_date(problem, say)
         problem, guess = seed.problem, seed.guess
+    # A free date's guess is the optimum of its best date: a start Ipopt keeps to
+    # (primal_warm_options), and no staging from it.
+    options = None if guess is None else primal_warm_options(ipopt_options())
     if guess is None:
         guess = initial_guess(problem)
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
-    # A free date's guess is already the optimum of its best date: no staging from it.
     result, tr = solve_problem(problem, guess=guess, progress=say,
-                               staged=not problem.free_date())
+                               staged=not problem.free_date(), options=options)
     starts = ()
     if not result.outcome.found:
         result, tr, starts = _other_starts(problem, result, tr, say)
