@@ -141,3 +141,14 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, change, fiel
     assert data is None and not list(tmp_path.iterdir())
     assert len(err) == 1 or (len(err) == 2 and err[0].startswith("propagating"))
     assert field in err[-1] and "Traceback" not in err[-1]
+
+
+@pytest.mark.parametrize("years, warned", [("1", False), ("50", True)])
+def test_a_closed_form_arc_far_off_the_flight_is_said(tmp_path, capsys, years, warned):
+    """One unrectified arc over fifty years is hundreds of per cent off Eqs. 1-2: the run
+    still writes its samples (exit 0: it judges nothing), and says so on stderr."""
+    code, data = run_cli(tmp_path, "--ac", "0.1", "--alpha", "30", "--years", years)
+    err = capsys.readouterr().err
+    assert code == 0 and data is not None
+    assert (data["eps"] > 0.1) == warned
+    assert ("esail-opt propagate: warning: eps = " in err) == warned

@@ -36,6 +36,9 @@ def _number(text):
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
+#: eps (Eq. 27, a fraction) above which ``propagate`` warns that its single arc has
+#: left the flight behind.
+EPS_WARNING = 0.10
 #: Values or ranges a propagate option takes: START:STOP:COUNT, both ends included.
 RANGE_HELP = "; or START:STOP:COUNT, both ends included, to fly a grid"
 
@@ -130,6 +133,11 @@ def _run_propagate_one(args, case):
         span = result["eps_theta_range"]
         print(f"eps (Eq. 27) = {100 * result['eps']:.3f} % over theta = {span['from_deg']:.2f} .. "
               f"{span['to_deg']:.2f} deg: {span['source']}")
+        if result["eps"] > EPS_WARNING:
+            print(f"esail-opt propagate: warning: eps = {100 * result['eps']:.3g} %: one "
+                  "closed-form arc this long is not the flight (its error grows with the "
+                  "angle it sweeps); `esail-opt solve` restarts the arc (rectification)",
+                  file=sys.stderr)
     if args.out:
         write_json(args.out, result)
         print(f"wrote {args.out}")
