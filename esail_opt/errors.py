@@ -3,8 +3,9 @@
 :class:`InputError` is bad user input (exit 2); its message names the field and the
 allowed range.  :class:`OutputError` is an output folder or file that cannot be
 written (exit 3).  :class:`Terminated` is SIGTERM, raised where Python would raise
-KeyboardInterrupt for SIGINT (exit 143).  They live in the lowest layer because every
-layer may raise them.
+KeyboardInterrupt for SIGINT (exit 143); :class:`SignalsHeld` keeps both signals
+waiting while CasADi's C++ runs.  They live in the lowest layer because every layer
+may raise them.
 """
 
 import math

@@ -186,22 +186,27 @@ def _draw_all(plots, figures, solution, out):
         theirs.close()
         others.append((child, ours))
     path, draw = figures[-1]
-    failures = []
-    try:
-        plots.write_figure(draw(solution), path)
-    except Exception as err:
-        failures.append(repr(err))
+    failures = [_failure(plots, solution, path, draw)]
     for child, ours in others:
         try:
             failure = ours.recv()
         except EOFError:
             failure = "a figure's process ended without a word"
         child.join()
-        if failure is not None:
-            failures.append(failure)
+        failures.append(failure)
+    failures = [f for f in failures if f is not None]
     if failures:
         raise RuntimeError("; ".join(failures))
     return [path for path, _ in figures]
+
+
+def _failure(plots, solution, path, draw):
+    """Draw and write one figure: None, or what went wrong, in words."""
+    try:
+        plots.write_figure(draw(solution), path)
+    except Exception as err:
+        return repr(err)
+    return None
 
 
 def _draw_one(solution, path, draw, conn, parent):
@@ -209,11 +214,7 @@ def _draw_one(solution, path, draw, conn, parent):
     from esail_opt.app import plots
 
     _quiet(parent)
-    try:
-        plots.write_figure(draw(solution), path)
-        failure = None
-    except Exception as err:
-        failure = repr(err)
+    failure = _failure(plots, solution, path, draw)
     try:
         conn.send(failure)
     except OSError:

@@ -120,7 +120,7 @@ class _Monitor(ca.Callback):
 
     def __init__(self, tr, progress):
         ca.Callback.__init__(self)
-        self.nx, self.ng = tr.lbx.size, tr.lbg.size
+        self.ng = tr.lbg.size
         self.lbg, self.ubg = tr.lbg, tr.ubg
         self.scale, self.unit = tr.objective_unit
         self.progress = progress
