@@ -35,9 +35,11 @@ from esail_opt.physics.dynamics import angular_momentum, taylor_step
 from esail_opt.physics.thrust import EXACT, radial_transverse
 from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
 from esail_opt.propagation.compiled import compiled
+from esail_opt.propagation.graph_store import stored
 
 
 @functools.lru_cache(maxsize=None)
+@stored
 def panel_function(*, coefficients=EXACT, nodes=PANEL_NODES):
     """One first-order closed-form arc between two of its angles: ``(x0[5], ac, alpha,
     phi_a, phi_b) -> (state at phi_b [4], time from phi_a to phi_b, q3 at phi_b)``, an SX
@@ -55,6 +57,7 @@ def panel_function(*, coefficients=EXACT, nodes=PANEL_NODES):
 
 
 @functools.lru_cache(maxsize=None)
+@stored
 def end_function(*, coefficients=EXACT, nodes=PANEL_NODES):
     """One second-order arc from its start to an angle (``closed_form.SecondOrderArc``):
     ``(x0[5], ac, alpha, phi) -> (state at phi [4], time from 0 to phi, q3 at phi)``,

@@ -1,0 +1,92 @@
+"""The closed form's SX Functions stored on disk (``propagation.graph_store``): read back
+they are the Functions built, and anything that could make them differ builds anew."""
+
+import inspect
+
+import numpy as np
+
+from esail_opt.physics.thrust import EXACT
+from esail_opt.propagation import graph_store
+from esail_opt.propagation.rectified import end_function
+
+
+def _counted(builds):
+    """The raw second-order arc builder (under its process cache and its store),
+    counting its calls in ``builds``."""
+    raw = end_function.__wrapped__.__wrapped__
+
+    def builder(**kwargs):
+        builds.append(kwargs)
+        return raw(**kwargs)
+
+    builder.__name__ = raw.__name__
+    builder.__signature__ = inspect.signature(raw)
+    return builder
+
+
+def _outputs(fun):
+    x0 = np.array([1.0, 0.3, 0.02, 0.98, 0.0])
+    return [np.array(v) for v in fun(x0, 0.03, 0.4, 1.7)]
+
+
+def test_a_stored_arc_reads_back_as_the_graph_built(tmp_path, monkeypatch):
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    builds = []
+    store = graph_store.stored(_counted(builds))
+    built = store()
+    read = store()
+    assert len(builds) == 1  # the second call read the file
+    assert read.serialize() == built.serialize()
+    for a, b in zip(_outputs(read), _outputs(built)):
+        np.testing.assert_array_equal(a, b)
+    # The defaults named explicitly are the same graph, so the same file.
+    store(coefficients=EXACT)
+    assert len(builds) == 1
+    assert len(list((tmp_path / "graphs").glob("*.casadi"))) == 1
+
+
+def test_other_arguments_or_other_sources_build_anew(tmp_path, monkeypatch):
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    builds = []
+    store = graph_store.stored(_counted(builds))
+    store()
+    store(nodes=3)
+    assert len(builds) == 2
+    monkeypatch.setattr(graph_store, "source_digest", lambda: "an edited closed form")
+    store()
+    assert len(builds) == 3
+    assert len(list((tmp_path / "graphs").glob("*.casadi"))) == 3
+
+
+def test_the_sources_cover_the_closed_form_and_its_builders():
+    names = {path.name for path in graph_store.SOURCES}
+    assert {"closed_form.py", "thrust.py", "constants.py", "dynamics.py", "arcs.py",
+            "rectified.py"} <= names
+    assert all(path.is_file() for path in graph_store.SOURCES)
+
+
+def test_a_damaged_graph_is_built_again_and_rewritten(tmp_path, monkeypatch):
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    builds = []
+    store = graph_store.stored(_counted(builds))
+    built = store()
+    (path,) = (tmp_path / "graphs").glob("*.casadi")
+    text = path.read_text()
+    path.write_text(text[: len(text) // 2])  # a write cut short
+    again = store()
+    assert len(builds) == 2
+    assert again.serialize() == built.serialize()
+    assert path.read_text() == text
+    store()  # the rewritten file is read
+    assert len(builds) == 2
+
+
+def test_an_unwritable_cache_still_builds(tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(blocker / "cache"))
+    builds = []
+    store = graph_store.stored(_counted(builds))
+    first, second = store(), store()
+    assert len(builds) == 2
+    assert first.serialize() == second.serialize()
