@@ -9,6 +9,7 @@ import argparse
 import errno
 import gc
 import logging
+import os
 import re
 import signal
 import sys
@@ -544,7 +545,15 @@ def ending(status):
 
 def console():
     """The ``esail-opt`` command: :func:`main` on ``sys.argv``, for a process that ends
-    with it (:func:`ending`)."""
+    with it (:func:`ending`).
+
+    One BLAS thread, unless the user's environment says otherwise (and before CasADi,
+    whose bundled OpenBLAS reads it when it loads, is imported): MUMPS's factorisations
+    of these NLPs are small, and OpenBLAS's second thread spun on the other core, the
+    one the figures are drawn on (:mod:`esail_opt.app.plot_worker`) and a sweep's or
+    porkchop's other workers run on.
+    """
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     return ending(main())
 
 
