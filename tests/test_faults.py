@@ -620,3 +620,21 @@ def test_the_command_returns_mains_status_with_the_collector_frozen(tmp_path):
                          env=_env(), timeout=120)
     assert run.stdout.split() == ["2", "True"]
     assert "missing.py" in run.stderr
+
+
+def test_a_killed_runs_scratch_folder_is_removed_by_the_next_run(tmp_path):
+    """SIGKILL leaves a sweep's scratch folder behind; the next run removes it, and
+    leaves those of live runs and folders it cannot attribute alone."""
+    from esail_opt.app.parallel import SCRATCH_PREFIX, remove_orphaned_scratch
+
+    ended = subprocess.Popen([sys.executable, "-c", "pass"])
+    ended.wait()  # a pid that no longer exists
+    dead = tmp_path / f"{SCRATCH_PREFIX}{ended.pid}_k1"
+    live = tmp_path / f"{SCRATCH_PREFIX}{os.getpid()}_k2"
+    other = tmp_path / f"{SCRATCH_PREFIX}notapid_k3"
+    for folder in (dead, live, other):
+        (folder / "1").mkdir(parents=True)
+        (folder / "1" / "0").write_text("12345")
+    remove_orphaned_scratch(tmp_path)
+    assert not dead.exists()
+    assert live.exists() and other.exists()

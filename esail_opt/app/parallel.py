@@ -22,6 +22,7 @@ jobs wait.  The jobs that ended before were reported as they ended.
 import contextlib
 import logging
 import os
+import shutil
 import signal
 import tempfile
 import threading
@@ -104,6 +105,21 @@ def run(function, jobs, on_result, on_failure, workers=1, scheduler=None, retrie
     return {i: (n, runner.causes[i]) for i, n in sorted(runner.losses.items())}
 
 
+#: The start of a run's scratch folder's name in the temporary folder; the run's pid
+#: follows, so that a later run can tell a folder whose run was killed outright.
+SCRATCH_PREFIX = "esail_started_"
+
+
+def remove_orphaned_scratch(folder=None):
+    """Remove the scratch folders of runs that no longer exist (killed by SIGKILL, which
+    leaves no time to clean up), in ``folder`` (default the temporary folder).  A folder
+    whose run is alive, or whose name carries no pid, is left alone."""
+    for path in Path(folder or tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*_*"):
+        pid = path.name[len(SCRATCH_PREFIX):].split("_", 1)[0]
+        if pid.isdigit() and not processes.alive(int(pid)):
+            shutil.rmtree(path, ignore_errors=True)
+
+
 class _Runner:
     """One :func:`run`: the executor of the current round, its futures and the losses.
 
@@ -129,9 +145,10 @@ class _Runner:
     def run(self):
         """Run every job to its end (a result or a failure), then shut down."""
         todo = sorted(self.jobs)
+        remove_orphaned_scratch()
         # The scratch folder outlives the try below: on an interrupt the workers are
         # stopped before the folder they write into goes away.
-        with tempfile.TemporaryDirectory(prefix="esail_started_") as scratch:
+        with tempfile.TemporaryDirectory(prefix=f"{SCRATCH_PREFIX}{os.getpid()}_") as scratch:
             try:
                 while todo or self.active:
                     unsubmitted = self._submit(todo, scratch) if todo else []
