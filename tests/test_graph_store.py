@@ -2,6 +2,7 @@
 they are the Functions built, and anything that could make them differ builds anew."""
 
 import inspect
+import os
 
 import numpy as np
 
@@ -90,3 +91,15 @@ def test_an_unwritable_cache_still_builds(tmp_path, monkeypatch):
     first, second = store(), store()
     assert len(builds) == 2
     assert first.serialize() == second.serialize()
+
+
+def test_a_stored_graph_follows_the_umask(tmp_path, monkeypatch):
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    old = os.umask(0o022)
+    try:
+        graph_store.stored(_counted([]))()
+    finally:
+        os.umask(old)
+    (path,) = (tmp_path / "graphs").glob("*.casadi")
+    assert path.stat().st_mode & 0o777 == 0o644
+    assert not list((tmp_path / "graphs").glob(".*.tmp"))

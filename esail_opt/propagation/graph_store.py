@@ -2,8 +2,8 @@
 
 Why: building the arc Functions of :mod:`esail_opt.propagation.rectified` (the
 first-order panel and the NLP's second-order arc end) is CasADi's symbolic work in
-Python, a few thousand instructions each, and it took about a tenth of a short solve's
-whole run; reading one back from its serialised graph takes a few milliseconds.
+Python, redone by every process, and a noticeable part of a short solve's whole run;
+reading one back from its serialised graph is a small fraction of that.
 
 A stored graph is named by a hash of what decides it: the builder's name and keyword
 arguments, the CasADi version, and the source of every module the closed form's
@@ -11,7 +11,8 @@ formulas live in (:data:`SOURCES`).  Any edit to those modules therefore names n
 graphs, and the old ones are simply never read again.  A file holds the SHA-256 of the
 graph on its first line: a file that does not match (truncated, damaged) is built
 again and rewritten.  Files are written under a temporary name and renamed into place,
-so parallel workers never read half a graph.  When the cache cannot be written (a full
+so parallel workers never read half a graph, and they follow the umask, as the
+compiled libraries do, so that a cache folder can be shared.  When the cache cannot be written (a full
 disk, a read-only folder) the Function is built as before; the compiled libraries'
 warning (:mod:`esail_opt.propagation.compiled`) already says the folder is unusable.
 
@@ -23,7 +24,7 @@ import functools
 import hashlib
 import inspect
 import os
-import tempfile
+import uuid
 from pathlib import Path
 
 import casadi as ca
@@ -74,13 +75,13 @@ def _write(path, fun):
     text = fun.serialize()
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".", suffix=".tmp")
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
         try:
-            with os.fdopen(fd, "w") as out:
+            with open(tmp, "x") as out:
                 out.write(hashlib.sha256(text.encode()).hexdigest() + "\n" + text)
             os.replace(tmp, path)
         except BaseException:
-            os.unlink(tmp)
+            tmp.unlink(missing_ok=True)
             raise
     except OSError:
         pass
