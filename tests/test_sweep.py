@@ -176,9 +176,10 @@ def test_polished_member_is_exact_and_cannot_beat_the_continuous_optimum(tiny):
 
 # ---------------------------------------------------------------- faults
 
-# Earth-Venus at 8 segments x 2 sub-arcs: one to two seconds a member.  Each time a
-# process loads it, it leaves an empty file named "<pid>-<ns>" in MARKS, so a test can
-# see which worker process has just started a member.
+# Earth-Venus at 8 segments x 2 sub-arcs, a small fraction of a second a member once
+# compiled.  Each time a process loads it, it leaves an empty file named "<pid>-<ns>" in
+# MARKS, so a test can see which worker process has just started a member, and then holds
+# for HOLD seconds, so a test can be sure that worker is still busy with it.
 VENUS = '''
 import os
 import pathlib
@@ -187,6 +188,7 @@ import time
 import esail_opt as eo
 
 pathlib.Path(r"{marks}", f"{{os.getpid()}}-{{time.time_ns()}}").touch()
+time.sleep({hold})
 
 problem = eo.Problem(
     name="tiny_earth_venus",
@@ -200,13 +202,17 @@ problem = eo.Problem(
 '''
 
 
-@pytest.fixture()
-def venus(tmp_path):
+def _venus_file(tmp_path, hold):
     marks = tmp_path / "marks"
     marks.mkdir()
     path = tmp_path / "tiny_earth_venus.py"
-    path.write_text(VENUS.format(marks=marks))
+    path.write_text(VENUS.format(marks=marks, hold=hold))
     return path, marks
+
+
+@pytest.fixture()
+def venus(tmp_path):
+    return _venus_file(tmp_path, hold=0)
 
 
 def _journal(out):
@@ -226,12 +232,14 @@ def _worker_marks(marks):
 
 
 @pytest.mark.slow
-def test_killed_worker_costs_only_its_own_member(venus, tmp_path):
+def test_killed_worker_costs_only_its_own_member(tmp_path):
     """SIGKILL one of two pool workers while it solves: the pool breaks and fails every
     unfinished future, yet all four members end converged -- the killed worker's member
     run again on a fresh pool and charged with one lost worker, the members of the
     healthy worker not charged at all."""
-    path, marks = venus
+    # Each member holds 2 s after it starts, so the worker killed 0.2 s after its newest
+    # start is certainly busy; a compiled member alone is over in a tenth of a second.
+    path, marks = _venus_file(tmp_path, hold=2.0)
     killed = []
 
     def kill_a_busy_worker():
@@ -239,7 +247,7 @@ def test_killed_worker_costs_only_its_own_member(venus, tmp_path):
         while time.monotonic() < deadline:
             started = _worker_marks(marks)
             if len({pid for _, pid in started}) >= 2:
-                # The newest start is a member certainly still solving 0.2 s later.
+                # The newest start is a member certainly still held 0.2 s later.
                 pid = started[-1][1]
                 time.sleep(0.2)
                 os.kill(pid, signal.SIGKILL)
