@@ -418,8 +418,6 @@ def test_an_out_under_a_regular_file_fails_before_the_solve(tmp_path):
 def test_a_full_disk_while_writing_keeps_the_old_set(tmp_path, monkeypatch):
     """ENOSPC from the PNG writer: one-line OutputError, the folder keeps the previous
     set whole, no staging folder is left; the command line maps it to exit 3."""
-    from matplotlib.figure import Figure
-
     from esail_opt.app.solution import Solution
 
     source = next(REPO.glob("results/earth_venus_min_time/solution.json"), None)
@@ -430,10 +428,14 @@ def test_a_full_disk_while_writing_keeps_the_old_set(tmp_path, monkeypatch):
     sol.write(out)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
 
-    def no_space(self, *args, **kwargs):
-        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    write_bytes = Path.write_bytes
 
-    monkeypatch.setattr(Figure, "savefig", no_space)
+    def no_space(self, data):
+        if self.suffix == ".png":  # a figure's bytes (app.png) find the disk full
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return write_bytes(self, data)
+
+    monkeypatch.setattr(Path, "write_bytes", no_space)
     with pytest.raises(OutputError, match="No space left on device") as err:
         sol.write(out)
     assert "\n" not in str(err.value) and "free some space" in str(err.value)

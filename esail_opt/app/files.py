@@ -392,14 +392,17 @@ def save_figure(fig, path, dpi=150):
     suffix (PNG without one).
 
     The figure is made without pyplot, so nothing else holds it and there is
-    nothing to close.  A PNG is deflated at zlib's fastest level: the pixels are the
-    same, and the default level spent as long deflating a solve's figures as drawing
-    one of them, for files only slightly smaller.
+    nothing to close.  A PNG is encoded by :mod:`esail_opt.app.png` (the same pixels,
+    written sooner); other formats by ``savefig``.
     """
     fmt = Path(path).suffix.lstrip(".") or "png"
-    options = {"pil_kwargs": {"compress_level": 1}} if fmt.lower() == "png" else {}
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format=fmt, **options)
+        if fmt.lower() == "png":
+            from esail_opt.app import png  # matplotlib only where a figure is written
+
+            tmp.write_bytes(png.figure_png(fig, dpi))
+        else:
+            fig.savefig(tmp, dpi=dpi, format=fmt)
 
 
 def write_table_set(out_dir, names, csv_text, data, fig):

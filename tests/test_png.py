@@ -1,0 +1,72 @@
+"""The PNG encoder (``app.png``) against matplotlib's own PNG, both decoded by Pillow."""
+
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+from PIL import Image
+
+from esail_opt.app import plots, png
+from esail_opt.app.files import save_figure
+from esail_opt.app.solution import Solution
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _decoded(data):
+    image = Image.open(io.BytesIO(data))
+    return image, np.asarray(image.convert("RGBA"))
+
+
+def _matplotlib_png(fig, dpi):
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    return buffer.getvalue()
+
+
+def _small_figure():
+    fig = Figure(figsize=(3.2, 2.4), dpi=100)
+    ax = fig.subplots()
+    t = np.linspace(0, 10, 400)
+    ax.plot(t, np.sin(t), color="tab:blue", lw=1.4, label="sin")
+    ax.plot(t, np.cos(t), color="tab:red", ls="-.", label="cos")
+    ax.fill_between(t, 0, np.sin(t) / 2, alpha=0.3)
+    ax.set_title("a title")
+    ax.legend()
+    return fig
+
+
+@pytest.mark.parametrize("dpi", [100, 150])
+def test_a_figure_encodes_to_matplotlibs_pixels(dpi):
+    """Decoded, the file holds the pixels matplotlib writes at that resolution (the
+    figure drawn at its own dpi, and at another), in RGBA, with the dpi recorded."""
+    ours, ours_pixels = _decoded(png.figure_png(_small_figure(), dpi))
+    theirs, theirs_pixels = _decoded(_matplotlib_png(_small_figure(), dpi))
+    assert ours.mode == theirs.mode == "RGBA"
+    assert ours.size == theirs.size == (round(3.2 * dpi), round(2.4 * dpi))
+    assert np.array_equal(ours_pixels, theirs_pixels)
+    # Both record the dpi as whole pixels per metre, which reads back a little off.
+    assert ours.info["dpi"] == theirs.info["dpi"] == pytest.approx((dpi, dpi), rel=1e-3)
+
+
+def test_a_solutions_figures_encode_to_matplotlibs_pixels(tmp_path):
+    """Both figures of a shipped polished solve, written by ``save_figure``, decode to
+    the pixels of matplotlib's own PNG of the same figure."""
+    source = REPO / "results" / "earth_mars_min_time_polished" / "solution.json"
+    sol = Solution.load(source)
+    for name, draw in plots.FIGURES:
+        path = tmp_path / name
+        save_figure(draw(sol), path, dpi=plots.DPI)
+        _, ours = _decoded(path.read_bytes())
+        _, theirs = _decoded(_matplotlib_png(draw(sol), plots.DPI))
+        assert ours.shape == theirs.shape and ours.shape[2] == 4
+        assert np.array_equal(ours, theirs), name
+
+
+def test_only_8_bit_rgba_is_encoded():
+    with pytest.raises(ValueError, match="8-bit RGBA"):
+        png.encode(np.zeros((4, 4, 3), np.uint8), 100)
+    with pytest.raises(ValueError, match="8-bit RGBA"):
+        png.encode(np.zeros((4, 4, 4), np.float32), 100)
