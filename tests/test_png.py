@@ -1,6 +1,7 @@
 """The PNG encoder (``app.png``) against matplotlib's own PNG, both decoded by Pillow."""
 
 import io
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -70,3 +71,29 @@ def test_only_8_bit_rgba_is_encoded():
         png.encode(np.zeros((4, 4, 3), np.uint8), 100)
     with pytest.raises(ValueError, match="8-bit RGBA"):
         png.encode(np.zeros((4, 4, 4), np.float32), 100)
+
+
+def test_adler32_combine_is_zlibs_checksum_of_the_joined_bytes():
+    rng = np.random.default_rng(3)
+    for first_size, second_size in [(0, 5), (7, 0), (1, 1), (65520, 65522), (200003, 99991)]:
+        first = rng.integers(0, 256, first_size, dtype=np.uint8).tobytes()
+        second = rng.integers(0, 256, second_size, dtype=np.uint8).tobytes()
+        combined = png.adler32_combine(zlib.adler32(first), zlib.adler32(second), second_size)
+        assert combined == zlib.adler32(first + second)
+
+
+def test_bands_deflated_apart_join_into_the_whole_image():
+    """Three bands, each deflated on its own, decode as the image encoded whole; bands
+    out of order or of another width are refused."""
+    rng = np.random.default_rng(4)
+    rgba = rng.integers(0, 256, (61, 37, 4), dtype=np.uint8)
+    rgba[10:40] = 255  # long runs, as a figure's background
+    bands = [png.deflate_rows(rgba[:20], last=False), png.deflate_rows(rgba[20:21], last=False),
+             png.deflate_rows(rgba[21:], last=True)]
+    _, joined = _decoded(png.assemble(bands, 100))
+    _, whole = _decoded(png.encode(rgba, 100))
+    assert np.array_equal(joined, rgba) and np.array_equal(whole, rgba)
+    with pytest.raises(ValueError, match="only the last"):
+        png.assemble(bands[::-1], 100)
+    with pytest.raises(ValueError, match="one width"):
+        png.assemble([bands[0], png.deflate_rows(rgba[:, :5], last=True)], 100)

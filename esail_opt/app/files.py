@@ -387,22 +387,28 @@ def write_json(path, data):
         tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
 
 
-def save_figure(fig, path, dpi=150):
+def save_figure(fig, path, dpi=150, banded=False):
     """Save a :class:`matplotlib.figure.Figure` atomically, in the format of ``path``'s
     suffix (PNG without one).
 
     The figure is made without pyplot, so nothing else holds it and there is
     nothing to close.  A PNG is encoded by :mod:`esail_opt.app.png` (the same pixels,
-    written sooner); other formats by ``savefig``.
+    written sooner), and with ``banded`` drawn by two processes at once
+    (:mod:`esail_opt.app.bands`: only from a process that may fork); other formats are
+    written by ``savefig``.
     """
     fmt = Path(path).suffix.lstrip(".") or "png"
     with atomic_path(path) as tmp:
-        if fmt.lower() == "png":
-            from esail_opt.app import png  # matplotlib only where a figure is written
-
-            tmp.write_bytes(png.figure_png(fig, dpi))
-        else:
+        if fmt.lower() != "png":
             fig.savefig(tmp, dpi=dpi, format=fmt)
+            return
+        # Imported here: the command line checks its output folder (this module) long
+        # before it draws anything, and matplotlib's import is not cheap.
+        if banded:
+            from esail_opt.app.bands import figure_png
+        else:
+            from esail_opt.app.png import figure_png
+        tmp.write_bytes(figure_png(fig, dpi))
 
 
 def write_table_set(out_dir, names, csv_text, data, fig):

@@ -6,7 +6,8 @@ line starts a :class:`PlotWorker` before it solves: a forked process that import
 matplotlib and :mod:`esail_opt.app.plots` on the other core while the solve runs,
 makes the timeline's frame (:func:`esail_opt.app.plots.timeline_frame`), then waits.
 Given the solution, it forks once more per figure but the last, so that the figures
-are drawn at the same time, and reports back when every file is written.
+are drawn at the same time, draws the last (the timeline) itself in two bands at once
+(:mod:`esail_opt.app.bands`), and reports back when every file is written.
 
 The worker writes where :meth:`~esail_opt.app.solution.Solution.write` tells it, which
 is the staging folder of the set (:func:`esail_opt.app.files.publish`): nothing
@@ -24,11 +25,10 @@ import functools
 import gc
 import multiprocessing
 import os
-import signal
 import sys
 from pathlib import Path
 
-from esail_opt.processes import die_with_parent
+from esail_opt.processes import quiet_child
 
 
 #: The longest wait for the worker to be ready, and then for its figures, seconds: both
@@ -59,7 +59,7 @@ class PlotWorker:
         context = multiprocessing.get_context("fork")
         ours, theirs = context.Pipe()
         # Not a daemon, which multiprocessing forbids to start processes of its own:
-        # close() ends it, and it dies with this process (die_with_parent).
+        # close() ends it, and it dies with this process (quiet_child).
         process = context.Process(target=_serve, args=(theirs, ours, throttled, os.getpid()),
                                   name="esail-opt figures")
         # Python's advice before a fork without exec: the collector's passes over the
@@ -132,22 +132,11 @@ class PlotWorker:
         return False
 
 
-def _quiet(parent):
-    """A drawing process's signals, and its end with ``parent``: Ctrl-C reaches the
-    whole process group, and the parent alone answers it (closing the pipe, or killing
-    this process); SIGTERM ends it, rather than raising the parent's inherited
-    handler's exception in it; and it never outlives its parent, however that ends
-    (:func:`esail_opt.processes.die_with_parent`)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    die_with_parent(parent)
-
-
 def _serve(conn, parent_end, throttled, parent):
     """The worker: import the plots, make the timeline's frame, wait for one solution,
     draw its figures, report."""
     parent_end.close()  # so that the parent's end closing reads as EOF
-    _quiet(parent)
+    quiet_child(parent)
     from esail_opt.app import plots
 
     figures = list(plots.FIGURES)
@@ -172,7 +161,8 @@ def _serve(conn, parent_end, throttled, parent):
 
 def _draw_all(plots, figures, solution, out):
     """Every figure of ``figures`` (:data:`esail_opt.app.plots.FIGURES`), each but the
-    last in a forked process of its own, the last (the timeline, with its frame) here;
+    last in a forked process of its own, the last (the timeline, with its frame) here,
+    in two bands at once (:mod:`esail_opt.app.bands`: the others are written by then);
     raises if any of them failed."""
     context = multiprocessing.get_context("fork")
     figures = [(out / name, draw) for name, draw in figures]
@@ -186,7 +176,7 @@ def _draw_all(plots, figures, solution, out):
         theirs.close()
         others.append((child, ours))
     path, draw = figures[-1]
-    failures = [_failure(plots, solution, path, draw)]
+    failures = [_failure(plots, solution, path, draw, banded=True)]
     for child, ours in others:
         try:
             failure = ours.recv()
@@ -200,10 +190,10 @@ def _draw_all(plots, figures, solution, out):
     return [path for path, _ in figures]
 
 
-def _failure(plots, solution, path, draw):
+def _failure(plots, solution, path, draw, banded=False):
     """Draw and write one figure: None, or what went wrong, in words."""
     try:
-        plots.write_figure(draw(solution), path)
+        plots.write_figure(draw(solution), path, banded=banded)
     except Exception as err:
         return repr(err)
     return None
@@ -213,7 +203,7 @@ def _draw_one(solution, path, draw, conn, parent):
     """A figure's process: draw and write it, then send None, or what went wrong."""
     from esail_opt.app import plots
 
-    _quiet(parent)
+    quiet_child(parent)
     failure = _failure(plots, solution, path, draw)
     try:
         conn.send(failure)

@@ -426,9 +426,10 @@ def _error_control_panel(ax, sol):
 FIGURES = (("trajectory.png", trajectory_figure), ("timeline.png", timeline_figure))
 
 
-def write_figure(fig, path):
-    """Write one of :data:`FIGURES`'s figures atomically, at :data:`DPI`."""
-    save_figure(fig, path, dpi=DPI)
+def write_figure(fig, path, banded=False):
+    """Write one of :data:`FIGURES`'s figures atomically, at :data:`DPI` (``banded``: by
+    two processes at once, :mod:`esail_opt.app.bands`)."""
+    save_figure(fig, path, dpi=DPI, banded=banded)
 
 
 def write_plots(solution, out_dir):

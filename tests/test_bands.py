@@ -1,0 +1,83 @@
+"""A figure drawn in two bands at once (``app.bands``) against the figure drawn whole."""
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+from PIL import Image
+
+from esail_opt.app import bands, plots, png
+from esail_opt.app.solution import Solution
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _pixels(data):
+    return np.asarray(Image.open(io.BytesIO(data)).convert("RGBA"))
+
+
+def _timeline(name):
+    return plots.timeline_figure(Solution.load(REPO / "results" / name / "solution.json"))
+
+
+# A polished solve, a throttled one (the pitch panel's second axis), a dated one (the
+# bodies), and a spiral without a target.
+@pytest.mark.parametrize("name", ["earth_mars_min_time_polished", "earth_mars_coast",
+                                  "earth_mars_window", "orbit_raising_10yr"])
+def test_a_timeline_in_bands_is_the_timeline_drawn_whole(name):
+    """Cut between its second and third rows of panels (four axes above and four below,
+    the throttle's twin with its panel), drawn by two processes, joined: the pixels of
+    the figure drawn whole."""
+    fig = _timeline(name)
+    cut = bands.split(fig, plots.DPI)
+    panels = [ax for ax in cut.upper if ax in fig.axes]
+    assert len(cut.lower) == 4 and len(panels) + len(cut.lower) == len(fig.axes)
+    assert fig.texts and all(text in cut.upper for text in fig.texts)  # the title
+    height = fig.get_figheight() * plots.DPI  # image rows count from the top
+    assert all((1 - ax.get_position().y0) * height < cut.row for ax in panels)
+    assert all((1 - ax.get_position().y1) * height > cut.row for ax in cut.lower)
+    banded = bands.banded_png(fig, plots.DPI)
+    assert banded is not None
+    whole = png.figure_png(_timeline(name), plots.DPI)
+    assert np.array_equal(_pixels(banded), _pixels(whole))
+
+
+def _two_rows(text_y=None):
+    fig = Figure(figsize=(4, 4), dpi=100)
+    top, bottom = fig.subplots(2, 1)
+    top.plot([0, 1], [0, 1])
+    bottom.plot([0, 1], [1, 0])
+    fig.suptitle("two rows")
+    if text_y is not None:  # a label of the top axes hanging into the lower band
+        top.text(0.5, text_y, "reaching down", transform=top.transAxes, ha="center")
+    return fig
+
+
+def test_an_artist_across_the_cut_draws_the_figure_whole():
+    """A label of the upper band that reaches into the lower one: no bands, and
+    figure_png gives the figure drawn whole."""
+    assert bands.banded_png(_two_rows(), 100) is not None
+    assert bands.banded_png(_two_rows(text_y=-0.3), 100) is None
+    assert np.array_equal(_pixels(bands.figure_png(_two_rows(text_y=-0.3), 100)),
+                          _pixels(png.figure_png(_two_rows(text_y=-0.3), 100)))
+
+
+def test_a_figure_of_one_row_is_not_cut():
+    fig = Figure(figsize=(4, 2), dpi=100)
+    left, right = fig.subplots(1, 2)
+    left.plot([0, 1])
+    assert bands.split(fig, 100) is None and bands.banded_png(fig, 100) is None
+
+
+def _dies(*args):
+    os._exit(1)
+
+
+def test_a_band_process_that_dies_draws_the_figure_whole(monkeypatch):
+    monkeypatch.setattr(bands, "_lower_band", _dies)
+    assert bands.banded_png(_two_rows(), 100) is None
+    assert np.array_equal(_pixels(bands.figure_png(_two_rows(), 100)),
+                          _pixels(png.figure_png(_two_rows(), 100)))
