@@ -282,6 +282,13 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     result's iterations and seconds are the sums over both stages; ``stages`` lists
     each stage's status.  ``staged=False`` solves the free NLP alone, for a guess that
     is already an optimum of a nearby problem.
+
+    The equal-length stage is evaluated on one thread: on the shipped problems it ran
+    about as fast on one as on two (faster on three of the four that are solved in
+    stages), and the other core is then left to whatever else the run is
+    doing meanwhile (the figures' worker of ``esail-opt solve`` imports matplotlib and
+    makes the timeline's frame during this stage), where a thread of the solve that
+    shares a core makes its every evaluation wait.  The optimum does not depend on it.
     """
     seg = problem.segments
     first = None
@@ -290,7 +297,7 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     guess = initial_guess(problem) if guess is None else guess
     if staged and not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
-        first = solve_transcription(transcribe(equal, segment, guess), options,
+        first = solve_transcription(transcribe(equal, segment, guess, threads=1), options,
                                     progress=progress)
         if first.outcome.found:
             guess = first.as_guess()

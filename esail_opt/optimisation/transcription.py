@@ -549,9 +549,10 @@ def _variables(problem, guess, scales, in_time):
     return v, blocks
 
 
-def _flight(problem, segment, v, p, scales, in_time):
-    """The segments flown from their start nodes: ends (with the defect parameter),
-    q3, the angles and durations of the segments, and the final state and time."""
+def _flight(problem, segment, v, p, scales, in_time, threads):
+    """The segments flown from their start nodes (on at most ``threads`` threads):
+    ends (with the defect parameter), q3, the angles and durations of the segments,
+    and the final state and time."""
     n = v["alpha"].numel()
     nodes = v["nodes"] * ca.DM(scales.node) + ca.DM(scales.shift)
     dep = problem.departure
@@ -566,7 +567,7 @@ def _flight(problem, segment, v, p, scales, in_time):
     ac_scale = v["ac_scale"][0] if v["ac_scale"].numel() else 1
     ac = problem.sail.ac * ac_scale * (v["kappa"].T if v["kappa"].numel() else 1)
     length = v["length"] * scales.length
-    threads = min(segment_threads(), n) if segment.name() not in INTEGRATOR_SEGMENTS else 1
+    threads = min(threads, n) if segment.name() not in INTEGRATOR_SEGMENTS else 1
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
     ends, q3 = mapped(starts, ac, v["alpha"].T, length.T)
     # The defect correction (optimisation.error_control): a constant per segment, added
@@ -611,7 +612,7 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     return g
 
 
-def transcribe(problem, segment=None, guess=None, length_in="theta"):
+def transcribe(problem, segment=None, guess=None, length_in="theta", threads=None):
     """Build the multiple-shooting NLP of ``problem``.
 
     Parameters
@@ -630,6 +631,9 @@ def transcribe(problem, segment=None, guess=None, length_in="theta"):
         duration (TU).  In time, equal segments mean equal angles (a constraint on the
         nodes' theta), the segment lengths returned by ``unpack`` are still the angles
         swept, and a segment with an empty q3 output adds no q3 rows.
+    threads : int, optional
+        Threads the segments are evaluated on, at most; default
+        :func:`segment_threads`.  The optimum and its iterations do not depend on it.
 
     Returns
     -------
@@ -645,7 +649,8 @@ def transcribe(problem, segment=None, guess=None, length_in="theta"):
     v, variables = _variables(problem, guess, scales, in_time)
     params = {"epoch": ca.MX.sym("epoch"), "tof": ca.MX.sym("tof"),
               "corrections": ca.MX.sym("corrections", 8)}
-    flight = _flight(problem, segment, v, params, scales, in_time)
+    flight = _flight(problem, segment, v, params, scales, in_time,
+                     segment_threads() if threads is None else threads)
     g = _constraints(problem, guess, v, params, flight, scales, in_time)
     w, lbx, ubx, w0 = variables.stacked()
     g_expr, lbg, ubg, _ = g.stacked()
