@@ -1,0 +1,103 @@
+"""``esail-opt-bench figures``: the two figures of a solve, drawn by the figures' worker
+as ``esail-opt solve`` draws them, against the same figures drawn one after the other in
+this process."""
+
+import io
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from esail_opt.bench.timing import print_table
+
+#: The solve whose figures are drawn: the README's main job, polished.
+PROBLEM = "earth_mars_min_time"
+#: Seconds given to a new worker to import matplotlib and make the timeline's frame, as
+#: the solve gives it, before its figures are timed.
+READY_SECONDS = 3.0
+
+
+def _pixels(paths):
+    from PIL import Image
+
+    return {Path(p).name: np.asarray(Image.open(io.BytesIO(Path(p).read_bytes())))
+            for p in paths}
+
+
+def _worker_seconds(solution, out, throttled):
+    """Hand-over to files written, through a worker started :data:`READY_SECONDS`
+    before; returns (seconds, paths)."""
+    from esail_opt.app.plot_worker import PlotWorker
+
+    with PlotWorker(throttled=throttled) as worker:
+        time.sleep(READY_SECONDS)
+        start = time.perf_counter()
+        worker.start(solution, out)
+        paths = worker.written()
+        return time.perf_counter() - start, paths
+
+
+def _here_seconds(solution, out, throttled):
+    from esail_opt.app import plots
+
+    start = time.perf_counter()
+    paths = plots.write_plots(solution, out)
+    return time.perf_counter() - start, paths
+
+
+def run(out, repeats):
+    """Solve :data:`PROBLEM` with its polish, then draw its figures ``repeats`` times
+    each way (at most 5), alternating; writes ``figures.json`` and returns its path.
+
+    The worker's time runs from :meth:`~esail_opt.app.plot_worker.PlotWorker.start` to
+    :meth:`~esail_opt.app.plot_worker.PlotWorker.written` returning, which is what the
+    main job waits for after its solve; the baseline is
+    :func:`esail_opt.app.plots.write_plots` in this process, which has drawn them once
+    before (matplotlib imported, its caches warm).  Both ways must give the same pixels.
+    """
+    import esail_opt as eo
+    from esail_opt.app.files import write_json
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    runs = max(1, min(repeats, 5))
+    print(f"bench figures: solving {PROBLEM} with its polish ...", flush=True)
+    problem = shipped_problem(PROBLEM)
+    solution = eo.solve(problem, polish=True)
+    throttled = problem.throttled()
+    timed = {"worker": [], "here": []}
+    with tempfile.TemporaryDirectory(prefix="esail_bench_figures_") as tmp:
+        drawn = {}
+        for way in ("worker", "here"):  # one untimed run each: imports, compiles, caches
+            draw = _worker_seconds if way == "worker" else _here_seconds
+            drawn[way] = _pixels(draw(solution, Path(tmp), throttled)[1])
+        for k in range(runs):
+            print(f"bench figures: run {k + 1}/{runs} ...", flush=True)
+            timed["worker"].append(_worker_seconds(solution, Path(tmp), throttled)[0])
+            timed["here"].append(_here_seconds(solution, Path(tmp), throttled)[0])
+    same = drawn["worker"].keys() == drawn["here"].keys() and all(
+        np.array_equal(drawn["worker"][k], drawn["here"][k]) for k in drawn["here"])
+    worker, here = statistics.median(timed["worker"]), statistics.median(timed["here"])
+    data = {
+        "case": {"problem": PROBLEM, "polished": True, "figures": sorted(drawn["here"])},
+        "runs": runs,
+        "worker_seconds": worker,
+        "in_process_seconds": here,
+        "ratio_in_process_over_worker": here / worker,
+        "worker_runs_seconds": timed["worker"],
+        "in_process_runs_seconds": timed["here"],
+        "same_pixels": same,
+        "how": "worker: PlotWorker.start to PlotWorker.written returning, the worker started "
+               f"{READY_SECONDS:g} s before; in process: plots.write_plots; medians over "
+               "alternating runs after one untimed run each",
+    }
+    print_table(f"bench figures: {PROBLEM} polished, median of {runs}", [
+        ("worker (hand-over to files written)", worker, "s"),
+        ("in this process, one after the other", here, "s"),
+        ("ratio in process / worker", data["ratio_in_process_over_worker"], ""),
+        ("same pixels", str(same), ""),
+    ])
+    path = Path(out) / "figures.json"
+    write_json(path, data)
+    return path
