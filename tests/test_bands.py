@@ -81,3 +81,16 @@ def test_a_band_process_that_dies_draws_the_figure_whole(monkeypatch):
     assert bands.banded_png(_two_rows(), 100) is None
     assert np.array_equal(_pixels(bands.figure_png(_two_rows(), 100)),
                           _pixels(png.figure_png(_two_rows(), 100)))
+
+
+def test_no_fork_to_be_had_draws_the_figure_whole(monkeypatch):
+    """A fork that fails (memory, a process limit): no bands, and the figure drawn whole."""
+    import multiprocessing
+
+    def no_fork(self):
+        raise OSError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(multiprocessing.get_context("fork").Process, "start", no_fork)
+    assert bands.banded_png(_two_rows(), 100) is None
+    assert np.array_equal(_pixels(bands.figure_png(_two_rows(), 100)),
+                          _pixels(png.figure_png(_two_rows(), 100)))

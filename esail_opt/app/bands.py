@@ -75,7 +75,8 @@ def banded_png(fig, dpi):
     threads); the caller then draws the figure whole.
     """
     cut = split(fig, dpi)
-    if cut is None:
+    # A daemonic process may not start processes of its own.
+    if cut is None or multiprocessing.current_process().daemon:
         return None
     background = _background(fig, dpi)
     context = multiprocessing.get_context("fork")
@@ -85,8 +86,13 @@ def banded_png(fig, dpi):
     gc.freeze()
     child = context.Process(target=_lower_band,
                             args=(fig, dpi, cut, background, theirs, os.getpid()), daemon=True)
-    child.start()
-    theirs.close()
+    try:
+        child.start()
+    except OSError:  # no fork to be had (memory, a process limit)
+        ours.close()
+        return None
+    finally:
+        theirs.close()
     try:
         upper = _band(fig, dpi, cut, background, upper=True)
         try:
