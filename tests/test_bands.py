@@ -94,3 +94,21 @@ def test_no_fork_to_be_had_draws_the_figure_whole(monkeypatch):
     assert bands.banded_png(_two_rows(), 100) is None
     assert np.array_equal(_pixels(bands.figure_png(_two_rows(), 100)),
                           _pixels(png.figure_png(_two_rows(), 100)))
+
+
+def test_the_callers_freeze_of_its_objects_is_left_as_it_was():
+    """The band's fork freezes the collector's objects (so neither process copies the
+    pages they share); a caller that had frozen nothing gets nothing frozen back, and
+    one that had (the figures' worker) keeps its freeze."""
+    import gc
+
+    gc.unfreeze()
+    assert bands.banded_png(_two_rows(), 100) is not None
+    assert gc.get_freeze_count() == 0
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        assert bands.banded_png(_two_rows(), 100) is not None
+        assert gc.get_freeze_count() >= frozen > 0
+    finally:
+        gc.unfreeze()

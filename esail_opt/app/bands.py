@@ -82,7 +82,10 @@ def banded_png(fig, dpi):
     context = multiprocessing.get_context("fork")
     ours, theirs = context.Pipe(duplex=False)
     # As before the figures' own forks (plot_worker): the collector's passes would
-    # copy the pages the two processes still share.
+    # copy the pages the two processes still share.  A caller that had not frozen its
+    # objects itself gets them back unfrozen once both bands are in (freezing does not
+    # nest), and collects as before.
+    frozen_here = gc.get_freeze_count() == 0
     gc.freeze()
     child = context.Process(target=_lower_band,
                             args=(fig, dpi, cut, background, theirs, os.getpid()), daemon=True)
@@ -90,6 +93,8 @@ def banded_png(fig, dpi):
         child.start()
     except OSError:  # no fork to be had (memory, a process limit)
         ours.close()
+        if frozen_here:
+            gc.unfreeze()
         return None
     finally:
         theirs.close()
@@ -102,6 +107,8 @@ def banded_png(fig, dpi):
     finally:
         ours.close()
         child.join()
+        if frozen_here:
+            gc.unfreeze()
     if upper is None or lower is None:
         return None
     return png.assemble([upper, lower], dpi)
