@@ -2,7 +2,6 @@
 as ``esail-opt solve`` draws them, against the same figures drawn one after the other in
 this process."""
 
-import io
 import statistics
 import tempfile
 import time
@@ -22,8 +21,7 @@ READY_SECONDS = 3.0
 def _pixels(paths):
     from PIL import Image
 
-    return {Path(p).name: np.asarray(Image.open(io.BytesIO(Path(p).read_bytes())))
-            for p in paths}
+    return {Path(p).name: np.asarray(Image.open(p)) for p in paths}
 
 
 def _worker_seconds(solution, out, throttled):
@@ -39,7 +37,7 @@ def _worker_seconds(solution, out, throttled):
         return time.perf_counter() - start, paths
 
 
-def _here_seconds(solution, out, throttled):
+def _here_seconds(solution, out):
     from esail_opt.app import plots
 
     start = time.perf_counter()
@@ -68,14 +66,14 @@ def run(out, repeats):
     throttled = problem.throttled()
     timed = {"worker": [], "here": []}
     with tempfile.TemporaryDirectory(prefix="esail_bench_figures_") as tmp:
-        drawn = {}
-        for way in ("worker", "here"):  # one untimed run each: imports, compiles, caches
-            draw = _worker_seconds if way == "worker" else _here_seconds
-            drawn[way] = _pixels(draw(solution, Path(tmp), throttled)[1])
+        ways = {"worker": lambda: _worker_seconds(solution, Path(tmp), throttled),
+                "here": lambda: _here_seconds(solution, Path(tmp))}
+        # One untimed run each (imports, compiles, caches), whose pixels are compared.
+        drawn = {way: _pixels(draw()[1]) for way, draw in ways.items()}
         for k in range(runs):
             print(f"bench figures: run {k + 1}/{runs} ...", flush=True)
-            timed["worker"].append(_worker_seconds(solution, Path(tmp), throttled)[0])
-            timed["here"].append(_here_seconds(solution, Path(tmp), throttled)[0])
+            for way, draw in ways.items():
+                timed[way].append(draw()[0])
     same = drawn["worker"].keys() == drawn["here"].keys() and all(
         np.array_equal(drawn["worker"][k], drawn["here"][k]) for k in drawn["here"])
     worker, here = statistics.median(timed["worker"]), statistics.median(timed["here"])
