@@ -1,26 +1,24 @@
 """A figure drawn in two bands at once (``app.bands``) against the figure drawn whole."""
 
-import io
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import RESULTS, png_pixels
 from matplotlib.figure import Figure
-from PIL import Image
 
 from esail_opt.app import bands, plots, png
 from esail_opt.app.solution import Solution
 
-REPO = Path(__file__).resolve().parents[1]
-
-
-def _pixels(data):
-    return np.asarray(Image.open(io.BytesIO(data)).convert("RGBA"))
-
 
 def _timeline(name):
-    return plots.timeline_figure(Solution.load(REPO / "results" / name / "solution.json"))
+    return plots.timeline_figure(Solution.load(RESULTS / name / "solution.json"))
+
+
+def _drawn_whole(make, dpi=100):
+    """Whether bands.figure_png of a figure made by ``make`` is the figure drawn whole."""
+    return np.array_equal(png_pixels(bands.figure_png(make(), dpi)),
+                          png_pixels(png.figure_png(make(), dpi)))
 
 
 # A polished solve, a throttled one (the pitch panel's second axis), a dated one (the
@@ -42,7 +40,7 @@ def test_a_timeline_in_bands_is_the_timeline_drawn_whole(name):
     banded = bands.banded_png(fig, plots.DPI)
     assert banded is not None
     whole = png.figure_png(_timeline(name), plots.DPI)
-    assert np.array_equal(_pixels(banded), _pixels(whole))
+    assert np.array_equal(png_pixels(banded), png_pixels(whole))
 
 
 def _two_rows(text_y=None):
@@ -61,8 +59,7 @@ def test_an_artist_across_the_cut_draws_the_figure_whole():
     figure_png gives the figure drawn whole."""
     assert bands.banded_png(_two_rows(), 100) is not None
     assert bands.banded_png(_two_rows(text_y=-0.3), 100) is None
-    assert np.array_equal(_pixels(bands.figure_png(_two_rows(text_y=-0.3), 100)),
-                          _pixels(png.figure_png(_two_rows(text_y=-0.3), 100)))
+    assert _drawn_whole(lambda: _two_rows(text_y=-0.3))
 
 
 def test_a_figure_of_one_row_is_not_cut():
@@ -79,8 +76,7 @@ def _dies(*args):
 def test_a_band_process_that_dies_draws_the_figure_whole(monkeypatch):
     monkeypatch.setattr(bands, "_lower_band", _dies)
     assert bands.banded_png(_two_rows(), 100) is None
-    assert np.array_equal(_pixels(bands.figure_png(_two_rows(), 100)),
-                          _pixels(png.figure_png(_two_rows(), 100)))
+    assert _drawn_whole(_two_rows)
 
 
 def test_no_fork_to_be_had_draws_the_figure_whole(monkeypatch):
@@ -92,8 +88,7 @@ def test_no_fork_to_be_had_draws_the_figure_whole(monkeypatch):
 
     monkeypatch.setattr(multiprocessing.get_context("fork").Process, "start", no_fork)
     assert bands.banded_png(_two_rows(), 100) is None
-    assert np.array_equal(_pixels(bands.figure_png(_two_rows(), 100)),
-                          _pixels(png.figure_png(_two_rows(), 100)))
+    assert _drawn_whole(_two_rows)
 
 
 def test_the_callers_freeze_of_its_objects_is_left_as_it_was():

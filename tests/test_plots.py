@@ -5,9 +5,9 @@ import copy
 
 import numpy as np
 import pytest
+from conftest import png_pixels
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from PIL import Image
 
 import esail_opt as eo
 from esail_opt.app import plot_worker, plots
@@ -181,7 +181,7 @@ def test_formatter_writes_superscripts():
 def _written(paths):
     """Each file's pixels: the worker deflates the timeline in two bands, so its bytes
     differ from a whole deflate's while its image is the same."""
-    return {p.name: np.asarray(Image.open(p).convert("RGBA")) for p in paths}
+    return {p.name: png_pixels(p.read_bytes()) for p in paths}
 
 
 def _same_images(ours, theirs):

@@ -2,10 +2,10 @@
 
 import io
 import zlib
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import RESULTS, png_pixels
 from matplotlib.figure import Figure
 from PIL import Image
 
@@ -13,12 +13,6 @@ from esail_opt.app import plots, png
 from esail_opt.app.files import save_figure
 from esail_opt.app.solution import Solution
 
-REPO = Path(__file__).resolve().parents[1]
-
-
-def _decoded(data):
-    image = Image.open(io.BytesIO(data))
-    return image, np.asarray(image.convert("RGBA"))
 
 
 def _matplotlib_png(fig, dpi):
@@ -43,11 +37,12 @@ def _small_figure():
 def test_a_figure_encodes_to_matplotlibs_pixels(dpi):
     """Decoded, the file holds the pixels matplotlib writes at that resolution (the
     figure drawn at its own dpi, and at another), in RGBA, with the dpi recorded."""
-    ours, ours_pixels = _decoded(png.figure_png(_small_figure(), dpi))
-    theirs, theirs_pixels = _decoded(_matplotlib_png(_small_figure(), dpi))
+    ours_png = png.figure_png(_small_figure(), dpi)
+    theirs_png = _matplotlib_png(_small_figure(), dpi)
+    ours, theirs = Image.open(io.BytesIO(ours_png)), Image.open(io.BytesIO(theirs_png))
     assert ours.mode == theirs.mode == "RGBA"
     assert ours.size == theirs.size == (round(3.2 * dpi), round(2.4 * dpi))
-    assert np.array_equal(ours_pixels, theirs_pixels)
+    assert np.array_equal(png_pixels(ours_png), png_pixels(theirs_png))
     # Both record the dpi as whole pixels per metre, which reads back a little off.
     assert ours.info["dpi"] == theirs.info["dpi"] == pytest.approx((dpi, dpi), rel=1e-3)
 
@@ -55,13 +50,13 @@ def test_a_figure_encodes_to_matplotlibs_pixels(dpi):
 def test_a_solutions_figures_encode_to_matplotlibs_pixels(tmp_path):
     """Both figures of a shipped polished solve, written by ``save_figure``, decode to
     the pixels of matplotlib's own PNG of the same figure."""
-    source = REPO / "results" / "earth_mars_min_time_polished" / "solution.json"
+    source = RESULTS / "earth_mars_min_time_polished" / "solution.json"
     sol = Solution.load(source)
     for name, draw in plots.FIGURES:
         path = tmp_path / name
         save_figure(draw(sol), path, dpi=plots.DPI)
-        _, ours = _decoded(path.read_bytes())
-        _, theirs = _decoded(_matplotlib_png(draw(sol), plots.DPI))
+        ours = png_pixels(path.read_bytes())
+        theirs = png_pixels(_matplotlib_png(draw(sol), plots.DPI))
         assert ours.shape == theirs.shape and ours.shape[2] == 4
         assert np.array_equal(ours, theirs), name
 
@@ -90,8 +85,8 @@ def test_bands_deflated_apart_join_into_the_whole_image():
     rgba[10:40] = 255  # long runs, as a figure's background
     bands = [png.deflate_rows(rgba[:20], last=False), png.deflate_rows(rgba[20:21], last=False),
              png.deflate_rows(rgba[21:], last=True)]
-    _, joined = _decoded(png.assemble(bands, 100))
-    _, whole = _decoded(png.encode(rgba, 100))
+    joined = png_pixels(png.assemble(bands, 100))
+    whole = png_pixels(png.encode(rgba, 100))
     assert np.array_equal(joined, rgba) and np.array_equal(whole, rgba)
     with pytest.raises(ValueError, match="only the last"):
         png.assemble(bands[::-1], 100)
