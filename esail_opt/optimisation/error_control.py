@@ -95,7 +95,8 @@ class ErrorControl:
         Per segment, the closed form's position error against Eqs. 1-2 over that
         segment from its own start node, km (NaN where a segment could not be flown).
     check : Verification
-        The last round's flight of ``result`` (one sample per segment).
+        The last round's verification of ``result`` (with ``samples`` per segment, and
+        its closed-form curve drawn with the defects it was solved with).
     defects : numpy.ndarray or None
         The defects the final ``result`` was solved with (None: none).
     """
@@ -156,7 +157,7 @@ def _flown_miss(problem, check):
 
 
 def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
-                  defects=None):
+                  defects=None, samples=1):
     """Correct and re-mesh a closed-form optimum until its flight meets
     ``problem.tolerance`` (the rounds of this module's docstring).
 
@@ -179,6 +180,10 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
     defects : numpy.ndarray, optional
         The 5 x N defects ``result`` was solved with (a scan carries a neighbour's), so
         that :attr:`ErrorControl.defects` says what the final result was solved with.
+    samples : int
+        Flight samples per segment of each round's verification (``verify``); the last
+        one, :attr:`ErrorControl.check`, is the run's verification, so a caller that
+        plots it asks for its plots' samples here rather than flying the result again.
 
     Returns
     -------
@@ -192,7 +197,7 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
     local_km = np.full(result.alpha.size, np.nan)
     started = time.perf_counter()
     for rnd in range(max_rounds + 1):
-        check = verify(problem, result, samples=1)
+        check = verify(problem, result, samples=samples, defects=applied)
         verified = check.judge(problem)[0] and result.converged
         try:
             exact, plain = segment_ends(problem, result)

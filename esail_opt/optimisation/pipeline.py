@@ -289,14 +289,16 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
     say = progress or _quiet
     controlled = None
     if result.outcome.found:
-        controlled = control_error(problem, result, tr, say)
+        # Its last round's verification is the run's: flown with the plots' samples.
+        controlled = control_error(problem, result, tr, say, samples=samples)
         # The run's Ipopt record covers the first solve and every round after it.
         iterations = result.iterations + sum(r.iterations for r in controlled.history[1:])
         seconds = result.solve_seconds + controlled.history[-1].seconds
         problem, result, tr = controlled.problem, controlled.result, controlled.transcription
         result.iterations, result.solve_seconds = iterations, seconds
-    check = verify(problem, result, samples,
-                   defects=None if controlled is None else controlled.defects)
+        check = controlled.check
+    else:
+        check = verify(problem, result, samples)
     verified, note = check.judge(problem)
     verified = verified and result.converged
     if not result.converged:
