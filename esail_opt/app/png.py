@@ -49,7 +49,10 @@ def figure_pixels(fig, dpi):
     figure on the same canvas, with the figure's own face colour.
     """
     fig.set_dpi(dpi)
-    canvas = FigureCanvasAgg(fig)
+    # The canvas the figure was laid out on (plots' margins measure its texts) keeps
+    # its renderer, and with it the metrics of every text measured: a new one would
+    # lay them all out again.
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())
 
