@@ -304,6 +304,35 @@ def test_segment_threads_do_not_change_the_optimum(monkeypatch):
     assert two.objective == pytest.approx(one.objective, rel=1e-12)
 
 
+def test_a_run_asked_for_one_thread_solves_its_closed_form_on_one(monkeypatch):
+    """pipeline.solve(threads=1), as esail-opt solve asks beside its figures' worker:
+    every closed-form NLP is transcribed for one thread, the polish keeps the default
+    (two here), and the run ends where the default one does."""
+    from esail_opt.optimisation import ipopt, pipeline, polish
+
+    monkeypatch.setenv("ESAIL_OPT_THREADS", "2")
+    asked = []
+
+    def recording(module):
+        original = module.transcribe
+
+        def transcribe(*args, **kwargs):
+            asked.append((module.__name__, kwargs.get("threads")))
+            return original(*args, **kwargs)
+        monkeypatch.setattr(module, "transcribe", transcribe)
+
+    recording(ipopt)
+    recording(polish)
+    one = pipeline.solve(small_problem(), samples=2, polish=True, threads=1)
+    closed = [threads for name, threads in asked if name.endswith("ipopt")]
+    assert closed and set(closed) == {1}  # the equal-length stage and the free one
+    assert [threads for name, threads in asked if name.endswith("polish")] == [None]
+    default = pipeline.solve(small_problem(), samples=2, polish=True)
+    assert one.result.iterations == default.result.iterations
+    assert one.result.objective == pytest.approx(default.result.objective, rel=1e-12)
+    assert one.verified and default.verified
+
+
 @pytest.mark.parametrize("value", ["0", "two", "-1", "65"])
 def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value):
     monkeypatch.setenv("ESAIL_OPT_THREADS", value)

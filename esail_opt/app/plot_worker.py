@@ -76,6 +76,12 @@ class PlotWorker:
             theirs.close()
         self._process, self._conn = process, ours
 
+    @property
+    def running(self):
+        """Whether a worker process was started (and not ended): it then takes a core
+        of its own while the solve runs."""
+        return self._process is not None
+
     def start(self, solution, out_dir):
         """Hand the worker ``solution`` to draw into ``out_dir``; :meth:`written` waits.
         A worker that is not ready within :data:`WAIT_SECONDS` is ended, and the

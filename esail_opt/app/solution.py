@@ -763,7 +763,7 @@ def solution_of(run):
     return Solution.of(run)
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False):
+def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None):
     """Solve ``problem`` through the whole pipeline
     (:func:`esail_opt.optimisation.pipeline.solve`, whose parameters these are) and
     return its :class:`Solution`.
@@ -774,7 +774,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         ``segments`` is not an integer >= 1 (before any solve starts).
     """
     return Solution.of(pipeline.solve(problem, segments=segments, progress=progress,
-                                      samples=samples, polish=polish))
+                                      samples=samples, polish=polish, threads=threads))
 
 
 # ---------------------------------------------------------------- a Run, in boundary units

@@ -269,7 +269,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
 
 
 def solve_problem(problem, segment=None, options=None, guess=None, progress=None,
-                  staged=True):
+                  staged=True, threads=None):
     """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
 
     ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, with its
@@ -289,6 +289,7 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     doing meanwhile (the figures' worker of ``esail-opt solve`` imports matplotlib and
     makes the timeline's frame during this stage), where a thread of the solve that
     shares a core makes its every evaluation wait.  The optimum does not depend on it.
+    ``threads`` sets the free-length stage's (default ``transcription.segment_threads``).
     """
     seg = problem.segments
     first = None
@@ -301,7 +302,7 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
                                     progress=progress)
         if first.outcome.found:
             guess = first.as_guess()
-    tr = transcribe(problem, segment, guess)
+    tr = transcribe(problem, segment, guess, threads=threads)
     result = solve_transcription(tr, options, progress=progress)
     if first is not None:
         result.iterations += first.iterations

@@ -137,7 +137,7 @@ def _quiet(text):
     """The progress callback of a caller that wants none."""
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False):
+def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None):
     """Run the whole pipeline on ``problem``.
 
     Parameters
@@ -151,6 +151,12 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         Flight samples per segment for the plots (the verdicts do not depend on them).
     polish : bool
         Then polish the optimum (``optimisation.polish``) and verify that schedule too.
+    threads : int, optional
+        Threads that evaluate the closed-form NLP's segments (default
+        ``transcription.segment_threads``; the polish keeps that default).  ``esail-opt
+        solve`` asks for one: its figures' worker imports matplotlib on the other core
+        while the closed form is solved (``app.plot_worker``).  The optimum does not
+        depend on it.
 
     Returns
     -------
@@ -181,12 +187,12 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
     result, tr = solve_problem(problem, guess=guess, progress=say,
-                               staged=not problem.free_date(), options=options)
+                               staged=not problem.free_date(), options=options, threads=threads)
     starts = ()
     if not result.outcome.found:
-        result, tr, starts = _other_starts(problem, result, tr, say)
+        result, tr, starts = _other_starts(problem, result, tr, say, threads)
     elif problem.objective.free_acceleration and problem.tracks_body():
-        result, tr, starts = _least_acceleration_class(problem, result, tr, say)
+        result, tr, starts = _least_acceleration_class(problem, result, tr, say, threads)
     if seed is not None:
         # The scan that chose the date is part of the run's Ipopt record.
         result.iterations += seed.iterations
@@ -198,7 +204,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
                   starts=starts, sub_arcs_requested=seg.sub_arcs)
 
 
-def _other_starts(problem, result, tr, say):
+def _other_starts(problem, result, tr, say, threads=None):
     """Ipopt's "infeasible" from one start is a local statement: before giving up, try
     the starts the global search would (other turn counts on a rendezvous body, other
     constant-pitch seeds of an orbit transfer), and keep the first that finds a point.
@@ -211,7 +217,8 @@ def _other_starts(problem, result, tr, say):
     seconds = result.solve_seconds
     for start in multistart.fallback_starts(problem, tr.guess):
         say(f"{problem.name}: {result.status}; trying {start.label}")
-        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
+        other, other_tr = solve_problem(problem, guess=start.guess, progress=say,
+                                        threads=threads)
         records.append(StartTried(start.label, other.status, other.iterations))
         # The run's Ipopt record covers every start it took to get here.
         if other.outcome.found:
@@ -224,7 +231,7 @@ def _other_starts(problem, result, tr, say):
     return result, tr, tuple(records)
 
 
-def _least_acceleration_class(problem, result, tr, say):
+def _least_acceleration_class(problem, result, tr, say, threads=None):
     """The least a_c over the turn counts k on the target body, for a MinAcceleration
     rendezvous (``multistart.descend_turns`` from the seed's k, each k a cold solve
     from its own seed).  A warm-started scan drifts to the better k where a lone solve
@@ -241,7 +248,8 @@ def _least_acceleration_class(problem, result, tr, say):
     def solve_class(k):
         start = multistart.rendezvous_starts(problem, [k])[0]
         say(f"{problem.name}: trying the turn count k = {k}")
-        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
+        other, other_tr = solve_problem(problem, guess=start.guess, progress=say,
+                                        threads=threads)
         records.append(StartTried(start.label, other.status, other.iterations))
         seconds.append(other.solve_seconds)
         return (other, other_tr) if other.outcome.found else None
