@@ -113,6 +113,24 @@ def test_variant_maps_names_to_fields(tiny):
         sweep.variant(problem, "ac_mm_s2", -1.0)
 
 
+def test_the_sweep_help_names_every_sweepable_field(capsys):
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["sweep", "--help"])
+    assert stop.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "Sweepable names: " + ", ".join(sweep.SWEEPABLE) + "." in text
+
+
+def test_building_the_command_line_leaves_the_sweep_unimported():
+    """Every command builds the whole parser; the sweep's names are read only when its
+    help is printed."""
+    code = ("import sys; from esail_opt.app import cli; cli.build_parser(); "
+            "print('esail_opt.app.sweep' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=REPO).stdout
+    assert out.strip() == "False"
+
+
 def test_parse_param_grid():
     assert sweep.parse_param("ac_mm_s2=0.2:2:10") == (
         "ac_mm_s2", [0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0])

@@ -362,7 +362,7 @@ def _add_sweep(sub):
         "others; exit status 1 if any is.  Finished members are journaled to sweep.jsonl "
         "in the output directory as they finish; --resume runs only those missing from it.  "
         "A member whose worker process dies is run again on a fresh pool (twice at most).  "
-        "Sweepable names: " + ", ".join(_sweepable()) + ".",
+        "Sweepable names: {sweepable}.",
     )
     p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
     p.add_argument("--param", required=True, metavar="NAME=START:STOP:COUNT",
@@ -385,7 +385,18 @@ def _add_sweep(sub):
 def _sweepable():
     from esail_opt.app.sweep import SWEEPABLE
 
-    return SWEEPABLE
+    return ", ".join(SWEEPABLE)
+
+
+class _Parser(argparse.ArgumentParser):
+    """The subcommands' parser: a description's ``{sweepable}`` is filled in when the
+    help is printed, so that building the parser (every command does) does not import
+    the sweep module."""
+
+    def format_help(self):
+        if self.description and "{sweepable}" in self.description:
+            self.description = self.description.replace("{sweepable}", _sweepable())
+        return super().format_help()
 
 
 def _run_sweep(args):
@@ -482,7 +493,7 @@ def build_parser():
     parser = argparse.ArgumentParser(
         prog="esail-opt", description="E-sail trajectory propagation and optimisation",
         epilog=EPILOG)
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_propagate(sub)
     _add_reproduce(sub)
     _add_solve(sub)
