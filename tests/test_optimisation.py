@@ -333,31 +333,6 @@ def test_a_run_asked_for_one_thread_solves_its_closed_form_on_one(monkeypatch):
     assert one.verified and default.verified
 
 
-def test_the_stages_before_the_polish_are_handed_over_before_it_runs(monkeypatch):
-    """solve(before_polish=): called once, before the polish, with the solution as it
-    stood then, which is the final one without its polish; not called without one."""
-    from esail_opt.app import solution
-    from esail_opt.optimisation import polish
-
-    seen = []
-    original = polish.polish
-
-    def polishing(*args, **kwargs):
-        seen.append("polish")
-        return original(*args, **kwargs)
-
-    monkeypatch.setattr(polish, "polish", polishing)
-    final = solution.solve(small_problem(), samples=2, polish=True,
-                           before_polish=seen.append)
-    assert len(seen) == 2 and seen[1] == "polish"
-    before = seen[0]
-    assert before.polish is None and final.polish.ran
-    assert before == final.without_polish()
-    unpolished = []
-    solution.solve(small_problem(), samples=2, before_polish=unpolished.append)
-    assert unpolished == []
-
-
 @pytest.mark.parametrize("value", ["0", "two", "-1", "65"])
 def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value):
     monkeypatch.setenv("ESAIL_OPT_THREADS", value)

@@ -288,11 +288,9 @@ def _run_solve(args):
     progress = progress_printer("solve")
     # Matplotlib loads, and the timeline's frame is made, on the other core meanwhile:
     # the closed form is then solved on one thread (a second would share that core).
-    # The timeline's closed form is drawn there while the polish runs.
     with PlotWorker(throttled=problem.throttled()) as worker:
         sol = solution.solve(problem, progress=progress, polish=args.polish,
-                             threads=1 if worker.running else None,
-                             before_polish=worker.draft)
+                             threads=1 if worker.running else None)
         progress.done()
         written = sol.write(out, worker=worker)
     for path in written:

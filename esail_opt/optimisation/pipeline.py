@@ -13,7 +13,6 @@ Numbers are those of the stages themselves: nothing here changes a result, it on
 decides what runs next and adds up Ipopt's iterations and seconds over the run.
 """
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
@@ -138,8 +137,7 @@ def _quiet(text):
     """The progress callback of a caller that wants none."""
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None,
-          before_polish=None):
+def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None):
     """Run the whole pipeline on ``problem``.
 
     Parameters
@@ -159,11 +157,6 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         solve`` asks for one: its figures' worker imports matplotlib on the other core
         while the closed form is solved (``app.plot_worker``).  The optimum does not
         depend on it.
-    before_polish : callable, optional
-        With ``polish``: ``before_polish(run)`` gets the :class:`Run` of the stages
-        before the polish (its ``polish`` None) as soon as they end, so that a caller can
-        start on what does not depend on the polish while it runs (``esail-opt solve``
-        draws its timeline's closed form, ``app.plot_worker``).
 
     Returns
     -------
@@ -208,7 +201,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         + ("error control until the flight meets the tolerance" if result.outcome.found
            else "no start found a point; flying the last iterate to report its miss"))
     return finish(problem, result, tr, samples=samples, polish=polish, progress=say,
-                  starts=starts, sub_arcs_requested=seg.sub_arcs, before_polish=before_polish)
+                  starts=starts, sub_arcs_requested=seg.sub_arcs)
 
 
 def _other_starts(problem, result, tr, say, threads=None):
@@ -271,7 +264,7 @@ def _least_acceleration_class(problem, result, tr, say, threads=None):
 
 
 def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
-           sub_arcs_requested=None, before_polish=None):
+           sub_arcs_requested=None):
     """The stages after a closed-form optimum is found: error control, CVODES
     verification and, with ``polish``, the polish.
 
@@ -288,7 +281,7 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         ``result``'s NLP: the error control re-solves it warm; without it a new one is
         built.  Either way the error control and the polish keep ``result``'s revolution
         class.
-    samples, polish, progress, before_polish
+    samples, polish, progress
         As for :func:`solve`.
     starts : sequence of StartTried
         The starts tried before this one.
@@ -321,14 +314,10 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
             "" if result.outcome is not Outcome.INFEASIBLE else
             f" from {len(starts) or 1} start(s); no start found a feasible point, which "
             "does not prove the target unreachable")
-    run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
-              error_control=controlled, check=check, verified=verified, note=note,
-              sub_arcs_requested=requested)
-    if not polish:
-        return run
-    if before_polish is not None:
-        before_polish(run)
-    return dataclasses.replace(run, polish=_polish(problem, result, samples, say))
+    polished = _polish(problem, result, samples, say) if polish else None
+    return Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
+               error_control=controlled, check=check, verified=verified, note=note,
+               sub_arcs_requested=requested, polish=polished)
 
 
 def _polish(problem, result, samples, say):
