@@ -2,15 +2,16 @@
 in which nothing is clipped by the figure's edge or runs into another panel."""
 
 import copy
+import time
 
 import numpy as np
 import pytest
-from conftest import png_pixels
+from conftest import RESULTS, png_pixels
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import esail_opt as eo
-from esail_opt.app import plot_worker, plots
+from esail_opt.app import plot_worker, plots, png
 from esail_opt.app.solution import Solution
 
 DIGITS = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
@@ -188,19 +189,61 @@ def _same_images(ours, theirs):
     return ours.keys() == theirs.keys() and all(np.array_equal(ours[k], theirs[k]) for k in ours)
 
 
+@pytest.mark.parametrize("which", ["polished", "throttled"])
+@pytest.mark.parametrize("framed", [False, True])
+def test_a_timeline_finished_from_its_draft_is_the_one_drawn_whole(which, framed, request):
+    """The closed form drawn and rendered first (as while the polish runs), the polish
+    drawn over its pixels after: pixel for pixel the timeline drawn in one go."""
+    sol = request.getfixturevalue(which)
+    frame = plots.timeline_frame(sol.schedule.throttled) if framed else None
+    draft = plots.timeline_draft(sol.without_polish(), frame=frame)
+    assert draft.fits(sol)
+    whole = png.figure_pixels(plots.timeline_figure(sol), plots.DPI)
+    assert np.array_equal(draft.pixels(sol), whole)
+
+
+@pytest.mark.parametrize("name", ["earth_mars_min_time_polished", "earth_venus_low_thrust_polished",
+                                  "earth_mars_coast"])
+def test_shipped_timelines_finished_from_their_drafts_are_the_ones_drawn_whole(name):
+    sol = Solution.load(RESULTS / name / "solution.json")
+    draft = plots.timeline_draft(sol.without_polish())
+    assert np.array_equal(draft.pixels(sol),
+                          png.figure_pixels(plots.timeline_figure(sol), plots.DPI))
+
+
+def test_a_draft_fits_its_own_solution_only(polished, throttled):
+    """A draft drawn from other data (here the throttled variant's) does not fit: the
+    worker then draws the timeline whole."""
+    assert plots.timeline_draft(polished.without_polish()).fits(polished)
+    assert not plots.timeline_draft(throttled.without_polish()).fits(polished)
+
+
+def _handed(worker, draft):
+    """Hand ``draft`` to the worker once it is ready (it takes one only then)."""
+    deadline = time.monotonic() + plot_worker.WAIT_SECONDS
+    while not worker.draft(draft):
+        assert time.monotonic() < deadline, "the worker never became ready"
+        time.sleep(0.05)
+
+
 @pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
 @pytest.mark.parametrize("which", ["polished", "throttled"])
 @pytest.mark.parametrize("frame", [None, False, True])
-def test_the_worker_writes_what_drawing_here_writes(which, frame, request, tmp_path):
+@pytest.mark.parametrize("draft", [None, "own", "other"])
+def test_the_worker_writes_what_drawing_here_writes(which, frame, draft, request, tmp_path):
     """The same images, pixel for pixel, as plots.write_plots, from the worker's processes,
     with the timeline drawn into a frame made ahead for the right case, for the wrong
-    one, or without one; and the worker is gone once they are written."""
+    one, or without one; finished from its own draft, given another solution's draft,
+    or given none; and the worker is gone once they are written."""
     polished = request.getfixturevalue(which)
+    other = request.getfixturevalue("polished" if which == "throttled" else "throttled")
     for name in ("here", "there"):
         (tmp_path / name).mkdir()
     here = plots.write_plots(polished, tmp_path / "here")
     with plot_worker.PlotWorker(throttled=frame) as worker:
         process = worker._process
+        if draft is not None:
+            _handed(worker, (polished if draft == "own" else other).without_polish())
         worker.start(polished, tmp_path / "there")
         there = worker.written()
         assert not process.is_alive()

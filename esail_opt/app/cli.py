@@ -286,11 +286,13 @@ def _run_solve(args):
     out = Path(args.out) if args.out else Path("results") / problem.name
     check_output_dir(out, name=None if args.out else problem.name)  # before the solve
     progress = progress_printer("solve")
-    # Matplotlib loads, and the timeline's frame is made, on the other core meanwhile:
-    # the closed form is then solved on one thread (a second would share that core).
+    # Matplotlib loads, and the timeline's frame is made, on the other core meanwhile,
+    # and the timeline's closed form is drawn there while the polish runs: the NLPs are
+    # solved on one thread (a second would share that core).
     with PlotWorker(throttled=problem.throttled()) as worker:
         sol = solution.solve(problem, progress=progress, polish=args.polish,
-                             threads=1 if worker.running else None)
+                             threads=1 if worker.running else None,
+                             before_polish=worker.draft)
         progress.done()
         written = sol.write(out, worker=worker)
     for path in written:

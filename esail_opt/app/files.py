@@ -411,6 +411,15 @@ def save_figure(fig, path, dpi=150, banded=False):
         tmp.write_bytes(figure_png(fig, dpi))
 
 
+def save_pixels(rgba, path, dpi):
+    """Save an (height, width, 4) uint8 RGBA image drawn at ``dpi`` as a PNG,
+    atomically (:mod:`esail_opt.app.png`)."""
+    from esail_opt.app.png import encode
+
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(encode(rgba, dpi))
+
+
 def write_table_set(out_dir, names, csv_text, data, fig):
     """A scan's table, record and picture (``names``: the CSV, JSON and PNG file names)
     written into ``out_dir`` as one set (:func:`publish`).  Returns their paths.

@@ -5,9 +5,14 @@ whole run than the solve did, and neither needs the solver's core.  So the comma
 line starts a :class:`PlotWorker` before it solves: a forked process that imports
 matplotlib and :mod:`esail_opt.app.plots` on the other core while the solve runs,
 makes the timeline's frame (:func:`esail_opt.app.plots.timeline_frame`), then waits.
+Before a polish, it is handed the solution as it stands (:meth:`PlotWorker.draft`) and
+draws and renders the timeline's closed form while the polish runs
+(:func:`esail_opt.app.plots.timeline_draft`): the second core is idle then, and the
+figures after the hand-over are what the command waits for last.
 Given the solution, it forks once more per figure but the last, so that the figures
-are drawn at the same time, draws the last (the timeline) itself in two bands at once
-(:mod:`esail_opt.app.bands`), and reports back when every file is written.
+are drawn at the same time, finishes the last (the timeline) itself from its draft, or
+without one draws it in two bands at once (:mod:`esail_opt.app.bands`), and reports
+back when every file is written.
 
 The worker writes where :meth:`~esail_opt.app.solution.Solution.write` tells it, which
 is the staging folder of the set (:func:`esail_opt.app.files.publish`): nothing
@@ -54,6 +59,7 @@ class PlotWorker:
         (:func:`esail_opt.app.plots.timeline_frame`), which the worker makes while it
         waits; None makes none."""
         self._conn = self._process = self._job = None
+        self._ready = False
         if not _forks():
             return
         context = multiprocessing.get_context("fork")
@@ -82,6 +88,24 @@ class PlotWorker:
         of its own while the solve runs."""
         return self._process is not None
 
+    def draft(self, solution):
+        """Hand the worker the solution before its polish (``solution.solve``'s
+        ``before_polish``), to draw the timeline's closed form meanwhile.  Only to a
+        worker that is ready: one still loading matplotlib would keep the solve waiting
+        for nothing, and the figures are then drawn whole as without a draft.  Returns
+        whether the worker took it (hand it one at most)."""
+        if self._conn is None:
+            return False
+        try:
+            if not self._ready and self._conn.poll(0):
+                self._ready = self._conn.recv() == "ready"
+            if self._ready:
+                self._conn.send(("draft", solution))
+                return True
+        except (OSError, EOFError):
+            self.close(wait=False)  # written() draws here
+        return False
+
     def start(self, solution, out_dir):
         """Hand the worker ``solution`` to draw into ``out_dir``; :meth:`written` waits.
         A worker that is not ready within :data:`WAIT_SECONDS` is ended, and the
@@ -90,12 +114,13 @@ class PlotWorker:
         if self._conn is None:
             return
         try:
-            ready = self._conn.poll(WAIT_SECONDS) and self._conn.recv() == "ready"
-            if ready:
-                self._conn.send((solution, str(out_dir)))
+            if not self._ready:
+                self._ready = self._conn.poll(WAIT_SECONDS) and self._conn.recv() == "ready"
+            if self._ready:
+                self._conn.send(("draw", solution, str(out_dir)))
         except (OSError, EOFError):
-            ready = False
-        if not ready:
+            self._ready = False
+        if not self._ready:
             self.close(wait=False)  # written() draws here
 
     def written(self):
@@ -139,24 +164,32 @@ class PlotWorker:
 
 
 def _serve(conn, parent_end, throttled, parent):
-    """The worker: import the plots, make the timeline's frame, wait for one solution,
-    draw its figures, report."""
+    """The worker: import the plots, make the timeline's frame, wait for one solution
+    (drawing its timeline's draft if one comes first), draw its figures, report."""
     parent_end.close()  # so that the parent's end closing reads as EOF
     quiet_child(parent)
     from esail_opt.app import plots
 
-    figures = list(plots.FIGURES)
-    if throttled is not None:
-        frame = plots.timeline_frame(throttled)
-        figures = [(name, functools.partial(draw, frame=frame)
-                    if draw is plots.timeline_figure else draw) for name, draw in figures]
+    frame = None if throttled is None else plots.timeline_frame(throttled)
+    draft = None
     try:
         conn.send("ready")
-        solution, out = conn.recv()
+        message = conn.recv()
+        if message[0] == "draft":
+            try:
+                draft = plots.timeline_draft(message[1], frame=frame)
+            except Exception:  # the timeline is then drawn whole, and meets it there
+                draft = None
+            frame = None  # drawn into, or left half-drawn: either way not reusable
+            message = conn.recv()
+        _, solution, out = message
     except (OSError, EOFError):
         return
+    figures = [(name, functools.partial(draw, frame=frame)
+                if draw is plots.timeline_figure else draw) for name, draw in plots.FIGURES]
     try:
-        reply = ("written", [str(p) for p in _draw_all(plots, figures, solution, Path(out))])
+        reply = ("written", [str(p) for p in _draw_all(plots, figures, solution, Path(out),
+                                                       draft)])
     except Exception as err:  # the parent draws again, and meets it itself
         reply = ("failed", repr(err))
     try:
@@ -165,11 +198,12 @@ def _serve(conn, parent_end, throttled, parent):
         pass  # the parent stopped waiting (its run failed or was interrupted)
 
 
-def _draw_all(plots, figures, solution, out):
+def _draw_all(plots, figures, solution, out, draft=None):
     """Every figure of ``figures`` (:data:`esail_opt.app.plots.FIGURES`), each but the
-    last in a forked process of its own, the last (the timeline, with its frame) here,
-    in two bands at once (:mod:`esail_opt.app.bands`: the others are written by then);
-    raises if any of them failed."""
+    last in a forked process of its own, the last (the timeline) here: finished from
+    ``draft`` when that is this solution's, else drawn with its frame in two bands at
+    once (:mod:`esail_opt.app.bands`: the others are written by then); raises if any of
+    them failed."""
     context = multiprocessing.get_context("fork")
     figures = [(out / name, draw) for name, draw in figures]
     gc.freeze()  # as before the worker's own fork (PlotWorker)
@@ -182,7 +216,10 @@ def _draw_all(plots, figures, solution, out):
         theirs.close()
         others.append((child, ours))
     path, draw = figures[-1]
-    failures = [_failure(plots, solution, path, draw, banded=True)]
+    if draft is not None and draft.fits(solution):
+        failures = [_failure(plots, solution, path, draft=draft)]
+    else:
+        failures = [_failure(plots, solution, path, draw, banded=True)]
     for child, ours in others:
         try:
             failure = ours.recv()
@@ -196,10 +233,14 @@ def _draw_all(plots, figures, solution, out):
     return [path for path, _ in figures]
 
 
-def _failure(plots, solution, path, draw, banded=False):
-    """Draw and write one figure: None, or what went wrong, in words."""
+def _failure(plots, solution, path, draw=None, banded=False, draft=None):
+    """Draw and write one figure (the timeline, finished from ``draft``, when one is
+    given): None, or what went wrong, in words."""
     try:
-        plots.write_figure(draw(solution), path, banded=banded)
+        if draft is not None:
+            plots.write_pixels(draft.pixels(solution), path)
+        else:
+            plots.write_figure(draw(solution), path, banded=banded)
     except Exception as err:
         return repr(err)
     return None

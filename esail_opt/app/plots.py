@@ -23,7 +23,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogFormatterSciNotation
 
-from esail_opt.app.files import save_figure
+from esail_opt.app.files import save_figure, save_pixels
+from esail_opt.app.png import figure_pixels
 
 
 def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
@@ -316,40 +317,96 @@ def _throttled(sched):
     return len(sched) > 0 and sched.throttled
 
 
-def _pitch_panel(ax, sol, polished):
+def _pitch_axes(ax, throttled):
+    """The pitch panel's axes, and the throttle's on its right when the problem has
+    one (returned; else None): what :func:`_pitch_steps` draws into."""
+    ax.set_ylim(-95, 95)
+    if not throttled:
+        return None
+    # The throttle shares the pitch panel: it switches at the same times, and a coast
+    # (kappa = 0) explains a pitch that wanders.
+    twin = ax.twinx()
+    twin.set_ylim(-0.05, 1.05)
+    twin.set_ylabel("throttle kappa", color="tab:orange")
+    return twin
+
+
+def _pitch_steps(ax, twin, sol, polished):
     """The pitch schedule (the polished one when there is one) as steps against time,
-    with the throttle on a right-hand axis when the problem has one."""
+    and the throttle's into ``twin``; returns their lines.  The time axis is the
+    series' (shared), set by the closed form's flights alone: a polished schedule ends a
+    hair away."""
     sched = _pitch_schedule(sol, polished)
     t = [row.t_days for row in sched]
     alpha = [row.alpha_deg for row in sched]
     t_end = sol.tof_days_exact if polished else sol.tof_days
-    ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k",
-            label="polished" if polished else None)
-    ax.set_ylim(-95, 95)
-    if _throttled(sched):
-        # The throttle shares the pitch panel: it switches at the same times, and a
-        # coast (kappa = 0) explains a pitch that wanders.
+    lines = ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k", scalex=False,
+                    label="polished" if polished else None)
+    if twin is not None:
         kappa = [row.throttle for row in sched]
-        twin = ax.twinx()
-        twin.step(t + [t_end], kappa + kappa[-1:], where="post", color="tab:orange", lw=1.0)
-        twin.set_ylim(-0.05, 1.05)
-        twin.set_ylabel("throttle kappa", color="tab:orange")
+        lines += twin.step(t + [t_end], kappa + kappa[-1:], where="post", color="tab:orange",
+                           lw=1.0, scalex=False)
+    return lines
 
 
-def timeline_figure(solution, axes=None, frame=None):
-    """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
-    errors and the error-control rounds.
+#: The five series panels (solution.json's sample fields) and the pitch panel (None),
+#: in the order of the timeline's axes.
+TIMELINE_PANELS = (("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"),
+                   ("vtheta_km_s", "v_theta (km/s)"), (None, "alpha (deg)"),
+                   ("a_au", "osculating a (au)"), ("e", "osculating e"))
 
-    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into ``frame`` (a
-    :class:`TimelineFrame` made for whether the solution has a throttle; one made for
-    the other case is left alone), else into a new figure; returns the figure.
+
+@dataclass(frozen=True)
+class TimelineDraft:
+    """A timeline drawn, as pixels too, from a solution's closed form alone
+    (:func:`timeline_draft`), to be finished with the schedule and the polish once they
+    exist (:meth:`pixels`).
+
+    ``solution`` is the closed-form part it was drawn from: the draft finishes the
+    timeline of a solution whose :meth:`~esail_opt.app.solution.Solution.without_polish`
+    equals it, and of no other.
     """
-    sol = solution
-    cf, cv, exact = sol.trajectory_closed_form, sol.trajectory_cvodes, sol.trajectory_polished
-    # With a polish, the pitch panel shows the polished schedule: the one that flies.
-    polished = exact is not None
+
+    fig: Figure
+    axes: np.ndarray
+    twin: object
+    solution: object
+
+    def fits(self, solution):
+        """Whether this is a draft of ``solution``'s timeline."""
+        return self.solution == solution.without_polish()
+
+    def pixels(self, solution):
+        """The timeline of ``solution`` (one this draft :meth:`fits`) at :data:`DPI`, as
+        an RGBA array: the polish's artists drawn over the closed form's pixels, once
+        (a draft finishes one solution)."""
+        renderer = self.fig.canvas.get_renderer()
+        for artist in _timeline_finish(solution, self.fig, self.axes, self.twin):
+            artist.draw(renderer)
+        return np.asarray(self.fig.canvas.buffer_rgba())
+
+
+def timeline_draft(solution, frame=None):
+    """A :class:`TimelineDraft` of ``solution`` (the closed-form part of one to come),
+    drawn into ``frame`` when it fits, as :func:`timeline_figure` would, and rendered.
+
+    What the polish adds to a timeline (its flight, the schedule it changes, and the
+    legend and the title that name it) moves no axis limit and no tick, and lies clear
+    of the axes' edges and texts, which are drawn before it: so everything else can be
+    drawn, and rendered, while the polish runs (:mod:`esail_opt.app.plot_worker`), and
+    the finished timeline is the one drawn whole, pixel for pixel.
+    """
+    fig, axes, twin = _timeline_closed_form(solution, None, frame)
+    figure_pixels(fig, DPI)
+    return TimelineDraft(fig, axes, twin, solution)
+
+
+def _timeline_closed_form(sol, axes, frame):
+    """The timeline's figure, axes and throttle axis, with everything drawn that the
+    closed form alone decides (and, for a figure of its own, the columns fitted)."""
+    cf, cv = sol.trajectory_closed_form, sol.trajectory_cvodes
     created = axes is None
-    throttled = _throttled(_pitch_schedule(sol, polished))
+    throttled = _throttled(sol.schedule)
     if created and frame is not None and frame.throttled == throttled:
         fig, axes = frame.fig, frame.axes
     elif created:
@@ -358,33 +415,64 @@ def timeline_figure(solution, axes=None, frame=None):
         fig, axes = axes_or_new(axes)
     for ax in axes[:3].ravel():
         ax.sharex(axes[0, 0])
-    panels = [("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"), ("vtheta_km_s", "v_theta (km/s)"),
-              (None, "alpha (deg)"), ("a_au", "osculating a (au)"), ("e", "osculating e")]
-    for ax, (key, label) in zip(axes.ravel(), panels):
+    twin = None
+    for ax, (key, label) in zip(axes.ravel(), TIMELINE_PANELS):
         if key is None:
-            _pitch_panel(ax, sol, polished)
+            twin = _pitch_axes(ax, throttled)
         else:
             ax.plot(cf.t_days, getattr(cf, key), color="tab:blue", lw=1.4, label="closed form")
             if cv is not None:
                 ax.plot(cv.t_days, getattr(cv, key), color="tab:red", lw=0.9, ls="-.",
                         label="CVODES")
-            if polished:
-                ax.plot(exact.t_days, getattr(exact, key), color="tab:purple", lw=1.0, ls=":",
-                        label="polished (CVODES)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7)
     for ax in axes[2]:
         ax.set_xlabel("t (days)")
     _local_error_panel(axes[3, 0], sol)
     _error_control_panel(axes[3, 1], sol)
-    verdict = "verified" if sol.flight_verified else "NOT verified"
-    fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
-                 + (f"; polished {sol.polish.status} (pitch: polished schedule)"
-                    if polished else ""))
     if created:
         _fit_columns(fig, axes)
+    return fig, axes, twin
+
+
+def timeline_figure(solution, axes=None, frame=None):
+    """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
+    errors and the error-control rounds.
+
+    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into ``frame`` (a
+    :class:`TimelineFrame` made for whether the solution has a throttle; one made for
+    the other case is left alone), else into a new figure; returns the figure.  The
+    closed form is drawn first and the schedule and polish over it
+    (:func:`timeline_draft` draws the two apart).
+
+    The axes' limits are those of the closed form and its CVODES flight: the polished
+    flight, drawn over them, ends within a hair of the same state.
+    """
+    fig, axes, twin = _timeline_closed_form(solution, axes, frame)
+    _timeline_finish(solution, fig, axes, twin)
     return fig
+
+
+def _timeline_finish(sol, fig, axes, twin):
+    """Add what the schedule and the polish draw on a timeline's closed form: the pitch
+    steps, the polished flight, the legend and the title; returns those artists, in the
+    order a whole drawing draws them."""
+    exact = sol.trajectory_polished
+    # With a polish, the pitch panel shows the polished schedule: the one that flies.
+    polished = exact is not None
+    added = []
+    for ax, (key, _) in zip(axes.ravel(), TIMELINE_PANELS):
+        if key is None:
+            added += _pitch_steps(ax, twin, sol, polished)
+        elif polished:
+            added += ax.plot(exact.t_days, getattr(exact, key), color="tab:purple", lw=1.0,
+                             ls=":", label="polished (CVODES)", scalex=False, scaley=False)
+    added.append(axes[0, 0].legend(fontsize=7))
+    verdict = "verified" if sol.flight_verified else "NOT verified"
+    added.append(fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
+                              + (f"; polished {sol.polish.status} (pitch: polished "
+                                 "schedule)" if polished else "")))
+    return added
 
 
 def _local_error_panel(ax, sol):
@@ -430,6 +518,12 @@ def write_figure(fig, path, banded=False):
     """Write one of :data:`FIGURES`'s figures atomically, at :data:`DPI` (``banded``: by
     two processes at once, :mod:`esail_opt.app.bands`)."""
     save_figure(fig, path, dpi=DPI, banded=banded)
+
+
+def write_pixels(rgba, path):
+    """Write a figure's pixels drawn at :data:`DPI` (:meth:`TimelineDraft.pixels`) as a
+    PNG, atomically."""
+    save_pixels(rgba, path, dpi=DPI)
 
 
 def write_plots(solution, out_dir):

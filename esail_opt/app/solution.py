@@ -493,6 +493,12 @@ class Solution:
         polish, the polish's 1 m and 1 mm/s as well)."""
         return bool(self.flight_verified) and (self.polish is None or bool(self.polish.verified))
 
+    def without_polish(self):
+        """This solution as it stood before its polish: what the stages before the polish
+        gave (``solve``'s ``before_polish``), the polish's fields all None."""
+        return dataclasses.replace(self, trajectory_polished=None, objective_closed_form=None,
+                                   objective_exact=None, tof_days_exact=None, polish=None)
+
     @property
     def dated(self):
         """Whether the problem is on the calendar (a BodyDeparture)."""
@@ -763,18 +769,24 @@ def solution_of(run):
     return Solution.of(run)
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None):
+def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None,
+          before_polish=None):
     """Solve ``problem`` through the whole pipeline
     (:func:`esail_opt.optimisation.pipeline.solve`, whose parameters these are) and
-    return its :class:`Solution`.
+    return its :class:`Solution`.  ``before_polish`` gets the :class:`Solution` of the
+    stages before the polish (what :meth:`Solution.without_polish` of the result will
+    equal) rather than the pipeline's Run.
 
     Raises
     ------
     InputError
         ``segments`` is not an integer >= 1 (before any solve starts).
     """
+    hand_over = None if before_polish is None else (
+        lambda run: before_polish(Solution.of(run)))
     return Solution.of(pipeline.solve(problem, segments=segments, progress=progress,
-                                      samples=samples, polish=polish, threads=threads))
+                                      samples=samples, polish=polish, threads=threads,
+                                      before_polish=hand_over))
 
 
 # ---------------------------------------------------------------- a Run, in boundary units

@@ -13,6 +13,7 @@ Numbers are those of the stages themselves: nothing here changes a result, it on
 decides what runs next and adds up Ipopt's iterations and seconds over the run.
 """
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
@@ -137,7 +138,8 @@ def _quiet(text):
     """The progress callback of a caller that wants none."""
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None):
+def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None,
+          before_polish=None):
     """Run the whole pipeline on ``problem``.
 
     Parameters
@@ -152,11 +154,16 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
     polish : bool
         Then polish the optimum (``optimisation.polish``) and verify that schedule too.
     threads : int, optional
-        Threads that evaluate the closed-form NLP's segments (default
-        ``transcription.segment_threads``; the polish keeps that default).  ``esail-opt
-        solve`` asks for one: its figures' worker imports matplotlib on the other core
-        while the closed form is solved (``app.plot_worker``).  The optimum does not
-        depend on it.
+        Threads that evaluate the NLPs' segments, the closed form's and the polish's
+        (default ``transcription.segment_threads``).  ``esail-opt solve`` asks for one:
+        its figures' worker has the other core meanwhile, importing matplotlib while the
+        closed form is solved and drawing the timeline's closed form while the polish
+        runs (``app.plot_worker``).  The optimum does not depend on it.
+    before_polish : callable, optional
+        With ``polish``: ``before_polish(run)`` gets the :class:`Run` of the stages
+        before the polish (its ``polish`` None) as soon as they end, so that a caller can
+        start on what does not depend on the polish while it runs (``esail-opt solve``
+        draws its timeline's closed form, ``app.plot_worker``).
 
     Returns
     -------
@@ -201,7 +208,8 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         + ("error control until the flight meets the tolerance" if result.outcome.found
            else "no start found a point; flying the last iterate to report its miss"))
     return finish(problem, result, tr, samples=samples, polish=polish, progress=say,
-                  starts=starts, sub_arcs_requested=seg.sub_arcs)
+                  starts=starts, sub_arcs_requested=seg.sub_arcs, threads=threads,
+                  before_polish=before_polish)
 
 
 def _other_starts(problem, result, tr, say, threads=None):
@@ -264,7 +272,7 @@ def _least_acceleration_class(problem, result, tr, say, threads=None):
 
 
 def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
-           sub_arcs_requested=None):
+           sub_arcs_requested=None, threads=None, before_polish=None):
     """The stages after a closed-form optimum is found: error control, CVODES
     verification and, with ``polish``, the polish.
 
@@ -281,8 +289,8 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         ``result``'s NLP: the error control re-solves it warm; without it a new one is
         built.  Either way the error control and the polish keep ``result``'s revolution
         class.
-    samples, polish, progress
-        As for :func:`solve`.
+    samples, polish, progress, threads, before_polish
+        As for :func:`solve` (``threads`` for the polish).
     starts : sequence of StartTried
         The starts tried before this one.
     sub_arcs_requested : int, optional
@@ -314,13 +322,17 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
             "" if result.outcome is not Outcome.INFEASIBLE else
             f" from {len(starts) or 1} start(s); no start found a feasible point, which "
             "does not prove the target unreachable")
-    polished = _polish(problem, result, samples, say) if polish else None
-    return Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
-               error_control=controlled, check=check, verified=verified, note=note,
-               sub_arcs_requested=requested, polish=polished)
+    run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
+              error_control=controlled, check=check, verified=verified, note=note,
+              sub_arcs_requested=requested)
+    if not polish:
+        return run
+    if before_polish is not None:
+        before_polish(run)
+    return dataclasses.replace(run, polish=_polish(problem, result, samples, say, threads))
 
 
-def _polish(problem, result, samples, say):
+def _polish(problem, result, samples, say, threads=None):
     """Polish ``result`` and judge the polished flight against :data:`POLISH_TOLERANCE`."""
     # A closed form that found no optimum has nothing worth polishing.
     if not result.outcome.found:
@@ -328,7 +340,7 @@ def _polish(problem, result, samples, say):
                          f"NOT polished: the closed-form solve ended {result.status}",
                          closed_form_objective=result.objective)
     say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
-    exact, _ = polishing.polish(problem, result)
+    exact, _ = polishing.polish(problem, result, threads=threads)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")
     check = verify(problem, exact, samples)
