@@ -2,7 +2,7 @@
 in which nothing is clipped by the figure's edge or runs into another panel."""
 
 import copy
-import time
+import os
 
 import numpy as np
 import pytest
@@ -218,14 +218,6 @@ def test_a_draft_fits_its_own_solution_only(polished, throttled):
     assert not plots.timeline_draft(throttled.without_polish()).fits(polished)
 
 
-def _handed(worker, draft):
-    """Hand ``draft`` to the worker once it is ready (it takes one only then)."""
-    deadline = time.monotonic() + plot_worker.WAIT_SECONDS
-    while not worker.draft(draft):
-        assert time.monotonic() < deadline, "the worker never became ready"
-        time.sleep(0.05)
-
-
 @pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
 @pytest.mark.parametrize("which", ["polished", "throttled"])
 @pytest.mark.parametrize("frame", [None, False, True])
@@ -243,11 +235,34 @@ def test_the_worker_writes_what_drawing_here_writes(which, frame, draft, request
     with plot_worker.PlotWorker(throttled=frame) as worker:
         process = worker._process
         if draft is not None:
-            _handed(worker, (polished if draft == "own" else other).without_polish())
+            worker.draft((polished if draft == "own" else other).without_polish())
         worker.start(polished, tmp_path / "there")
         there = worker.written()
         assert not process.is_alive()
     assert [p.name for p in there] == [p.name for p in here] == [n for n, _ in plots.FIGURES]
+    assert _same_images(_written(there), _written(here))
+
+
+@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
+def test_a_worker_that_never_takes_its_draft_is_ended_and_the_figures_drawn_here(
+        polished, tmp_path, monkeypatch):
+    """A stopped worker reads nothing, so the draft's sending thread stays blocked on the
+    full pipe: start() waits WAIT_SECONDS for it, ends the worker, and the figures are
+    drawn here, the same as ever."""
+    import signal
+
+    monkeypatch.setattr(plot_worker, "WAIT_SECONDS", 1.0)
+    for name in ("here", "there"):
+        (tmp_path / name).mkdir()
+    here = plots.write_plots(polished, tmp_path / "here")
+    # A shipped solution's draft: more than the pipe holds (the tiny one's fits in it).
+    big = Solution.load(RESULTS / "earth_mars_min_time_polished" / "solution.json")
+    with plot_worker.PlotWorker(throttled=False) as worker:
+        os.kill(worker._process.pid, signal.SIGSTOP)
+        worker.draft(big.without_polish())
+        worker.start(polished, tmp_path / "there")
+        assert not worker.running  # ended by start(), before written() waited at all
+        there = worker.written()
     assert _same_images(_written(there), _written(here))
 
 

@@ -31,6 +31,7 @@ import gc
 import multiprocessing
 import os
 import sys
+import threading
 from pathlib import Path
 
 from esail_opt.processes import quiet_child
@@ -58,7 +59,7 @@ class PlotWorker:
         """``throttled``: whether the problem has a throttle, for the timeline's frame
         (:func:`esail_opt.app.plots.timeline_frame`), which the worker makes while it
         waits; None makes none."""
-        self._conn = self._process = self._job = None
+        self._conn = self._process = self._job = self._drafting = None
         self._ready = False
         if not _forks():
             return
@@ -90,29 +91,36 @@ class PlotWorker:
 
     def draft(self, solution):
         """Hand the worker the solution before its polish (``solution.solve``'s
-        ``before_polish``), to draw the timeline's closed form meanwhile.  Only to a
-        worker that is ready: one still loading matplotlib would keep the solve waiting
-        for nothing, and the figures are then drawn whole as without a draft.  Returns
-        whether the worker took it (hand it one at most)."""
-        if self._conn is None:
-            return False
+        ``before_polish``), to draw and render the timeline's closed form meanwhile
+        (one draft at most).
+
+        Sent from a thread: the solution fills more than a pipe holds, and a worker
+        still making its frame reads it only then, which the polish need not wait for.
+        """
+        if self._conn is None or self._drafting is not None:
+            return
+        self._drafting = threading.Thread(target=self._send_draft, args=(solution,),
+                                          name="esail-opt draft", daemon=True)
+        self._drafting.start()
+
+    def _send_draft(self, solution):
         try:
-            if not self._ready and self._conn.poll(0):
-                self._ready = self._conn.recv() == "ready"
-            if self._ready:
-                self._conn.send(("draft", solution))
-                return True
-        except (OSError, EOFError):
-            self.close(wait=False)  # written() draws here
-        return False
+            self._conn.send(("draft", solution))
+        except OSError:
+            pass  # the worker is gone: start() finds it so
 
     def start(self, solution, out_dir):
         """Hand the worker ``solution`` to draw into ``out_dir``; :meth:`written` waits.
-        A worker that is not ready within :data:`WAIT_SECONDS` is ended, and the
-        figures are drawn here."""
+        A worker that is not ready, or has not taken its draft, within
+        :data:`WAIT_SECONDS` is ended, and the figures are drawn here."""
         self._job = (solution, Path(out_dir))
         if self._conn is None:
             return
+        if self._drafting is not None:
+            self._drafting.join(WAIT_SECONDS)
+            if self._drafting.is_alive():
+                self.close(wait=False)  # written() draws here
+                return
         try:
             if not self._ready:
                 self._ready = self._conn.poll(WAIT_SECONDS) and self._conn.recv() == "ready"
@@ -143,6 +151,11 @@ class PlotWorker:
     def close(self, wait=True):
         """End the worker: it ends by itself once its pipe closes, or (without ``wait``,
         or when it does not within seconds) it is killed."""
+        if self._drafting is not None and self._drafting.is_alive():
+            # A draft still being sent: end the worker first, which fails the send, so
+            # that the pipe is not closed under the thread writing to it.
+            self._process.kill()
+            self._drafting.join()
         if self._conn is not None:
             self._conn.close()
             self._conn = None
