@@ -1,6 +1,7 @@
 """``esail-opt-bench figures``: the two figures of a solve, drawn by the figures' worker
-as ``esail-opt solve`` draws them, against the same figures drawn one after the other in
-this process."""
+as ``esail-opt solve --polish`` draws them (the timeline's closed form drawn while the
+polish runs) and as it draws them without a draft, against the same figures drawn one
+after the other in this process."""
 
 import statistics
 import tempfile
@@ -24,12 +25,15 @@ def _pixels(paths):
     return {Path(p).name: np.asarray(Image.open(p)) for p in paths}
 
 
-def _worker_seconds(solution, out, throttled):
+def _worker_seconds(solution, out, throttled, drafted=False):
     """Hand-over to files written, through a worker started :data:`READY_SECONDS`
-    before; returns (seconds, paths)."""
+    before (``drafted``: and handed the solution's draft then, as before a polish);
+    returns (seconds, paths)."""
     from esail_opt.app.plot_worker import PlotWorker
 
     with PlotWorker(throttled=throttled) as worker:
+        if drafted:
+            worker.draft(solution.without_polish())
         time.sleep(READY_SECONDS)
         start = time.perf_counter()
         worker.start(solution, out)
@@ -64,9 +68,10 @@ def run(out, repeats):
     problem = shipped_problem(PROBLEM)
     solution = eo.solve(problem, polish=True)
     throttled = problem.throttled()
-    timed = {"worker": [], "here": []}
+    timed = {"drafted": [], "worker": [], "here": []}
     with tempfile.TemporaryDirectory(prefix="esail_bench_figures_") as tmp:
-        ways = {"worker": lambda: _worker_seconds(solution, Path(tmp), throttled),
+        ways = {"drafted": lambda: _worker_seconds(solution, Path(tmp), throttled, True),
+                "worker": lambda: _worker_seconds(solution, Path(tmp), throttled),
                 "here": lambda: _here_seconds(solution, Path(tmp))}
         # One untimed run each (imports, compiles, caches), whose pixels are compared.
         drawn = {way: _pixels(draw()[1]) for way, draw in ways.items()}
@@ -74,25 +79,34 @@ def run(out, repeats):
             print(f"bench figures: run {k + 1}/{runs} ...", flush=True)
             for way, draw in ways.items():
                 timed[way].append(draw()[0])
-    same = drawn["worker"].keys() == drawn["here"].keys() and all(
-        np.array_equal(drawn["worker"][k], drawn["here"][k]) for k in drawn["here"])
-    worker, here = statistics.median(timed["worker"]), statistics.median(timed["here"])
+    same = all(drawn[way].keys() == drawn["here"].keys()
+               and all(np.array_equal(drawn[way][k], drawn["here"][k]) for k in drawn["here"])
+               for way in ("drafted", "worker"))
+    drafted, worker, here = (statistics.median(timed[way]) for way in ("drafted", "worker",
+                                                                       "here"))
     data = {
         "case": {"problem": PROBLEM, "polished": True, "figures": sorted(drawn["here"])},
         "runs": runs,
+        "drafted_worker_seconds": drafted,
         "worker_seconds": worker,
         "in_process_seconds": here,
+        "ratio_in_process_over_drafted_worker": here / drafted,
         "ratio_in_process_over_worker": here / worker,
+        "drafted_worker_runs_seconds": timed["drafted"],
         "worker_runs_seconds": timed["worker"],
         "in_process_runs_seconds": timed["here"],
         "same_pixels": same,
         "how": "worker: PlotWorker.start to PlotWorker.written returning, the worker started "
-               f"{READY_SECONDS:g} s before; in process: plots.write_plots; medians over "
-               "alternating runs after one untimed run each",
+               f"{READY_SECONDS:g} s before (drafted: and handed the timeline's draft "
+               "then); in process: plots.write_plots; medians over alternating runs after "
+               "one untimed run each",
     }
     print_table(f"bench figures: {PROBLEM} polished, median of {runs}", [
-        ("worker (hand-over to files written)", worker, "s"),
+        ("worker with the draft (hand-over to files written)", drafted, "s"),
+        ("worker without a draft", worker, "s"),
         ("in this process, one after the other", here, "s"),
+        ("ratio in process / worker with the draft",
+         data["ratio_in_process_over_drafted_worker"], ""),
         ("ratio in process / worker", data["ratio_in_process_over_worker"], ""),
         ("same pixels", str(same), ""),
     ])
