@@ -301,6 +301,8 @@ def _run_solve(args):
     if sol.verified:
         return 0
     reason = sol.verification_note if not sol.flight_verified else sol.polish.note
+    if sol.nearest_feasible is not None:
+        reason += "; " + solution.nearest_feasible_line(sol.nearest_feasible)
     print(f"esail-opt solve: {reason}", file=sys.stderr)
     return 1
 

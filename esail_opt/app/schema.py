@@ -12,10 +12,11 @@ Version 2 added ``schema_version``, gave the polish's misses and bounds the same
 units as the closed form's (km and m/s, where version 1 used m and mm/s), and made an
 (a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.  Version 3 added the calendar: the fields under "On the calendar" below, a body's name in
 ``problem.departure`` and ``problem.target``, and a body target's
-``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.  Version 4 (this
-one) gave the polish its own ``departure_state`` and calendar fields (a polish may move
+``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.  Version 4
+gave the polish its own ``departure_state`` and calendar fields (a polish may move
 the departure and the a_c), and made ``problem.departure_state`` the state the
 verification flies from (for a body, its ephemeris rather than the NLP's track of it).
+Version 5 (this one) added ``classes`` and ``nearest_feasible``.
 
 Top level
 ---------
@@ -83,6 +84,21 @@ target_body : object
 ac_mm_s2_required : float
     For a MinAcceleration objective: the characteristic acceleration found, mm/s^2.
 
+Classes and the edge of the feasible (version 5)
+------------------------------------------------
+classes : object
+    ``looked_at``: per turn count k on the target body that the solve looked at (a
+    MinTime or MinAcceleration rendezvous; empty otherwise): ``revolutions_k``,
+    ``label``, ``status``, ``iterations``, ``objective`` (canonical, as the top-level
+    one), ``tof_days``, ``ac_mm_s2_required`` (MinAcceleration), ``constraint_violation``
+    (of its last point), ``verified`` (null when not flown) and ``chosen``; and
+    ``not_looked_at``, one line on the classes not solved.
+nearest_feasible : object
+    Only for a fixed-time solve that found no point: ``departure_date`` (null off the
+    calendar), ``tof_days``, ``ac_mm_s2_required``, ``verified``, ``note``,
+    ``infeasible_tof_days`` (the longest time of flight found infeasible: the edge lies
+    between the two) and ``iterations`` (of the walk that found it).
+
 After a polish
 --------------
 objective_closed_form, objective_exact, tof_days_exact
@@ -101,11 +117,11 @@ polish : object
 
 from esail_opt.errors import InputError
 
-SCHEMA_VERSION = 4
-#: Versions this code reads: versions 3 and 4 only added fields, so a version-2 file
-#: reads as one of a problem off the calendar and a version-3 polish has no start of its
-#: own.
-READABLE = (2, 3, 4)
+SCHEMA_VERSION = 5
+#: Versions this code reads: versions 3 to 5 only added fields, so a version-2 file
+#: reads as one of a problem off the calendar, a version-3 polish has no start of its
+#: own, and a file before version 5 names no classes.
+READABLE = (2, 3, 4, 5)
 
 
 def check(data, source):

@@ -352,6 +352,41 @@ class TargetBody(_FlatRecord):
 
 
 @dataclass(frozen=True)
+class ClassLooked(_FlatRecord):
+    """One turn count k on the target body that the solve looked at (an entry of
+    ``classes.looked_at``): what its closed form gave, and whether it was flown.
+    ``tof_days``, ``objective`` and ``ac_mm_s2_required`` (MinAcceleration) are None
+    where Ipopt found no point; ``verified`` is None where the class was not flown."""
+
+    revolutions_k: int
+    label: str
+    status: str
+    iterations: int
+    objective: Optional[float]
+    tof_days: Optional[float]
+    ac_mm_s2_required: Optional[float]
+    constraint_violation: float
+    verified: Optional[bool]
+    chosen: bool
+
+
+@dataclass(frozen=True)
+class NearestFeasible(_FlatRecord):
+    """The shortest flight found feasible from the same departure, for a fixed-time
+    solve that found no point (``nearest_feasible``): its date, time of flight and a_c,
+    whether its flight is verified (with its note), the longest time of flight found
+    infeasible (the edge lies between the two) and the Ipopt iterations of the walk."""
+
+    departure_date: Optional[str]
+    tof_days: float
+    ac_mm_s2_required: float
+    verified: bool
+    note: str
+    infeasible_tof_days: float
+    iterations: int
+
+
+@dataclass(frozen=True)
 class Polish:
     """solution.json's ``polish``: the polished optimum and its verification, or, when
     the closed form found nothing, only ``note`` (and ``status`` None).
@@ -485,6 +520,9 @@ class Solution:
     objective_exact: Optional[float] = None
     tof_days_exact: Optional[float] = None
     polish: Optional[Polish] = None
+    classes: Tuple[ClassLooked, ...] = ()
+    classes_skipped: Optional[str] = None
+    nearest_feasible: Optional[NearestFeasible] = None
 
     # -- access
     @property
@@ -564,6 +602,11 @@ class Solution:
             objective_closed_form=d.get("objective_closed_form"),
             objective_exact=d.get("objective_exact"), tof_days_exact=d.get("tof_days_exact"),
             polish=Polish.from_json(d.get("polish")),
+            # Version 5 added the classes and the nearest feasible flight.
+            classes=tuple(ClassLooked.from_json(c)
+                          for c in d.get("classes", {}).get("looked_at", ())),
+            classes_skipped=d.get("classes", {}).get("not_looked_at"),
+            nearest_feasible=NearestFeasible.from_json(d.get("nearest_feasible")),
         )
 
     def to_json(self):
@@ -606,6 +649,11 @@ class Solution:
                        tof_days_exact=self.tof_days_exact)
         if self.polish is not None:
             out["polish"] = self.polish.to_json()
+        if self.classes_skipped is not None:
+            out["classes"] = {"looked_at": [c.to_json() for c in self.classes],
+                              "not_looked_at": self.classes_skipped}
+        if self.nearest_feasible is not None:
+            out["nearest_feasible"] = self.nearest_feasible.to_json()
         return out
 
     # -- files
@@ -697,8 +745,30 @@ class Solution:
                          if v.target_miss_v_m_s is not None else "")
                 lines.append(f"  CVODES miss vs target: {v.target_miss_r_km:.4g} km{extra}")
         lines.append(f"  {self.verification_note}")
+        lines += self._class_lines()
         lines += self._polish_lines()
         return "\n".join(lines)
+
+    def _class_lines(self):
+        """The turn counts looked at, and the nearest feasible flight, if any."""
+        lines = []
+        if self.classes:
+            shown = []
+            for c in sorted(self.classes, key=lambda c: c.revolutions_k):
+                if c.tof_days is None:
+                    shown.append(f"k = {c.revolutions_k} {c.status}")
+                    continue
+                value = (f"{c.ac_mm_s2_required:.4g} mm/s^2" if c.ac_mm_s2_required is not None
+                         else f"{c.tof_days:.1f} d")
+                verdict = {True: ", verified", False: ", NOT verified", None: ""}[c.verified]
+                shown.append(f"k = {c.revolutions_k} {value}{verdict}"
+                             + (" (chosen)" if c.chosen else ""))
+            lines.append(f"  turn counts on the body: {'; '.join(shown)}")
+            lines.append(f"  not looked at: {self.classes_skipped}")
+        n = self.nearest_feasible
+        if n is not None:
+            lines.append(f"  nearest feasible: {nearest_feasible_line(n)}")
+        return lines
 
     def _mission_lines(self):
         """The dates, the a_c a MinAcceleration found and what the plane hides at a
@@ -757,6 +827,14 @@ class Solution:
         if out_dir is not None:
             return plotting.write_plots(self, out_dir)
         return plotting.trajectory_figure(self), plotting.timeline_figure(self)
+
+
+def nearest_feasible_line(n):
+    """One line on a :class:`NearestFeasible`: its date, time of flight and a_c."""
+    date = "" if n.departure_date is None else f" departing {n.departure_date}"
+    return (f"the shortest flight found feasible{date} takes {n.tof_days:.1f} d at a_c "
+            f"{n.ac_mm_s2_required:.4g} mm/s^2 ({'verified' if n.verified else 'NOT verified'}"
+            f"; none found at {n.infeasible_tof_days:.1f} d)")
 
 
 def _nan_for_none(value):
@@ -957,6 +1035,7 @@ def _run_data(run):
         },
         **_calendar_data(problem, result, check),
     }
+    data.update(_classes_data(run))
     polished = run.polish
     if polished is not None:
         if polished.ran:
@@ -968,6 +1047,32 @@ def _run_data(run):
                                               if polished.check.error is None else None)
         data["polish"] = _polish_data(problem, polished)
     return data
+
+
+def _classes_data(run):
+    """``classes`` and ``nearest_feasible`` of solution.json for ``run``."""
+    problem = run.problem
+    acc = problem.objective.free_acceleration
+    looked = [{"revolutions_k": c.revolutions_k, "label": c.label, "status": c.status,
+               "iterations": c.iterations, "objective": c.objective,
+               "tof_days": None if c.tof is None else units.time_to_days(c.tof),
+               "ac_mm_s2_required": (problem.sail.ac_mm_s2 * c.ac_scale
+                                     if acc and c.ac_scale is not None else None),
+               "constraint_violation": c.constraint_violation, "verified": c.verified,
+               "chosen": c.chosen} for c in run.classes]
+    out = {"classes": {"looked_at": looked, "not_looked_at": run.classes_skipped}}
+    near = run.nearest_feasible
+    if near is not None:
+        flown = near.run
+        calendar = _calendar_data(flown.problem, flown.result, flown.check)
+        out["nearest_feasible"] = {
+            "departure_date": calendar.get("departure_date"),
+            "tof_days": near.tof_days,
+            "ac_mm_s2_required": calendar.get("ac_mm_s2_required",
+                                              flown.problem.sail.ac_mm_s2),
+            "verified": flown.verified, "note": flown.note,
+            "infeasible_tof_days": near.infeasible_tof_days, "iterations": near.iterations}
+    return out
 
 
 def _problem_data(problem, result, sub_arcs_requested):

@@ -29,8 +29,8 @@ from esail_opt.optimisation.transcription import (Transcription, initial_guess,
                                                   sub_arcs_within_cap)
 from esail_opt.optimisation.verify import Verification, verify, within
 
-__all__ = ["Outcome", "Round", "StartTried", "PolishRun", "Run", "solve", "finish",
-           "POLISH_TOLERANCE"]
+__all__ = ["Outcome", "Round", "StartTried", "ClassTried", "NearestFeasible", "PolishRun",
+           "Run", "solve", "finish", "POLISH_TOLERANCE"]
 
 #: What a polished schedule must meet (1 m and 1 mm/s), against the target and against
 #: the polished NLP's own final node.
@@ -44,6 +44,72 @@ class StartTried:
     label: str
     status: str
     iterations: int
+
+
+@dataclass(frozen=True)
+class ClassTried:
+    """One turn count k on the target body that a solve looked at, and what it gave.
+
+    Attributes
+    ----------
+    label : str
+        Where its start came from.
+    revolutions_k : int
+        The class: whole turns between the sail and the body at arrival.
+    status : str
+        Ipopt's return status of its last solve ("Maximum_Iterations_Exceeded" for a
+        probe stopped at :data:`multistart.PROBE_FACTOR` times the seed's iterations).
+    iterations : int
+        Ipopt iterations spent on it.
+    objective : float or None
+        Its closed-form objective (canonical units), None when Ipopt found no point.
+    tof, ac_scale : float or None
+        Its time of flight (TU) and a_c over the sail's, None when not found.
+    constraint_violation : float
+        Of the point it ended at (a probe stopped far from feasible is hopeless).
+    verified : bool or None
+        Whether its flight met the tolerance; None when it was not flown (it was not
+        found, or a better class was verified first).
+    chosen : bool
+        The class the run returns.
+    """
+
+    label: str
+    revolutions_k: int
+    status: str
+    iterations: int
+    objective: Optional[float]
+    tof: Optional[float]
+    ac_scale: Optional[float]
+    constraint_violation: float
+    verified: Optional[bool] = None
+    chosen: bool = False
+
+
+@dataclass(frozen=True)
+class NearestFeasible:
+    """The shortest flight found feasible from the same departure, for a fixed-time
+    solve that found no point (``scan.shortest_feasible``, a walk in the time of flight).
+
+    Attributes
+    ----------
+    run : Run
+        That flight, error-controlled and verified as any run is (its problem carries
+        the time of flight, ``problem.objective.tof_days``).
+    infeasible_tof_days : float
+        The longest time of flight the walk found no point at: the edge lies between it
+        and the run's.
+    iterations : int
+        Ipopt iterations the walk spent, its infeasible probes included.
+    """
+
+    run: "Run"
+    infeasible_tof_days: float
+    iterations: int
+
+    @property
+    def tof_days(self):
+        return self.run.problem.objective.tof_days
 
 
 @dataclass(frozen=True)
@@ -115,6 +181,14 @@ class Run:
         The problem file's sub-arcs, before the seed or the error control raised them.
     polish : PolishRun or None
         Only when asked for.
+    classes : tuple of ClassTried
+        For a MinTime or MinAcceleration rendezvous: each turn count on the body it
+        looked at, in the order solved (empty for other problems).
+    classes_skipped : str
+        One line: the classes it did not look at, and why.
+    nearest_feasible : NearestFeasible or None
+        For a fixed-time solve that found no point: the shortest flight found feasible
+        from the same departure.
     """
 
     problem: Problem
@@ -127,6 +201,9 @@ class Run:
     note: str
     sub_arcs_requested: int
     polish: Optional[PolishRun] = None
+    classes: Tuple[ClassTried, ...] = ()
+    classes_skipped: str = ""
+    nearest_feasible: Optional[NearestFeasible] = None
 
     @property
     def outcome(self):
@@ -198,8 +275,6 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
     starts = ()
     if not result.outcome.found:
         result, tr, starts = _other_starts(problem, result, tr, say, threads)
-    elif problem.objective.free_acceleration and problem.tracks_body():
-        result, tr, starts = _least_acceleration_class(problem, result, tr, say, threads)
     if seed is not None:
         # The scan that chose the date is part of the run's Ipopt record.
         result.iterations += seed.iterations
@@ -207,9 +282,47 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
     say(f"{problem.name}: {result.status} after {result.iterations} iterations; "
         + ("error control until the flight meets the tolerance" if result.outcome.found
            else "no start found a point; flying the last iterate to report its miss"))
-    return finish(problem, result, tr, samples=samples, polish=polish, progress=say,
-                  starts=starts, sub_arcs_requested=seg.sub_arcs, threads=threads,
-                  before_polish=before_polish)
+    if result.outcome.found and _searches_classes(problem):
+        tried, skipped = _classes(problem, result, tr, say, threads)
+        run = _best_verified(problem, tried, samples, say, starts, seg.sub_arcs, threads)
+        run = dataclasses.replace(run, classes_skipped=skipped)
+    else:
+        run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
+                     sub_arcs_requested=seg.sub_arcs, threads=threads)
+        run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
+    if not result.outcome.found and _walks_tof(problem):
+        run = dataclasses.replace(run, nearest_feasible=_nearest_feasible(
+            problem, samples, say, threads))
+    return _polished(run, polish, samples, say, threads, before_polish)
+
+
+def _searches_classes(problem):
+    """Whether :func:`solve` looks at the turn counts on the body beside the seed's: a
+    MinTime or MinAcceleration rendezvous departing at a fixed date and angle."""
+    objective = problem.objective
+    return (problem.tracks_body() and not problem.free_date()
+            and not getattr(problem.departure, "free_anomaly", False)
+            and (objective.free_acceleration or not objective.fixed_time))
+
+
+def _unsearched(problem):
+    """Why a run looked at no class beside its seed's (``Run.classes_skipped``)."""
+    if not problem.tracks_body():
+        return ("revolution windows: not searched by a lone solve (esail-opt search "
+                "solves one per window)")
+    if _searches_classes(problem):
+        return "none: no start found a point to compare the other turn counts with"
+    return ("turn counts on the body other than the seed's: not searched for this "
+            "objective or departure (esail-opt search solves one per turn count)")
+
+
+def _walks_tof(problem):
+    """Whether a solve that found no point walks the time of flight to the shortest
+    feasible one (``scan.shortest_feasible``): fixed-time problems with a target and a
+    fixed departure."""
+    return (problem.objective.fixed_time and problem.target is not None
+            and not problem.free_date()
+            and not getattr(problem.departure, "free_anomaly", False))
 
 
 def _other_starts(problem, result, tr, say, threads=None):
@@ -239,36 +352,86 @@ def _other_starts(problem, result, tr, say, threads=None):
     return result, tr, tuple(records)
 
 
-def _least_acceleration_class(problem, result, tr, say, threads=None):
-    """The least a_c over the turn counts k on the target body, for a MinAcceleration
-    rendezvous (``multistart.descend_turns`` from the seed's k, each k a cold solve
-    from its own seed).  A warm-started scan drifts to the better k where a lone solve
-    would stay, and the two would then disagree on what the same cell needs
-    (``test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it``).
+def _class_record(label, result):
+    found = result.outcome.found
+    return ClassTried(label, result.revolutions_k, result.status, result.iterations,
+                      result.objective if found else None,
+                      float(sum(result.durations)) if found else None,
+                      result.ac_scale if found else None, result.constraint_violation)
 
-    Returns the (result, transcription) of the least a_c found and a StartTried per
-    class solved.
+
+def _classes(problem, result, tr, say, threads=None):
+    """The turn counts k on the target body beside the one ``result`` found, probed
+    (``multistart.probe_rendezvous_class``) one turn at a time each way while each
+    does better (``multistart.descend_turns``).
+
+    The a_c a MinAcceleration rendezvous needs, or a MinTime one's time of flight, can
+    change by whole factors from one k to the next, and the seed's k is only what a
+    constant pitch happens to wind.  (A warm-started scan drifts to the better k where
+    a lone solve would stay, and the two would then disagree on what the same cell
+    needs: ``test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it``.)
+
+    Returns [(ClassTried, NLPResult, Transcription)] in the order solved, the first
+    ``result``'s own, and the line of ``Run.classes_skipped``.
     """
-    records = [StartTried(f"the problem's own seed (k = {result.revolutions_k})",
-                          result.status, result.iterations)]
-    seconds = [result.solve_seconds]
+    cap = multistart.probe_cap(result.iterations)
+    tried = [(_class_record(f"the seed's class (k = {result.revolutions_k})", result),
+              result, tr)]
 
     def solve_class(k):
-        start = multistart.rendezvous_starts(problem, [k])[0]
-        say(f"{problem.name}: trying the turn count k = {k}")
-        other, other_tr = solve_problem(problem, guess=start.guess, progress=say,
-                                        threads=threads)
-        records.append(StartTried(start.label, other.status, other.iterations))
-        seconds.append(other.solve_seconds)
+        say(f"{problem.name}: probing the turn count k = {k} ({cap} Ipopt iterations "
+            "at most unless nearly feasible)")
+        other, other_tr, label = multistart.probe_rendezvous_class(problem, k, cap, say,
+                                                                   threads)
+        tried.append((_class_record(label, other), other, other_tr))
         return (other, other_tr) if other.outcome.found else None
 
-    (best, best_tr), _ = multistart.descend_turns(
-        result.revolutions_k, (result, tr), solve_class,
-        lambda a, b: a[0].objective < b[0].objective)
-    # The run's Ipopt record covers every class it solved.
-    best.iterations = sum(r.iterations for r in records)
-    best.solve_seconds = sum(seconds)
-    return best, best_tr, tuple(records)
+    multistart.descend_turns(result.revolutions_k, (result, tr), solve_class,
+                             lambda a, b: a[0].objective < b[0].objective)
+    ks = [c.revolutions_k for c, _, _ in tried]
+    skipped = (f"turn counts k < {min(ks)} and k > {max(ks)}: not solved (each way, the "
+               "search stops at the first count that does no better than the best)")
+    return tried, skipped
+
+
+def _best_verified(problem, tried, samples, say, starts, requested, threads=None):
+    """The run of the best class of ``tried`` (:func:`_classes`) whose flight is verified:
+    the found classes are finished (error control, CVODES) best objective first until
+    one is verified; the best one's run if none is.  Its ``classes`` record each class,
+    with the verdicts of those flown."""
+    iterations = sum(c.iterations for c, _, _ in tried)
+    seconds = sum(r.solve_seconds for _, r, _ in tried)
+    found = sorted((i for i, (_, r, _) in enumerate(tried) if r.outcome.found),
+                   key=lambda i: tried[i][1].objective)
+    runs = {}
+    for i in found:
+        _, result, tr = tried[i]
+        # The run's Ipopt record covers every class it solved.
+        result.iterations, result.solve_seconds = iterations, seconds
+        if len(found) > 1:
+            say(f"{problem.name}: flying the turn count k = {result.revolutions_k}")
+        runs[i] = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
+                         sub_arcs_requested=requested, threads=threads)
+        if runs[i].verified:
+            break
+    chosen = next((i for i in runs if runs[i].verified), found[0])
+    classes = tuple(dataclasses.replace(c, verified=runs[i].verified if i in runs else None,
+                                        chosen=i == chosen)
+                    for i, (c, _, _) in enumerate(tried))
+    return dataclasses.replace(runs[chosen], classes=classes)
+
+
+def _nearest_feasible(problem, samples, say, threads=None):
+    """The shortest flight found feasible from ``problem``'s departure
+    (``scan.shortest_feasible``), flown as a run; None when the walk found none."""
+    edge = scan.shortest_feasible(problem, say, threads)
+    if edge is None:
+        return None
+    say(f"{problem.name}: the shortest flight found feasible is "
+        f"{edge.problem.objective.tof_days:.4g} d; error control and verification")
+    run = finish(edge.problem, edge.result, edge.transcription, samples=samples,
+                 progress=say, threads=threads)
+    return NearestFeasible(run, edge.infeasible_tof_days, edge.iterations)
 
 
 def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
@@ -325,11 +488,17 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
     run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
               error_control=controlled, check=check, verified=verified, note=note,
               sub_arcs_requested=requested)
+    return _polished(run, polish, samples, say, threads, before_polish)
+
+
+def _polished(run, polish, samples, say, threads=None, before_polish=None):
+    """``run`` with its polish, when asked for (``before_polish(run)`` first)."""
     if not polish:
         return run
     if before_polish is not None:
         before_polish(run)
-    return dataclasses.replace(run, polish=_polish(problem, result, samples, say, threads))
+    return dataclasses.replace(run, polish=_polish(run.problem, run.result, samples, say,
+                                                   threads))
 
 
 def _polish(problem, result, samples, say, threads=None):

@@ -421,3 +421,79 @@ def seed_free_date(problem, progress=None):
     meshed = dataclasses.replace(problem, segments=dataclasses.replace(
         best.problem.segments, count=start.alpha.size, per_revolution=None))
     return Seed(meshed, start.as_guess(), iterations, time.perf_counter() - started)
+
+
+#: Times of flight at which a fixed-time problem that found no point is solved cold, as
+#: multiples of the asked one, until one finds a point: the walk to the edge starts there.
+LONGER = (1.1, 1.25, 1.5, 2.0)
+#: The walk halves the interval between the longest time found infeasible and the
+#: shortest found feasible until it is this short, days.
+EDGE_DAYS = 4.0
+#: Ipopt iterations of each warm step of the walk.  A step that finds no point within
+#: them is taken as beyond the edge: the walk then reports a flight a little longer than
+#: the edge, never one that is not feasible (from 2035-06-01 to Mars, steps past the
+#: edge took 500 to 1,200 iterations to end infeasible, steps inside it 36 to 69).
+WALK_ITERATIONS = 150
+
+
+@dataclass(frozen=True)
+class Edge:
+    """The shortest flight :func:`shortest_feasible` found: the problem at that time of
+    flight, its converged closed-form optimum and NLP, the longest time of flight found
+    infeasible (days), and the Ipopt iterations the walk spent."""
+
+    problem: object
+    result: NLPResult
+    transcription: object
+    infeasible_tof_days: float
+    iterations: int
+
+
+def _at_tof(problem, tof_days):
+    return dataclasses.replace(problem, objective=_objective_at(problem, tof_days))
+
+
+def shortest_feasible(problem, progress=None, threads=None):
+    """The shortest time of flight from ``problem``'s departure at which its closed-form
+    NLP converges, at least ``problem``'s own: a continuation in the time of flight.
+
+    The problem is solved cold at :data:`LONGER` multiples of its time of flight until
+    one converges; then the time of flight is halved towards the longest one found
+    infeasible, each step warm from the last converged one on the same NLP (its time of
+    flight is a parameter, ``Transcription.at``), to within :data:`EDGE_DAYS`.  A step
+    that does not converge within :data:`WALK_ITERATIONS` counts as infeasible, so the
+    edge may lie a little shorter than reported, never longer.
+
+    Returns
+    -------
+    Edge or None
+        None when no time of flight of :data:`LONGER` converged.
+    """
+    say = progress or (lambda text: None)
+    asked = problem.objective.tof_days
+    lo, iterations, found = asked, 0, None
+    for factor in LONGER:
+        cell = _at_tof(problem, asked * factor)
+        guess = initial_guess(cell)
+        cell = sub_arcs_within_cap(cell, guess, MAX_SUB_ARCS)
+        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
+        result, tr = solve_problem(cell, guess=guess, progress=say, threads=threads)
+        iterations += result.iterations
+        if result.outcome.converged:
+            found = cell, result, tr
+            break
+        lo = asked * factor
+    if found is None:
+        return None
+    cell, result, tr = found
+    solver = build_solver(tr, ipopt_options(max_iter=WALK_ITERATIONS), warm=True)
+    while cell.objective.tof_days - lo > EDGE_DAYS:
+        step = _at_tof(cell, 0.5 * (lo + cell.objective.tof_days))
+        say(f"{problem.name}: walking the time of flight to {step.objective.tof_days:.6g} d")
+        other = solve_transcription(tr.at(step), warm=result, solver=solver, progress=say)
+        iterations += other.iterations
+        if other.outcome.converged:
+            cell, result = step, other
+        else:
+            lo = step.objective.tof_days
+    return Edge(cell, result, tr.at(cell), lo, iterations)
