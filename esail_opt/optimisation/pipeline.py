@@ -374,11 +374,19 @@ def _classes(problem, result, tr, say, threads=None):
     Returns [(ClassTried, NLPResult, Transcription)] in the order solved, the first
     ``result``'s own, and the line of ``Run.classes_skipped``.
     """
-    cap = multistart.probe_cap(result.iterations)
-    tried = [(_class_record(f"the seed's class (k = {result.revolutions_k})", result),
+    # The found solve's own iterations, not the run's (other starts before it included).
+    own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
+    cap = multistart.probe_cap(own.iterations)
+    tried = [(_class_record(f"the seed's class (k = {result.revolutions_k})", own),
               result, tr)]
 
+    # A real body's k counts from the turns both bodies made since 2000, so it may be
+    # negative; an idealised body's counts from its phase at departure.
+    real = getattr(problem.target, "body", None) is not None
+
     def solve_class(k):
+        if k < 0 and not real:
+            return None
         say(f"{problem.name}: probing the turn count k = {k} ({cap} Ipopt iterations "
             "at most unless nearly feasible)")
         other, other_tr, label = multistart.probe_rendezvous_class(problem, k, cap, say,
@@ -399,7 +407,8 @@ def _best_verified(problem, tried, samples, say, starts, requested, threads=None
     the found classes are finished (error control, CVODES) best objective first until
     one is verified; the best one's run if none is.  Its ``classes`` record each class,
     with the verdicts of those flown."""
-    iterations = sum(c.iterations for c, _, _ in tried)
+    # The first result's record covers the starts before it as well.
+    iterations = tried[0][1].iterations + sum(c.iterations for c, _, _ in tried[1:])
     seconds = sum(r.solve_seconds for _, r, _ in tried)
     found = sorted((i for i, (_, r, _) in enumerate(tried) if r.outcome.found),
                    key=lambda i: tried[i][1].objective)
