@@ -1,5 +1,7 @@
-"""The data path of one run: seed -> closed-form NLP -> Ipopt -> other starts -> error
-control -> CVODES verification -> polish, returned as a typed :class:`Run`.
+"""The data path of one run: seed -> closed-form NLP -> Ipopt -> other starts -> the
+turn counts beside the answer's -> error control -> CVODES verification -> polish (or,
+for a fixed time with no point, the walk to the shortest feasible time of flight),
+returned as a typed :class:`Run`.
 
 This is the one module that strings the optimisation stages together; the application
 (``app.solution``, the global search, sweeps) calls :func:`solve` or :func:`finish` and
@@ -218,6 +220,13 @@ def _quiet(text):
 def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None,
           before_polish=None):
     """Run the whole pipeline on ``problem``.
+
+    A MinTime or MinAcceleration rendezvous at a fixed departure also looks at the turn
+    counts on the body beside the one its seed found (:func:`_classes`) and returns the
+    best one whose flight is verified (``Run.classes`` records each).  A fixed-time
+    problem with a target that no start finds a point for walks its time of flight to
+    the shortest feasible one from the same departure (``Run.nearest_feasible``); the
+    run itself stays not verified.
 
     Parameters
     ----------
