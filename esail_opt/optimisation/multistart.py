@@ -252,16 +252,12 @@ def probe_cap(iterations):
     return max(PROBE_MIN, int(math.ceil(PROBE_FACTOR * iterations)))
 
 
-def probe_rendezvous_class(problem, k, cap, progress=None, threads=None):
-    """A solve of the rendezvous turn count ``k`` from its seed (:func:`rendezvous_starts`)
-    with Ipopt stopped after ``cap`` iterations, solved on without a cap only when that
-    point is within :data:`PROBE_FEASIBLE` of feasible.
-
-    Returns (NLPResult, Transcription, label of the start); the result's iterations and
-    seconds cover the probe and what followed it.
-    """
-    start = rendezvous_starts(problem, [k])[0]
-    result, tr = solve_problem(problem, guess=start.guess, progress=progress, threads=threads,
+def probe(problem, guess, cap, progress=None, threads=None):
+    """A solve of ``problem`` from ``guess`` with Ipopt stopped after ``cap`` iterations,
+    solved on without a cap only when that point is within :data:`PROBE_FEASIBLE` of
+    feasible.  Returns (NLPResult, Transcription); the result's iterations and seconds
+    cover the probe and what followed it."""
+    result, tr = solve_problem(problem, guess=guess, progress=progress, threads=threads,
                                options=ipopt_options(max_iter=cap))
     if not result.outcome.found and result.constraint_violation <= PROBE_FEASIBLE:
         # A nearly feasible point is a start Ipopt should keep to, as a free date's is.
@@ -272,7 +268,14 @@ def probe_rendezvous_class(problem, k, cap, progress=None, threads=None):
         more.solve_seconds += result.solve_seconds
         more.stages = result.stages + more.stages
         result = more
-    return result, tr, start.label
+    return result, tr
+
+
+def probe_rendezvous_class(problem, k, cap, progress=None, threads=None):
+    """:func:`probe` of the rendezvous turn count ``k`` from its seed
+    (:func:`rendezvous_starts`); returns (NLPResult, Transcription, label of the start)."""
+    start = rendezvous_starts(problem, [k])[0]
+    return probe(problem, start.guess, cap, progress, threads) + (start.label,)
 
 
 def fallback_starts(problem, guess):
