@@ -245,11 +245,19 @@ PROBE_MIN = 60
 #: violation, canonical units) is still descending in a class that has transfers, and is
 #: solved on from there; one further off is left as hopeless.
 PROBE_FEASIBLE = 1e-6
+#: The least cap of a fallback start (another start after the first found no point).
+#: Unlike a class probe it has no found answer whose cost scales it, and the first
+#: start's failure says little of what a feasible start takes: on
+#: tests/problems/venus_rendezvous_behind.py the first start ended infeasible after 52
+#: iterations and the start that found the transfer took 184.
+FALLBACK_MIN = 300
 
 
-def probe_cap(iterations):
-    """The Ipopt iterations of a class probe, after a first class that took ``iterations``."""
-    return max(PROBE_MIN, int(math.ceil(PROBE_FACTOR * iterations)))
+def probe_cap(iterations, least=PROBE_MIN):
+    """The Ipopt iterations of a probe, after a first solve that took ``iterations``:
+    :data:`PROBE_FACTOR` times those, at least ``least`` (:data:`PROBE_MIN` for a class
+    probe, :data:`FALLBACK_MIN` for a fallback start)."""
+    return max(least, int(math.ceil(PROBE_FACTOR * iterations)))
 
 
 def probe(problem, guess, cap, progress=None, threads=None):

@@ -339,8 +339,9 @@ def _other_starts(problem, result, tr, say, threads=None):
     the starts the global search would (other turn counts on a rendezvous body, other
     constant-pitch seeds of an orbit transfer), and keep the first that finds a point.
     Each is a probe (``multistart.probe``) capped at ``multistart.probe_cap`` of the
-    first start's iterations: from 2035-06-01 to Mars in 600 d, where no sail exists,
-    two of the uncapped starts took 3,000 and 1,842 iterations to fail.
+    first start's iterations, at least ``multistart.FALLBACK_MIN``: from 2035-06-01 to
+    Mars in 600 d, where no sail exists, two of the uncapped starts took 3,000 and 1,842
+    iterations to fail.
 
     Returns the (result, transcription) to go on with and a StartTried per start.
     """
@@ -348,7 +349,7 @@ def _other_starts(problem, result, tr, say, threads=None):
     if problem.target is None or getattr(problem.departure, "free_anomaly", False):
         return result, tr, tuple(records)
     seconds = result.solve_seconds
-    cap = multistart.probe_cap(result.iterations)
+    cap = multistart.probe_cap(result.iterations, multistart.FALLBACK_MIN)
     for start in multistart.fallback_starts(problem, tr.guess):
         say(f"{problem.name}: {result.status}; trying {start.label} ({cap} Ipopt "
             "iterations at most unless nearly feasible)")
