@@ -756,7 +756,8 @@ class Solution:
             shown = []
             for c in sorted(self.classes, key=lambda c: c.revolutions_k):
                 if c.tof_days is None:
-                    shown.append(f"k = {c.revolutions_k} {c.status}")
+                    shown.append(f"k = {c.revolutions_k} no point ({c.status} after "
+                                 f"{c.iterations} iterations)")
                     continue
                 value = (f"{c.ac_mm_s2_required:.4g} mm/s^2" if c.ac_mm_s2_required is not None
                          else f"{c.tof_days:.1f} d")
