@@ -11,6 +11,7 @@ may raise them.
 import math
 import signal
 import threading
+import unicodedata
 
 
 class InputError(ValueError):
@@ -128,8 +129,17 @@ def check_range(name, value, low=-math.inf, high=math.inf, low_open=False, high_
                 unit=""):
     """Return ``float(value)`` if it lies in the stated interval, else raise InputError.
 
-    The message reads e.g. ``e0 = 1.2 is outside [0, 1)`` so a user can fix it.
+    The message reads e.g. ``e0 = 1.2 is outside [0, 1)`` so a user can fix it.  A
+    string is refused even when it spells a number (``"650"``): the field would keep
+    the string, and the first arithmetic on it would fail far from the problem file
+    with a TypeError that names no field.
     """
+    left = "(" if low_open else "["
+    right = ")" if high_open else "]"
+    suffix = f" {unit}" if unit else ""
+    allowed = f"{left}{_fmt(low)}, {_fmt(high)}{right}{suffix}"
+    if isinstance(value, (str, bytes)):
+        raise InputError(f"{name} = {value!r} is a string, not a number in {allowed}")
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -137,12 +147,7 @@ def check_range(name, value, low=-math.inf, high=math.inf, low_open=False, high_
     below = number <= low if low_open else number < low
     above = number >= high if high_open else number > high
     if math.isnan(number) or below or above:
-        left = "(" if low_open else "["
-        right = ")" if high_open else "]"
-        suffix = f" {unit}" if unit else ""
-        raise InputError(
-            f"{name} = {value!r}{suffix} is outside {left}{_fmt(low)}, {_fmt(high)}{right}{suffix}"
-        )
+        raise InputError(f"{name} = {value!r}{suffix} is outside {allowed}")
     return number
 
 
@@ -150,3 +155,25 @@ def _fmt(bound):
     if math.isinf(bound):
         return "inf" if bound > 0 else "-inf"
     return f"{bound:g}"
+
+
+def check_printable(name, value, allowed="printable characters"):
+    """Return ``value`` if it is a non-empty string of printable characters, else raise
+    InputError naming ``name`` and what is allowed.
+
+    Printable is :meth:`str.isprintable`: no control characters (ESC, CR, tab, newline,
+    NUL), no lone surrogates (which no file name or terminal can encode), no format or
+    line-separator characters; a space is allowed.  Such a name is written into folder
+    names, file contents and one-line messages, where a control character would rewrite
+    the terminal's line or split a line in two.  ``allowed`` says what the field takes,
+    for the message.
+    """
+    if not isinstance(value, str) or not value:
+        raise InputError(f"{name} = {value!r} is not a non-empty string of {allowed}")
+    bad = next((c for c in value if not c.isprintable()), None)
+    if bad is not None:
+        kind = {"Cc": "a control character", "Cs": "a lone surrogate"}.get(
+            unicodedata.category(bad), "a non-printable character")
+        raise InputError(f"{name} = {value!r} holds {kind} (U+{ord(bad):04X}); allowed: "
+                         f"{allowed}")
+    return value

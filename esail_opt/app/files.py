@@ -88,7 +88,8 @@ def check_output_dir(path, name=None):
     ------
     InputError
         The folder's last component is not a safe name (``..``, ``.``, a NUL, more
-        than 255 bytes), or ``name`` is not (a ``/`` in it too).
+        than 255 bytes), or ``name`` is not (a ``/`` in it too); or the folder is a
+        symbolic link, dangling or not (folders above it may be links).
     OutputError
         The folder cannot be created or written: a path under a regular file, a
         regular file in its place, a read-only or full file system.  Nothing is left
@@ -107,6 +108,13 @@ def check_output_dir(path, name=None):
     # but the user meant the folder itself, which cannot be swapped for a new one.
     check_name(os.fspath(raw).rstrip("/").rpartition("/")[2] or os.fspath(raw),
                "output folder name")
+    if path.is_symlink():
+        # A run's set is swapped in by renaming folders: through a link it would
+        # replace the link itself (or fail after the solve), and a journal appended
+        # through it would land where the link points.
+        raise InputError(f"output folder {str(path)!r} is a symbolic link (to "
+                         f"{os.readlink(path)!r}); give the folder itself, not a link, "
+                         "or another --out")
     if path.exists() and not path.is_dir():
         raise OutputError(f"cannot write the output folder {str(path)!r}: a file of that "
                           "name is in the way (choose another --out)")

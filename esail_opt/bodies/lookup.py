@@ -21,7 +21,8 @@ import math
 import numpy as np
 
 from esail_opt.bodies import ephemeris
-from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, jd_from_tu, jd_split_from_tu, tu_from_jd
+from esail_opt.bodies.dates import (
+    TRACK_SPAN, check_tracked, jd_from_iso, jd_from_tu, jd_split_from_tu, tu_from_jd)
 from esail_opt.bodies.keplerian import SmallBody
 from esail_opt.bodies.track import track_of
 from esail_opt.errors import InputError
@@ -72,9 +73,6 @@ def source(body):
     return "JPL DE421 (jplephem), heliocentric, ecliptic of J2000"
 
 
-#: The dates (TDB) every problem on the calendar must lie in: departures, arrivals and
-#: scans.
-TRACK_SPAN = ("2000-01-01", "2060-01-01")
 
 
 @functools.lru_cache(maxsize=None)
@@ -140,9 +138,6 @@ def mean_radius_au(body):
 
 
 def check_span(jd, field):
-    """Raise InputError, naming ``field``, if ``jd`` lies outside what the tracks cover."""
-    lo, hi = (jd_from_tu(t) for t in span_tu())
-    if not lo <= jd <= hi:
-        raise InputError(f"{field} = {iso_from_jd(jd)} is outside the dates esail_opt "
-                         f"tracks bodies on, [{TRACK_SPAN[0]}, {TRACK_SPAN[1]}] (TDB)")
-    return jd
+    """Raise InputError, naming ``field``, if ``jd`` lies outside what the tracks cover
+    (:data:`TRACK_SPAN`); return ``jd``."""
+    return check_tracked(jd, field)

@@ -29,7 +29,7 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.bodies import dates, lookup
-from esail_opt.errors import InputError, check_range
+from esail_opt.errors import InputError, check_printable, check_range
 from esail_opt.optimisation.goals import (
     OBJECTIVES, TARGETS, BodyIntercept, BodyRendezvous, CircularOrbit, FinalStateExpression,
     MaxEnergy, MaxRadius, MinAcceleration, MinTime, Orbit, Rendezvous,
@@ -45,6 +45,10 @@ __all__ = [
     "Rendezvous", "BodyRendezvous", "BodyIntercept", "PathConstraints", "Tolerance",
     "Problem", "EXACT", "BEST_FIT",
 ]
+
+
+#: What a problem's name may hold, as its refusal says: it names the output folder.
+NAME_ALLOWED = "printable characters without '/' or '\\' (the name is a folder name)"
 
 
 def _check_finite_positive_int(name, value, low=1):
@@ -146,12 +150,12 @@ class BodyDeparture:
         A planet name (``esail_opt.bodies.ephemeris.PLANETS``; "earth" is the Earth-Moon
         barycentre, see ``bodies.ephemeris``) or a :class:`~esail_opt.bodies.SmallBody`.
     date : str or None
-        Departure date, ISO 8601 (read as TDB).  With ``window`` it is only the seed of
-        the free date; without either it is required.
+        Departure date, ISO 8601 (read as TDB), in the tracked span 2000-2060.  Give
+        it or ``window``, not both.
     window : (str, str) or None
-        Earliest and latest departure, ISO 8601 (TDB): the date becomes a decision
-        variable of the NLP inside it.  Without ``date`` the tool seeds it by a coarse
-        scan of the window of its own.
+        Earliest and latest departure, ISO 8601 (TDB), in the same span: the date
+        becomes a decision variable of the NLP inside it, seeded by a coarse scan of
+        the window.
     vinf_km_s : float
         Hyperbolic excess speed from the launcher, km/s, in [0, 10]; 0 (the default)
         leaves on the body's own orbit.
@@ -174,6 +178,12 @@ class BodyDeparture:
         if self.date is None and self.window is None:
             raise InputError("departure.date = None: give a date (ISO 8601, e.g. "
                              "'2031-06-01') or a window (earliest, latest)")
+        if self.date is not None and self.window is not None:
+            # A window frees the date, and its seed comes from a scan of the window:
+            # a date given with it would be silently ignored.
+            raise InputError(f"departure.date = {self.date!r} and departure.window = "
+                             f"{self.window!r}: give one of them, not both (a window "
+                             "frees the date; a date fixes it)")
         if self.date is not None:
             lookup.check_span(dates.jd_from_iso(self.date, "departure.date"), "departure.date")
         if self.window is not None:
@@ -184,9 +194,6 @@ class BodyDeparture:
             if hi < lo:
                 raise InputError(f"departure.window = {tuple(self.window)!r}: its end comes "
                                  "before its start")
-            if self.date is not None and not lo <= dates.jd_from_iso(self.date) <= hi:
-                raise InputError(f"departure.date = {self.date!r} is outside departure.window "
-                                 f"[{self.window[0]}, {self.window[1]}]")
         check_range("departure.vinf_km_s", self.vinf_km_s, 0, 10, unit="km/s")
         if self.vinf_angle_deg is not None:
             check_range("departure.vinf_angle_deg", self.vinf_angle_deg, -180, 180, unit="deg")
@@ -211,7 +218,7 @@ class BodyDeparture:
 
     def epoch_jd(self):
         """The departure date (or the free date's seed) as a Julian date, TDB; a window
-        without a date seeds at its start (``optimisation.pipeline`` scans it first)."""
+        seeds at its start (``optimisation.pipeline`` scans it first)."""
         return dates.jd_from_iso(self.date if self.date is not None else self.window[0])
 
     def epoch(self):
@@ -417,7 +424,9 @@ class Problem:
     Attributes
     ----------
     name : str
-        Used for the default output folder ``results/<name>/``.
+        Used for the default output folder ``results/<name>/``: printable characters
+        (``str.isprintable``: no control character, no lone surrogate) without ``/``
+        or ``\\``.  A ``$`` is allowed.
     departure : ParkingOrbit or PolarState
     sail : Sail
     segments : Segments
@@ -448,8 +457,10 @@ class Problem:
     description: str = ""
 
     def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name or any(c in self.name for c in "/\\"):
-            raise InputError(f"name = {self.name!r} is not a non-empty file-name string")
+        check_printable("name", self.name, NAME_ALLOWED)
+        if any(c in self.name for c in "/\\"):
+            raise InputError(f"name = {self.name!r} holds a path separator; allowed: "
+                             f"{NAME_ALLOWED}")
         for attr, kinds in (("departure", (ParkingOrbit, PolarState, BodyDeparture)),
                             ("sail", (Sail,)),
                             ("segments", (Segments,)),
@@ -472,6 +483,8 @@ class Problem:
                              "nothing to reach); use a fixed-time objective")
         if dated and self.objective.fixed_time:
             self._check_arrival_tracked()
+        if dated and getattr(self.target, "arrival_window", None) is not None:
+            self._check_arrival_after_departure()
         if self.guess_alpha_deg is not None:
             lo, hi = self.sail.alpha_min_deg, self.sail.alpha_max_deg
             check_range("guess_alpha_deg", self.guess_alpha_deg, lo, hi, unit="deg")
@@ -490,6 +503,20 @@ class Problem:
                 f"{dates.iso_from_jd(latest)} the flight ends {dates.iso_from_jd(end)} TDB, "
                 f"after {lookup.TRACK_SPAN[1]}, the last date bodies are tracked on; "
                 "shorten the flight or depart earlier")
+
+    def _check_arrival_after_departure(self):
+        """Refuse an arrival window that closes before the sail can leave: at or before
+        the departure date, or the earliest date of a departure window."""
+        dep = self.departure
+        earliest = dep.window_jd[0] if dep.window is not None else dep.epoch_jd()
+        field = "departure.window[0]" if dep.window is not None else "departure.date"
+        closes = self.target.arrival_jd[1]
+        if closes <= earliest:
+            raise InputError(
+                f"target.arrival_window = {tuple(self.target.arrival_window)!r} closes on "
+                f"{dates.iso_from_jd(closes)} TDB, not after {field} = "
+                f"{dates.iso_from_jd(earliest)}: the arrival window must end after the "
+                "earliest departure")
 
     def with_segments(self, count):
         """The same problem with ``count`` control segments (``--segments``; it replaces
