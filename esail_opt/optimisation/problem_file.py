@@ -136,6 +136,8 @@ def _child(path, fd):
         quiet = os.open(os.devnull, os.O_WRONLY)
         os.dup2(quiet, 1)
         os.dup2(quiet, 2)
+        # sys.stdout may not write to fd 1 (a test's capture, an embedding host).
+        sys.stdout = sys.stderr = open(quiet, "w", closefd=False)
         try:
             runpy.run_path(str(path), run_name="problem_file")
             report = _RETURNED
