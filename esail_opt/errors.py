@@ -157,6 +157,10 @@ def _fmt(bound):
     return f"{bound:g}"
 
 
+#: The control characters a user may meet by name, for :func:`check_printable`'s line.
+_CONTROLS = {"\0": "NUL", "\t": "tab", "\n": "newline", "\r": "CR", "\x1b": "ESC"}
+
+
 def check_printable(name, value, allowed="printable characters"):
     """Return ``value`` if it is a non-empty string of printable characters, else raise
     InputError naming ``name`` and what is allowed.
@@ -174,6 +178,6 @@ def check_printable(name, value, allowed="printable characters"):
     if bad is not None:
         kind = {"Cc": "a control character", "Cs": "a lone surrogate"}.get(
             unicodedata.category(bad), "a non-printable character")
-        raise InputError(f"{name} = {value!r} holds {kind} (U+{ord(bad):04X}); allowed: "
-                         f"{allowed}")
+        code = f"U+{ord(bad):04X}" + (f" {_CONTROLS[bad]}" if bad in _CONTROLS else "")
+        raise InputError(f"{name} = {value!r} holds {kind} ({code}); allowed: {allowed}")
     return value

@@ -48,7 +48,8 @@ __all__ = [
 
 
 #: What a problem's name may hold, as its refusal says: it names the output folder.
-NAME_ALLOWED = "printable characters without '/' or '\\' (the name is a folder name)"
+NAME_ALLOWED = ("printable characters without '/' or '\\' (the problem name is its "
+                "output folder's name)")
 
 
 def _check_finite_positive_int(name, value, low=1):
