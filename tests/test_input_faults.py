@@ -129,6 +129,11 @@ def _small(**changes):
     (lambda: eo.ParkingOrbit(a_au="1"), ["departure.a_au = '1'"]),
     (lambda: eo.BodyDeparture(body="earth", date="2031-01-01", vinf_km_s="3"),
      ["departure.vinf_km_s = '3'", "[0, 10] km/s"]),
+    # Switches given as strings: any non-empty one read as True, "no" included.
+    (lambda: eo.ParkingOrbit(a_au=1.0, free_anomaly="no"),
+     ["departure.free_anomaly = 'no'", "True or False"]),
+    (lambda: eo.Segments(count=10, equal="False"), ["segments.equal = 'False'"]),
+    (lambda: eo.Segments(count=10, extrapolate="yes"), ["segments.extrapolate = 'yes'"]),
 ])
 def test_body_and_numeric_fields_are_refused_naming_the_field(build, words):
     with pytest.raises(InputError) as refused:

@@ -52,6 +52,12 @@ NAME_ALLOWED = ("printable characters without '/' or '\\' (the problem name is i
                 "output folder's name)")
 
 
+def _check_bool(name, value):
+    # A string would be truthy whatever it says ("no", "False").
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} = {value!r} is not True or False")
+
+
 def _check_finite_positive_int(name, value, low=1):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise InputError(f"{name} = {value!r} is not an integer in [{low}, inf)")
@@ -92,6 +98,7 @@ class ParkingOrbit:
         check_range("departure.e", self.e, 0, 1, high_open=True)
         check_range("departure.omega_deg", self.omega_deg, -360, 360, unit="deg")
         check_range("departure.nu_deg", self.nu_deg, -360, 360, unit="deg")
+        _check_bool("departure.free_anomaly", self.free_anomaly)
 
     def state(self, nu=None):
         """Canonical polar state at true anomaly ``nu`` (rad; default the stated one).
@@ -296,8 +303,7 @@ class Sail:
         check_range("sail.coefficients[1] (b2)", self.coefficients[1], 0, b1)
         lo = check_range("sail.alpha_min_deg", self.alpha_min_deg, -90, 90, unit="deg")
         check_range("sail.alpha_max_deg", self.alpha_max_deg, lo, 90, unit="deg")
-        if not isinstance(self.throttle, (bool, np.bool_)):
-            raise InputError(f"sail.throttle = {self.throttle!r} is not True or False")
+        _check_bool("sail.throttle", self.throttle)
         k_lo = check_range("sail.throttle_min", self.throttle_min, 0, 1)
         check_range("sail.throttle_max", self.throttle_max, k_lo, 1)
 
@@ -354,6 +360,8 @@ class Segments:
                 raise InputError(f"segments.count = {self.count!r} and segments.per_revolution "
                                  f"= {self.per_revolution!r}: give one of them, not both")
         _check_finite_positive_int("segments.sub_arcs", self.sub_arcs)
+        _check_bool("segments.equal", self.equal)
+        _check_bool("segments.extrapolate", self.extrapolate)
 
     def count_for(self, angle):
         """Number of segments for a seed that flies ``angle`` rad: ``count`` if fixed,
