@@ -122,6 +122,7 @@ def _small(**changes):
     # Semimajor axes no target may have; the refusal named another field.
     (lambda: _small(a_au=1e9), ["body.a_au = 1000000000.0 au", "[0.05, 100] au"]),
     (lambda: _small(a_au=1e-6), ["body.a_au = 1e-06 au", "[0.05, 100] au"]),
+    (lambda: _small(name="Bennu\r\x1b[2K"), ["body.name = ", "U+000D CR"]),
     # Numbers given as strings: a TypeError far from the file that named no field.
     (lambda: eo.MinAcceleration(tof_days="650"), ["objective.tof_days = '650'", "(0, 36525]"]),
     (lambda: eo.MaxRadius(tof_days="365"), ["objective.tof_days = '365'"]),
