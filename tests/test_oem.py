@@ -22,7 +22,7 @@ from esail_opt.bodies.keplerian import BENNU
 from esail_opt.errors import InputError
 
 EPS = math.radians(84381.448 / 3600.0)  # written out again, not the package's
-# The bounds the brief sets.  The file keeps 15 significant digits (the oem package's
+# The bounds: 1 mm and 1 micron/s.  The file keeps 15 significant digits (the oem package's
 # scientific format): below 1e9 km each coordinate is rounded by at most half of 1e-6 km,
 # so a position by at most sqrt(3) / 2 mm = 0.87 mm, and a velocity below 100 km/s by
 # 1e-12 km/s; the rotation adds 1e-16 relative (0.03 mm).
@@ -167,3 +167,36 @@ def test_bad_input_names_the_field(tmp_path, change, message):
         write_oem(path, arguments["object_name"], arguments["epochs"], arguments["states"],
                   jd2=arguments["jd2"])
     assert not list(tmp_path.iterdir())
+
+
+# ------------------------------------------------- schema 5's states (app.schema)
+
+def test_state_fields_are_au_and_km_s_in_the_ecliptic():
+    import json
+
+    from esail_opt.app.schema import STATE_KEYS, state_fields, state_from_fields
+
+    jd = np.array([2462000.5, 2462100.5, 2462200.5])
+    state = ecliptic_state("mars", jd)
+    fields = json.loads(json.dumps(state_fields(state)))
+    assert tuple(fields) == STATE_KEYS
+    c, s = math.cos(EPS), math.sin(EPS)
+    to_ecliptic = np.array([[1, 0, 0], [0, c, s], [0, -s, c]])
+    for k, j in enumerate(jd):
+        reference = de421_icrf_km("mars", j, 0.0)
+        position_au = to_ecliptic @ reference[:3] / 149597870.7
+        velocity_km_s = to_ecliptic @ reference[3:]
+        got_au = np.array([fields[key][k] for key in STATE_KEYS[:3]])
+        got_km_s = np.array([fields[key][k] for key in STATE_KEYS[3:]])
+        assert np.abs(got_au - position_au).max() < 1e-14  # au: 1.5 mm
+        assert np.abs(got_km_s - velocity_km_s).max() < 1e-12  # km/s
+    one = state_fields(state[:, 0])
+    assert all(isinstance(one[key], float) for key in STATE_KEYS)
+    np.testing.assert_allclose(state_from_fields(one, "x"), state[:, 0], rtol=1e-15, atol=0)
+    np.testing.assert_allclose(state_from_fields(fields, "x"), state, rtol=1e-15, atol=0)
+    with pytest.raises(InputError, match=r"^solution\.json: departure_state\.vz_km_s is missing"):
+        state_from_fields({key: 1.0 for key in STATE_KEYS[:5]}, "solution.json: departure_state")
+    with pytest.raises(InputError, match=r"^s\.y_au = 'a' is not a finite number"):
+        state_from_fields(dict(one, y_au="a"), "s")
+    with pytest.raises(InputError, match=r"^s: x_au, .* differ in length"):
+        state_from_fields(dict(fields, x_au=[1.0]), "s")
