@@ -250,6 +250,12 @@ def test_planets_exact_state_at_a_split_time():
     np.testing.assert_allclose(lookup.ecliptic_state_at("Mars", t),
                                ecliptic_state("mars", jd_from_iso("2033-03-03T03:03:03")),
                                rtol=0, atol=1e-12)
+    # What moves the 3-D track onto the ephemeris: the track's error, tens of metres.
+    correction = lookup.track3_correction("mars", t)
+    assert np.linalg.norm(correction[:3]) * AU_KM < 2 * TARGET_ERROR_KM
+    assert np.linalg.norm(correction[:3]) * AU_KM > 1e-6  # a spline, not the source itself
+    np.testing.assert_allclose(lookup.track3("mars").state(t) + correction,
+                               lookup.ecliptic_state_at("mars", t), rtol=0, atol=1e-15)
 
 
 STEEP = SmallBody("steep", 1.3, 0.5, 70.0, 40.0, 100.0, 10.0, "2030-01-01")

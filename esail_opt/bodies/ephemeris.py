@@ -11,6 +11,12 @@ barycentre, in the ICRF, i.e. equatorial axes).  This module
   angle atan2(y, x) is the ecliptic longitude;
 - converts to canonical units: au (149,597,870.7 km) and au/TU.
 
+:func:`ecliptic_state` is the planet's whole state in three dimensions, out of the
+ecliptic as it is; :func:`polar_state` is its projection on the ecliptic, which the
+planar problems fly against.  The rotation between the two frames is written once, in
+:func:`ecliptic_from_icrf` and :func:`icrf_from_ecliptic` (the latter for outputs in
+DE421's own ICRF, such as an orbit ephemeris message).
+
 Which point ``earth`` is: the **Earth-Moon barycentre** (DE421's ``earthmoon``).  The sail
 starts from Earth's sphere of influence (about 925,000 km across), and the barycentre is
 only about 4,700 km from Earth's centre, below the 10,000 km tolerance of a rendezvous and

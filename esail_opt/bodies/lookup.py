@@ -182,3 +182,10 @@ def track3(body):
     to their errors, tens of metres)."""
     return _track3(_key(body))
 
+
+def track3_correction(body, t):
+    """The body's exact ecliptic state less its smooth 3-D track's at time ``t`` (TU since
+    J2000 TDB), as :func:`track_correction` in the plane: tens of metres, what a polish
+    adds to hold its metre against the source itself."""
+    return ecliptic_state_at(body, t) - np.ravel(track3(body).state(float(t)))
+
