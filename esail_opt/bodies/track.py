@@ -236,12 +236,11 @@ class Track3:
     one cubic B-spline each, held at the sampled ends.  So the projection of this track
     *is* the planar track, spline for spline, and a planar problem and a 3-D one built on
     the same samples see the same body in the plane.  z and v_z are the components the
-    projection drops (:func:`esail_opt.bodies.ephemeris.polar_from_ecliptic`); their
-    amplitudes are r sin i, so their spline errors are at most those of the in-plane
-    components.  Their samples are not as smooth as the in-plane ones, though: r and the
-    longitude move slowly and steadily, while z swings once a revolution with amplitude
-    r sin i, so its spline error is about (5/384) r sin i (2 pi h / P)^4 for a step h and
-    period P.  The 3-D error is measured (:attr:`max_error_km`, :attr:`max_error_m_s`)
+    projection drops (:func:`esail_opt.bodies.ephemeris.polar_from_ecliptic`).  Their
+    samples are not as smooth as the in-plane ones: r and the longitude move slowly and
+    steadily, while z swings once a revolution with amplitude r sin i, so its spline
+    error is about (5/384) r sin i (2 pi h / P)^4 for a step h and period P (Venus's z
+    errs by more than its plane does).  The 3-D error is measured (:attr:`max_error_km`, :attr:`max_error_m_s`)
     and, where the step is chosen here, the step is refined until it meets the targets
     (:func:`track3_on`).
 
