@@ -188,15 +188,19 @@ def test_ctrl_c_during_a_cvodes_flight_is_an_interrupt_not_a_failed_flight():
     from esail_opt.propagation.simulate import simulate
 
     n = 6000  # about a second of CVODES at 1e-13
+    # The suite may have been started with SIGINT ignored (a background job, nohup):
+    # the test sets Python's own handler, and checks that the flight gives it back.
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT))
     timer.start()
     try:
         with pytest.raises(KeyboardInterrupt):
             simulate([1.0, 0.0, 0.0, 1.0], np.zeros(n), np.ones(n), 1e-3, samples=4,
                      tol=1e-13)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         timer.cancel()
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        signal.signal(signal.SIGINT, inherited)
 
 
 def _children(pid):
