@@ -183,4 +183,3 @@ def track3_correction(body, t):
     J2000 TDB), as :func:`track_correction` in the plane: tens of metres, what a polish
     adds to hold its metre against the source itself."""
     return ecliptic_state_at(body, t) - np.ravel(track3(body).state(float(t)))
-
