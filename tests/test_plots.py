@@ -1,5 +1,6 @@
-"""The two figures of a solve: their panels, curves, labels and legends, and a layout
-in which nothing is clipped by the figure's edge or runs into another panel."""
+"""The two figures of a solve: their panels, curves, limits, labels and legends, a layout
+in which nothing is clipped or overlaps, names drawn as written, and what the command
+writes and says when a figure cannot be drawn (`solve`, `solve --no-plots`, `plot`)."""
 
 import copy
 import json
