@@ -2,7 +2,8 @@
 
 :class:`InputError` is bad user input (exit 2); its message names the field and the
 allowed range.  :class:`OutputError` is an output folder or file that cannot be
-written (exit 3).  :class:`Terminated` is SIGTERM, raised where Python would raise
+written (exit 3).  :class:`FigureError` is a figure that could not be drawn while the
+rest of its set was written (exit 4).  :class:`Terminated` is SIGTERM, raised where Python would raise
 KeyboardInterrupt for SIGINT (exit 143); :class:`SignalsHeld` keeps both signals
 waiting while CasADi's C++ runs.  They live in the lowest layer because every layer
 may raise them.
@@ -21,6 +22,20 @@ class InputError(ValueError):
 class OutputError(Exception):
     """An output cannot be written (a full disk, a read-only folder, a path under a
     regular file); the message is one line that names the path and what to do."""
+
+
+class FigureError(Exception):
+    """One or more figures could not be drawn; every other file of the set was written.
+
+    The message is one line: each figure's failure
+    (``esail_opt.app.plots.figure_failure``), joined by "; ".  ``written`` lists the
+    paths that were written.
+    """
+
+    def __init__(self, failures, written=()):
+        super().__init__("; ".join(failures))
+        self.failures = list(failures)
+        self.written = list(written)
 
 
 class Terminated(KeyboardInterrupt):
