@@ -5,6 +5,7 @@ itself checked here against DOP853 on the Cartesian equations written out in
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -14,7 +15,7 @@ from esail_opt.physics.elements import cartesian_from_polar3d, polar_from_classi
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.batch import propagate_batch3d
 from esail_opt.propagation.rectified import propagate
-from esail_opt.propagation.rectified3d import propagate3d
+from esail_opt.propagation.rectified3d import end_function3d, panel_function3d, propagate3d
 from esail_opt.propagation.rk4 import rk4_segment3d
 from esail_opt.propagation.simulate import VERIFY_TOLERANCE, simulate, simulate3d
 from test_plane_turn import fly_cartesian_theta
@@ -128,3 +129,31 @@ def test_rk4_3d_is_fourth_order_against_cvodes(length_in):
     assert errs[-1] < 1e-6
     for coarse, fine in zip(errs, errs[1:]):
         assert 12 < coarse / fine < 20
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_arc_derivatives_are_finite_on_circles_and_without_turn(order):
+    """The NLP differentiates the arc twice: its Jacobian and Hessian stay finite at a
+    circular start (e0 = 0) and at delta = 0 (no turn), where the rotation's exponential
+    and the closed form have removable singularities; and the Jacobian matches central
+    differences."""
+    x, p = ca.SX.sym("x", 9), ca.SX.sym("p", 4)
+    if order == 1:
+        out = panel_function3d()(x, p[0], p[1], p[2], 0, p[3])[0]
+    else:
+        out = end_function3d()(x, p[0], p[1], p[2], p[3])[0]
+    z = ca.vertcat(x, p)
+    value = ca.Function("v", [z], [out])
+    jac = ca.Function("j", [z], [ca.jacobian(out, z)])
+    hess = ca.Function("h", [z], [ca.hessian(ca.sum1(out), z)[0]])
+    circle = [1, 0.3, 0, 1, 0, *rotation.IDENTITY]
+    for point in ([*circle, 0.1, 0.5, 0.0, 0.8], [*circle, 0.1, 0.5, 0.4, 0.8]):
+        point = np.array(point, float)
+        j = np.array(jac(point))
+        assert np.isfinite(j).all() and np.isfinite(np.array(hess(point))).all()
+        step = 1e-6
+        for k in range(point.size):
+            dp = np.zeros(point.size)
+            dp[k] = step
+            fd = (np.array(value(point + dp)) - np.array(value(point - dp))).ravel() / (2 * step)
+            assert np.abs(fd - j[:, k]).max() < 1e-7
