@@ -17,7 +17,8 @@ from esail_opt.propagation.batch import propagate_batch3d
 from esail_opt.propagation.rectified import propagate
 from esail_opt.propagation.rectified3d import end_function3d, panel_function3d, propagate3d
 from esail_opt.propagation.rk4 import rk4_segment3d
-from esail_opt.propagation.simulate import VERIFY_TOLERANCE, simulate, simulate3d
+from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, fly_segments3d, simulate,
+                                            simulate3d)
 from test_plane_turn import fly_cartesian_theta
 
 AC = accel_from_mm_s2(1.0)
@@ -157,3 +158,11 @@ def test_arc_derivatives_are_finite_on_circles_and_without_turn(order):
             dp[k] = step
             fd = (np.array(value(point + dp)) - np.array(value(point - dp))).ravel() / (2 * step)
             assert np.abs(fd - j[:, k]).max() < 1e-7
+
+
+def test_segments_flown_apart_are_the_chain():
+    """fly_segments3d from the chained flight's own segment starts gives its ends."""
+    ref = reference()
+    ends = fly_segments3d(ref[:, :-1], np.full(6, AC), ALPHAS, DELTAS, LENGTHS,
+                          length_in="theta", tol=VERIFY_TOLERANCE)
+    assert np.abs(ends - ref[:, 1:]).max() < 1e-12
