@@ -15,7 +15,8 @@ from esail_opt.physics.elements import cartesian_from_polar3d, polar_from_classi
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.batch import propagate_batch3d
 from esail_opt.propagation.rectified import propagate
-from esail_opt.propagation.rectified3d import end_function3d, panel_function3d, propagate3d
+from esail_opt.propagation.rectified3d import (end_function3d, panel_function3d, propagate3d,
+                                              rectified3d_function)
 from esail_opt.propagation.rk4 import rk4_segment3d
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, fly_segments3d, simulate,
                                             simulate3d)
@@ -166,3 +167,20 @@ def test_segments_flown_apart_are_the_chain():
     ends = fly_segments3d(ref[:, :-1], np.full(6, AC), ALPHAS, DELTAS, LENGTHS,
                           length_in="theta", tol=VERIFY_TOLERANCE)
     assert np.abs(ends - ref[:, 1:]).max() < 1e-12
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_compiled_arcs_are_the_virtual_machines(order):
+    """model.native changes the speed, not the numbers: the schedule's states and the
+    segment's Jacobian agree with the virtual machine's to rounding."""
+    fast, slow = (ArcModel(order=order, sub_arcs=3, native=flag) for flag in (True, False))
+    a = propagate3d(X0, PLANE, ALPHAS, DELTAS, LENGTHS, AC, samples=2, model=fast)[0]
+    b = propagate3d(X0, PLANE, ALPHAS, DELTAS, LENGTHS, AC, samples=2, model=slow)[0]
+    assert np.abs(a - b).max() < 1e-13
+    z = ca.MX.sym("z", 13)
+    jacs = []
+    for model in (fast, slow):
+        out = rectified3d_function(1, model=model)(z[:9], z[9], z[10], z[11], z[12])[0]
+        jacs.append(np.array(ca.Function("j", [z], [ca.jacobian(out, z)])(
+            np.r_[X0, 0.0, PLANE, AC, ALPHAS[0], DELTAS[0], 1.0])))
+    assert np.abs(jacs[0] - jacs[1]).max() < 1e-12

@@ -13,9 +13,10 @@ gives the Cartesian state).  At delta = 0 the plane never turns and the polar ro
 :mod:`.rectified`'s.
 
 Lengths are angles (rad), as the NLP's closed-form segments are; the chain is one
-Function, an SX arc accumulated over the arcs with ``mapaccum``, on CasADi's virtual
-machine.  Richardson extrapolation, compiled panels and arcs of given duration are the
-planar propagator's only (``model.extrapolate`` is refused here).
+Function over SX arcs, compiled with their derivatives where ``model.native`` and a
+compiler allow (``propagation.compiled``), as the planar NLP's arcs are.  Richardson
+extrapolation and arcs of given duration are the planar propagator's only
+(``model.extrapolate`` is refused here).
 """
 
 import functools
@@ -24,12 +25,13 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.errors import InputError
-from esail_opt.physics import rotation
 from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
 from esail_opt.physics.dynamics import angular_momentum
 from esail_opt.physics.plane_turn import arc_turn, turned_plane
 from esail_opt.physics.thrust import EXACT, radial_transverse_normal
 from esail_opt.propagation.arcs import ArcModel
+from esail_opt.propagation.compiled import compiled
+from esail_opt.propagation.rectified import FLAT
 
 #: Rows of the state: [r, theta, v_r, v_theta, t] and the plane's quaternion.
 STATE = 9
@@ -75,31 +77,68 @@ def end_function3d(*, coefficients=EXACT, nodes=2):
                        {"cse": True})
 
 
+def piece_function3d(*, coefficients=EXACT, model=ArcModel()):
+    """:func:`panel_function3d` (order 1) or :func:`end_function3d` (order 2) at
+    ``model.nodes``."""
+    if model.order == 1:
+        return panel_function3d(coefficients=coefficients, nodes=model.nodes)
+    return end_function3d(coefficients=coefficients, nodes=model.nodes)
+
+
+@functools.lru_cache(maxsize=None)
+def native_piece3d(*, coefficients=EXACT, model=ArcModel()):
+    """The compiled :func:`piece_function3d` (``propagation.compiled``, with its
+    derivatives), or None where it stays on the virtual machine (``model.native``
+    off, compiling off, no compiler, a failed compile)."""
+    if not model.native:
+        return None
+    piece = piece_function3d(coefficients=coefficients, model=model)
+    fast = compiled(piece)
+    return None if fast is piece else fast
+
+
+def _samples(x0, ac, alpha, delta, dtheta, samples, coefficients, model):
+    """(states[9 x samples], elapsed[1 x samples], q3[1 x samples]) of one arc, through
+    the compiled piece called once per sample where it exists, else a ``map``."""
+    order = model.order
+    fast = native_piece3d(coefficients=coefficients, model=model)
+    if fast is not None:
+        ends = [dtheta * (k / samples) for k in range(1, samples)] + [dtheta]
+        if order == 1:
+            calls = [fast(x0, ac, alpha, delta, a, b) for a, b in zip([0] + ends[:-1], ends)]
+        else:
+            calls = [fast(x0, ac, alpha, delta, b) for b in ends]
+        states, dts, q3s = (ca.horzcat(*parts) for parts in zip(*calls))
+        return states, ca.cumsum(dts, 1) if order == 1 else dts, q3s
+    phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
+    piece = piece_function3d(coefficients=coefficients, model=model).map(samples)
+    if order == 1:
+        states, dts, q3s = piece(x0, ac, alpha, delta, phis[:, :-1], phis[:, 1:])
+        return states, ca.cumsum(dts, 1), q3s
+    return piece(x0, ac, alpha, delta, phis[:, 1:])
+
+
 @functools.lru_cache(maxsize=None)
 def arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
     """One 3-D arc of ``model`` sampled at phi_k = dtheta k / samples, k = 1..samples:
     ``(x0[9], ac, alpha, delta, dtheta) -> (xs[9 x samples], q3)``, as
     ``rectified.arc_function`` (order 1: the samples are the time's panels; order 2:
     every sample is its own arc end from x0; ``model.invariant``: v_theta = h / r with
-    the exact h of Eq. 2 and the in-plane T), with the plane turned from x0's at each
-    sample."""
+    the exact h of Eq. 2 and the in-plane T; ``model.native``: compiled pieces, the arc
+    inlined where it is called), with the plane turned from x0's at each sample."""
     x0, ac, alpha, delta, dtheta = (ca.MX.sym(n, s) for n, s in (
         ("x0", STATE), ("ac", 1), ("alpha", 1), ("delta", 1), ("dtheta", 1)))
-    phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
-    if model.order == 1:
-        piece = panel_function3d(coefficients=coefficients, nodes=model.nodes).map(samples)
-        states, dts, q3s = piece(x0, ac, alpha, delta, phis[:, :-1], phis[:, 1:])
-        elapsed = ca.cumsum(dts, 1)
-    else:
-        piece = end_function3d(coefficients=coefficients, nodes=model.nodes).map(samples)
-        states, elapsed, q3s = piece(x0, ac, alpha, delta, phis[:, 1:])
+    states, elapsed, q3s = _samples(x0, ac, alpha, delta, dtheta, samples, coefficients,
+                                    model)
     if model.invariant:
         T = radial_transverse_normal(alpha, delta, coefficients)[1]
         h = angular_momentum(x0, ac, T, elapsed)
         states = ca.vertcat(states[:3, :], h / states[0, :], states[4:, :])
     states = ca.vertcat(states[:4, :], x0[4] + elapsed, states[5:, :])
+    native = native_piece3d(coefficients=coefficients, model=model) is not None
     return ca.Function("arc3d", [x0, ac, alpha, delta, dtheta], [states, q3s[-1]],
-                       ["x0", "ac", "alpha", "delta", "dtheta"], ["xs", "q3"])
+                       ["x0", "ac", "alpha", "delta", "dtheta"], ["xs", "q3"],
+                       FLAT if native else {})
 
 
 @functools.lru_cache(maxsize=None)
@@ -109,22 +148,35 @@ def rectified3d_function(segments, *, samples=1, coefficients=EXACT, model=ArcMo
     ``(x0[9], ac[1 x N], alpha[1 x N], delta[1 x N], length[1 x N]) ->
     (xs[9 x N S samples], q3[1 x N S])``, lengths in theta (rad), ``ac`` per segment
     (times any throttle).  The arcs restart from each other's ends: the plane's turns
-    compose by quaternion products, arc after arc."""
+    compose by quaternion products, arc after arc.  On compiled pieces the chain is
+    unrolled and inlined, as ``rectified``'s (``rectified.FLAT``); otherwise one
+    ``mapaccum`` holds one copy of the arc for any N."""
     if model.extrapolate:
         raise InputError("arc_model.extrapolate = True is not available in three "
                          "dimensions; use False")
-    sub = model.sub_arcs
-    arc = arc_function3d(samples, coefficients=coefficients, model=model.one_arc())
+    sub, one = model.sub_arcs, model.one_arc()
+    arc = arc_function3d(samples, coefficients=coefficients, model=one)
+    native = native_piece3d(coefficients=coefficients, model=one) is not None
+    x0 = ca.MX.sym("x0", STATE)
+    rows = [ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "delta", "length")]
+    lengths = rows[3] / sub
+    if native:
+        x, blocks, q3s = x0, [], []
+        for k in range(segments * sub):
+            xs, q3 = arc(x, *(row[k // sub] for row in rows[:3]), lengths[k // sub])
+            blocks.append(xs)
+            q3s.append(q3)
+            x = xs[:, -1]
+        return ca.Function("rectified3d", [x0, *rows], [ca.horzcat(*blocks), ca.horzcat(*q3s)],
+                           ["x0", "ac", "alpha", "delta", "length"], ["xs", "q3"], FLAT)
     xa = ca.MX.sym("x0", STATE)
     ac, alpha, delta, length = (ca.MX.sym(n) for n in ("ac", "alpha", "delta", "length"))
     xs, q3 = arc(xa, ac, alpha, delta, length)
     step = ca.Function("step", [xa, ac, alpha, delta, length], [xs[:, -1], xs, q3])
     chain = step.mapaccum("chain3d", segments * sub, [0], [0])
-    x0 = ca.MX.sym("x0", STATE)
-    rows = [ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "delta", "length")]
     # Each segment's entry S times over, the length divided once: its S arcs.
-    per_arc = [ca.repmat(row, sub, 1).reshape((1, segments * sub)) for row in rows[:3]]
-    per_arc.append(ca.repmat(rows[3] / sub, sub, 1).reshape((1, segments * sub)))
+    per_arc = [ca.repmat(row, sub, 1).reshape((1, segments * sub))
+               for row in (*rows[:3], lengths)]
     _, blocks, q3s = chain(x0, *per_arc)
     return ca.Function("rectified3d", [x0, *rows], [blocks, q3s],
                        ["x0", "ac", "alpha", "delta", "length"], ["xs", "q3"])
