@@ -15,7 +15,8 @@ from esail_opt.physics.elements import cartesian_from_polar3d, polar_from_classi
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.batch import propagate_batch3d
 from esail_opt.propagation.rectified import propagate
-from esail_opt.propagation.rectified3d import (end_function3d, panel_function3d, propagate3d,
+from esail_opt.propagation.rectified3d import (cartesian_states, end_function3d,
+                                              panel_function3d, propagate3d,
                                               rectified3d_function)
 from esail_opt.propagation.rk4 import rk4_segment3d
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, fly_segments3d, simulate,
@@ -32,7 +33,17 @@ LENGTHS = np.full(6, 1.0)
 
 
 def cartesian(xs, column=-1):
+    """The Cartesian state of one column, converted column by column; it is also
+    ``cartesian_states``'s (checked in ``test_cartesian_states_column_by_column``)."""
     return np.array(cartesian_from_polar3d(xs[:4, column], xs[5:, column])).ravel()
+
+
+def test_cartesian_states_column_by_column():
+    xs = propagate3d(X0, PLANE, ALPHAS, DELTAS, LENGTHS, AC, samples=3)[0]
+    whole = cartesian_states(xs)
+    for k in range(xs.shape[1]):
+        assert np.abs(whole[:6, k] - cartesian(xs, k)).max() < 1e-15
+    assert np.abs(whole[6] - xs[4]).max() == 0
 
 
 def reference():

@@ -27,6 +27,7 @@ import numpy as np
 from esail_opt.errors import InputError
 from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
 from esail_opt.physics.dynamics import angular_momentum
+from esail_opt.physics.elements import cartesian_from_polar3d
 from esail_opt.physics.plane_turn import arc_turn, turned_plane
 from esail_opt.physics.thrust import EXACT, radial_transverse_normal
 from esail_opt.propagation.arcs import ArcModel
@@ -219,3 +220,18 @@ def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, sampl
     xs, q3 = fun(start, ac * kappa, alphas, np.atleast_1d(np.asarray(deltas, float)),
                  np.atleast_1d(np.asarray(lengths, float)))
     return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
+
+
+@functools.lru_cache(maxsize=None)
+def _cartesian_function():
+    x = ca.SX.sym("x", STATE)
+    return ca.Function("cartesian", [x], [ca.vertcat(cartesian_from_polar3d(x[:4], x[5:]),
+                                                      x[4])])
+
+
+def cartesian_states(xs):
+    """[x, y, z, vx, vy, vz, t] of every column of a 3-D state array ``xs`` (9 x K, as
+    :func:`propagate3d` returns), in the fixed frame of the planes' quaternions
+    (``elements.cartesian_from_polar3d``); shape (7, K)."""
+    xs = np.asarray(xs, float)
+    return np.array(_cartesian_function().map(xs.shape[1])(xs))
