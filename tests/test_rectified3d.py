@@ -116,17 +116,19 @@ def test_rectified_3d_converges_to_cartesian_cvodes():
             assert errs[-2, 0] / errs[-1, 0] > 3.4
 
 
-def test_batch_3d_is_the_single_case():
+@pytest.mark.parametrize("length_in", ["theta", "time"])
+def test_batch_3d_is_the_single_case(length_in):
     starts = np.array([X0, [1.2, 0.0, 0.0, 0.9]])
     planes = np.array([PLANE, rotation.IDENTITY])
     alphas = np.array([ALPHAS[:3], ALPHAS[3:]])
     deltas = np.array([DELTAS[:3], DELTAS[3:]])
     lengths = np.array([[1.0, 2.0, 0.5], [0.3, 0.4, 2.0]])
     acs = [AC, 0.5 * AC]
-    xs, q3 = propagate_batch3d(starts, planes, alphas, deltas, lengths, acs, samples=2)
+    xs, q3 = propagate_batch3d(starts, planes, alphas, deltas, lengths, acs, samples=2,
+                               length_in=length_in)
     for m in range(2):
         one, one_q3 = propagate3d(starts[m], planes[m], alphas[m], deltas[m], lengths[m],
-                                  acs[m], samples=2)
+                                  acs[m], samples=2, length_in=length_in)
         assert np.abs(xs[m] - one).max() < 1e-14
         assert np.abs(q3[m] - one_q3).max() < 1e-14
 
@@ -195,3 +197,33 @@ def test_compiled_arcs_are_the_virtual_machines(order):
         jacs.append(np.array(ca.Function("j", [z], [ca.jacobian(out, z)])(
             np.r_[X0, 0.0, PLANE, AC, ALPHAS[0], DELTAS[0], 1.0])))
     assert np.abs(jacs[0] - jacs[1]).max() < 1e-12
+
+
+def test_timed_3d_arcs_converge_to_cartesian_cvodes_in_time():
+    """Segments given as durations end at the asked time and converge to Cartesian
+    CVODES flown in time: like 1/N at first order, like 1/N^2 at second order."""
+    durations = np.full(6, 1.0)
+    y0 = np.array(cartesian_from_polar3d(X0, PLANE)).ravel()
+    ref = simulate3d(y0, ALPHAS, DELTAS, durations, AC, tol=VERIFY_TOLERANCE)
+    for order, least_ratio in ((1, 1.6), (2, 3.0)):
+        errs = []
+        for n in (4, 8, 16):
+            xs, _ = propagate3d(X0, PLANE, ALPHAS, DELTAS, durations, AC, length_in="time",
+                                model=ArcModel(order=order, sub_arcs=n, native=False))
+            end = cartesian_states(xs)[:, -1]
+            assert abs(end[6] - ref[6, -1]) < 1e-12
+            errs.append(np.linalg.norm(end[:3] - ref[:3, -1]))
+        assert errs[0] / errs[1] > least_ratio and errs[1] / errs[2] > least_ratio
+    assert errs[-1] < 3e-6
+
+
+@pytest.mark.parametrize("model", [ArcModel(native=False),
+                                   ArcModel(order=1, sub_arcs=2, native=False)])
+def test_timed_zero_clock_is_the_planar_timed_form(model):
+    x0 = [1.0, 0.3, 0.01, 1.02]
+    xs, _ = propagate3d(x0, PLANE, [0.5, -0.3], [0.0, 0.0], [2.0, 1.5], 0.1, samples=2,
+                        length_in="time", model=model)
+    flat, _ = propagate(x0, [0.5, -0.3], [2.0, 1.5], 0.1, samples=2, length_in="time",
+                        model=model)
+    assert np.abs(xs[:5] - flat).max() < 1e-13
+    assert np.abs(xs[5:] - PLANE[:, None]).max() == 0

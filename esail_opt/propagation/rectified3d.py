@@ -12,10 +12,10 @@ the plane (``physics.rotation``'s convention; ``elements.cartesian_from_polar3d`
 gives the Cartesian state).  At delta = 0 the plane never turns and the polar rows are
 :mod:`.rectified`'s.
 
-Lengths are angles (rad), as the NLP's closed-form segments are; the chain is one
-Function over SX arcs, compiled with their derivatives where ``model.native`` and a
-compiler allow (``propagation.compiled``), as the planar NLP's arcs are.  Richardson
-extrapolation and arcs of given duration are the planar propagator's only
+Lengths are angles (rad), as the NLP's closed-form segments are, or durations; the
+chain is one Function over SX arcs, compiled with their derivatives where
+``model.native`` and a compiler allow (``propagation.compiled``; angles only), as the
+planar NLP's arcs are.  Richardson extrapolation is the planar propagator's only
 (``model.extrapolate`` is refused here).
 """
 
@@ -26,13 +26,15 @@ import numpy as np
 
 from esail_opt.errors import InputError
 from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
-from esail_opt.physics.dynamics import angular_momentum
+from esail_opt.physics import rotation
+from esail_opt.physics.dynamics import angular_momentum, plane_rate, taylor_step
 from esail_opt.physics.elements import cartesian_from_polar3d
 from esail_opt.physics.plane_turn import arc_turn, turned_plane
 from esail_opt.physics.thrust import EXACT, radial_transverse_normal
 from esail_opt.propagation.arcs import ArcModel
 from esail_opt.propagation.compiled import compiled
-from esail_opt.propagation.rectified import FLAT
+from esail_opt.propagation.rectified import (FLAT, NEWTON_STEPS, TAYLOR_ORDER, clock_guess,
+                                             kepler_angle)
 
 #: Rows of the state: [r, theta, v_r, v_theta, t] and the plane's quaternion.
 STATE = 9
@@ -143,21 +145,78 @@ def arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
 
 
 @functools.lru_cache(maxsize=None)
-def rectified3d_function(segments, *, samples=1, coefficients=EXACT, model=ArcModel()):
+def timed_arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
+    """As :func:`arc_function3d` (never compiled), but the last input is a duration (TU)
+    and the arc ends that long after x0, as ``rectified.timed_arc_function`` does it:
+
+    * order 1: the angle is the root of the closed form's clock by
+      ``rectified.NEWTON_STEPS`` Newton steps from ``rectified.kepler_angle``;
+    * order 2: the arc is flown to ``rectified.clock_guess``'s angle and the part of the
+      duration left is flown by the Taylor series of Eqs. 1-2
+      (``dynamics.taylor_step``), the plane turning meanwhile at its rate at the
+      remainder's midpoint (``dynamics.plane_rate``), an error third order in that
+      remainder.
+
+    Returns ``(x0[9], ac, alpha, delta, duration) -> (xs[9 x samples], q3, remainder)``.
+    """
+    order, nodes = model.order, model.nodes
+    x0, ac, alpha, delta = _inputs()
+    duration = ca.SX.sym("duration")
+    R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+    arc = arc_frame(x0[:4], ac, R, T)
+    time_unit = x0[0] ** 1.5
+    if order == 2:
+        angle = clock_guess(arc, duration / time_unit)
+    else:
+        angle = kepler_angle(arc, duration / time_unit)
+        for _ in range(NEWTON_STEPS):
+            time = time_unit * sum(arc.time(angle * (k - 1) / samples, angle * k / samples,
+                                            nodes) for k in range(1, samples + 1))
+            angle = angle - (time - duration) / (time_unit * arc.clock_rate(angle))
+    plain = ArcModel(order, model.invariant, False, 1, nodes, native=False)
+    xs, q3 = arc_function3d(samples, coefficients=coefficients, model=plain).expand()(
+        x0, ac, alpha, delta, angle)
+    remainder = x0[4] + duration - xs[4, -1]
+    if order == 2:
+        last = xs[:, -1]
+        middle = taylor_step(last[:4], ac, R, T, remainder / 2, TAYLOR_ORDER)
+        turn = plane_rate(middle, ac, N) * remainder
+        plane = rotation.multiply(last[5:], rotation.from_rotation_vector(turn))
+        end = taylor_step(last[:4], ac, R, T, remainder, TAYLOR_ORDER)
+        if model.invariant:
+            end = ca.vertcat(end[:3], angular_momentum(x0, ac, T, duration) / end[0])
+        xs = ca.horzcat(xs[:, :-1], ca.vertcat(end, x0[4] + duration, plane))
+    return ca.Function(
+        "timed_arc3d", [x0, ac, alpha, delta, duration], [xs, q3, remainder],
+        ["x0", "ac", "alpha", "delta", "duration"], ["xs", "q3", "remainder"], {"cse": True})
+
+
+@functools.lru_cache(maxsize=None)
+def rectified3d_function(segments, *, samples=1, length_in="theta", coefficients=EXACT,
+                         model=ArcModel()):
     """A schedule of ``segments`` segments of constant pitch and clock, each
     ``model.sub_arcs`` arcs of equal angle, as one Function:
     ``(x0[9], ac[1 x N], alpha[1 x N], delta[1 x N], length[1 x N]) ->
-    (xs[9 x N S samples], q3[1 x N S])``, lengths in theta (rad), ``ac`` per segment
-    (times any throttle).  The arcs restart from each other's ends: the plane's turns
+    (xs[9 x N S samples], q3[1 x N S])``, lengths in theta (rad) or, with
+    ``length_in="time"``, durations (TU, :func:`timed_arc_function3d`, never compiled),
+    ``ac`` per segment (times any throttle).  The arcs restart from each other's ends: the plane's turns
     compose by quaternion products, arc after arc.  On compiled pieces the chain is
     unrolled and inlined, as ``rectified``'s (``rectified.FLAT``); otherwise one
     ``mapaccum`` holds one copy of the arc for any N."""
     if model.extrapolate:
         raise InputError("arc_model.extrapolate = True is not available in three "
                          "dimensions; use False")
+    if length_in not in ("theta", "time"):
+        raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
     sub, one = model.sub_arcs, model.one_arc()
-    arc = arc_function3d(samples, coefficients=coefficients, model=one)
-    native = native_piece3d(coefficients=coefficients, model=one) is not None
+    if length_in == "time":
+        timed = timed_arc_function3d(samples, coefficients=coefficients, model=one)
+        ins = timed.mx_in()
+        arc = ca.Function("arc3d", ins, timed.call(ins)[:2])
+        native = False
+    else:
+        arc = arc_function3d(samples, coefficients=coefficients, model=one)
+        native = native_piece3d(coefficients=coefficients, model=one) is not None
     x0 = ca.MX.sym("x0", STATE)
     rows = [ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "delta", "length")]
     lengths = rows[3] / sub
@@ -184,7 +243,7 @@ def rectified3d_function(segments, *, samples=1, coefficients=EXACT, model=ArcMo
 
 
 def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
-                coefficients=EXACT, model=ArcModel()):
+                length_in="theta", coefficients=EXACT, model=ArcModel()):
     """Rectified closed-form propagation in three dimensions of a schedule of pitch and
     clock angles.
 
@@ -196,13 +255,14 @@ def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, sampl
         The plane's unit quaternion (``elements.polar3d_from_cartesian`` gives both from
         a Cartesian state).
     alphas, deltas, lengths : array_like, shape (N,)
-        Pitch and clock (rad) and angle (rad) of each segment.
+        Pitch and clock (rad) and length of each segment: an angle (rad) for
+        ``length_in="theta"``, a duration (TU) for ``"time"``.
     ac : float
         Characteristic acceleration, canonical units.
     throttles : array_like, shape (N,), optional
         Factor on ac per segment (0 is a coast), default 1.
     samples, coefficients, model
-        As ``rectified.propagate`` (lengths in theta, no extrapolation).
+        As ``rectified.propagate`` (no extrapolation).
 
     Returns
     -------
@@ -215,7 +275,8 @@ def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, sampl
     alphas = np.atleast_1d(np.asarray(alphas, float))
     n = alphas.size
     kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = rectified3d_function(n, samples=samples, coefficients=coefficients, model=model)
+    fun = rectified3d_function(n, samples=samples, length_in=length_in,
+                               coefficients=coefficients, model=model)
     start = np.r_[np.asarray(x0, float), 0.0, np.asarray(quat0, float)]
     xs, q3 = fun(start, ac * kappa, alphas, np.atleast_1d(np.asarray(deltas, float)),
                  np.atleast_1d(np.asarray(lengths, float)))
