@@ -25,8 +25,8 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.errors import InputError
-from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
 from esail_opt.physics import rotation
+from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
 from esail_opt.physics.dynamics import angular_momentum, plane_rate, taylor_step
 from esail_opt.physics.elements import cartesian_from_polar3d
 from esail_opt.physics.plane_turn import arc_turn, turned_plane
