@@ -7,9 +7,8 @@ it never has to know which kind it holds.
 
 Every track spans :data:`TRACK_SPAN`, built once per body and process: one NLP then
 serves a scan over any dates in it, and the dates stay parameters of the NLP rather
-than part of its structure.  Sixty years cost about half a second of fitting for
-Earth, Mars or Venus; the whole of DE421 (three centuries) would cost seconds per body
-and process, for dates no mission analysis here asks for.  The exact state's polar angle is put on the track's branch
+than part of its structure.  The span is sixty years rather than the whole of DE421,
+since fitting grows with the span and no mission analysis here asks for other dates.  The exact state's polar angle is put on the track's branch
 (theta unwrapped from the span's start), so that a seed flown from the exact state and
 the NLP's departure from the track agree on theta, not only modulo 2 pi.
 """

@@ -283,10 +283,8 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     each stage's status.  ``staged=False`` solves the free NLP alone, for a guess that
     is already an optimum of a nearby problem.
 
-    The equal-length stage is evaluated on one thread: on the shipped problems it ran
-    about as fast on one as on two (faster on three of the four that are solved in
-    stages).  The free-length stage takes ``transcription.segment_threads``.  The
-    optimum does not depend on either.
+    The equal-length stage is evaluated on one thread, being small; the free-length
+    stage takes ``transcription.segment_threads``.  The optimum depends on neither.
     """
     seg = problem.segments
     first = None

@@ -23,8 +23,8 @@ TOLERANCE = 1e-12
 #: The verifier's tolerances: it flies every schedule twice and reports the difference as
 #: its own error.  Final positions of CVODES (Adams) against scipy's DOP853 at rtol 1e-13
 #: on the polished Earth-Venus, Earth-Mars and 0.1 mm/s^2 Earth-Mars schedules: 5-13 m at
-#: 1e-13, 0.2-1.0 m at 1e-14, 0.06-0.5 m at 1e-15 and 0.03-0.25 m at 3e-16, each run
-#: taking 0.01-0.03 s; so 1e-12, where this module used to stop, cannot judge a 1 m bound.
+#: 1e-13, 0.2-1.0 m at 1e-14, 0.06-0.5 m at 1e-15 and 0.03-0.25 m at 3e-16; so 1e-12,
+#: where this module used to stop, cannot judge a 1 m bound.
 VERIFY_TOLERANCE = 3e-16
 CHECK_TOLERANCE = 1e-15
 MAX_STEPS = {"time": 10_000_000, "theta": 200_000}
