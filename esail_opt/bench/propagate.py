@@ -20,6 +20,11 @@ RACE_ERRORS_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
 #: spread over the grid; its time per case is scaled to all cases).
 BATCH_GRID = {"alpha_deg": (-40.0, 80.0, 41), "ac_mm_s2": (0.05, 0.2, 25)}
 BATCH_CVODES_CASES = 100
+#: heyoka's tolerances on the batch, loosest first; and its batch sizes, as multiples
+#: of its recommended SIMD width (the fastest counts at each tolerance: more lanes
+#: share each call from Python, fewer fill the vector registers).
+HEYOKA_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-12)
+HEYOKA_LANES = (1, 2, 4)
 
 
 def _functions():
@@ -200,6 +205,87 @@ def _batch_cases(grid):
     return alpha.ravel(), ac.ravel()
 
 
+def cpu_seconds(fn, repeats):
+    """Median CPU seconds of this process over ``repeats`` calls of ``fn()``, after one
+    warm-up call.
+
+    The batch's methods each run on one thread, so the process's CPU time is each
+    one's own work: unlike the wall clock, it does not count the time this process
+    waits for a core that other jobs hold on a shared machine.
+    """
+    import statistics
+    import time
+
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.process_time()
+        fn()
+        times.append(time.process_time() - start)
+    return statistics.median(times)
+
+
+def heyoka_batch(repeats, schedule, truth, target_km):
+    """The batch flown by heyoka (``bench.taylor``) at each of :data:`HEYOKA_TOLERANCES`.
+
+    Parameters
+    ----------
+    repeats : int
+        Timed runs at each setting (median CPU seconds, :func:`cpu_seconds`).
+    schedule : tuple
+        (x0[4], acs, alphas, durations), the last three of shape (M, N), as
+        ``taylor.fly`` takes them.
+    truth : numpy.ndarray, shape (5, M)
+        Each case's final state by CVODES at the reference tolerance.
+    target_km : float
+        The closed form's median final error over the M cases.
+
+    Returns
+    -------
+    dict
+        ``points`` (per tolerance: ``seconds_per_case`` at the fastest of
+        :data:`HEYOKA_LANES`' batch sizes, each size's seconds and compile seconds,
+        ``median_final_error_km``), ``equal_error`` (the loosest tolerance whose
+        median final error is at most ``target_km``, or None) and ``tight`` (1e-12);
+        or ``{"skipped": reason}`` when heyoka does not import.
+    """
+    import time
+
+    import numpy as np
+
+    from esail_opt.bench import taylor
+
+    if not taylor.available():
+        return {"skipped": "heyoka is not installed (pip install 'esail_opt[bench]')"}
+    import heyoka
+
+    cases = schedule[1].shape[0]
+    simd, points = heyoka.recommended_simd_size(), []
+    for tol in HEYOKA_TOLERANCES:
+        by_size = {}
+        for lanes in HEYOKA_LANES:
+            start = time.perf_counter()
+            ta = taylor.integrator(tol, lanes * simd)
+            built = time.perf_counter() - start
+            by_size[lanes * simd] = {"compile_seconds": built, "seconds_per_case": cpu_seconds(
+                lambda ta=ta: taylor.fly(ta, *schedule), repeats) / cases}
+        best = min(by_size, key=lambda size: by_size[size]["seconds_per_case"])
+        ends = taylor.fly(taylor.integrator(tol, best), *schedule)[:, :, -1]
+        errors = [_position_km(ends[m], truth[:, m]) for m in range(cases)]
+        points.append({"tolerance": tol, "batch_size": best,
+                       "seconds_per_case": by_size[best]["seconds_per_case"],
+                       "median_final_error_km": float(np.median(errors)),
+                       "max_final_error_km": float(np.max(errors)),
+                       "by_batch_size": by_size})
+    equal = next((p for p in points if p["median_final_error_km"] <= target_km), None)
+    return {"points": points, "equal_error": equal,
+            "tight": next(p for p in points if p["tolerance"] == 1e-12),
+            "simd_size": simd, "heyoka_version": heyoka.__version__,
+            "how": "Eqs. 1-2 as dynamics.rhs, replayed on heyoka expressions; a_c R and "
+                   "a_c T runtime parameters set per arc; taylor_adaptive_batch, "
+                   "propagate_until each arc's end, one thread"}
+
+
 def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     """Many cases of the ten years at ARCS arcs: the closed form in one call against CVODES
     per case.
@@ -250,7 +336,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     closed = batch_function(ARCS, cases, length_in="time",
                             model=ArcModel(sub_arcs=1, nodes=PANEL_NODES), jit=native)
     compile_seconds = time.perf_counter() - start
-    closed_seconds = median_seconds(lambda: closed(*stacked), repeats)
+    closed_seconds = cpu_seconds(lambda: closed(*stacked), repeats)
     xs, q3 = (np.array(v) for v in closed(*stacked))
     finals = xs[:, ARCS - 1::ARCS]
     truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE).map(cases)(
@@ -261,12 +347,12 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     points = []
     for tol in RACE_TOLERANCES:
         fun = schedule_function(ARCS, 1, "time", tol=tol)
-        loop = median_seconds(lambda f=fun: [f(*per_case[m]) for m in timed], repeats)
+        loop = cpu_seconds(lambda f=fun: [f(*per_case[m]) for m in timed], repeats)
         mapped_args = (stacked[0][:, timed],
                        *(np.concatenate([a[:, m * ARCS:(m + 1) * ARCS] for m in timed], axis=1)
                          for a in stacked[1:]))
         mapped = fun.map(timed.size)
-        together = median_seconds(lambda f=mapped: f(*mapped_args), repeats)
+        together = cpu_seconds(lambda f=mapped: f(*mapped_args), repeats)
         ends = np.array(mapped(*mapped_args))[:, ARCS - 1::ARCS]
         miss = [_position_km(ends[:, k], truth[:, m]) for k, m in enumerate(timed)]
         points.append({"tolerance": tol, "seconds_per_case": min(loop, together) / timed.size,
@@ -277,7 +363,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
                              for p in points], target)
     tight = next(p["seconds_per_case"] for p in points if p["tolerance"] == 1e-12)
     equal_total = None if equal is None else equal * cases
-    return {
+    block = {
         "cases": int(cases), "arcs": ARCS, "closed_form_seconds": closed_seconds,
         "cvodes_seconds_equal_error": equal_total, "cvodes_seconds_tight": tight * cases,
         "ratio_equal_error": None if equal is None else equal_total / closed_seconds,
@@ -285,16 +371,53 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
         "median_final_error_km": float(np.median(errors)),
         "max_final_error_km": float(np.max(errors)),
         "median_final_error_km_timed_cases": target,
+        "cvodes_median_final_error_km_tight": next(
+            p["median_final_error_km"] for p in points if p["tolerance"] == 1e-12),
         "smallest_q3": float(np.min(q3)),
         "cvodes_cases_timed": int(timed.size),
         "cvodes_points": points,
         "compile_seconds": compile_seconds, "compiled": native,
         "grid": {key: list(value) for key, value in grid.items()},
-        "note": "closed form: every case in one compiled mapped call (median of repeats); "
-                "CVODES: seconds per case on cvodes_cases_timed evenly spread cases, the "
-                "faster of per-case calls and one mapped call, times cases; final error: "
-                "distance of the final position from CVODES at the reference tolerance",
+        "heyoka": heyoka_batch(repeats, (x0[:4], np.repeat(acs[:, None], ARCS, 1),
+                                         np.repeat(alphas[:, None], ARCS, 1),
+                                         np.tile(lengths, (cases, 1))),
+                               truth, float(np.median(errors))),
+        "note": "times are median CPU seconds of this process, each method on one thread; "
+                "closed form: every case in one compiled mapped call; CVODES: seconds per "
+                "case on cvodes_cases_timed evenly spread cases, the faster of per-case "
+                "calls and one mapped call, times cases; heyoka: every case, its batch mode "
+                "arc by arc; final error: distance of the final position from CVODES at "
+                "the reference tolerance",
     }
+    block["per_case"] = per_case_table(block)
+    return block
+
+
+def per_case_table(block):
+    """The batch's methods side by side: seconds per case, median final error, and each
+    one's time over the closed form's (above 1: the closed form is faster).
+
+    CVODES at equal error is read on its curve at the closed form's error (so that error
+    is the closed form's, over the timed cases); heyoka at equal error is its loosest
+    tolerance measured whose median error is within the closed form's.  Rows of a
+    method that was skipped or never reached that error are left out.
+    """
+    cases, closed = block["cases"], block["closed_form_seconds"] / block["cases"]
+    rows = [("closed form", closed, block["median_final_error_km"], None)]
+    taylor = block["heyoka"]
+    for key, label in (("equal_error", "heyoka at equal error"), ("tight", "heyoka at 1e-12")):
+        point = taylor.get(key)
+        if point is not None:
+            rows.append((label, point["seconds_per_case"], point["median_final_error_km"],
+                         point["tolerance"]))
+    if block["cvodes_seconds_equal_error"] is not None:
+        rows.append(("CVODES at equal error", block["cvodes_seconds_equal_error"] / cases,
+                     block["median_final_error_km_timed_cases"], None))
+    rows.append(("CVODES at 1e-12", block["cvodes_seconds_tight"] / cases,
+                 block["cvodes_median_final_error_km_tight"], 1e-12))
+    return [{"method": name, "seconds_per_case": seconds, "median_final_error_km": error,
+             "tolerance": tol, "ratio_over_closed_form": seconds / closed}
+            for name, seconds, error, tol in rows]
 
 
 def race_figure(curves):
@@ -343,18 +466,19 @@ def _print(data, repeats):
 
 
 def _print_batch(block):
-    rows = [("closed form, all cases in one call", block["closed_form_seconds"], "s"),
-            ("CVODES per case at equal final error, scaled to all cases",
-             block["cvodes_seconds_equal_error"], "s"),
-            ("CVODES per case at 1e-12, scaled to all cases", block["cvodes_seconds_tight"], "s"),
-            ("ratio at equal error", block["ratio_equal_error"], ""),
-            ("ratio against 1e-12", block["ratio_tight"], ""),
-            ("median final position error of the closed form", block["median_final_error_km"],
-             "km")]
+    rows = []
+    for row in block["per_case"]:
+        rows += [(f"{row['method']}: time per case", 1e6 * row["seconds_per_case"], "us"),
+                 (f"{row['method']}: median final error", row["median_final_error_km"], "km"),
+                 (f"{row['method']}: time over the closed form's",
+                  row["ratio_over_closed_form"], "")]
     print_table(f"bench propagate: batch of {block['cases']} cases, {block['arcs']} arcs, "
-                f"CVODES timed on {block['cvodes_cases_timed']}",
-                [(label, "never" if v is None else float(v), "" if v is None else unit)
-                 for label, v, unit in rows])
+                f"CVODES timed on {block['cvodes_cases_timed']} (CPU time, one thread)", rows)
+    taylor = block["heyoka"]
+    if "skipped" in taylor:
+        print(f"  heyoka skipped: {taylor['skipped']}")
+    elif taylor["equal_error"] is None:
+        print("  heyoka reached the closed form's error at none of its tolerances")
 
 
 def run(out, repeats, grid=None):
