@@ -23,7 +23,7 @@ BATCH_CVODES_CASES = 100
 #: heyoka's tolerances on the batch, loosest first; and its batch sizes, as multiples
 #: of its recommended SIMD width (the fastest counts at each tolerance: more lanes
 #: share each call from Python, fewer fill the vector registers).
-HEYOKA_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-12)
+HEYOKA_TOLERANCES = (1e-3, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 1e-7, 1e-8, 1e-10, 1e-12)
 HEYOKA_LANES = (1, 2, 4)
 
 
@@ -278,7 +278,14 @@ def heyoka_batch(repeats, schedule, truth, target_km):
                        "max_final_error_km": float(np.max(errors)),
                        "by_batch_size": by_size})
     equal = next((p for p in points if p["median_final_error_km"] <= target_km), None)
-    return {"points": points, "equal_error": equal,
+    # The same calls with every arc of no length: heyoka takes no step, so this is the
+    # cost of driving it from Python arc by arc, part of each point's time.
+    still = (schedule[0], schedule[1], schedule[2], 0.0 * schedule[3])
+    floor_size = equal["batch_size"] if equal else simd
+    floor = cpu_seconds(lambda: taylor.fly(taylor.integrator(1e-12, floor_size), *still),
+                        repeats) / cases
+    return {"points": points, "equal_error": equal, "call_floor_seconds_per_case": floor,
+            "call_floor_batch_size": floor_size,
             "tight": next(p for p in points if p["tolerance"] == 1e-12),
             "simd_size": simd, "heyoka_version": heyoka.__version__,
             "how": "Eqs. 1-2 as dynamics.rhs, replayed on heyoka expressions; a_c R and "
@@ -333,11 +340,21 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
                np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
     start = time.perf_counter()
-    closed = batch_function(ARCS, cases, length_in="time",
-                            model=ArcModel(sub_arcs=1, nodes=PANEL_NODES), jit=native)
+    model = ArcModel(sub_arcs=1, nodes=PANEL_NODES)
+    closed = batch_function(ARCS, cases, length_in="time", model=model, jit=native)
     compile_seconds = time.perf_counter() - start
     closed_seconds = cpu_seconds(lambda: closed(*stacked), repeats)
     xs, q3 = (np.array(v) for v in closed(*stacked))
+    # The same batch as CasADi compiles it, one case at a time: what the compile across
+    # cases gains, and how far its numbers move (libmvec's elementary functions).
+    start = time.perf_counter()
+    scalar = batch_function(ARCS, cases, length_in="time", model=model, jit=native,
+                            across_cases=False)
+    scalar_compile = time.perf_counter() - start
+    scalar_seconds = cpu_seconds(lambda: scalar(*stacked), repeats)
+    scalar_xs = np.array(scalar(*stacked)[0])
+    moved = float(np.max(np.abs(xs - scalar_xs) / np.max(np.abs(scalar_xs), axis=1,
+                                                          keepdims=True)))
     finals = xs[:, ARCS - 1::ARCS]
     truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE).map(cases)(
         *stacked))[:, ARCS - 1::ARCS]
@@ -377,6 +394,11 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
         "cvodes_cases_timed": int(timed.size),
         "cvodes_points": points,
         "compile_seconds": compile_seconds, "compiled": native,
+        "closed_form_one_case_at_a_time": {
+            "seconds": scalar_seconds, "compile_seconds": scalar_compile,
+            "largest_difference_over_row_size": moved,
+            "how": "the same mapped Function compiled by CasADi's own JIT, as before the "
+                   "compile across cases"},
         "grid": {key: list(value) for key, value in grid.items()},
         "heyoka": heyoka_batch(repeats, (x0[:4], np.repeat(acs[:, None], ARCS, 1),
                                          np.repeat(alphas[:, None], ARCS, 1),
@@ -403,7 +425,10 @@ def per_case_table(block):
     method that was skipped or never reached that error are left out.
     """
     cases, closed = block["cases"], block["closed_form_seconds"] / block["cases"]
-    rows = [("closed form", closed, block["median_final_error_km"], None)]
+    rows = [("closed form", closed, block["median_final_error_km"], None),
+            ("closed form, one case at a time",
+             block["closed_form_one_case_at_a_time"]["seconds"] / cases,
+             block["median_final_error_km"], None)]
     taylor = block["heyoka"]
     for key, label in (("equal_error", "heyoka at equal error"), ("tight", "heyoka at 1e-12")):
         point = taylor.get(key)
@@ -477,6 +502,12 @@ def _print_batch(block):
     taylor = block["heyoka"]
     if "skipped" in taylor:
         print(f"  heyoka skipped: {taylor['skipped']}")
+        return
+    print(f"  of heyoka's time per case, driving it arc by arc from Python: "
+          f"{1e6 * taylor['call_floor_seconds_per_case']:.3g} us")
+    if taylor["equal_error"] is not None:
+        print(f"  heyoka at equal error: tolerance {taylor['equal_error']['tolerance']:g}, "
+              f"batch size {taylor['equal_error']['batch_size']}")
     elif taylor["equal_error"] is None:
         print("  heyoka reached the closed form's error at none of its tolerances")
 

@@ -261,22 +261,23 @@ def _vectorised(arc, segments, cases):
 
 @functools.lru_cache(maxsize=None)
 def batch_function(segments, cases, *, samples=1, length_in="theta", coefficients=EXACT,
-                   model=ArcModel(), jit=False):
+                   model=ArcModel(), jit=False, across_cases=True):
     """``rectified.rectified_function`` (same arguments) mapped over ``cases``.
 
     ``(x0[5 x M], ac[1 x M N], alpha[1 x M N], length[1 x M N]) ->
     (xs[5 x M N S samples], q3[1 x M N S])``, S = ``model.sub_arcs``: case m's columns
     are the m-th block of each (its N S arcs, its N S samples-per-arc states).  With
-    ``jit`` the whole map is compiled to C in this process (see the module's docstring);
-    that is apart from ``model.native``, which flies the arcs on the disk cache's
-    compiled panels.
+    ``jit`` the whole map is compiled to C in this process (see the module's docstring):
+    across cases where it can be, unless ``across_cases`` is False, and otherwise by
+    CasADi's own compile.  That is apart from ``model.native``, which flies the arcs on
+    the disk cache's compiled panels.
     """
     single = rectified_function(segments, samples=samples, length_in=length_in,
                                 coefficients=coefficients, model=model)
     mapped = single.map(cases)
     if not jit:
         return mapped
-    arc = _plain_arc(samples, length_in, coefficients, model)
+    arc = _plain_arc(samples, length_in, coefficients, model) if across_cases else None
     fast = None if arc is None else _vectorised(arc, segments, cases)
     return _native(mapped) if fast is None else fast
 
