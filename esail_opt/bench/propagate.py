@@ -246,8 +246,11 @@ def heyoka_batch(repeats, schedule, truth, target_km):
         ``points`` (per tolerance: ``seconds_per_case`` at the fastest of
         :data:`HEYOKA_LANES`' batch sizes, each size's seconds and compile seconds,
         ``median_final_error_km``), ``equal_error`` (the loosest tolerance whose
-        median final error is at most ``target_km``, or None) and ``tight`` (1e-12);
-        or ``{"skipped": reason}`` when heyoka does not import.
+        median final error is at most ``target_km``, or None), ``tight`` (1e-12) and
+        ``python_loop_seconds_per_case`` (the part of a point's time spent in the
+        Python loop around heyoka's calls, ``taylor.fly_prepared(steps=False)``); or
+        ``{"skipped": reason}`` when heyoka does not import.  Each time is of
+        ``taylor.fly_prepared``, from the lanes ``taylor.prepare`` made beforehand.
     """
     import time
 
@@ -267,8 +270,9 @@ def heyoka_batch(repeats, schedule, truth, target_km):
             start = time.perf_counter()
             ta = taylor.integrator(tol, lanes * simd)
             built = time.perf_counter() - start
+            ready = taylor.prepare(lanes * simd, *schedule)
             by_size[lanes * simd] = {"compile_seconds": built, "seconds_per_case": cpu_seconds(
-                lambda ta=ta: taylor.fly(ta, *schedule), repeats) / cases}
+                lambda ta=ta, ready=ready: taylor.fly_prepared(ta, ready), repeats) / cases}
         best = min(by_size, key=lambda size: by_size[size]["seconds_per_case"])
         ends = taylor.fly(taylor.integrator(tol, best), *schedule)[:, :, -1]
         errors = [_position_km(ends[m], truth[:, m]) for m in range(cases)]
@@ -278,14 +282,14 @@ def heyoka_batch(repeats, schedule, truth, target_km):
                        "max_final_error_km": float(np.max(errors)),
                        "by_batch_size": by_size})
     equal = next((p for p in points if p["median_final_error_km"] <= target_km), None)
-    # The same calls with every arc of no length: heyoka takes no step, so this is the
-    # cost of driving it from Python arc by arc, part of each point's time.
-    still = (schedule[0], schedule[1], schedule[2], 0.0 * schedule[3])
+    # The loop around heyoka's calls alone, at the batch size of its equal-error point:
+    # the part of its time spent driving it arc by arc from Python.
     floor_size = equal["batch_size"] if equal else simd
-    floor = cpu_seconds(lambda: taylor.fly(taylor.integrator(1e-12, floor_size), *still),
-                        repeats) / cases
-    return {"points": points, "equal_error": equal, "call_floor_seconds_per_case": floor,
-            "call_floor_batch_size": floor_size,
+    ready = taylor.prepare(floor_size, *schedule)
+    floor = cpu_seconds(lambda: taylor.fly_prepared(taylor.integrator(1e-12, floor_size),
+                                                    ready, steps=False), repeats) / cases
+    return {"points": points, "equal_error": equal, "python_loop_seconds_per_case": floor,
+            "python_loop_batch_size": floor_size,
             "tight": next(p for p in points if p["tolerance"] == 1e-12),
             "simd_size": simd, "heyoka_version": heyoka.__version__,
             "how": "Eqs. 1-2 as dynamics.rhs, replayed on heyoka expressions; a_c R and "
@@ -324,6 +328,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     """
     import time
 
+    import casadi as ca
     import numpy as np
 
     from esail_opt.bench.precision import seconds_at_miss
@@ -336,14 +341,18 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     cases = alphas.size
     x0, _, _, lengths = _schedule(ARCS)
     rows = np.ones((1, ARCS))
-    per_case = [(x0, ac * rows, alpha * rows, lengths) for alpha, ac in zip(alphas, acs)]
+    per_case = [tuple(ca.DM(a) for a in (x0, ac * rows, alpha * rows, lengths))
+                for alpha, ac in zip(alphas, acs)]
     stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
                np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
     start = time.perf_counter()
     model = ArcModel(sub_arcs=1, nodes=PANEL_NODES)
     closed = batch_function(ARCS, cases, length_in="time", model=model, jit=native)
     compile_seconds = time.perf_counter() - start
-    closed_seconds = cpu_seconds(lambda: closed(*stacked), repeats)
+    # Every method is timed from arguments already in the form it takes (DM for
+    # CasADi, heyoka's lanes), to results in its own form: only the flight is timed.
+    given = [ca.DM(a) for a in stacked]
+    closed_seconds = cpu_seconds(lambda: closed(*given), repeats)
     xs, q3 = (np.array(v) for v in closed(*stacked))
     # The same batch as CasADi compiles it, one case at a time: what the compile across
     # cases gains, and how far its numbers move (libmvec's elementary functions).
@@ -351,7 +360,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     scalar = batch_function(ARCS, cases, length_in="time", model=model, jit=native,
                             across_cases=False)
     scalar_compile = time.perf_counter() - start
-    scalar_seconds = cpu_seconds(lambda: scalar(*stacked), repeats)
+    scalar_seconds = cpu_seconds(lambda: scalar(*given), repeats)
     scalar_xs = np.array(scalar(*stacked)[0])
     moved = float(np.max(np.abs(xs - scalar_xs) / np.max(np.abs(scalar_xs), axis=1,
                                                           keepdims=True)))
@@ -369,7 +378,8 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
                        *(np.concatenate([a[:, m * ARCS:(m + 1) * ARCS] for m in timed], axis=1)
                          for a in stacked[1:]))
         mapped = fun.map(timed.size)
-        together = cpu_seconds(lambda f=mapped: f(*mapped_args), repeats)
+        mapped_given = [ca.DM(a) for a in mapped_args]
+        together = cpu_seconds(lambda f=mapped, a=mapped_given: f(*a), repeats)
         ends = np.array(mapped(*mapped_args))[:, ARCS - 1::ARCS]
         miss = [_position_km(ends[:, k], truth[:, m]) for k, m in enumerate(timed)]
         points.append({"tolerance": tol, "seconds_per_case": min(loop, together) / timed.size,
@@ -503,8 +513,8 @@ def _print_batch(block):
     if "skipped" in taylor:
         print(f"  heyoka skipped: {taylor['skipped']}")
         return
-    print(f"  of heyoka's time per case, driving it arc by arc from Python: "
-          f"{1e6 * taylor['call_floor_seconds_per_case']:.3g} us")
+    print(f"  of heyoka's time per case, the Python loop around its calls: "
+          f"{1e6 * taylor['python_loop_seconds_per_case']:.3g} us")
     if taylor["equal_error"] is not None:
         print(f"  heyoka at equal error: tolerance {taylor['equal_error']['tolerance']:g}, "
               f"batch size {taylor['equal_error']['batch_size']}")

@@ -21,6 +21,7 @@ was rejected: the Taylor series of a right-hand side that jumps inside a step is
 wrong across the jump, and heyoka's step control would not see it.
 """
 
+import collections
 import functools
 
 import casadi as ca
@@ -131,33 +132,54 @@ def fly(ta, x0, acs, alphas, durations, coefficients=EXACT):
     RuntimeError
         If heyoka stops short of a case's last arc (a non-finite state).
     """
+    lanes = prepare(ta.batch_size, x0, acs, alphas, durations, coefficients)
+    flown = np.concatenate([fly_prepared(ta, lanes), lanes.ends[:, None, :]], axis=1)
+    return flown[:, :, :lanes.cases].transpose(2, 1, 0)
+
+
+Lanes = collections.namedtuple("Lanes", "cases starts push_r push_t ends")
+
+
+def prepare(size, x0, acs, alphas, durations, coefficients=EXACT):
+    """:func:`fly`'s arguments as its lanes take them, ``size`` cases a block: the
+    start states (4 x lanes), the thrust parameters and the arcs' end times (N x
+    lanes each), the cases padded to whole blocks with the last one."""
     acs, alphas, durations = (np.atleast_2d(np.asarray(v, float))
                               for v in (acs, alphas, durations))
-    cases, arcs = alphas.shape
+    cases = alphas.shape[0]
     R, T = (np.array(v, float).reshape(alphas.shape)
             for v in radial_transverse(ca.DM(alphas), coefficients))
-    size = ta.batch_size
     lanes = np.r_[np.arange(cases), np.full(-cases % size, cases - 1)]
-    push_r, push_t = (acs * R)[lanes].T.copy(), (acs * T)[lanes].T.copy()
-    ends = np.cumsum(durations, axis=1)[lanes].T.copy()
-    starts = np.broadcast_to(np.asarray(x0, float).reshape(-1, 4), (cases, 4))[lanes].T.copy()
-    out = np.empty((arcs, 4, lanes.size))
+    starts = np.broadcast_to(np.asarray(x0, float).reshape(-1, 4), (cases, 4))[lanes].T
+    return Lanes(cases, starts.copy(), (acs * R)[lanes].T.copy(), (acs * T)[lanes].T.copy(),
+                 np.cumsum(durations, axis=1)[lanes].T.copy())
+
+
+def fly_prepared(ta, lanes, steps=True):
+    """The flight of :func:`fly` from its :func:`prepare`'d ``lanes``: the states
+    [r, theta, v_r, v_theta] at every arc's end, shape (N, 4, lanes).
+
+    ``steps`` False leaves out heyoka's ``propagate_until`` calls and the check of
+    their ends (the states are then the starts): what is left is the cost of the loop
+    around them from Python."""
+    size, ends = ta.batch_size, lanes.ends
+    out = np.empty((ends.shape[0], 4, ends.shape[1]))
     state, pars = ta.state, ta.pars
-    for first in range(0, lanes.size, size):
+    for first in range(0, ends.shape[1], size):
         block = slice(first, first + size)
-        state[:] = starts[:, block]
+        state[:] = lanes.starts[:, block]
         ta.set_time(0.0)
         # Lanes that end their arcs together take one time: heyoka reads a float
         # faster than an array, and the times are the same numbers.
         shared = (ends[:, block] == ends[:, first:first + 1]).all()
         times = ends[:, first].tolist() if shared else ends[:, block]
-        for k in range(arcs):
-            pars[0] = push_r[k, block]
-            pars[1] = push_t[k, block]
-            ta.propagate_until(times[k])
+        for k in range(ends.shape[0]):
+            pars[0] = lanes.push_r[k, block]
+            pars[1] = lanes.push_t[k, block]
+            if steps:
+                ta.propagate_until(times[k])
             out[k, :, block] = state
-        if not (np.array_equal(ta.time, ends[-1, block]) and np.isfinite(state).all()):
+        if steps and not (np.array_equal(ta.time, ends[-1, block]) and np.isfinite(state).all()):
             raise RuntimeError(f"heyoka stopped short of the last arc in cases "
                                f"{first} to {first + size - 1}")
-    flown = np.concatenate([out, ends[:, None, :]], axis=1)[:, :, :cases]
-    return flown.transpose(2, 1, 0)
+    return out
