@@ -1,6 +1,10 @@
 """``esail-opt-bench propagate``: the paper's 10-year orbit raising (Sec. 3) propagated
-by the closed form, by CVODES and by Ref. [10]'s model, timed in one run; and the same
-ten years as a work-precision race, each method's call time against its final error."""
+by the closed form, by CVODES and by Ref. [10]'s model, timed in one run; the same
+ten years as a work-precision race, each method's call time against its final error;
+and a batch of 1,025 such raisings, where the closed form (compiled across cases) is
+set against CVODES and against heyoka's Taylor integrator (``bench.taylor``, the
+``bench`` extra; skipped, and said so, without it), each at the closed form's error
+and at 1e-12."""
 
 import math
 from pathlib import Path
@@ -303,10 +307,13 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
 
     The cases are the case above with pitch and a_c on ``grid`` (default
     :data:`BATCH_GRID`).  The closed form is the race's (second-order arcs on the exact
-    angular momentum, in time), all cases in one compiled mapped call
-    (``propagation.batch.batch_function(..., jit=True)``; its compile, once per
-    process, is reported apart as ``compile_seconds``; ``native`` False keeps it on
-    CasADi's virtual machine).  Each case's final error is the
+    angular momentum, in time), all cases in one compiled call
+    (``propagation.batch.batch_function(..., jit=True)``, compiled across cases; its
+    compile, once per process, is reported apart as ``compile_seconds``; ``native``
+    False keeps it on CasADi's virtual machine).  The same mapped Function compiled
+    by CasADi one case at a time is timed too (``closed_form_one_case_at_a_time``,
+    with how far its states are from the compile across cases, over each state
+    row's largest value).  Each case's final error is the
     distance of its final position from CVODES at ``simulate.VERIFY_TOLERANCE``, as the
     race measures it; ``median_final_error_km`` is their median over all cases.
 
@@ -318,13 +325,20 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     final error over the timed cases) reaches the closed form's median final error over
     the same cases, read as the race reads its curves (``precision.seconds_at_miss``).
 
+    heyoka flies every case at each of :data:`HEYOKA_TOLERANCES` (:func:`heyoka_batch`,
+    the ``heyoka`` block).  Every time is the median CPU time of this process
+    (:func:`cpu_seconds`; each method runs on one thread), from arguments already in
+    the form the method takes.  ``per_case`` sets the methods side by side
+    (:func:`per_case_table`).
+
     Returns
     -------
     dict
         The ``batch`` block: ``cases``, ``arcs``, ``closed_form_seconds``,
         ``cvodes_seconds_equal_error``, ``cvodes_seconds_tight``, ``ratio_equal_error``,
-        ``ratio_tight``, ``median_final_error_km``, and what they were read from
-        (``cvodes_cases_timed``, ``cvodes_points``, ``compile_seconds``, the grid, ...).
+        ``ratio_tight``, ``median_final_error_km``, ``heyoka``, ``per_case``, and what
+        they were read from (``cvodes_cases_timed``, ``cvodes_points``,
+        ``compile_seconds``, the grid, ...).
     """
     import time
 
@@ -455,17 +469,47 @@ def per_case_table(block):
             for name, seconds, error, tol in rows]
 
 
-def race_figure(curves):
-    """The race as a log-log work-precision diagram, on a new Figure."""
+def race_figure(curves, block=None):
+    """The race as a log-log work-precision diagram, on a new Figure; with the
+    ``batch`` block, the batch's methods beside it (:func:`batch_points`)."""
+    from matplotlib.figure import Figure
+
     from esail_opt.bench.precision import draw_precision
 
-    ax = draw_precision({"problem": f"{YEARS:g}-year raising, alpha {ALPHA_DEG:g} deg",
-                         "ac_mm_s2": AC_MM_S2, "points": curves["points"]},
-                        xlabel="time of one propagation call [s]",
-                        ylabel=("final position error [km] (vs CVODES at "
-                                f"{curves['reference_tolerance']:g})"))
-    ax.figure.tight_layout()
-    return ax.figure
+    axes = Figure(figsize=(6.0 if block is None else 12.0, 4.8)).subplots(
+        1, 1 if block is None else 2, squeeze=False)[0]
+    draw_precision({"problem": f"{YEARS:g}-year raising, alpha {ALPHA_DEG:g} deg",
+                    "ac_mm_s2": AC_MM_S2, "points": curves["points"]}, ax=axes[0],
+                   xlabel="time of one propagation call [s]",
+                   ylabel=("final position error [km] (vs CVODES at "
+                           f"{curves['reference_tolerance']:g})"))
+    if block is not None:
+        ax = draw_precision({"problem": "batch", "ac_mm_s2": AC_MM_S2,
+                             "points": batch_points(block)}, ax=axes[1],
+                            xlabel="CPU time per case, one thread [s]",
+                            ylabel="median final position error [km]")
+        grid = block["grid"]
+        ax.set_title(f"{block['cases']} raisings, pitch {grid['alpha_deg'][0]:g} to "
+                     f"{grid['alpha_deg'][1]:g} deg, a_c {grid['ac_mm_s2'][0]:g} to "
+                     f"{grid['ac_mm_s2'][1]:g} mm/s^2", fontsize="medium")
+    axes[0].figure.tight_layout()
+    return axes[0].figure
+
+
+def batch_points(block):
+    """The batch's (seconds per case, median final error) points, each method's
+    settings a curve: the closed form both ways, CVODES and heyoka per tolerance."""
+    closed = block["per_case"][:2]
+    points = [{"method": name, "setting": "", "seconds": row["seconds_per_case"],
+               "miss_km": row["median_final_error_km"]}
+              for name, row in zip(("closed_form", "closed_form_one_case_at_a_time"), closed)]
+    points += [{"method": "cvodes", "setting": f"tol {p['tolerance']:g}",
+                "seconds": p["seconds_per_case"], "miss_km": p["median_final_error_km"]}
+               for p in block["cvodes_points"]]
+    points += [{"method": "heyoka", "setting": f"tol {p['tolerance']:g}",
+                "seconds": p["seconds_per_case"], "miss_km": p["median_final_error_km"]}
+               for p in block["heyoka"].get("points", [])]
+    return points
 
 
 def _print_race(curves):
@@ -518,7 +562,7 @@ def _print_batch(block):
     if taylor["equal_error"] is not None:
         print(f"  heyoka at equal error: tolerance {taylor['equal_error']['tolerance']:g}, "
               f"batch size {taylor['equal_error']['batch_size']}")
-    elif taylor["equal_error"] is None:
+    else:
         print("  heyoka reached the closed form's error at none of its tolerances")
 
 
@@ -574,6 +618,6 @@ def run(out, repeats, grid=None):
     _print_race(data["race"])
     _print_batch(data["batch"])
     path = Path(out) / "propagate.json"
-    save_figure(race_figure(data["race"]), Path(out) / "propagate.png")
+    save_figure(race_figure(data["race"], data["batch"]), Path(out) / "propagate.png")
     write_json(path, json_ready(data))
     return path
