@@ -229,6 +229,32 @@ def cpu_seconds(fn, repeats):
     return statistics.median(times)
 
 
+def _heyoka_point(tol, sizes, schedule, truth, repeats):
+    """heyoka's point at tolerance ``tol``: timed at each batch size of ``sizes``, the
+    fastest counting, and its final errors against ``truth`` (:func:`heyoka_batch`)."""
+    import time
+
+    import numpy as np
+
+    from esail_opt.bench import taylor
+
+    cases, by_size = schedule[1].shape[0], {}
+    for size in sizes:
+        start = time.perf_counter()
+        ta = taylor.integrator(tol, size)
+        built = time.perf_counter() - start
+        ready = taylor.prepare(size, *schedule)
+        by_size[size] = {"compile_seconds": built, "seconds_per_case": cpu_seconds(
+            lambda ta=ta, ready=ready: taylor.fly_prepared(ta, ready), repeats) / cases}
+    best = min(by_size, key=lambda size: by_size[size]["seconds_per_case"])
+    ends = taylor.fly(taylor.integrator(tol, best), *schedule)[:, :, -1]
+    errors = [_position_km(ends[m], truth[:, m]) for m in range(cases)]
+    return {"tolerance": tol, "batch_size": best,
+            "seconds_per_case": by_size[best]["seconds_per_case"],
+            "median_final_error_km": float(np.median(errors)),
+            "max_final_error_km": float(np.max(errors)), "by_batch_size": by_size}
+
+
 def heyoka_batch(repeats, schedule, truth, target_km):
     """The batch flown by heyoka (``bench.taylor``) at each of :data:`HEYOKA_TOLERANCES`.
 
@@ -256,10 +282,6 @@ def heyoka_batch(repeats, schedule, truth, target_km):
         ``{"skipped": reason}`` when heyoka does not import.  Each time is of
         ``taylor.fly_prepared``, from the lanes ``taylor.prepare`` made beforehand.
     """
-    import time
-
-    import numpy as np
-
     from esail_opt.bench import taylor
 
     if not taylor.available():
@@ -267,24 +289,9 @@ def heyoka_batch(repeats, schedule, truth, target_km):
     import heyoka
 
     cases = schedule[1].shape[0]
-    simd, points = heyoka.recommended_simd_size(), []
-    for tol in HEYOKA_TOLERANCES:
-        by_size = {}
-        for lanes in HEYOKA_LANES:
-            start = time.perf_counter()
-            ta = taylor.integrator(tol, lanes * simd)
-            built = time.perf_counter() - start
-            ready = taylor.prepare(lanes * simd, *schedule)
-            by_size[lanes * simd] = {"compile_seconds": built, "seconds_per_case": cpu_seconds(
-                lambda ta=ta, ready=ready: taylor.fly_prepared(ta, ready), repeats) / cases}
-        best = min(by_size, key=lambda size: by_size[size]["seconds_per_case"])
-        ends = taylor.fly(taylor.integrator(tol, best), *schedule)[:, :, -1]
-        errors = [_position_km(ends[m], truth[:, m]) for m in range(cases)]
-        points.append({"tolerance": tol, "batch_size": best,
-                       "seconds_per_case": by_size[best]["seconds_per_case"],
-                       "median_final_error_km": float(np.median(errors)),
-                       "max_final_error_km": float(np.max(errors)),
-                       "by_batch_size": by_size})
+    simd = heyoka.recommended_simd_size()
+    points = [_heyoka_point(tol, [lanes * simd for lanes in HEYOKA_LANES], schedule, truth,
+                            repeats) for tol in HEYOKA_TOLERANCES]
     equal = next((p for p in points if p["median_final_error_km"] <= target_km), None)
     # The loop around heyoka's calls alone, at the batch size of its equal-error point:
     # the part of its time spent driving it arc by arc from Python.
@@ -299,6 +306,72 @@ def heyoka_batch(repeats, schedule, truth, target_km):
             "how": "Eqs. 1-2 as dynamics.rhs, replayed on heyoka expressions; a_c R and "
                    "a_c T runtime parameters set per arc; taylor_adaptive_batch, "
                    "propagate_until each arc's end, one thread"}
+
+
+def _closed_form_batch(repeats, stacked, native):
+    """The batch's closed form compiled across cases and, for comparison, by CasADi one
+    case at a time (:func:`batch`): seconds, compile seconds, states and q3."""
+    import time
+
+    import casadi as ca
+    import numpy as np
+
+    from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
+    from esail_opt.propagation.batch import batch_function
+
+    cases = stacked[0].shape[1]
+    model = ArcModel(sub_arcs=1, nodes=PANEL_NODES)
+    start = time.perf_counter()
+    closed = batch_function(ARCS, cases, length_in="time", model=model, jit=native)
+    compile_seconds = time.perf_counter() - start
+    # Every method is timed from arguments already in the form it takes (DM for
+    # CasADi, heyoka's lanes), to results in its own form: only the flight is timed.
+    given = [ca.DM(a) for a in stacked]
+    seconds = cpu_seconds(lambda: closed(*given), repeats)
+    xs, q3 = (np.array(v) for v in closed(*given))
+    # The same batch as CasADi compiles it, one case at a time: what the compile across
+    # cases gains, and how far its numbers move (libmvec's elementary functions).
+    start = time.perf_counter()
+    scalar = batch_function(ARCS, cases, length_in="time", model=model, jit=native,
+                            across_cases=False)
+    scalar_compile = time.perf_counter() - start
+    scalar_seconds = cpu_seconds(lambda: scalar(*given), repeats)
+    scalar_xs = np.array(scalar(*given)[0])
+    moved = np.max(np.abs(xs - scalar_xs) / np.max(np.abs(scalar_xs), axis=1, keepdims=True))
+    return {"seconds": seconds, "compile_seconds": compile_seconds, "xs": xs, "q3": q3,
+            "one_case_at_a_time": {
+                "seconds": scalar_seconds, "compile_seconds": scalar_compile,
+                "largest_difference_over_row_size": float(moved),
+                "how": "the same mapped Function compiled by CasADi's own JIT, as before "
+                       "the compile across cases"}}
+
+
+def _cvodes_points(repeats, stacked, timed, truth):
+    """CVODES on the ``timed`` cases of the batch at each of the race's tolerances, per
+    case and as one mapped call, with the median final error (:func:`batch`)."""
+    import casadi as ca
+    import numpy as np
+
+    from esail_opt.propagation.simulate import schedule_function
+
+    points = []
+    per_case = [[ca.DM(stacked[0][:, m])] + [ca.DM(a[:, m * ARCS:(m + 1) * ARCS])
+                                            for a in stacked[1:]] for m in timed]
+    for tol in RACE_TOLERANCES:
+        fun = schedule_function(ARCS, 1, "time", tol=tol)
+        loop = cpu_seconds(lambda f=fun: [f(*args) for args in per_case], repeats)
+        mapped_args = (stacked[0][:, timed],
+                       *(np.concatenate([a[:, m * ARCS:(m + 1) * ARCS] for m in timed], axis=1)
+                         for a in stacked[1:]))
+        mapped = fun.map(timed.size)
+        mapped_given = [ca.DM(a) for a in mapped_args]
+        together = cpu_seconds(lambda f=mapped, a=mapped_given: f(*a), repeats)
+        ends = np.array(mapped(*mapped_given))[:, ARCS - 1::ARCS]
+        miss = [_position_km(ends[:, k], truth[:, m]) for k, m in enumerate(timed)]
+        points.append({"tolerance": tol, "seconds_per_case": min(loop, together) / timed.size,
+                       "per_case_calls_seconds": loop, "mapped_call_seconds": together,
+                       "median_final_error_km": float(np.median(miss))})
+    return points
 
 
 def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
@@ -340,75 +413,36 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
         they were read from (``cvodes_cases_timed``, ``cvodes_points``,
         ``compile_seconds``, the grid, ...).
     """
-    import time
-
-    import casadi as ca
     import numpy as np
 
     from esail_opt.bench.precision import seconds_at_miss
-    from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
-    from esail_opt.propagation.batch import batch_function
     from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
 
     grid = BATCH_GRID if grid is None else grid
     alphas, acs = _batch_cases(grid)
     cases = alphas.size
     x0, _, _, lengths = _schedule(ARCS)
-    rows = np.ones((1, ARCS))
-    per_case = [tuple(ca.DM(a) for a in (x0, ac * rows, alpha * rows, lengths))
-                for alpha, ac in zip(alphas, acs)]
     stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
                np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
-    start = time.perf_counter()
-    model = ArcModel(sub_arcs=1, nodes=PANEL_NODES)
-    closed = batch_function(ARCS, cases, length_in="time", model=model, jit=native)
-    compile_seconds = time.perf_counter() - start
-    # Every method is timed from arguments already in the form it takes (DM for
-    # CasADi, heyoka's lanes), to results in its own form: only the flight is timed.
-    given = [ca.DM(a) for a in stacked]
-    closed_seconds = cpu_seconds(lambda: closed(*given), repeats)
-    xs, q3 = (np.array(v) for v in closed(*stacked))
-    # The same batch as CasADi compiles it, one case at a time: what the compile across
-    # cases gains, and how far its numbers move (libmvec's elementary functions).
-    start = time.perf_counter()
-    scalar = batch_function(ARCS, cases, length_in="time", model=model, jit=native,
-                            across_cases=False)
-    scalar_compile = time.perf_counter() - start
-    scalar_seconds = cpu_seconds(lambda: scalar(*given), repeats)
-    scalar_xs = np.array(scalar(*stacked)[0])
-    moved = float(np.max(np.abs(xs - scalar_xs) / np.max(np.abs(scalar_xs), axis=1,
-                                                          keepdims=True)))
+    closed = _closed_form_batch(repeats, stacked, native)
+    xs, q3 = closed["xs"], closed["q3"]
     finals = xs[:, ARCS - 1::ARCS]
     truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE).map(cases)(
         *stacked))[:, ARCS - 1::ARCS]
     errors = np.array([_position_km(finals[:, m], truth[:, m]) for m in range(cases)])
 
     timed = np.unique(np.linspace(0, cases - 1, min(cvodes_cases, cases)).round().astype(int))
-    points = []
-    for tol in RACE_TOLERANCES:
-        fun = schedule_function(ARCS, 1, "time", tol=tol)
-        loop = cpu_seconds(lambda f=fun: [f(*per_case[m]) for m in timed], repeats)
-        mapped_args = (stacked[0][:, timed],
-                       *(np.concatenate([a[:, m * ARCS:(m + 1) * ARCS] for m in timed], axis=1)
-                         for a in stacked[1:]))
-        mapped = fun.map(timed.size)
-        mapped_given = [ca.DM(a) for a in mapped_args]
-        together = cpu_seconds(lambda f=mapped, a=mapped_given: f(*a), repeats)
-        ends = np.array(mapped(*mapped_args))[:, ARCS - 1::ARCS]
-        miss = [_position_km(ends[:, k], truth[:, m]) for k, m in enumerate(timed)]
-        points.append({"tolerance": tol, "seconds_per_case": min(loop, together) / timed.size,
-                       "per_case_calls_seconds": loop, "mapped_call_seconds": together,
-                       "median_final_error_km": float(np.median(miss))})
+    points = _cvodes_points(repeats, stacked, timed, truth)
     target = float(np.median(errors[timed]))
     equal = seconds_at_miss([(p["seconds_per_case"], p["median_final_error_km"])
                              for p in points], target)
     tight = next(p["seconds_per_case"] for p in points if p["tolerance"] == 1e-12)
     equal_total = None if equal is None else equal * cases
     block = {
-        "cases": int(cases), "arcs": ARCS, "closed_form_seconds": closed_seconds,
+        "cases": int(cases), "arcs": ARCS, "closed_form_seconds": closed["seconds"],
         "cvodes_seconds_equal_error": equal_total, "cvodes_seconds_tight": tight * cases,
-        "ratio_equal_error": None if equal is None else equal_total / closed_seconds,
-        "ratio_tight": tight * cases / closed_seconds,
+        "ratio_equal_error": None if equal is None else equal_total / closed["seconds"],
+        "ratio_tight": tight * cases / closed["seconds"],
         "median_final_error_km": float(np.median(errors)),
         "max_final_error_km": float(np.max(errors)),
         "median_final_error_km_timed_cases": target,
@@ -417,12 +451,8 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
         "smallest_q3": float(np.min(q3)),
         "cvodes_cases_timed": int(timed.size),
         "cvodes_points": points,
-        "compile_seconds": compile_seconds, "compiled": native,
-        "closed_form_one_case_at_a_time": {
-            "seconds": scalar_seconds, "compile_seconds": scalar_compile,
-            "largest_difference_over_row_size": moved,
-            "how": "the same mapped Function compiled by CasADi's own JIT, as before the "
-                   "compile across cases"},
+        "compile_seconds": closed["compile_seconds"], "compiled": native,
+        "closed_form_one_case_at_a_time": closed["one_case_at_a_time"],
         "grid": {key: list(value) for key, value in grid.items()},
         "heyoka": heyoka_batch(repeats, (x0[:4], np.repeat(acs[:, None], ARCS, 1),
                                          np.repeat(alphas[:, None], ARCS, 1),
