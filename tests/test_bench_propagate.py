@@ -137,3 +137,19 @@ def test_batch_compiled_across_cases_flies_the_mapped_function(length_in, sample
         # the bench's 1,025 ten-year cases by 4e-13.
         scale = np.max(np.abs(want), axis=1, keepdims=True)
         assert np.max(np.abs(got - want) / scale) < 1e-12
+
+
+def test_batch_table_without_heyoka_says_it_skipped(monkeypatch):
+    from esail_opt.bench import taylor
+
+    monkeypatch.setattr(taylor, "available", lambda: False)
+    skipped = propagate.heyoka_batch(1, None, None, 1.0)
+    assert "not installed" in skipped["skipped"]
+    block = {"cases": 4, "closed_form_seconds": 4e-5, "median_final_error_km": 100.0,
+             "closed_form_one_case_at_a_time": {"seconds": 2e-4}, "heyoka": skipped,
+             "cvodes_seconds_equal_error": 4e-3, "median_final_error_km_timed_cases": 90.0,
+             "cvodes_seconds_tight": 1.2e-2, "cvodes_median_final_error_km_tight": 0.3}
+    rows = {row["method"]: row for row in propagate.per_case_table(block)}
+    assert not any("heyoka" in name for name in rows)
+    assert rows["CVODES at 1e-12"]["ratio_over_closed_form"] == pytest.approx(300.0)
+    assert rows["closed form, one case at a time"]["ratio_over_closed_form"] == pytest.approx(5.0)
