@@ -30,7 +30,9 @@ mapped Function is compiled by CasADi's own just-in-time compiler.  How that
 compares with integrators is measured by ``esail-opt-bench propagate``.  Per case it
 costs far less than CVODES, and about what heyoka's Taylor integrator in batch mode
 costs at the same error.  heyoka at 1e-12 is orders of magnitude more accurate, for a
-small multiple of that time.  Why not ``propagation.compiled``'s disk cache: it compiles a
+small multiple of that time.
+
+Why not ``propagation.compiled``'s disk cache: it compiles a
 Function together with its Jacobian and Hessian blocks, which the NLP needs; a timed
 second-order arc (its clock guess and Taylor series inside) has a Hessian far too large
 to compile for a call that is never differentiated, while its forward evaluation alone
@@ -171,8 +173,8 @@ _VECTOR_OPS = {
     ca.OP_LE: "MASK({a} <= {b})", ca.OP_EQ: "MASK({a} == {b})", ca.OP_NE: "MASK({a} != {b})",
     ca.OP_NOT: "MASK({a} == 0.)", ca.OP_IF_ELSE_ZERO: "(vd)((vi){b} & ({a} != 0.))",
 }
-#: Operations called on each lane's scalar (exactly rounded or exact in the scalar code
-#: too), and those libmvec has as vector functions.
+#: Operations called lane by lane on the scalar functions CasADi's own code calls (the
+#: same numbers), and those libmvec has as vector functions.
 _LANE_CALLS = {ca.OP_SQRT: "sqrt", ca.OP_FABS: "fabs", ca.OP_TAN: "tan",
                ca.OP_FMIN: "fmin", ca.OP_FMAX: "fmax"}
 _VECTOR_CALLS = {ca.OP_SIN: "sin", ca.OP_COS: "cos", ca.OP_LOG: "log", ca.OP_EXP: "exp",
