@@ -17,7 +17,8 @@ Their problems are the shipped problem files, loaded by name from the package da
 ``esail_opt.problems`` (``optimisation.problem_file.shipped_problem``), so an installed
 package runs every bench and a bench always solves the file a user sees.
 :mod:`.collocation` is the independent collocation solver that ``lowthrust`` times and
-the tests' reference optima came from.  The benches import the layers below and the
+the tests' reference optima came from; :mod:`.taylor` flies ``propagate``'s batch on
+heyoka's Taylor integrator, when the ``bench`` extra is installed.  The benches import the layers below and the
 application modules, none of which imports them.
 """
 
