@@ -260,17 +260,17 @@ def probe_cap(iterations, least=PROBE_MIN):
     return max(least, int(math.ceil(PROBE_FACTOR * iterations)))
 
 
-def probe(problem, guess, cap, progress=None, threads=None):
+def probe(problem, guess, cap, progress=None):
     """A solve of ``problem`` from ``guess`` with Ipopt stopped after ``cap`` iterations,
     solved on without a cap only when that point is within :data:`PROBE_FEASIBLE` of
     feasible.  Returns (NLPResult, Transcription); the result's iterations and seconds
     cover the probe and what followed it."""
-    result, tr = solve_problem(problem, guess=guess, progress=progress, threads=threads,
+    result, tr = solve_problem(problem, guess=guess, progress=progress,
                                options=ipopt_options(max_iter=cap))
     if not result.outcome.found and result.constraint_violation <= PROBE_FEASIBLE:
         # A nearly feasible point is a start Ipopt should keep to, as a free date's is.
         more, tr = solve_problem(problem, guess=result.as_guess(), progress=progress,
-                                 threads=threads, staged=False,
+                                 staged=False,
                                  options=primal_warm_options(ipopt_options()))
         more.iterations += result.iterations
         more.solve_seconds += result.solve_seconds
@@ -279,11 +279,11 @@ def probe(problem, guess, cap, progress=None, threads=None):
     return result, tr
 
 
-def probe_rendezvous_class(problem, k, cap, progress=None, threads=None):
+def probe_rendezvous_class(problem, k, cap, progress=None):
     """:func:`probe` of the rendezvous turn count ``k`` from its seed
     (:func:`rendezvous_starts`); returns (NLPResult, Transcription, label of the start)."""
     start = rendezvous_starts(problem, [k])[0]
-    return probe(problem, start.guess, cap, progress, threads) + (start.label,)
+    return probe(problem, start.guess, cap, progress) + (start.label,)
 
 
 def fallback_starts(problem, guess):

@@ -217,8 +217,7 @@ def _quiet(text):
     """The progress callback of a caller that wants none."""
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None,
-          before_polish=None):
+def solve(problem, segments=None, progress=None, samples=16, polish=False):
     """Run the whole pipeline on ``problem``.
 
     A MinTime or MinAcceleration rendezvous at a fixed departure also looks at the turn
@@ -239,17 +238,6 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         Flight samples per segment for the plots (the verdicts do not depend on them).
     polish : bool
         Then polish the optimum (``optimisation.polish``) and verify that schedule too.
-    threads : int, optional
-        Threads that evaluate the NLPs' segments, the closed form's and the polish's
-        (default ``transcription.segment_threads``).  ``esail-opt solve`` asks for one:
-        its figures' worker has the other core meanwhile, importing matplotlib while the
-        closed form is solved and drawing the timeline's closed form while the polish
-        runs (``app.plot_worker``).  The optimum does not depend on it.
-    before_polish : callable, optional
-        With ``polish``: ``before_polish(run)`` gets the :class:`Run` of the stages
-        before the polish (its ``polish`` None) as soon as they end, so that a caller can
-        start on what does not depend on the polish while it runs (``esail-opt solve``
-        draws its timeline's closed form, ``app.plot_worker``).
 
     Returns
     -------
@@ -280,10 +268,10 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
     result, tr = solve_problem(problem, guess=guess, progress=say,
-                               staged=not problem.free_date(), options=options, threads=threads)
+                               staged=not problem.free_date(), options=options)
     starts = ()
     if not result.outcome.found:
-        result, tr, starts = _other_starts(problem, result, tr, say, threads)
+        result, tr, starts = _other_starts(problem, result, tr, say)
     if seed is not None:
         # The scan that chose the date is part of the run's Ipopt record.
         result.iterations += seed.iterations
@@ -292,17 +280,17 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         + ("error control until the flight meets the tolerance" if result.outcome.found
            else "no start found a point; flying the last iterate to report its miss"))
     if result.outcome.found and _searches_classes(problem):
-        tried, skipped = _classes(problem, result, tr, say, threads)
-        run = _best_verified(problem, tried, samples, say, starts, seg.sub_arcs, threads)
+        tried, skipped = _classes(problem, result, tr, say)
+        run = _best_verified(problem, tried, samples, say, starts, seg.sub_arcs)
         run = dataclasses.replace(run, classes_skipped=skipped)
     else:
         run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
-                     sub_arcs_requested=seg.sub_arcs, threads=threads)
+                     sub_arcs_requested=seg.sub_arcs)
         run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
     if not result.outcome.found and _walks_tof(problem):
         run = dataclasses.replace(run, nearest_feasible=_nearest_feasible(
-            problem, samples, say, threads))
-    return _polished(run, polish, samples, say, threads, before_polish)
+            problem, samples, say))
+    return _polished(run, polish, samples, say)
 
 
 def _searches_classes(problem):
@@ -334,7 +322,7 @@ def _walks_tof(problem):
             and not getattr(problem.departure, "free_anomaly", False))
 
 
-def _other_starts(problem, result, tr, say, threads=None):
+def _other_starts(problem, result, tr, say):
     """Ipopt's "infeasible" from one start is a local statement: before giving up, try
     the starts the global search would (other turn counts on a rendezvous body, other
     constant-pitch seeds of an orbit transfer), and keep the first that finds a point.
@@ -353,7 +341,7 @@ def _other_starts(problem, result, tr, say, threads=None):
     for start in multistart.fallback_starts(problem, tr.guess):
         say(f"{problem.name}: {result.status}; trying {start.label} ({cap} Ipopt "
             "iterations at most unless nearly feasible)")
-        other, other_tr = multistart.probe(problem, start.guess, cap, say, threads)
+        other, other_tr = multistart.probe(problem, start.guess, cap, say)
         records.append(StartTried(start.label, other.status, other.iterations))
         # The run's Ipopt record covers every start it took to get here.
         if other.outcome.found:
@@ -374,7 +362,7 @@ def _class_record(label, result):
                       result.ac_scale if found else None, result.constraint_violation)
 
 
-def _classes(problem, result, tr, say, threads=None):
+def _classes(problem, result, tr, say):
     """The turn counts k on the target body beside the one ``result`` found, probed
     (``multistart.probe_rendezvous_class``) one turn at a time each way while each
     does better (``multistart.descend_turns``).
@@ -403,8 +391,7 @@ def _classes(problem, result, tr, say, threads=None):
             return None
         say(f"{problem.name}: probing the turn count k = {k} ({cap} Ipopt iterations "
             "at most unless nearly feasible)")
-        other, other_tr, label = multistart.probe_rendezvous_class(problem, k, cap, say,
-                                                                   threads)
+        other, other_tr, label = multistart.probe_rendezvous_class(problem, k, cap, say)
         tried.append((_class_record(label, other), other, other_tr))
         return (other, other_tr) if other.outcome.found else None
 
@@ -416,7 +403,7 @@ def _classes(problem, result, tr, say, threads=None):
     return tried, skipped
 
 
-def _best_verified(problem, tried, samples, say, starts, requested, threads=None):
+def _best_verified(problem, tried, samples, say, starts, requested):
     """The run of the best class of ``tried`` (:func:`_classes`) whose flight is verified:
     the found classes are finished (error control, CVODES) best objective first until
     one is verified; the best one's run if none is.  Its ``classes`` record each class,
@@ -434,7 +421,7 @@ def _best_verified(problem, tried, samples, say, starts, requested, threads=None
         if len(found) > 1:
             say(f"{problem.name}: flying the turn count k = {result.revolutions_k}")
         runs[i] = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
-                         sub_arcs_requested=requested, threads=threads)
+                         sub_arcs_requested=requested)
         if runs[i].verified:
             break
     chosen = next((i for i in runs if runs[i].verified), found[0])
@@ -444,21 +431,21 @@ def _best_verified(problem, tried, samples, say, starts, requested, threads=None
     return dataclasses.replace(runs[chosen], classes=classes)
 
 
-def _nearest_feasible(problem, samples, say, threads=None):
+def _nearest_feasible(problem, samples, say):
     """The shortest flight found feasible from ``problem``'s departure
     (``scan.shortest_feasible``), flown as a run; None when the walk found none."""
-    edge = scan.shortest_feasible(problem, say, threads)
+    edge = scan.shortest_feasible(problem, say)
     if edge is None:
         return None
     say(f"{problem.name}: the shortest flight found feasible is "
         f"{edge.problem.objective.tof_days:.4g} d; error control and verification")
     run = finish(edge.problem, edge.result, edge.transcription, samples=samples,
-                 progress=say, threads=threads)
+                 progress=say)
     return NearestFeasible(run, edge.infeasible_tof_days, edge.iterations)
 
 
 def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
-           sub_arcs_requested=None, threads=None, before_polish=None):
+           sub_arcs_requested=None):
     """The stages after a closed-form optimum is found: error control, CVODES
     verification and, with ``polish``, the polish.
 
@@ -475,8 +462,8 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         ``result``'s NLP: the error control re-solves it warm; without it a new one is
         built.  Either way the error control and the polish keep ``result``'s revolution
         class.
-    samples, polish, progress, threads, before_polish
-        As for :func:`solve` (``threads`` for the polish).
+    samples, polish, progress
+        As for :func:`solve`.
     starts : sequence of StartTried
         The starts tried before this one.
     sub_arcs_requested : int, optional
@@ -511,20 +498,17 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
     run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
               error_control=controlled, check=check, verified=verified, note=note,
               sub_arcs_requested=requested)
-    return _polished(run, polish, samples, say, threads, before_polish)
+    return _polished(run, polish, samples, say)
 
 
-def _polished(run, polish, samples, say, threads=None, before_polish=None):
-    """``run`` with its polish, when asked for (``before_polish(run)`` first)."""
+def _polished(run, polish, samples, say):
+    """``run`` with its polish, when asked for."""
     if not polish:
         return run
-    if before_polish is not None:
-        before_polish(run)
-    return dataclasses.replace(run, polish=_polish(run.problem, run.result, samples, say,
-                                                   threads))
+    return dataclasses.replace(run, polish=_polish(run.problem, run.result, samples, say))
 
 
-def _polish(problem, result, samples, say, threads=None):
+def _polish(problem, result, samples, say):
     """Polish ``result`` and judge the polished flight against :data:`POLISH_TOLERANCE`."""
     # A closed form that found no optimum has nothing worth polishing.
     if not result.outcome.found:
@@ -532,7 +516,7 @@ def _polish(problem, result, samples, say, threads=None):
                          f"NOT polished: the closed-form solve ended {result.status}",
                          closed_form_objective=result.objective)
     say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
-    exact, _ = polishing.polish(problem, result, threads=threads)
+    exact, _ = polishing.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")
     check = verify(problem, exact, samples)

@@ -453,7 +453,7 @@ def _at_tof(problem, tof_days):
     return dataclasses.replace(problem, objective=_objective_at(problem, tof_days))
 
 
-def shortest_feasible(problem, progress=None, threads=None):
+def shortest_feasible(problem, progress=None):
     """The shortest time of flight from ``problem``'s departure at which its closed-form
     NLP converges, at least ``problem``'s own: a continuation in the time of flight.
 
@@ -477,7 +477,7 @@ def shortest_feasible(problem, progress=None, threads=None):
         guess = initial_guess(cell)
         cell = sub_arcs_within_cap(cell, guess, MAX_SUB_ARCS)
         say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
-        result, tr = solve_problem(cell, guess=guess, progress=say, threads=threads)
+        result, tr = solve_problem(cell, guess=guess, progress=say)
         iterations += result.iterations
         if result.outcome.converged:
             found = cell, result, tr
