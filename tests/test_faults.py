@@ -8,6 +8,7 @@ killed, a path under a regular file, a SIGKILL at a random moment of a write.
 """
 
 import errno
+import functools
 import json
 import os
 import random
@@ -20,10 +21,17 @@ from pathlib import Path
 
 import pytest
 
-from esail_opt.app import cli, files, sweep
+from esail_opt.app import cli, engine, files, sweep
 from esail_opt.errors import InputError, OutputError
 
 from conftest import PROBLEMS, REPO, TINY_PROBLEM as TINY
+
+
+def _journal(path, header):
+    """The sweep's journal at ``path`` under ``header``, as the sweep's run makes it."""
+    return engine.Journal(path, header, sweep.ROW_KINDS, len(header["values"]),
+                          functools.partial(sweep.belongs, header["values"]))
+
 
 
 def _env(**extra):
@@ -549,17 +557,17 @@ def test_a_torn_journal_line_is_cut_off_before_the_next_row(tmp_path):
     """A row torn mid-append is ignored and cut off the file, so the next row starts a
     line of its own and a second resume keeps it."""
     path = tmp_path / sweep.JOURNAL
-    journal = sweep.Journal(path, HEADER)
+    journal = _journal(path, HEADER)
     journal.open(resume=False)
     journal.append({**sweep._empty_row(0, 0.5), "converged": True})
     with open(path, "a") as handle:
         handle.write('{"index": 1, "value": 1.0, "conv')
-    kept = sweep.Journal(path, HEADER).open(resume=True)
+    kept = _journal(path, HEADER).open(resume=True)
     assert list(kept) == [0]
-    sweep.Journal(path, HEADER).append({**sweep._empty_row(1, 1.0), "converged": True})
+    _journal(path, HEADER).append({**sweep._empty_row(1, 1.0), "converged": True})
     lines = path.read_text().splitlines()
     assert len(lines) == 3 and all(json.loads(line) for line in lines)
-    assert sorted(sweep.Journal(path, HEADER).open(resume=True)) == [0, 1]
+    assert sorted(_journal(path, HEADER).open(resume=True)) == [0, 1]
 
 
 @pytest.mark.parametrize("bad, message", [
@@ -571,14 +579,14 @@ def test_an_unreadable_journal_line_is_one_error_naming_file_and_line(tmp_path, 
     path = tmp_path / sweep.JOURNAL
     path.write_bytes((json.dumps(HEADER) + "\n").encode() + bad)
     with pytest.raises(InputError) as err:
-        sweep.Journal(path, HEADER).open(resume=True)
+        _journal(path, HEADER).open(resume=True)
     assert message in str(err.value) and str(path) in str(err.value)
     assert "\n" not in str(err.value)
 
 
 def test_a_failed_append_leaves_no_half_line(tmp_path, monkeypatch):
     path = tmp_path / sweep.JOURNAL
-    journal = sweep.Journal(path, HEADER)
+    journal = _journal(path, HEADER)
     journal.open(resume=False)
     before = path.read_bytes()
     real = os.write

@@ -107,6 +107,8 @@ def check_output_dir(path, name=None):
     # but the user meant the folder itself, which cannot be swapped for a new one.
     check_name(os.fspath(raw).rstrip("/").rpartition("/")[2] or os.fspath(raw),
                "output folder name")
+    if path.is_symlink():  # its files would be written wherever the link points
+        raise InputError(f"--out = {str(path)!r} is a symbolic link; give a real folder")
     if path.exists() and not path.is_dir():
         raise OutputError(f"cannot write the output folder {str(path)!r}: a file of that "
                           "name is in the way (choose another --out)")
