@@ -7,6 +7,7 @@ happens in use: a library cut short on disk, a signal from outside, a scheduler 
 killed, a path under a regular file, a SIGKILL at a random moment of a write.
 """
 
+import contextlib
 import errno
 import functools
 import json
@@ -832,3 +833,95 @@ def test_a_cache_out_of_inodes_is_full(tmp_path, monkeypatch):
     monkeypatch.setattr(cc.os, "statvfs", lambda folder: NoInodes)
     reason = cc._unusable(tmp_path)
     assert reason is not None and "inodes" in reason
+
+
+# ---------------------------------------------------------------- 8. what a killed worker leaves
+
+
+def _naming(needle):
+    """Pids of the live processes whose command line holds ``needle``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit() and int(entry.name) != os.getpid():
+            try:
+                if os.fsencode(needle) in (entry / "cmdline").read_bytes() \
+                        and _alive(int(entry.name)):
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGTERM])
+def test_a_process_killed_mid_compile_leaves_no_compiler_and_no_files(tmp_path, signum):
+    """A process compiling the cache's first library is ended by a signal it does not
+    handle (a pool worker's end): no gcc runs on, no build folder stays in the cache,
+    and no assembler file stays in the temporary folder."""
+    cache, scratch = tmp_path / "cache", tmp_path / "tmp"
+    scratch.mkdir()
+    child = ("from esail_opt.propagation.compiled import compiled; "
+             "from esail_opt.propagation.rectified import panel_function; "
+             "compiled(panel_function())")
+    env = {k: v for k, v in _env(ESAIL_OPT_CACHE=str(cache), TMPDIR=str(scratch)).items()
+           if k != "ESAIL_OPT_COMPILE"}
+    proc = subprocess.Popen([sys.executable, "-c", child], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and proc.poll() is None:
+            if any(b"cc1" in Path(f"/proc/{p}/cmdline").read_bytes()
+                   for p in _naming(str(cache)) if Path(f"/proc/{p}").exists()):
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, "the compile ended before it could be killed"
+        time.sleep(0.5)  # well inside cc1's work on the Hessian block
+        proc.send_signal(signum)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and (_naming(str(cache)) or list(cache.glob(".build-*"))):
+        time.sleep(0.2)
+    left = _naming(str(cache))
+    for pid in left:  # not to outlive the test either way
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    assert not left, "a compiler outlived the process that started it"
+    assert not list(cache.glob(".build-*"))
+    assert not list(scratch.glob("cc*"))
+
+
+@pytest.mark.slow
+def test_a_member_whose_file_ends_its_worker_leaks_no_folder(tmp_path):
+    """A problem file that calls os._exit in the workers (not in the command's own
+    process) costs its member: it is lost with its worker, tried again and reported,
+    and no try leaves its folder in the temporary folder."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    problem = tmp_path / "exits.py"
+    problem.write_text("import multiprocessing, os\n"
+                       "if multiprocessing.parent_process() is not None:\n"
+                       "    os._exit(3)\n" + TINY.format(name="exits"))
+    run = _cli("sweep", problem, "--param", "ac_mm_s2=1:1:1", "--workers", "1",
+               "--out", tmp_path / "out", env=_env(TMPDIR=str(scratch), ESAIL_OPT_COMPILE="0"))
+    assert run.returncode == 1, run.stderr
+    row = json.loads((tmp_path / "out" / "sweep.json").read_text())["rows"][0]
+    assert "worker lost 3 times" in row["error"]
+    assert not [p.name for p in scratch.iterdir() if p.name.startswith("esail_")]
+
+
+@pytest.mark.slow
+def test_an_unusable_cache_is_said_once_per_run_not_per_worker(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    env = {k: v for k, v in _env(ESAIL_OPT_CACHE=str(blocker / "cache")).items()
+           if k != "ESAIL_OPT_COMPILE"}
+    run = _cli("sweep", problem, "--param", "ac_mm_s2=0.5:1.5:2", "--workers", "2",
+               "--out", tmp_path / "out", env=env)
+    assert run.returncode == 0, run.stderr
+    said = [ln for ln in run.stderr.splitlines() if "cannot compile into the cache" in ln]
+    assert len(said) == 1, said

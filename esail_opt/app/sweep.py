@@ -421,7 +421,7 @@ def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, po
                     Path(problem_file).read_text(), polish, tol_km, tol_m_s)
 
 
-def _failed_row(i, values, message):
+def _failed_row(values, i, message):
     """The row of member ``i`` whose worker did not return one."""
     row = _empty_row(i, values[i])
     row["error"] = message
@@ -435,7 +435,7 @@ def _scan(request):
         journal_name=JOURNAL, header=request.header(), kinds=ROW_KINDS,
         count=len(values), function=solve_member,
         jobs={i: ([i], request.member(i)) for i in range(len(values))},
-        failed_row=functools.partial(_failed_row, values=values),
+        failed_row=functools.partial(_failed_row, values),
         belongs=functools.partial(belongs, values))
 
 
