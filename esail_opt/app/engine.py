@@ -399,25 +399,12 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
         retries=parallel.RETRIES, progress=None):
     """Run the jobs of ``scan`` that the journal lacks; their rows, journaled.
 
-    Parameters
-    ----------
-    scan : Scan
-    out_dir : Path, optional
-        The folder of the journal (already checked); None keeps no journal.
-    resume : bool
-        Keep the rows the journal holds; without it the journal starts afresh.
-    workers : int
-        Local pool size (ignored with ``scheduler``).
-    scheduler : str, optional
-        A Dask scheduler's address (already checked by :func:`check_scheduler`).
-    retries : int
-        Times a job lost with its worker is run again.
-    progress : callable, optional
-        ``progress(row, done, total)`` after each row that ends in this run.
-
-    Returns
-    -------
-    Outcome
+    ``out_dir`` is the journal's folder (already checked; None keeps no journal);
+    ``resume`` keeps the rows the journal holds, else it starts afresh; ``workers`` is
+    the local pool's size, ``scheduler`` a Dask scheduler's address (checked by
+    :func:`check_scheduler`), ``retries`` the times a job lost with its worker runs
+    again, and ``progress(row, done, total)`` is called as each row ends.  Returns an
+    :class:`Outcome`.
 
     Raises
     ------

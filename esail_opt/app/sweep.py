@@ -233,29 +233,32 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
     try:
         problem = engine.load_source(source, filename)
         problem = variant(problem, name, value).with_tolerance(tol_km, tol_m_s)
-        sol = solution.solve(problem, polish=polish)
-        check = sol.verification
-        verified = sol.flight_verified
-        row.update(converged=sol.converged, status=sol.status, tof_days=sol.tof_days,
-                   objective=sol.objective, iterations=sol.iterations,
-                   verified=bool(verified),
-                   target_miss_r_km=check.target_miss_r_km,
-                   target_miss_v_m_s=check.target_miss_v_m_s)
-        exact = sol.polish
-        if exact is not None:
-            row.update(tof_days_exact=exact.tof_days, exact_verified=exact.verified,
-                       exact_target_miss_km=(None if exact.verification is None
-                                             else exact.verification.target_miss_r_km))
-        if not sol.converged:
-            row["error"] = f"not converged: Ipopt {sol.status}"
-        elif check.error:
-            row["error"] = f"verification: {check.error}"
-        elif not verified:
-            row["error"] = _not_verified(sol, problem.tolerance)
+        _fill(row, solution.solve(problem, polish=polish), problem.tolerance)
     except Exception as err:  # a member may fail in any way; its row says how
         row["error"] = first_line(err)
     row["seconds"] = time.perf_counter() - start
     return row
+
+
+def _fill(row, sol, tolerance):
+    """Put a member's solution ``sol`` into its ``row``, with why it failed if it did."""
+    check = sol.verification
+    verified = sol.flight_verified
+    row.update(converged=sol.converged, status=sol.status, tof_days=sol.tof_days,
+               objective=sol.objective, iterations=sol.iterations, verified=bool(verified),
+               target_miss_r_km=check.target_miss_r_km,
+               target_miss_v_m_s=check.target_miss_v_m_s)
+    exact = sol.polish
+    if exact is not None:
+        row.update(tof_days_exact=exact.tof_days, exact_verified=exact.verified,
+                   exact_target_miss_km=(None if exact.verification is None
+                                         else exact.verification.target_miss_r_km))
+    if not sol.converged:
+        row["error"] = f"not converged: Ipopt {sol.status}"
+    elif check.error:
+        row["error"] = f"verification: {check.error}"
+    elif not verified:
+        row["error"] = _not_verified(sol, tolerance)
 
 
 # ---------------------------------------------------------------- the family
@@ -283,10 +286,9 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
         out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES):
     """Solve the family of ``problem_file`` over ``param`` and return the table.
 
-    The members run on the scan engine (:func:`esail_opt.app.engine.run`): journaled to
-    ``out_dir/sweep.jsonl`` as they finish, one whose worker dies run again on a fresh
-    pool up to ``retries`` times, and on KeyboardInterrupt the workers stopped at once;
-    the journal keeps what finished and the interrupt propagates.
+    The members run on the scan engine (:func:`esail_opt.app.engine.run`, whose contract
+    covers the journal ``out_dir/sweep.jsonl``, ``resume``, the ``retries`` of members
+    lost with their worker, the Dask ``scheduler`` and KeyboardInterrupt).
 
     Parameters
     ----------
@@ -295,54 +297,35 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     param : str
         ``NAME=START:STOP:COUNT`` (see :func:`parse_param`).
     workers : int, optional
-        Process-pool size, in [1, 64] (default: min(COUNT, CPUs)); ignored with
-        ``scheduler``, whose cluster decides.
-    scheduler : str, optional
-        Address of a Dask distributed scheduler, ``tcp://HOST:PORT``.
+        Process-pool size, in [1, 64] (default: min(COUNT, CPUs)).
     progress : callable, optional
         ``progress(row, done, total)`` after each member finished in this run.
     polish : bool
         Polish every member on the exact Eqs. 1-2 as well (see :func:`solve_member`).
-    out_dir : str or Path, optional
-        The sweep's output folder, for the journal; None keeps no journal.
-    resume : bool
-        Keep the members the journal in ``out_dir`` already holds and run only the
-        others (all of them if there is no journal).  Without it an existing journal
-        is replaced.
     tol_km, tol_m_s : float, optional
-        Verification bounds for every member, in [1e-3, 1e8] km and [1e-6, 1e5] m/s
-        (default: the problem file's).
-    retries : int
-        Times a member lost with its worker is run again, >= 0.
+        Verification bounds for every member (default: the problem file's).
 
     Returns
     -------
     dict
         ``problem``, ``problem_file``, ``param``, ``field``, ``unit``,
-        ``objective_meaning``, ``objective_shown_as`` ([factor, unit]: the objective
-        column's canonical numbers times the factor are in that unit), ``values``,
-        ``executor``, ``wall_seconds``, ``polished``, ``tolerance``, ``failed`` (count
-        of rows with an error), ``rows`` (one per value, in grid order), ``journal``
-        (its path or None), ``resumed`` (indices taken from the journal), ``solved``
-        (indices that finished in this run, in finishing order) and ``lost``
-        (``{"index", "value", "losses", "cause"}`` per member charged with a lost
-        worker).
+        ``objective_meaning``, ``objective_shown_as`` ([factor, unit] of the objective
+        column), ``values``, ``executor``, ``wall_seconds``, ``polished``,
+        ``tolerance``, ``failed`` (rows with an error), ``rows`` (in grid order),
+        ``journal`` (its path or None), ``resumed`` and ``solved`` (indices) and
+        ``lost`` (``{"index", "value", "losses", "cause"}`` per member charged with a
+        lost worker).
 
     Raises
     ------
     InputError
-        Bad ``param`` (a value no problem accepts included), ``workers``, scheduler
-        address, tolerance or ``retries``, an unreadable problem file, a parameter the
-        problem does not have, a journal of another sweep or a bad row under
-        ``resume``, an unsafe ``out_dir``, or an unreachable scheduler -- all before
-        any solve and before the journal changes.
+        Bad input of any kind (a value no problem accepts included), a journal that
+        ``resume`` cannot continue, or an unreachable scheduler: before any solve and
+        before the journal changes.
     OutputError
         ``out_dir`` cannot be created or written (before any solve).
     esail_opt.app.parallel.ClusterLost
-        The Dask scheduler or every worker was lost (one line saying what the journal
-        keeps); nothing else is written.
-    KeyboardInterrupt
-        After stopping the workers; the journal holds every member that finished.
+        The Dask cluster was lost (one line saying what the journal keeps).
     """
     request = _check(problem_file, param, workers, scheduler, retries, resume, out_dir,
                      polish, tol_km, tol_m_s)

@@ -33,11 +33,14 @@ truncated one would be mapped into the process and crash it with SIGBUS.  A dama
 unloadable library is removed and built again, with one line.  A lock file per hash
 makes parallel workers (``esail-opt sweep``) wait for one compile instead of each
 running their own.  An interrupted compile kills its compilers (each in a session of its
-own) and removes its ``.build-<pid>-*`` folder; one whose process was killed outright
-is cleaned up by the next compile into the cache.  Without a C compiler, when a compile
+own) and removes its ``.build-<pid>-*`` folder; for a process killed outright a watcher
+process does both (:data:`_REAPER`), and the next compile into the cache sweeps up what
+is left.  The compilers run with ``-pipe`` and their temporary folder in the build
+folder, so nothing of theirs is left in the system's temporary folder.  Without a C compiler, when a compile
 fails, or when the cache cannot be written (a full disk, a read-only folder), the
-Function stays on the virtual machine and one log line says so; a cache whose disk ran
-out of space is not tried again until space is freed.
+Function stays on the virtual machine and one log line says so (once per run: a scan's
+workers do not repeat what its command said, :func:`check_cache`); a cache whose disk
+ran out of space, or of inodes, is not tried again until space is freed.
 
 Environment:
 
@@ -551,6 +554,25 @@ def _load(fun, folder, target, key, build):
     return ca.external(fun.name(), str(target))
 
 
+def _load_or_vm(fun, folder, target, key, build):
+    """:func:`_load`, or ``fun`` itself (on the virtual machine) when nothing can be
+    compiled, with one line saying why; a full disk is remembered (:func:`_unusable`)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        loaded = _load(fun, folder, target, key, build)
+        return fun if loaded is None else loaded
+    except (OSError, subprocess.CalledProcessError, RuntimeError) as err:
+        if _no_space(err):
+            _remember_no_space(folder)
+            _warn_unusable(folder, "its disk is full")
+        elif isinstance(err, OSError) and not isinstance(err, subprocess.SubprocessError):
+            _warn_unusable(folder, err.strerror or str(err))
+        else:
+            log.warning("esail-opt: compiling %s failed (%s); the NLP stays on CasADi's "
+                        "virtual machine", fun.name(), _one_line(err))
+        return fun  # not retried in this process: one line is enough
+
+
 def _record(target):
     """The text of ``target``'s checksum file, or None."""
     try:
@@ -582,12 +604,8 @@ def compiled(fun, calls=()):
         (``ESAIL_OPT_COMPILE=0``), no C compiler runs, the cache cannot be written (a
         full disk, a read-only folder: not retried on every run), or the compile fails
         (one warning on the ``esail_opt`` logger for all but the first).
-
-    Notes
-    -----
-    A cached library is loaded only if its checksum matches: a truncated library
-    mapped into the process would crash it (SIGBUS) instead of raising.  A damaged one
-    is removed and compiled again, with one line.
+    A cached library is loaded only if its checksum matches (a truncated library mapped
+    into the process would crash it); a damaged one is compiled again, with one line.
     """
     if not enabled():
         return fun
@@ -618,20 +636,6 @@ def compiled(fun, calls=()):
         _build(fun, identity[0], target, links)
         log.info("esail-opt: compiled in %.1f s", time.perf_counter() - start)
 
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        loaded = _load(fun, folder, target, key, build)
-        if loaded is None:
-            loaded = fun
-    except (OSError, subprocess.CalledProcessError, RuntimeError) as err:
-        if _no_space(err):
-            _remember_no_space(folder)
-            _warn_unusable(folder, "its disk is full")
-        elif isinstance(err, OSError) and not isinstance(err, subprocess.SubprocessError):
-            _warn_unusable(folder, err.strerror or str(err))
-        else:
-            log.warning("esail-opt: compiling %s failed (%s); the NLP stays on CasADi's "
-                        "virtual machine", fun.name(), _one_line(err))
-        loaded = fun  # not retried in this process: one line is enough
+    loaded = _load_or_vm(fun, folder, target, key, build)
     _loaded[key] = loaded
     return loaded
