@@ -521,3 +521,38 @@ def test_bad_tolerance_is_one_line_exit_2_nothing_written(tiny, tmp_path, capsys
                      "--out", str(out)]) == 2
     assert "tolerance.velocity_m_s = nan m/s is outside" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_two_porkchop_cells_fly_from_porkchop_json_alone(tmp_path):
+    """Each row of porkchop.json carries its flight as solution.json does: flown here by
+    DOP853 on Eqs. 1-2 from the row's departure state with the row's schedule, each
+    verified cell ends at Mars (DE421 at the row's arrival date) within the problem's
+    tolerance, with no solve."""
+    import esail_opt as eo
+    from esail_opt.app import porkchop
+    from esail_opt.optimisation.problem_file import load_problem
+    from esail_opt.physics import constants as units
+    from test_calendar import ecliptic_polar, jd_of
+
+    from conftest import PROBLEMS, fly_dop853, position_km, velocity_m_s
+
+    window = PROBLEMS / "earth_mars_window.py"
+    porkchop.write(porkchop.run(window, "2030-01-01:2030-05-02:2", workers=1), tmp_path)
+    rows = json.loads((tmp_path / "porkchop.json").read_text())["rows"]
+    problem = load_problem(window)
+    assert [row["verified"] for row in rows] == [True, True]
+    for row in rows:
+        state = row["departure_state"]  # its angle unwrapped, as solution.json's
+        flown = dataclasses.replace(
+            problem, departure=eo.PolarState(
+                r_au=state["r_au"], theta_deg=state["theta_deg"] % 360.0,
+                vr_km_s=state["vr_km_s"], vtheta_km_s=state["vtheta_km_s"]),
+            objective=eo.MinTime(), target=eo.CircularOrbit(radius_au=1.5))
+        xf, elapsed = fly_dop853(flown, row["schedule"])
+        assert units.time_to_days(elapsed) == pytest.approx(row["tof_days"], rel=1e-12)
+        mars = ecliptic_polar("mars", jd_of(row["arrival_date"]))
+        assert position_km(xf, mars) <= problem.tolerance.position_km
+        assert velocity_m_s(xf, mars) <= problem.tolerance.velocity_m_s
+        # And the miss the row reports (CVODES's) is the one DOP853 finds.
+        assert position_km(xf, mars) == pytest.approx(row["target_miss_r_km"], abs=1.0)

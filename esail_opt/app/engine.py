@@ -131,7 +131,8 @@ def _short(value):
 
 
 #: What a row's field may hold, by the kind a scan gives it (``"num?"``: or null).
-_KINDS = {"int": (int,), "num": (int, float), "bool": (bool,), "str": (str,)}
+_KINDS = {"int": (int,), "num": (int, float), "bool": (bool,), "str": (str,),
+          "dict": (dict,), "list": (list,)}
 
 
 def _bad_value(value, kind):
@@ -163,8 +164,9 @@ class Journal:
         ``values``, ``polish``, ``tolerance``); a journal is resumed only under the same
         header.
     kinds : dict
-        Field -> kind of the rows (``"int"``, ``"num"``, ``"bool"``, ``"str"``, with a
-        trailing ``"?"`` when null is allowed); a row read is checked against it.
+        Field -> kind of the rows (``"int"``, ``"num"``, ``"bool"``, ``"str"``,
+        ``"dict"``, ``"list"``, with a trailing ``"?"`` when null is allowed); a row
+        read is checked against it.
     belongs : callable, optional
         ``belongs(index, row)``: whether a row is this grid's (default: its index is
         in ``range(count)``).

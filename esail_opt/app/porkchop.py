@@ -46,7 +46,13 @@ ROW_KINDS = {"index": "int", "departure_date": "str", "tof_days_grid": "num?",
              "objective": "num?", "objective_unit": "str?", "target_miss_r_km": "num?",
              "target_miss_v_m_s": "num?", "relative_speed_km_s": "num?",
              "out_of_plane_km": "num?", "iterations": "int?", "start": "str?",
-             "seconds": "num?", "error": "str?"}
+             "seconds": "num?", "error": "str?", "ac_mm_s2_required": "num?",
+             "departure_state": "dict?", "schedule": "list?"}
+#: What a row holds beyond the CSV's columns, in porkchop.json and its journal: the
+#: cell's flight as solution.json gives it (the state its schedule is flown from, the
+#: schedule, and for MinAcceleration the a_c it is flown at), so that a cell can be
+#: flown, or used, without solving it again.
+FLIGHT_FIELDS = ("ac_mm_s2_required", "departure_state", "schedule")
 JOURNAL = "porkchop.jsonl"
 #: The files a porkchop writes as one set (its journal is kept beside them).
 PORKCHOP_FILES = ("porkchop.csv", "porkchop.json", "porkchop.png")
@@ -169,7 +175,7 @@ def cell_problem(problem, grid, index):
 
 def _row(index, grid, cell=None, error=None):
     jd, tof = grid.cell(index)
-    row = dict.fromkeys(CSV_FIELDS)
+    row = dict.fromkeys(CSV_FIELDS + FLIGHT_FIELDS)
     row.update(index=index, departure_date=dates.iso_from_jd(jd), departure_jd=jd,
                tof_days_grid=tof, converged=False, verified=False, error=error)
     if cell is None:
@@ -186,10 +192,23 @@ def _row(index, grid, cell=None, error=None):
         tof_tu = float(np.sum(result.durations))
         row.update(tof_days=units.time_to_days(tof_tu), objective=cell.objective * factor,
                    objective_unit=unit.strip(),
-                   arrival_date=dates.iso_from_jd(dates.jd_from_tu(result.epoch + tof_tu)))
+                   arrival_date=dates.iso_from_jd(dates.jd_from_tu(result.epoch + tof_tu)),
+                   **_flight(cell))
     if not cell.verified and error is None:
         row["error"] = cell.note
     return row
+
+
+def _flight(cell):
+    """A solved cell's :data:`FLIGHT_FIELDS`, in solution.json's units and keys."""
+    from esail_opt.app.solution import _polar_dict, _schedule
+
+    problem, result = cell.problem, cell.result
+    out = {"departure_state": _polar_dict(problem.start_state(result)),
+           "schedule": _schedule(result, problem.throttled())}
+    if problem.objective.free_acceleration:
+        out["ac_mm_s2_required"] = problem.sail.ac_mm_s2 * result.ac_scale
+    return out
 
 
 def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departures=(),
