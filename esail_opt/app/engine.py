@@ -378,11 +378,14 @@ class _Rows:
         self.rows = [kept.get(i) for i in range(scan.count)]
         self.resumed = sorted(kept)
         self.solved = []  # indices ended in this run, in finishing order
+        self.filled = set(kept)  # indices with a row
+        self.journaled = set(kept)  # indices whose row the journal holds
 
     def finished(self, job, value):
         for row in value if isinstance(value, list) else [value]:
             if self.journal is not None:
                 self.journal.append(row)
+                self.journaled.add(row["index"])
             self._end(row["index"], row)
 
     def unfinished(self, job, message):
@@ -393,8 +396,9 @@ class _Rows:
     def _end(self, i, row):
         self.rows[i] = row
         self.solved.append(i)
+        self.filled.add(i)
         if self.progress:
-            self.progress(row, sum(r is not None for r in self.rows), self.scan.count)
+            self.progress(row, len(self.filled), self.scan.count)
 
 
 def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
@@ -448,8 +452,8 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
 
 def _kept(rows, journal):
     """What a run cut short by a lost cluster keeps, in words."""
-    missing = sum(r is None for r in rows.rows)
+    count = rows.scan.count
     if journal is None:
-        return f"{rows.scan.count - missing} of {rows.scan.count} rows had finished"
-    return (f"the journal {journal.path} keeps the {rows.scan.count - missing} finished "
-            f"rows; run again with --resume for the other {missing}")
+        return f"{len(rows.filled)} of {count} rows had finished"
+    return (f"the journal {journal.path} keeps the {len(rows.journaled)} finished rows; "
+            f"run again with --resume for the other {count - len(rows.journaled)}")
