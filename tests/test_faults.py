@@ -925,3 +925,16 @@ def test_an_unusable_cache_is_said_once_per_run_not_per_worker(tmp_path):
     assert run.returncode == 0, run.stderr
     said = [ln for ln in run.stderr.splitlines() if "cannot compile into the cache" in ln]
     assert len(said) == 1, said
+
+
+def test_cells_out_is_checked_before_anything_runs(tmp_path, capsys):
+    out = tmp_path / "out"
+    base = ["porkchop", str(WINDOW), "--depart", "2030-01-01:2030-03-01:2", "--out", str(out)]
+    assert cli.main([*base, "--cells-out", ""]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--cells-out" in err
+    assert cli.main([*base, "--cells-out", str(tmp_path / "cells"), "--scheduler",
+                     "tcp://127.0.0.1:8786"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--cells-out" in err and "--scheduler" in err
+    assert not (out / "porkchop.jsonl").exists() and not (tmp_path / "cells").exists()

@@ -538,7 +538,9 @@ def test_two_porkchop_cells_fly_from_porkchop_json_alone(tmp_path):
     from conftest import PROBLEMS, fly_dop853, position_km, velocity_m_s
 
     window = PROBLEMS / "earth_mars_window.py"
-    porkchop.write(porkchop.run(window, "2030-01-01:2030-05-02:2", workers=1), tmp_path)
+    cells = tmp_path / "cells"
+    porkchop.write(porkchop.run(window, "2030-01-01:2030-05-02:2", workers=1,
+                                cells_out=cells), tmp_path)
     rows = json.loads((tmp_path / "porkchop.json").read_text())["rows"]
     problem = load_problem(window)
     assert [row["verified"] for row in rows] == [True, True]
@@ -556,3 +558,11 @@ def test_two_porkchop_cells_fly_from_porkchop_json_alone(tmp_path):
         assert velocity_m_s(xf, mars) <= problem.tolerance.velocity_m_s
         # And the miss the row reports (CVODES's) is the one DOP853 finds.
         assert position_km(xf, mars) == pytest.approx(row["target_miss_r_km"], abs=1.0)
+        # --cells-out: the cell's solution folder holds the same flight, verified.
+        solved = json.loads((cells / porkchop.cell_folder(row) / "solution.json").read_text())
+        assert solved["verified"]
+        # (solution.json's rows add each segment's local error)
+        assert [{k: seg[k] for k in mine} for seg, mine in
+                zip(solved["schedule"], row["schedule"], strict=True)] == row["schedule"]
+        assert solved["problem"]["departure_state"] == row["departure_state"]
+        assert (cells / porkchop.cell_folder(row) / "schedule.csv").exists()

@@ -386,17 +386,18 @@ def _add_sweep(sub):
     p.set_defaults(run=_run_sweep)
 
 
-def _out(args):
-    """``--out`` as a Path, None when it is not given; an empty one is refused (it is
-    not the default folder)."""
+def _out(args, option="--out"):
+    """The folder option ``option`` as a Path, None when it is not given; an empty one
+    is refused (it is not the default folder)."""
     from pathlib import Path
 
-    if args.out is None:
+    value = getattr(args, option.lstrip("-").replace("-", "_"))
+    if value is None:
         return None
-    if not str(args.out).strip():
-        raise InputError(f"--out = {args.out!r}: give a folder name, or leave --out out "
-                         "for the default folder")
-    return Path(args.out)
+    if not str(value).strip():
+        raise InputError(f"{option} = {value!r}: give a folder name, or leave {option} "
+                         "out")
+    return Path(value)
 
 
 #: The options whose value is a range, which may start with a minus sign: given as
@@ -479,6 +480,9 @@ def _add_porkchop(sub):
                    help="output directory (default results/<problem name>_porkchop)")
     p.add_argument("--resume", action="store_true",
                    help="keep the cells journaled in the output directory's porkchop.jsonl")
+    p.add_argument("--cells-out", default=None, metavar="DIR",
+                   help="also write each verified cell's solution folder (solution.json, "
+                   "schedule.csv) into DIR, as its cells end (local pool only)")
     _add_tolerance(p)
     p.set_defaults(run=_run_porkchop)
 
@@ -492,9 +496,11 @@ def _run_porkchop(args):
 
     out = _out(args) or Path("results") / f"{load_problem(args.problem_file).name}_porkchop"
     check_output_dir(out)
+    cells = _out(args, "--cells-out")
     result = porkchop.run(args.problem_file, args.depart, args.tof, workers=args.workers,
                           scheduler=args.scheduler, out_dir=out, resume=args.resume,
-                          tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_line)
+                          tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_line,
+                          cells_out=cells)
     for path in porkchop.write(result, out):
         print(f"wrote {path}")
     best = result["best"]

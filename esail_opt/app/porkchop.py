@@ -212,17 +212,47 @@ def _flight(cell):
 
 
 def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departures=(),
-              tofs=None):
+              tofs=None, cells_out=None):
     """Solve one run of neighbouring cells on one NLP; their rows.  Never raises for a
-    cell: a failure is in its row."""
+    cell: a failure is in its row.  With ``cells_out``, each verified cell's solution
+    folder is written there as its job ends (:func:`write_cell`)."""
     grid = Grid(tuple(departures), None if tofs is None else tuple(tofs))
     try:
         problem = engine.load_source(source, filename).with_tolerance(tol_km, tol_m_s)
         cells = scan.scan([cell_problem(problem, grid, i) for i in indices],
                           neighbours=grid.neighbours(indices))
-        return [_row(i, grid, c) for i, c in zip(indices, cells)]
+        rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
     except Exception as err:  # the job's cells all say why
         return [_row(i, grid, error=first_line(err)) for i in indices]
+    for cell, row in zip(cells, rows):
+        if cells_out is not None and row["verified"]:
+            try:
+                write_cell(cell, row, cells_out)
+            except Exception as err:  # the cell flies; only its folder is missing
+                row["error"] = f"cell folder not written: {first_line(err)}"
+    return rows
+
+
+def cell_folder(row):
+    """The name of a cell's solution folder: its index, date and time of flight."""
+    tof = "" if row["tof_days_grid"] is None else f"_{row['tof_days_grid']:g}d"
+    return f"cell_{row['index']:04d}_{row['departure_date'][:10]}{tof}"
+
+
+def write_cell(cell, row, folder):
+    """Write a verified cell's solution folder (solution.json and schedule.csv, as
+    ``esail-opt solve --no-plots`` would) into ``folder``/:func:`cell_folder`.
+
+    The cell's optimum is handed to the pipeline's last stages
+    (:func:`esail_opt.optimisation.pipeline.finish`): the error control finds it within
+    its tolerance already, and the verification flies it once more with the
+    solution's samples.
+    """
+    from esail_opt.app.solution import Solution
+    from esail_opt.optimisation import pipeline
+
+    run = pipeline.finish(cell.problem, cell.result, cell.transcription)
+    return Solution.of(run).write(Path(folder) / cell_folder(row), plots=False)
 
 
 def check(problem, grid):
@@ -240,16 +270,19 @@ def check(problem, grid):
 
 
 def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=None,
-        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES):
+        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES,
+        cells_out=None):
     """Scan ``problem_file`` over ``depart`` (and ``tof``) on the scan engine
-    (:func:`esail_opt.app.engine.run`); the table as a dict.
+    (:func:`esail_opt.app.engine.run`); the table as a dict.  With ``cells_out`` (a
+    folder on the machine of the local pool), each verified cell's solution folder is
+    written there as its job ends.
 
     Raises InputError on bad input (the problem, the grid, the options, a journal that
     ``resume`` cannot continue, an unreachable scheduler) before any solve and before
     the journal changes.
     """
     request = _request(problem_file, depart, tof, workers, scheduler, retries, resume,
-                       out_dir, tol_km, tol_m_s)
+                       out_dir, tol_km, tol_m_s, cells_out)
     outcome = engine.run(_scan(request), out_dir=out_dir, resume=resume,
                          workers=request.workers, scheduler=scheduler, retries=retries,
                          progress=progress)
@@ -269,6 +302,7 @@ class _Request:
     param: str
     tol_km: object
     tol_m_s: object
+    cells_out: object = None
 
     def header(self):
         """What identifies this porkchop in its journal."""
@@ -280,18 +314,23 @@ class _Request:
 
 
 def _request(problem_file, depart, tof, workers, scheduler, retries, resume, out_dir,
-             tol_km, tol_m_s):
+             tol_km, tol_m_s, cells_out=None):
     """The request of :func:`run`, checked before anything runs (InputError if bad)."""
     grid = Grid(tuple(parse_dates(depart)), None if tof is None else tuple(parse_tofs(tof)))
     workers = engine.check_options(workers, scheduler, retries, resume, out_dir)
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check(problem, grid)
-    if out_dir is not None:
-        check_output_dir(out_dir)
+    for folder in (out_dir, cells_out):
+        if folder is not None:
+            check_output_dir(folder)
+    if cells_out is not None and scheduler is not None:
+        raise InputError("--cells-out writes on this machine: it needs the local pool, "
+                         "not --scheduler")
     jobs = grid.jobs(workers or os.cpu_count() or 1)
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     return _Request(str(problem_file), problem, Path(problem_file).read_text(), grid, jobs,
-                    workers, f"depart={depart} tof={tof}", tol_km, tol_m_s)
+                    workers, f"depart={depart} tof={tof}", tol_km, tol_m_s,
+                    None if cells_out is None else str(Path(cells_out).resolve()))
 
 
 def _scan(request):
@@ -299,7 +338,7 @@ def _scan(request):
     grid = request.grid
     common = (request.source, Path(request.problem_file).name, request.tol_km,
               request.tol_m_s, [float(v) for v in grid.departures],
-              None if grid.tofs is None else list(grid.tofs))
+              None if grid.tofs is None else list(grid.tofs), request.cells_out)
     return engine.Scan(
         journal_name=JOURNAL, header=request.header(), kinds=ROW_KINDS,
         count=int(np.prod(grid.shape)), function=solve_job,
