@@ -2,7 +2,8 @@
 
 :class:`InputError` is bad user input (exit 2); its message names the field and the
 allowed range.  :class:`OutputError` is an output folder or file that cannot be
-written (exit 3).  :class:`Terminated` is SIGTERM, raised where Python would raise
+written (exit 3).  :class:`FigureError` is a figure that could not be drawn while the
+rest of its set was written (exit 4).  :class:`Terminated` is SIGTERM, raised where Python would raise
 KeyboardInterrupt for SIGINT (exit 143); :class:`SignalsHeld` keeps both signals
 waiting while CasADi's C++ runs.  They live in the lowest layer because every layer
 may raise them.
@@ -11,6 +12,7 @@ may raise them.
 import math
 import signal
 import threading
+import unicodedata
 
 
 class InputError(ValueError):
@@ -20,6 +22,20 @@ class InputError(ValueError):
 class OutputError(Exception):
     """An output cannot be written (a full disk, a read-only folder, a path under a
     regular file); the message is one line that names the path and what to do."""
+
+
+class FigureError(Exception):
+    """One or more figures could not be drawn; every other file of the set was written.
+
+    The message is one line: each figure's failure
+    (``esail_opt.app.plots.figure_failure``), joined by "; ".  ``written`` lists the
+    paths that were written.
+    """
+
+    def __init__(self, failures, written=()):
+        super().__init__("; ".join(failures))
+        self.failures = list(failures)
+        self.written = list(written)
 
 
 class Terminated(KeyboardInterrupt):
@@ -128,8 +144,17 @@ def check_range(name, value, low=-math.inf, high=math.inf, low_open=False, high_
                 unit=""):
     """Return ``float(value)`` if it lies in the stated interval, else raise InputError.
 
-    The message reads e.g. ``e0 = 1.2 is outside [0, 1)`` so a user can fix it.
+    The message reads e.g. ``e0 = 1.2 is outside [0, 1)`` so a user can fix it.  A
+    string is refused even when it spells a number (``"650"``): the field would keep
+    the string, and the first arithmetic on it would fail far from the problem file
+    with a TypeError that names no field.
     """
+    left = "(" if low_open else "["
+    right = ")" if high_open else "]"
+    suffix = f" {unit}" if unit else ""
+    allowed = f"{left}{_fmt(low)}, {_fmt(high)}{right}{suffix}"
+    if isinstance(value, (str, bytes)):
+        raise InputError(f"{name} = {value!r} is a string, not a number in {allowed}")
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -137,12 +162,7 @@ def check_range(name, value, low=-math.inf, high=math.inf, low_open=False, high_
     below = number <= low if low_open else number < low
     above = number >= high if high_open else number > high
     if math.isnan(number) or below or above:
-        left = "(" if low_open else "["
-        right = ")" if high_open else "]"
-        suffix = f" {unit}" if unit else ""
-        raise InputError(
-            f"{name} = {value!r}{suffix} is outside {left}{_fmt(low)}, {_fmt(high)}{right}{suffix}"
-        )
+        raise InputError(f"{name} = {value!r}{suffix} is outside {allowed}")
     return number
 
 
@@ -150,3 +170,29 @@ def _fmt(bound):
     if math.isinf(bound):
         return "inf" if bound > 0 else "-inf"
     return f"{bound:g}"
+
+
+#: The control characters a user may meet by name, for :func:`check_printable`'s line.
+_CONTROLS = {"\0": "NUL", "\t": "tab", "\n": "newline", "\r": "CR", "\x1b": "ESC"}
+
+
+def check_printable(name, value, allowed="printable characters"):
+    """Return ``value`` if it is a non-empty string of printable characters, else raise
+    InputError naming ``name`` and what is allowed.
+
+    Printable is :meth:`str.isprintable`: no control characters (ESC, CR, tab, newline,
+    NUL), no lone surrogates (which no file name or terminal can encode), no format or
+    line-separator characters; a space is allowed.  Such a name is written into folder
+    names, file contents and one-line messages, where a control character would rewrite
+    the terminal's line or split a line in two.  ``allowed`` says what the field takes,
+    for the message.
+    """
+    if not isinstance(value, str) or not value:
+        raise InputError(f"{name} = {value!r} is not a non-empty string of {allowed}")
+    bad = next((c for c in value if not c.isprintable()), None)
+    if bad is not None:
+        kind = {"Cc": "a control character", "Cs": "a lone surrogate"}.get(
+            unicodedata.category(bad), "a non-printable character")
+        code = f"U+{ord(bad):04X}" + (f" {_CONTROLS[bad]}" if bad in _CONTROLS else "")
+        raise InputError(f"{name} = {value!r} holds {kind} ({code}); allowed: {allowed}")
+    return value

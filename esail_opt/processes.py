@@ -3,8 +3,7 @@ its parent.
 
 Stale temporary folders are named after the process that made them, and are removed
 only once it is gone (:func:`alive`).  Pool workers end when their parent does, however
-it ended (:func:`die_with_parent`), and so do the processes that draw a solution's
-figures, which also leave interrupts to their parent (:func:`quiet_child`).
+it ended (:func:`die_with_parent`).
 """
 
 import contextlib
@@ -56,14 +55,3 @@ def die_with_parent(parent):
         os._exit(1)
 
     threading.Thread(target=watch, name="esail-parent-watch", daemon=True).start()
-
-
-def quiet_child(parent):
-    """A forked helper's signals, and its end with ``parent``: Ctrl-C reaches the whole
-    process group, and the parent alone answers it (closing a pipe, or killing this
-    process); SIGTERM ends it, rather than raising the parent's inherited handler's
-    exception in it; and it never outlives its parent, however that ends
-    (:func:`die_with_parent`)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    die_with_parent(parent)

@@ -1,12 +1,11 @@
-"""Helpers shared by the tests: where things are, a second integrator, and a PNG
-decoder that is not the package's.
+"""Helpers shared by the tests: where things are, a problem file that solves in a second,
+and a second integrator.
 
 The package verifies every schedule with CVODES; a test that wants to know whether a
 claimed miss is true flies the schedule again here with scipy's DOP853, an integrator
 that shares no code with the package (Eqs. 1-2 are written out again below).
 """
 
-import io
 import math
 from pathlib import Path
 
@@ -20,12 +19,6 @@ PROBLEMS = REPO / "problems"
 USER_PROBLEMS = Path(__file__).resolve().parent / "problems"
 RESULTS = REPO / "results"
 
-
-def png_pixels(data):
-    """The RGBA pixels of PNG bytes, decoded by Pillow (the package encodes its own)."""
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(data)).convert("RGBA"))
 
 #: A problem file that solves in a second or two (Earth-Mars on 6 segments, held to a
 #: loose tolerance): for tests of what happens around a solve, not of its numbers.

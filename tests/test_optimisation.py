@@ -304,60 +304,6 @@ def test_segment_threads_do_not_change_the_optimum(monkeypatch):
     assert two.objective == pytest.approx(one.objective, rel=1e-12)
 
 
-def test_a_run_asked_for_one_thread_solves_its_nlps_on_one(monkeypatch):
-    """pipeline.solve(threads=1), as esail-opt solve asks beside its figures' worker:
-    every NLP, the closed form's and the polish's, is transcribed for one thread (the
-    default is two here), and the run ends where the default one does."""
-    from esail_opt.optimisation import ipopt, pipeline, polish
-
-    monkeypatch.setenv("ESAIL_OPT_THREADS", "2")
-    asked = []
-
-    def recording(module):
-        original = module.transcribe
-
-        def transcribe(*args, **kwargs):
-            asked.append((module.__name__, kwargs.get("threads")))
-            return original(*args, **kwargs)
-        monkeypatch.setattr(module, "transcribe", transcribe)
-
-    recording(ipopt)
-    recording(polish)
-    one = pipeline.solve(small_problem(), samples=2, polish=True, threads=1)
-    closed = [threads for name, threads in asked if name.endswith("ipopt")]
-    assert closed and set(closed) == {1}  # the equal-length stage and the free one
-    assert [threads for name, threads in asked if name.endswith("polish")] == [1]
-    default = pipeline.solve(small_problem(), samples=2, polish=True)
-    assert one.result.iterations == default.result.iterations
-    assert one.result.objective == pytest.approx(default.result.objective, rel=1e-12)
-    assert one.verified and default.verified
-
-
-def test_the_stages_before_the_polish_are_handed_over_before_it_runs(monkeypatch):
-    """solve(before_polish=): called once, before the polish, with the solution as it
-    stood then, which is the final one without its polish; not called without one."""
-    from esail_opt.app import solution
-    from esail_opt.optimisation import polish
-
-    seen = []
-    original = polish.polish
-
-    def polishing(*args, **kwargs):
-        seen.append("polish")
-        return original(*args, **kwargs)
-
-    monkeypatch.setattr(polish, "polish", polishing)
-    final = solution.solve(small_problem(), samples=2, polish=True,
-                           before_polish=seen.append)
-    assert len(seen) == 2 and seen[1] == "polish"
-    before = seen[0]
-    assert before.polish is None and final.polish.ran
-    assert before == final.without_polish()
-    unpolished = []
-    solution.solve(small_problem(), samples=2, before_polish=unpolished.append)
-    assert unpolished == []
-
-
 @pytest.mark.parametrize("value", ["0", "two", "-1", "65"])
 def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value):
     monkeypatch.setenv("ESAIL_OPT_THREADS", value)

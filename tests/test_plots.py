@@ -1,17 +1,19 @@
-"""The two figures of a solve: their panels, curves, labels and legends, and a layout
-in which nothing is clipped by the figure's edge or runs into another panel."""
+"""The two figures of a solve: their panels, curves, limits, labels and legends, a layout
+in which nothing is clipped or overlaps, names drawn as written, and what the command
+writes and says when a figure cannot be drawn (`solve`, `solve --no-plots`, `plot`)."""
 
 import copy
-import os
+import json
+import shutil
 
 import numpy as np
 import pytest
-from conftest import RESULTS, png_pixels
+from conftest import RESULTS, TINY_PROBLEM
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import esail_opt as eo
-from esail_opt.app import plot_worker, plots, png
+from esail_opt.app import plots
 from esail_opt.app.solution import Solution
 
 DIGITS = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
@@ -120,6 +122,30 @@ def test_timeline_has_its_panels_curves_and_labels(which, request):
         np.testing.assert_array_equal(twins[0].get_lines()[0].get_ydata(), kappa + kappa[-1:])
 
 
+def test_timeline_limits_hold_the_closed_form_and_its_flight(polished):
+    """Each series panel spans its closed-form, CVODES and polished samples with
+    matplotlib's 5 % margins, the time axis the whole flight, the pitch panel [-90, 90]
+    deg."""
+    d = polished.to_json()
+    flights = [d["trajectory"][key] for key in ("closed_form", "cvodes", "polished")]
+    fig = plots.timeline_figure(polished)
+    panels = {ax.get_ylabel(): ax for ax in fig.axes}
+    for key, label in plots.TIMELINE_PANELS:
+        ax = panels[label]
+        low, high = ax.get_ylim()
+        if key is None:
+            assert low <= -90 and high >= 90
+            continue
+        values = np.concatenate([flight[key] for flight in flights])
+        span = values.max() - values.min()
+        assert low == pytest.approx(values.min() - 0.05 * span, rel=1e-9, abs=1e-12)
+        assert high == pytest.approx(values.max() + 0.05 * span, rel=1e-9, abs=1e-12)
+    t = np.concatenate([flight["t_days"] for flight in flights])
+    low, high = panels["r (au)"].get_xlim()
+    assert low == pytest.approx(t.min() - 0.05 * np.ptp(t), abs=1e-9)
+    assert high == pytest.approx(t.max() + 0.05 * np.ptp(t), rel=1e-12)
+
+
 @pytest.mark.parametrize("which", ["polished", "throttled", "narrow"])
 def test_nothing_is_clipped_or_overlapping(which, request):
     sol = request.getfixturevalue(which)
@@ -176,134 +202,129 @@ def test_formatter_writes_superscripts():
 
 
 
-# ---------------------------------------------------------------- drawn beside the solve
+# ---------------------------------------------------------------- written, and what fails
 
 
-def _written(paths):
-    """Each file's pixels: the worker deflates the timeline in two bands, so its bytes
-    differ from a whole deflate's while its image is the same."""
-    return {p.name: png_pixels(p.read_bytes()) for p in paths}
+def _named(sol, name):
+    """``sol`` as a problem called ``name`` would have written it."""
+    data = copy.deepcopy(sol.to_json())
+    data["problem"]["name"] = name
+    return Solution.from_json(data)
 
 
-def _same_images(ours, theirs):
-    return ours.keys() == theirs.keys() and all(np.array_equal(ours[k], theirs[k]) for k in ours)
+def _stand_in_solve(monkeypatch, sol, tmp_path):
+    """A problem file whose solve returns ``sol`` (no Ipopt): for the command's
+    handling of what is written."""
+    from esail_opt.app import solution
+
+    monkeypatch.setattr(solution, "solve", lambda problem, **kw: sol)
+    problem = tmp_path / "p.py"
+    problem.write_text(TINY_PROBLEM.format(name="tiny"))
+    return problem
 
 
-@pytest.mark.parametrize("which", ["polished", "throttled"])
-@pytest.mark.parametrize("framed", [False, True])
-def test_a_timeline_finished_from_its_draft_is_the_one_drawn_whole(which, framed, request):
-    """The closed form drawn and rendered first (as while the polish runs), the polish
-    drawn over its pixels after: pixel for pixel the timeline drawn in one go."""
-    sol = request.getfixturevalue(which)
-    frame = plots.timeline_frame(sol.schedule.throttled) if framed else None
-    draft = plots.timeline_draft(sol.without_polish(), frame=frame)
-    assert draft.fits(sol)
-    whole = png.figure_pixels(plots.timeline_figure(sol), plots.DPI)
-    assert np.array_equal(draft.pixels(sol), whole)
+def _one_error_line(err):
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, lines
+    return lines[0]
 
 
-@pytest.mark.parametrize("name", ["earth_mars_min_time_polished", "earth_venus_low_thrust_polished",
-                                  "earth_mars_coast"])
-def test_shipped_timelines_finished_from_their_drafts_are_the_ones_drawn_whole(name):
-    sol = Solution.load(RESULTS / name / "solution.json")
-    draft = plots.timeline_draft(sol.without_polish())
-    assert np.array_equal(draft.pixels(sol),
-                          png.figure_pixels(plots.timeline_figure(sol), plots.DPI))
+NAME = "x$a^b^c$"
 
 
-def test_a_draft_fits_its_own_solution_only(polished, throttled):
-    """A draft drawn from other data (here the throttled variant's) does not fit: the
-    worker then draws the timeline whole."""
-    assert plots.timeline_draft(polished.without_polish()).fits(polished)
-    assert not plots.timeline_draft(throttled.without_polish()).fits(polished)
+def test_names_are_drawn_as_written_never_parsed_as_math(polished, tmp_path):
+    """A name with dollars (mathtext would fail on a^b^c) is the figures' title as it
+    was written, and both figures are written."""
+    sol = _named(polished, NAME)
+    trajectory, timeline = sol.plot()
+    for fig in (trajectory, timeline):
+        _drawn(fig)  # mathtext, if it were used, would raise here
+    assert trajectory.axes[0].get_title().split(":")[0] == NAME
+    assert timeline._suptitle.get_text().split(":")[0] == NAME
+    written = sol.write(tmp_path / "out")
+    assert sorted(p.name for p in written) == sorted(
+        ["solution.json", "schedule.csv", "schedule_polished.csv", "trajectory.png",
+         "timeline.png"])
+    assert all(p.stat().st_size > 10_000 for p in written if p.suffix == ".png")
 
 
-@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
-@pytest.mark.parametrize("which", ["polished", "throttled"])
-@pytest.mark.parametrize("frame", [None, False, True])
-@pytest.mark.parametrize("draft", [None, "own", "other"])
-def test_the_worker_writes_what_drawing_here_writes(which, frame, draft, request, tmp_path):
-    """The same images, pixel for pixel, as plots.write_plots, from the worker's processes,
-    with the timeline drawn into a frame made ahead for the right case, for the wrong
-    one, or without one; finished from its own draft, given another solution's draft,
-    or given none; and the worker is gone once they are written."""
-    polished = request.getfixturevalue(which)
-    other = request.getfixturevalue("polished" if which == "throttled" else "throttled")
-    for name in ("here", "there"):
-        (tmp_path / name).mkdir()
-    here = plots.write_plots(polished, tmp_path / "here")
-    with plot_worker.PlotWorker(throttled=frame) as worker:
-        process = worker._process
-        if draft is not None:
-            worker.draft((polished if draft == "own" else other).without_polish())
-        worker.start(polished, tmp_path / "there")
-        there = worker.written()
-        assert not process.is_alive()
-    assert [p.name for p in there] == [p.name for p in here] == [n for n, _ in plots.FIGURES]
-    assert _same_images(_written(there), _written(here))
+def test_a_figure_that_fails_is_one_line_and_exit_4_and_the_rest_is_written(
+        polished, tmp_path, monkeypatch, capsys):
+    from esail_opt.app import cli
 
-
-@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
-def test_a_worker_that_never_takes_its_draft_is_ended_and_the_figures_drawn_here(
-        polished, tmp_path, monkeypatch):
-    """A stopped worker reads nothing, so the draft's sending thread stays blocked on the
-    full pipe: start() waits WAIT_SECONDS for it, ends the worker, and the figures are
-    drawn here, the same as ever."""
-    import signal
-
-    monkeypatch.setattr(plot_worker, "WAIT_SECONDS", 1.0)
-    for name in ("here", "there"):
-        (tmp_path / name).mkdir()
-    here = plots.write_plots(polished, tmp_path / "here")
-    # A shipped solution's draft: more than the pipe holds (the tiny one's fits in it).
-    big = Solution.load(RESULTS / "earth_mars_min_time_polished" / "solution.json")
-    with plot_worker.PlotWorker(throttled=False) as worker:
-        os.kill(worker._process.pid, signal.SIGSTOP)
-        worker.draft(big.without_polish())
-        worker.start(polished, tmp_path / "there")
-        assert not worker.running  # ended by start(), before written() waited at all
-        there = worker.written()
-    assert _same_images(_written(there), _written(here))
-
-
-@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
-def test_a_dead_worker_is_replaced_by_drawing_here(polished, tmp_path):
-    with plot_worker.PlotWorker() as worker:
-        worker._process.kill()
-        worker._process.join()
-        worker.start(polished, tmp_path)
-        paths = worker.written()
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(n for n, _ in plots.FIGURES)
-    assert all(p.stat().st_size > 0 for p in paths)
-
-
-@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
-def test_a_figure_that_fails_in_the_worker_fails_here_too(polished, tmp_path, monkeypatch):
-    """A figure's own fault is met again in the caller's process, where it raises as it
-    would without a worker (the worker, forked after the patch, fails the same way)."""
     def broken(solution):
-        raise ValueError("no figure today")
+        raise ValueError("no figure today\nsecond line")
 
+    assert polished.verified
     monkeypatch.setattr(plots, "FIGURES", (("trajectory.png", plots.trajectory_figure),
                                            ("timeline.png", broken)))
-    with plot_worker.PlotWorker() as worker:
-        worker.start(polished, tmp_path)
-        with pytest.raises(ValueError, match="no figure today"):
-            worker.written()
+    problem = _stand_in_solve(monkeypatch, polished, tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "timeline.png").write_text("an old timeline")  # not left beside the new set
+    assert cli.main(["solve", str(problem), "--out", str(out)]) == cli.EXIT_FIGURE == 4
+    captured = capsys.readouterr()
+    line = _one_error_line(captured.err)
+    assert "timeline.png could not be drawn: ValueError: no figure today" in line
+    assert sorted(p.name for p in out.iterdir()) == [
+        "schedule.csv", "schedule_polished.csv", "solution.json", "trajectory.png"]
+    assert Solution.load(out / "solution.json") == polished
+    assert f"wrote {out / 'trajectory.png'}" in captured.out
+    # Redrawing it fails the same way, with the same status, and keeps the rest.
+    assert cli.main(["plot", str(out)]) == 4
+    assert "timeline.png could not be drawn" in _one_error_line(capsys.readouterr().err)
+    assert (out / "trajectory.png").stat().st_size > 10_000
 
 
-@pytest.mark.skipif(not plot_worker._forks(), reason="the worker forks (Linux only)")
-def test_a_worker_that_cannot_be_forked_leaves_the_figures_to_be_drawn_here(
-        polished, tmp_path, monkeypatch):
-    import multiprocessing.process
+def test_no_plots_writes_everything_but_the_figures_and_plot_draws_them(
+        polished, tmp_path, monkeypatch, capsys):
+    from esail_opt.app import cli
 
-    def no_fork(self):
-        raise OSError(11, "Resource temporarily unavailable")
+    problem = _stand_in_solve(monkeypatch, polished, tmp_path)
+    out = tmp_path / "out"
+    assert cli.main(["solve", str(problem), "--out", str(out), "--no-plots"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "schedule.csv", "schedule_polished.csv", "solution.json"]
+    capsys.readouterr()
+    assert cli.main(["plot", str(out)]) == 0
+    assert capsys.readouterr().out.split() == [
+        word for name, _ in plots.FIGURES for word in ("wrote", str(out / name))]
+    for name, _ in plots.FIGURES:
+        assert (out / name).stat().st_size > 10_000
 
-    monkeypatch.setattr(multiprocessing.process.BaseProcess, "start", no_fork)
-    with plot_worker.PlotWorker() as worker:
-        assert worker._process is None
-        worker.start(polished, tmp_path)
-        paths = worker.written()
-    assert sorted(p.name for p in paths) == sorted(n for n, _ in plots.FIGURES)
-    assert all(p.stat().st_size > 0 for p in paths)
+
+@pytest.mark.parametrize("case", ["missing", "file", "empty", "bad json", "bad porkchop"])
+def test_plot_refuses_a_folder_without_a_record_in_one_line(case, tmp_path, capsys):
+    from esail_opt.app import cli
+
+    folder = tmp_path / "run"
+    if case == "file":
+        folder.write_text("not a folder")
+    elif case != "missing":
+        folder.mkdir()
+    if case == "bad json":
+        (folder / "solution.json").write_text("{ torn")
+    elif case == "bad porkchop":
+        (folder / "porkchop.json").write_text("[1, 2]")
+    assert cli.main(["plot", str(folder)]) == 2
+    assert "esail-opt plot: error: " in _one_error_line(capsys.readouterr().err)
+
+
+def test_plot_draws_a_porkchop_from_its_record(tmp_path, capsys):
+    """porkchop.png drawn again from a shipped porkchop.json: the best cell starred
+    where the record puts it, and the title as the record names it."""
+    from esail_opt.app import cli, porkchop
+
+    source = RESULTS / "earth_mars_window_porkchop" / "porkchop.json"
+    if not source.exists():
+        pytest.skip("no shipped porkchop.json")
+    folder = tmp_path / "run"
+    folder.mkdir()
+    shutil.copy(source, folder / "porkchop.json")
+    assert cli.main(["plot", str(folder)]) == 0
+    assert (folder / "porkchop.png").stat().st_size > 10_000
+    record = json.loads(source.read_text())
+    (ax, *_) = porkchop.figure(record).axes
+    (best,) = [line for line in ax.get_lines() if line.get_label() == "best"]
+    assert best.get_ydata()[0] == record["best"]["objective"]
+    assert ax.get_title().startswith(f"{record['problem']}: ")

@@ -7,26 +7,30 @@ for every exit status.
 
 import argparse
 import errno
-import gc
 import logging
 import os
 import re
 import signal
 import sys
 
-from esail_opt.errors import InputError, OutputError, Terminated, number_range
+from esail_opt.errors import FigureError, InputError, OutputError, Terminated, number_range
 
 EXIT_INPUT = 2
 #: An output that cannot be written (a full disk, a read-only folder): not 1, which
 #: says "solved but not verified".
 EXIT_OUTPUT = 3
+#: A figure that could not be drawn, the rest of its set written: not 3, which says
+#: that the files are not there.
+EXIT_FIGURE = 4
 #: The shell's convention for a run stopped by SIGINT (128 + 2).
 EXIT_INTERRUPTED = 130
 EPILOG = ("exit status: 0 converged and verified; 1 not converged or not verified (one "
           "line says which bound was missed); 2 bad input (nothing written; refused before the "
           "solve, or after it for a flight found to end past the ephemeris); 3 an output "
           "could not be written (full disk, read-only or unsafe folder; the old files "
-          "stay); 1 also when a Dask cluster is lost (the journal keeps what finished); 130 interrupted by SIGINT, 143 by SIGTERM (nothing half-written)")
+          "stay); 4 a figure could not be drawn (one line names it; every other file "
+          "written); 1 also when a Dask cluster is lost (the journal keeps what finished); "
+          "130 interrupted by SIGINT, 143 by SIGTERM (nothing half-written)")
 
 
 def _number(text):
@@ -262,7 +266,8 @@ def _add_solve(sub):
         "arcs of Eqs. 1-2 in time and verify that it flies to within 1 m and 1 mm/s.  "
         "Exit status 0 only for a converged and verified solve (and polish); 1 with one "
         "line saying which bound was missed and by how much; 2 for bad input; 3 when the "
-        "output folder cannot be written (checked before the solve); 130 when "
+        "output folder cannot be written (checked before the solve); 4 when a verified "
+        "solve's figure could not be drawn (every other file written); 130 when "
         "interrupted, 143 on SIGTERM (nothing half-written).",
     )
     p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
@@ -272,6 +277,8 @@ def _add_solve(sub):
     p.add_argument("--out", default=None, help="output directory (default results/<problem name>)")
     p.add_argument("--polish", action="store_true",
                    help="polish the optimum on the exact Eqs. 1-2 (in time), held to 1 m and 1 mm/s")
+    p.add_argument("--no-plots", action="store_true",
+                   help="write everything but the figures (`esail-opt plot` draws them later)")
     p.set_defaults(run=_run_solve)
 
 
@@ -280,29 +287,88 @@ def _run_solve(args):
 
     from esail_opt.app import solution
     from esail_opt.app.files import check_output_dir
-    from esail_opt.app.plot_worker import PlotWorker
 
     problem = _load(args)
     out = Path(args.out) if args.out else Path("results") / problem.name
     check_output_dir(out, name=None if args.out else problem.name)  # before the solve
     progress = progress_printer("solve")
-    # Matplotlib loads, and the timeline's frame is made, on the other core meanwhile,
-    # and the timeline's closed form is drawn there while the polish runs: the NLPs are
-    # solved on one thread (a second would share that core).
-    with PlotWorker(throttled=problem.throttled()) as worker:
-        sol = solution.solve(problem, progress=progress, polish=args.polish,
-                             threads=1 if worker.running else None,
-                             before_polish=worker.draft)
-        progress.done()
-        written = sol.write(out, worker=worker)
+    sol = solution.solve(problem, progress=progress, polish=args.polish)
+    progress.done()
+    figures = None
+    try:
+        written = sol.write(out, plots=not args.no_plots)
+    except FigureError as err:
+        written, figures = err.written, err
     for path in written:
         print(f"wrote {path}")
     print(sol.summary())
-    if sol.verified:
-        return 0
-    reason = sol.verification_note if not sol.flight_verified else sol.polish.note
-    print(f"esail-opt solve: {reason}", file=sys.stderr)
-    return 1
+    if figures is not None:
+        print(f"esail-opt solve: error: {figures}", file=sys.stderr)
+    if not sol.verified:
+        reason = sol.verification_note if not sol.flight_verified else sol.polish.note
+        print(f"esail-opt solve: {reason}", file=sys.stderr)
+        return 1
+    return 0 if figures is None else EXIT_FIGURE
+
+
+def _add_plot(sub):
+    p = sub.add_parser(
+        "plot", help="draw a solution's or a porkchop's figures again from its files",
+        description="Draw the figures of the run in FOLDER again, without solving: "
+        "trajectory.png and timeline.png from its solution.json, porkchop.png from its "
+        "porkchop.json.  Exit status 0 when every figure was written; 2 when FOLDER is "
+        "not a folder or holds neither file (or one that cannot be read); 4 when a "
+        "figure could not be drawn (the others are written).",
+    )
+    p.add_argument("folder", metavar="FOLDER", help="a run's output folder, e.g. results/NAME")
+    p.set_defaults(run=_run_plot)
+
+
+def _run_plot(args):
+    from pathlib import Path
+
+    folder = Path(args.folder)
+    if not folder.is_dir():
+        raise InputError(f"folder = {str(folder)!r} is not a folder (a run's output folder "
+                         "is expected, e.g. results/NAME)")
+    records = [folder / name for name in ("solution.json", "porkchop.json")
+               if (folder / name).is_file()]
+    if not records:
+        raise InputError(f"folder = {str(folder)!r} holds no solution.json or porkchop.json "
+                         "to draw from")
+    written, failures = [], []
+    for record in records:
+        drawn, failed = _plot_record(record)
+        written += drawn
+        failures += failed
+    for path in written:
+        print(f"wrote {path}")
+    if failures:
+        raise FigureError(failures, written)
+    return 0
+
+
+def _plot_record(record):
+    """Draw the figures of one record file (solution.json or porkchop.json) into its
+    folder: the paths written and one line per figure that could not be drawn."""
+    import json
+
+    from esail_opt.app import plots
+
+    if record.name == "solution.json":
+        from esail_opt.app.solution import Solution
+
+        return plots.write_plots(Solution.load(record), record.parent)
+    from esail_opt.app import porkchop
+
+    try:
+        result = json.loads(record.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise InputError(f"{record}: cannot be read as JSON ({err})") from None
+    if not isinstance(result, dict) or not isinstance(result.get("rows"), list):
+        raise InputError(f"{record}: not a porkchop's record (no list of rows)")
+    return plots.write_figures([("porkchop.png", lambda: porkchop.figure(result))],
+                               record.parent)
 
 
 def _add_search(sub):
@@ -537,6 +603,7 @@ def build_parser():
     _add_propagate(sub)
     _add_reproduce(sub)
     _add_solve(sub)
+    _add_plot(sub)
     _add_search(sub)
     _add_sweep(sub)
     _add_porkchop(sub)
@@ -580,34 +647,16 @@ def main(argv=None):
     return run_command(f"esail-opt {args.command}", args.run, args)
 
 
-def ending(status):
-    """``status``, once the objects left in the process are out of the garbage
-    collector's sight (``gc.freeze``): what a command's process returns just before it
-    exits.
-
-    The interpreter's last collection walks every object that CasADi, SciPy and
-    matplotlib made, a noticeable part of a short run's time; by then nothing among
-    them has anything left to do (the run's files are closed and published, and the
-    ``atexit`` handlers, which stop pools and clients, run before that collection
-    anyway).  Only for a process that is about to end: frozen objects are never
-    collected.
-    """
-    gc.freeze()
-    return status
-
-
 def console():
-    """The ``esail-opt`` command: :func:`main` on ``sys.argv``, for a process that ends
-    with it (:func:`ending`).
+    """The ``esail-opt`` command: :func:`main` on ``sys.argv``.
 
     One BLAS thread, unless the user's environment says otherwise (and before CasADi,
     whose bundled OpenBLAS reads it when it loads, is imported): MUMPS's factorisations
     of these NLPs are small, and OpenBLAS's second thread spun on the other core, the
-    one the figures are drawn on (:mod:`esail_opt.app.plot_worker`) and a sweep's or
-    porkchop's other workers run on.
+    one a sweep's or porkchop's other workers run on.
     """
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    return ending(main())
+    return main()
 
 
 def run_command(label, run, args):
@@ -646,6 +695,9 @@ def run_command(label, run, args):
     except OutputError as err:
         print(f"{label}: error: {err}", file=sys.stderr)
         return EXIT_OUTPUT
+    except FigureError as err:
+        print(f"{label}: error: {err}", file=sys.stderr)
+        return EXIT_FIGURE
     except ClusterLost as err:
         print(f"{label}: {err}", file=sys.stderr)
         return 1

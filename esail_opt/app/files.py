@@ -20,6 +20,7 @@ Files and folders are created with mode 0666/0777 less the umask, as ``open`` an
 import contextlib
 import ctypes
 import errno
+import io
 import json
 import os
 import secrets
@@ -88,7 +89,8 @@ def check_output_dir(path, name=None):
     ------
     InputError
         The folder's last component is not a safe name (``..``, ``.``, a NUL, more
-        than 255 bytes), or ``name`` is not (a ``/`` in it too).
+        than 255 bytes), or ``name`` is not (a ``/`` in it too); or the folder is a
+        symbolic link, dangling or not (folders above it may be links).
     OutputError
         The folder cannot be created or written: a path under a regular file, a
         regular file in its place, a read-only or full file system.  Nothing is left
@@ -107,8 +109,13 @@ def check_output_dir(path, name=None):
     # but the user meant the folder itself, which cannot be swapped for a new one.
     check_name(os.fspath(raw).rstrip("/").rpartition("/")[2] or os.fspath(raw),
                "output folder name")
-    if path.is_symlink():  # its files would be written wherever the link points
-        raise InputError(f"--out = {str(path)!r} is a symbolic link; give a real folder")
+    if path.is_symlink():
+        # A run's set is swapped in by renaming folders: through a link it would
+        # replace the link itself (or fail after the solve), and a journal appended
+        # through it would land where the link points.
+        raise InputError(f"output folder {str(path)!r} is a symbolic link (to "
+                         f"{os.readlink(path)!r}); give the folder itself, not a link, "
+                         "or another --out")
     if path.exists() and not path.is_dir():
         raise OutputError(f"cannot write the output folder {str(path)!r}: a file of that "
                           "name is in the way (choose another --out)")
@@ -389,37 +396,28 @@ def write_json(path, data):
         tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
 
 
-def save_figure(fig, path, dpi=150, banded=False):
+def figure_bytes(fig, fmt="png", dpi=150):
+    """The file of a :class:`matplotlib.figure.Figure` in format ``fmt``, drawn and
+    encoded by matplotlib's own ``savefig``, as bytes.
+
+    Drawing is kept apart from writing: an error here is the figure's (see
+    :func:`esail_opt.app.plots.write_plots`), one while writing is the disk's.
+    """
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=fmt, dpi=dpi)
+    return buffer.getvalue()
+
+
+def save_figure(fig, path, dpi=150):
     """Save a :class:`matplotlib.figure.Figure` atomically, in the format of ``path``'s
     suffix (PNG without one).
 
     The figure is made without pyplot, so nothing else holds it and there is
-    nothing to close.  A PNG is encoded by :mod:`esail_opt.app.png` (the same pixels,
-    written sooner), and with ``banded`` drawn by two processes at once
-    (:mod:`esail_opt.app.bands`: only from a process that may fork); other formats are
-    written by ``savefig``.
+    nothing to close.
     """
-    fmt = Path(path).suffix.lstrip(".") or "png"
+    data = figure_bytes(fig, Path(path).suffix.lstrip(".") or "png", dpi)
     with atomic_path(path) as tmp:
-        if fmt.lower() != "png":
-            fig.savefig(tmp, dpi=dpi, format=fmt)
-            return
-        # Imported here: the command line checks its output folder (this module) long
-        # before it draws anything, and matplotlib's import is not cheap.
-        if banded:
-            from esail_opt.app.bands import figure_png
-        else:
-            from esail_opt.app.png import figure_png
-        tmp.write_bytes(figure_png(fig, dpi))
-
-
-def save_pixels(rgba, path, dpi):
-    """Save an (height, width, 4) uint8 RGBA image drawn at ``dpi`` as a PNG,
-    atomically (:mod:`esail_opt.app.png`)."""
-    from esail_opt.app.png import encode
-
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(encode(rgba, dpi))
+        tmp.write_bytes(data)
 
 
 def write_table_set(out_dir, names, csv_text, data, fig):

@@ -12,10 +12,14 @@ pitch panel shows that schedule.
 
 Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
 caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
+The figures are drawn in the calling process, one after the other, and saved by
+matplotlib's own ``savefig`` (:func:`write_plots`).  Titles and legends, which hold the
+names a user chose, are drawn as plain text, never parsed as math.  This module imports
+matplotlib: the rest of the package imports it only when a figure is drawn.
 """
 
+import functools
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +27,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogFormatterSciNotation
 
-from esail_opt.app.files import save_figure, save_pixels
-from esail_opt.app.png import figure_pixels
+from esail_opt.app.files import atomic_path, figure_bytes
 
 
 def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
@@ -143,41 +146,6 @@ def _timeline_axes(throttled):
     return fig, np.vstack([series, errors])
 
 
-#: Ticks a timeline frame makes ahead: major ones on every axis, and minor ones on the
-#: error panels' log axes (a decade's eight, over several decades).  More than a figure
-#: shows cost nothing when it is drawn: an axis draws only the ticks its locator places.
-FRAME_TICKS = 10
-FRAME_MINOR_TICKS = 64
-
-
-@dataclass(frozen=True)
-class TimelineFrame:
-    """A timeline figure not drawn yet, its axes and their ticks made
-    (:func:`timeline_frame`), for :func:`timeline_figure` to draw one solution into."""
-
-    fig: Figure
-    axes: np.ndarray
-    throttled: bool
-
-
-def timeline_frame(throttled):
-    """A :class:`TimelineFrame` for a problem with or without a throttle.
-
-    Making an axis's ticks is much of what drawing the timeline costs (each is five
-    artists, made with their properties one by one), and an axis reuses the ticks it
-    has.  So the figure's frame can be made before its data exist, while a solve runs
-    (:mod:`esail_opt.app.plot_worker`), and the figure drawn into it is the one drawn
-    without it, pixel for pixel.
-    """
-    fig, axes = _timeline_axes(throttled)
-    for ax in axes.ravel():
-        ax.xaxis.get_major_ticks(FRAME_TICKS)
-        ax.yaxis.get_major_ticks(FRAME_TICKS)
-    for ax in axes[3]:
-        ax.yaxis.get_minor_ticks(FRAME_MINOR_TICKS)
-    return TimelineFrame(fig, axes, throttled)
-
-
 #: Digits and minus as Unicode superscripts, for :class:`PlainLogFormatter`.
 _SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075"
                              "\u2076\u2077\u2078\u2079")
@@ -210,6 +178,20 @@ def _plain_log_labels(axis):
     decades to show more than one."""
     axis.set_major_formatter(PlainLogFormatter(10))
     axis.set_minor_formatter(PlainLogFormatter(10, labelOnlyBase=False))
+
+
+def _plain_legend(legend):
+    """Draw ``legend``'s entries as plain text: they hold names the user chose (a small
+    body's), which matplotlib would otherwise parse as math between two ``$``."""
+    for text in legend.get_texts():
+        text.set_parse_math(False)
+
+
+def figure_failure(name, err):
+    """The one line that says the figure ``name`` could not be drawn, and why (the
+    first line of the error: matplotlib's parse errors run over several)."""
+    reason = (str(err).strip().splitlines() or [""])[0].strip()
+    return f"{name} could not be drawn: {type(err).__name__}" + (f": {reason}" if reason else "")
 
 
 def _orbit_xy(a, e, omega_rad=0.0, points=361):
@@ -299,8 +281,8 @@ def trajectory_figure(solution, ax=None):
         title += f"\npolished: tof {sol.tof_days_exact:.2f} d, {sol.polish.status}"
     # A title at a given height is not moved clear of ticks above the axes (there are
     # none): matplotlib skips measuring the y axis for it, once per title and draw.
-    ax.set_title(title, y=1.0)
-    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title(title, y=1.0, parse_math=False)
+    _plain_legend(ax.legend(fontsize=7, loc="upper right"))
     ax.grid(alpha=0.3)
     if created:
         _fit_columns(fig, [[ax]])
@@ -356,123 +338,54 @@ TIMELINE_PANELS = (("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"),
                    ("a_au", "osculating a (au)"), ("e", "osculating e"))
 
 
-@dataclass(frozen=True)
-class TimelineDraft:
-    """A timeline drawn, as pixels too, from a solution's closed form alone
-    (:func:`timeline_draft`), to be finished with the schedule and the polish once they
-    exist (:meth:`pixels`).
+def timeline_figure(solution, axes=None):
+    """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
+    errors and the error-control rounds.
 
-    ``solution`` is the closed-form part it was drawn from: the draft finishes the
-    timeline of a solution whose :meth:`~esail_opt.app.solution.Solution.without_polish`
-    equals it, and of no other.
+    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into a new figure placed
+    by fixed margins (:func:`_timeline_axes`); returns the figure.
+
+    Each series panel's limits span every flight it shows, with matplotlib's margins.
     """
-
-    fig: Figure
-    axes: np.ndarray
-    twin: object
-    solution: object
-
-    def fits(self, solution):
-        """Whether this is a draft of ``solution``'s timeline."""
-        return self.solution == solution.without_polish()
-
-    def pixels(self, solution):
-        """The timeline of ``solution`` (one this draft :meth:`fits`) at :data:`DPI`, as
-        an RGBA array: the polish's artists drawn over the closed form's pixels, once
-        (a draft finishes one solution)."""
-        renderer = self.fig.canvas.get_renderer()
-        for artist in _timeline_finish(solution, self.fig, self.axes, self.twin):
-            artist.draw(renderer)
-        return np.asarray(self.fig.canvas.buffer_rgba())
-
-
-def timeline_draft(solution, frame=None):
-    """A :class:`TimelineDraft` of ``solution`` (the closed-form part of one to come),
-    drawn into ``frame`` when it fits, as :func:`timeline_figure` would, and rendered.
-
-    What the polish adds to a timeline (its flight, the schedule it changes, and the
-    legend and the title that name it) moves no axis limit and no tick, and lies clear
-    of the axes' edges and texts, which are drawn before it: so everything else can be
-    drawn, and rendered, while the polish runs (:mod:`esail_opt.app.plot_worker`), and
-    the finished timeline is the one drawn whole, pixel for pixel.
-    """
-    fig, axes, twin = _timeline_closed_form(solution, None, frame)
-    figure_pixels(fig, DPI)
-    return TimelineDraft(fig, axes, twin, solution)
-
-
-def _timeline_closed_form(sol, axes, frame):
-    """The timeline's figure, axes and throttle axis, with everything drawn that the
-    closed form alone decides (and, for a figure of its own, the columns fitted)."""
-    cf, cv = sol.trajectory_closed_form, sol.trajectory_cvodes
+    sol = solution
     created = axes is None
     throttled = _throttled(sol.schedule)
-    if created and frame is not None and frame.throttled == throttled:
-        fig, axes = frame.fig, frame.axes
-    elif created:
-        fig, axes = _timeline_axes(throttled)
-    else:
-        fig, axes = axes_or_new(axes)
+    fig, axes = _timeline_axes(throttled) if created else axes_or_new(axes)
     for ax in axes[:3].ravel():
         ax.sharex(axes[0, 0])
-    twin = None
+    # With a polish, the pitch panel shows the polished schedule: the one that flies.
+    polished = sol.trajectory_polished is not None
     for ax, (key, label) in zip(axes.ravel(), TIMELINE_PANELS):
         if key is None:
-            twin = _pitch_axes(ax, throttled)
+            _pitch_steps(ax, _pitch_axes(ax, throttled), sol, polished)
         else:
-            ax.plot(cf.t_days, getattr(cf, key), color="tab:blue", lw=1.4, label="closed form")
-            if cv is not None:
-                ax.plot(cv.t_days, getattr(cv, key), color="tab:red", lw=0.9, ls="-.",
-                        label="CVODES")
+            _series(ax, sol, key)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     for ax in axes[2]:
         ax.set_xlabel("t (days)")
     _local_error_panel(axes[3, 0], sol)
     _error_control_panel(axes[3, 1], sol)
+    _plain_legend(axes[0, 0].legend(fontsize=7))
+    verdict = "verified" if sol.flight_verified else "NOT verified"
+    fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
+                 + (f"; polished {sol.polish.status} (pitch: polished schedule)"
+                    if polished else ""), parse_math=False)
     if created:
         _fit_columns(fig, axes)
-    return fig, axes, twin
-
-
-def timeline_figure(solution, axes=None, frame=None):
-    """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
-    errors and the error-control rounds.
-
-    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into ``frame`` (a
-    :class:`TimelineFrame` made for whether the solution has a throttle; one made for
-    the other case is left alone), else into a new figure; returns the figure.  The
-    closed form is drawn first and the schedule and polish over it
-    (:func:`timeline_draft` draws the two apart).
-
-    The axes' limits are those of the closed form and its CVODES flight: the polished
-    flight, drawn over them, ends within a hair of the same state.
-    """
-    fig, axes, twin = _timeline_closed_form(solution, axes, frame)
-    _timeline_finish(solution, fig, axes, twin)
     return fig
 
 
-def _timeline_finish(sol, fig, axes, twin):
-    """Add what the schedule and the polish draw on a timeline's closed form: the pitch
-    steps, the polished flight, the legend and the title; returns those artists, in the
-    order a whole drawing draws them."""
-    exact = sol.trajectory_polished
-    # With a polish, the pitch panel shows the polished schedule: the one that flies.
-    polished = exact is not None
-    added = []
-    for ax, (key, _) in zip(axes.ravel(), TIMELINE_PANELS):
-        if key is None:
-            added += _pitch_steps(ax, twin, sol, polished)
-        elif polished:
-            added += ax.plot(exact.t_days, getattr(exact, key), color="tab:purple", lw=1.0,
-                             ls=":", label="polished (CVODES)", scalex=False, scaley=False)
-    added.append(axes[0, 0].legend(fontsize=7))
-    verdict = "verified" if sol.flight_verified else "NOT verified"
-    added.append(fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
-                              + (f"; polished {sol.polish.status} (pitch: polished "
-                                 "schedule)" if polished else "")))
-    return added
+def _series(ax, sol, key):
+    """One sample field of solution.json against time: the closed form, its CVODES
+    flight, and the polished flight."""
+    cf, cv, exact = sol.trajectory_closed_form, sol.trajectory_cvodes, sol.trajectory_polished
+    ax.plot(cf.t_days, getattr(cf, key), color="tab:blue", lw=1.4, label="closed form")
+    if cv is not None:
+        ax.plot(cv.t_days, getattr(cv, key), color="tab:red", lw=0.9, ls="-.", label="CVODES")
+    if exact is not None:
+        ax.plot(exact.t_days, getattr(exact, key), color="tab:purple", lw=1.0, ls=":",
+                label="polished (CVODES)")
 
 
 def _local_error_panel(ax, sol):
@@ -514,22 +427,38 @@ def _error_control_panel(ax, sol):
 FIGURES = (("trajectory.png", trajectory_figure), ("timeline.png", timeline_figure))
 
 
-def write_figure(fig, path, banded=False):
-    """Write one of :data:`FIGURES`'s figures atomically, at :data:`DPI` (``banded``: by
-    two processes at once, :mod:`esail_opt.app.bands`)."""
-    save_figure(fig, path, dpi=DPI, banded=banded)
-
-
-def write_pixels(rgba, path):
-    """Write a figure's pixels drawn at :data:`DPI` (:meth:`TimelineDraft.pixels`) as a
-    PNG, atomically."""
-    save_pixels(rgba, path, dpi=DPI)
-
-
 def write_plots(solution, out_dir):
-    """Write the :data:`FIGURES` of ``solution`` into ``out_dir`` atomically, one after
-    the other; return their paths."""
+    """Draw the :data:`FIGURES` of ``solution`` one after the other and write each into
+    ``out_dir`` atomically (:func:`write_figures`); returns what that returns."""
+    return write_figures([(name, functools.partial(draw, solution)) for name, draw in FIGURES],
+                         out_dir)
+
+
+def write_figures(figures, out_dir):
+    """Draw each of ``figures``, pairs (file name, ``make()`` returning a Figure), and
+    write it into ``out_dir`` atomically, at :data:`DPI`, one after the other.
+
+    A figure that cannot be made or drawn (any exception but an OSError, which is the
+    disk's and raises) is skipped, and the others are still written.
+
+    Returns
+    -------
+    written : list of Path
+        The files written.
+    failures : list of str
+        One line per figure that could not be drawn (:func:`figure_failure`).
+    """
     out = Path(out_dir)
-    for name, draw in FIGURES:
-        write_figure(draw(solution), out / name)
-    return [out / name for name, _ in FIGURES]
+    written, failures = [], []
+    for name, make in figures:
+        try:
+            data = figure_bytes(make(), Path(name).suffix.lstrip("."), DPI)
+        except OSError:
+            raise
+        except Exception as err:  # noqa: BLE001 - a figure's fault costs that figure only
+            failures.append(figure_failure(name, err))
+            continue
+        with atomic_path(out / name) as tmp:
+            tmp.write_bytes(data)
+        written.append(out / name)
+    return written, failures

@@ -434,7 +434,7 @@ def figure(result):
     ax.set_xlabel("departure date (TDB)")
     target = result["target"] or "target"
     ax.set_title(f"{result['problem']}: {result['verified_cells']}/{result['cells']} cells "
-                 f"verified, to {target}")
+                 f"verified, to {target}", parse_math=False)  # names as written
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     return fig

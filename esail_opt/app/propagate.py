@@ -373,7 +373,7 @@ def run(case, method="both", samples=None):
 #: The fields a grid may range over, slowest-varying first, and the CLI options naming them.
 GRID_FIELDS = {"a0_au": "a0", "e0": "e0", "nu0_deg": "nu0", "ac_mm_s2": "ac",
                "alpha_deg": "alpha"}
-#: Most cases one grid may hold: each costs two CVODES flights (about 0.1 s).
+#: Most cases one grid may hold: each costs two CVODES flights.
 MAX_GRID_CASES = 20_000
 #: What a grid's picture may show: a column of the grid's table and its axis label.
 PLOT_KEYS = {"eps": ("eps_percent", r"$\epsilon$ (Eq. 27) [%]"),

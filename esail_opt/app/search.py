@@ -17,6 +17,7 @@ from pathlib import Path
 
 from esail_opt.app.files import json_ready, publish, save_figure, write_json
 from esail_opt.app.solution import Solution
+from esail_opt.errors import FigureError
 from esail_opt.optimisation import multistart, pipeline
 from esail_opt.physics import constants as units
 
@@ -187,15 +188,23 @@ SEARCH_FILES = ("search.json", "search.csv", "search.png", "best")
 def write(data, solutions, out_dir):
     """Write search.json, search.csv, search.png and best/ (the best optimum's
     solution files) into ``out_dir`` as one set (:func:`~esail_opt.app.files.publish`);
-    returns the paths written.  OutputError if the folder cannot be written."""
+    returns the paths written.  OutputError if the folder cannot be written;
+    FigureError, after the set is written, if a figure of best/ could not be drawn."""
     out = Path(out_dir)
     names = ["search.json", "search.csv", "search.png"]
+    failed = None
     with publish(out, family=SEARCH_FILES) as stage:
         write_json(stage / names[0], data)
         (stage / names[1]).write_text(table_csv(data))
         save_figure(figure(data), stage / names[2])
-        best = solutions[0].write(stage / "best") if solutions else []
-    return [out / name for name in names] + [out / "best" / p.name for p in best]
+        try:
+            best = solutions[0].write(stage / "best") if solutions else []
+        except FigureError as err:
+            best, failed = err.written, err
+    written = [out / name for name in names] + [out / "best" / p.name for p in best]
+    if failed is not None:
+        raise FigureError(failed.failures, written)
+    return written
 
 
 def summary(data):

@@ -29,7 +29,7 @@ import numpy as np
 from esail_opt.app import schema
 from esail_opt.app.files import json_ready, publish, write_json
 from esail_opt.bodies import dates, lookup
-from esail_opt.errors import InputError
+from esail_opt.errors import FigureError, InputError
 from esail_opt.optimisation import pipeline
 from esail_opt.optimisation.pipeline import Outcome, Round, StartTried
 from esail_opt.physics import constants as units
@@ -493,12 +493,6 @@ class Solution:
         polish, the polish's 1 m and 1 mm/s as well)."""
         return bool(self.flight_verified) and (self.polish is None or bool(self.polish.verified))
 
-    def without_polish(self):
-        """This solution as it stood before its polish: what the stages before the polish
-        gave (``solve``'s ``before_polish``), the polish's fields all None."""
-        return dataclasses.replace(self, trajectory_polished=None, objective_closed_form=None,
-                                   objective_exact=None, tof_days_exact=None, polish=None)
-
     @property
     def dated(self):
         """Whether the problem is on the calendar (a BodyDeparture)."""
@@ -636,13 +630,12 @@ class Solution:
             writer.writerow([repr(float(_nan_for_none(getattr(row, f)))) for f in fields])
         return buf.getvalue()
 
-    def write(self, out_dir, plots=True, worker=None):
+    def write(self, out_dir, plots=True):
         """Write solution.json, schedule.csv (and schedule_polished.csv after a polish)
-        and (optionally) the two PNGs into ``out_dir``, as one set
+        and (with ``plots``) the two PNGs into ``out_dir``, as one set
         (:func:`esail_opt.app.files.publish`): a reader of the folder sees the previous
-        run's files or these, never a mix, and files of the user's own stay.  Given a
-        :class:`~esail_opt.app.plot_worker.PlotWorker`, the figures are drawn by it
-        while the other files are written; else they are drawn here.
+        run's files or these, never a mix, and files of the user's own stay.  The
+        figures are drawn here, one after the other (:func:`esail_opt.app.plots.write_plots`).
 
         Returns the list of paths written.
 
@@ -650,24 +643,28 @@ class Solution:
         ------
         OutputError
             The folder cannot be written (one line; the old set stays as it was).
+        FigureError
+            A figure could not be drawn: the rest of the set was published all the same
+            (the error's ``written``), without that figure.
         """
         out = Path(out_dir)
+        failures = []
         with publish(out, family=SOLUTION_FILES) as stage:
-            if plots and worker is not None:
-                worker.start(self, stage)
             names = ["solution.json", "schedule.csv"]
             write_json(stage / names[0], self.to_json())
             (stage / names[1]).write_text(self.schedule_csv())
             if self.polish is not None and self.polish.ran:
                 names.append("schedule_polished.csv")
                 (stage / names[-1]).write_text(self.schedule_csv(polished=True))
-            if plots and worker is not None:
-                names += [p.name for p in worker.written()]
-            elif plots:
+            if plots:
                 from esail_opt.app import plots as plotting
 
-                names += [p.name for p in plotting.write_plots(self, stage)]
-        return [out / name for name in names]
+                drawn, failures = plotting.write_plots(self, stage)
+                names += [p.name for p in drawn]
+        written = [out / name for name in names]
+        if failures:
+            raise FigureError(failures, written)
+        return written
 
     # -- printing
     def summary(self):
@@ -751,12 +748,18 @@ class Solution:
         return self.summary()
 
     def plot(self, out_dir=None):
-        """Draw trajectory.png and timeline.png figures; write them if ``out_dir`` is given."""
+        """Draw the trajectory and timeline figures and return them; given ``out_dir``,
+        write them there as trajectory.png and timeline.png instead and return their
+        paths (raises :class:`~esail_opt.errors.FigureError` if one cannot be drawn,
+        after writing the other)."""
         from esail_opt.app import plots as plotting
 
-        if out_dir is not None:
-            return plotting.write_plots(self, out_dir)
-        return plotting.trajectory_figure(self), plotting.timeline_figure(self)
+        if out_dir is None:
+            return plotting.trajectory_figure(self), plotting.timeline_figure(self)
+        written, failures = plotting.write_plots(self, out_dir)
+        if failures:
+            raise FigureError(failures, written)
+        return written
 
 
 def _nan_for_none(value):
@@ -769,24 +772,18 @@ def solution_of(run):
     return Solution.of(run)
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None,
-          before_polish=None):
+def solve(problem, segments=None, progress=None, samples=16, polish=False):
     """Solve ``problem`` through the whole pipeline
     (:func:`esail_opt.optimisation.pipeline.solve`, whose parameters these are) and
-    return its :class:`Solution`.  ``before_polish`` gets the :class:`Solution` of the
-    stages before the polish (what :meth:`Solution.without_polish` of the result will
-    equal) rather than the pipeline's Run.
+    return its :class:`Solution`.
 
     Raises
     ------
     InputError
         ``segments`` is not an integer >= 1 (before any solve starts).
     """
-    hand_over = None if before_polish is None else (
-        lambda run: before_polish(Solution.of(run)))
     return Solution.of(pipeline.solve(problem, segments=segments, progress=progress,
-                                      samples=samples, polish=polish, threads=threads,
-                                      before_polish=hand_over))
+                                      samples=samples, polish=polish))
 
 
 # ---------------------------------------------------------------- a Run, in boundary units

@@ -11,20 +11,19 @@ Each is the ``run`` of its own module:
 * ``porkchop``: a launch-window scan as shipped (one NLP, warm starts) against RK4
   segments with the same reuse and against every cell solved cold;
 * ``precision``: solve time against verified accuracy for the closed form, RK4
-  (``propagation.rk4``) and CVODES segments;
-* ``figures``: a solve's two figures drawn by the figures' worker, as ``esail-opt
-  solve`` draws them, against the same figures drawn one after the other in-process.
+  (``propagation.rk4``) and CVODES segments.
 
 Their problems are the shipped problem files, loaded by name from the package data
 ``esail_opt.problems`` (``optimisation.problem_file.shipped_problem``), so an installed
 package runs every bench and a bench always solves the file a user sees.
 :mod:`.collocation` is the independent collocation solver that ``lowthrust`` times and
-the tests' reference optima came from.  The benches import the layers below and the
+the tests' reference optima came from; :mod:`.taylor` flies ``propagate``'s batch on
+heyoka's Taylor integrator, when the ``bench`` extra is installed.  The benches import the layers below and the
 application modules, none of which imports them.
 """
 
-from esail_opt.bench import (figures, lowthrust, polish, porkchop, precision, propagate,
-                             solve_speed, sweep)
+from esail_opt.bench import (lowthrust, polish, porkchop, precision, propagate, solve_speed,
+                             sweep)
 
 BENCHES = {
     "propagate": propagate.run,
@@ -34,7 +33,6 @@ BENCHES = {
     "sweep": sweep.run,
     "precision": precision.run,
     "porkchop": porkchop.run,
-    "figures": figures.run,
 }
 
 __all__ = ["BENCHES"]

@@ -1,6 +1,10 @@
 """``esail-opt-bench propagate``: the paper's 10-year orbit raising (Sec. 3) propagated
-by the closed form, by CVODES and by Ref. [10]'s model, timed in one run; and the same
-ten years as a work-precision race, each method's call time against its final error."""
+by the closed form, by CVODES and by Ref. [10]'s model, timed in one run; the same
+ten years as a work-precision race, each method's call time against its final error;
+and a batch of 1,025 such raisings, where the closed form (compiled across cases) is
+set against CVODES and against heyoka's Taylor integrator (``bench.taylor``, the
+``bench`` extra; skipped, and said so, without it), each at the closed form's error
+and at 1e-12."""
 
 import math
 from pathlib import Path
@@ -20,6 +24,11 @@ RACE_ERRORS_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
 #: spread over the grid; its time per case is scaled to all cases).
 BATCH_GRID = {"alpha_deg": (-40.0, 80.0, 41), "ac_mm_s2": (0.05, 0.2, 25)}
 BATCH_CVODES_CASES = 100
+#: heyoka's tolerances on the batch, loosest first; and its batch sizes, as multiples
+#: of its recommended SIMD width (the fastest counts at each tolerance: more lanes
+#: share each call from Python, fewer fill the vector registers).
+HEYOKA_TOLERANCES = (1e-3, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 1e-7, 1e-8, 1e-10, 1e-12)
+HEYOKA_LANES = (1, 2, 4)
 
 
 def _functions():
@@ -200,16 +209,184 @@ def _batch_cases(grid):
     return alpha.ravel(), ac.ravel()
 
 
+def cpu_seconds(fn, repeats):
+    """Median CPU seconds of this process over ``repeats`` calls of ``fn()``, after one
+    warm-up call.
+
+    The batch's methods each run on one thread, so the process's CPU time is each
+    one's own work: unlike the wall clock, it does not count the time this process
+    waits for a core that other jobs hold on a shared machine.
+    """
+    import statistics
+    import time
+
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.process_time()
+        fn()
+        times.append(time.process_time() - start)
+    return statistics.median(times)
+
+
+def _heyoka_point(tol, sizes, schedule, truth, repeats):
+    """heyoka's point at tolerance ``tol``: timed at each batch size of ``sizes``, the
+    fastest counting, and its final errors against ``truth`` (:func:`heyoka_batch`)."""
+    import time
+
+    import numpy as np
+
+    from esail_opt.bench import taylor
+
+    cases, by_size = schedule[1].shape[0], {}
+    for size in sizes:
+        start = time.perf_counter()
+        ta = taylor.integrator(tol, size)
+        built = time.perf_counter() - start
+        ready = taylor.prepare(size, *schedule)
+        by_size[size] = {"compile_seconds": built, "seconds_per_case": cpu_seconds(
+            lambda ta=ta, ready=ready: taylor.fly_prepared(ta, ready), repeats) / cases}
+    best = min(by_size, key=lambda size: by_size[size]["seconds_per_case"])
+    ends = taylor.fly(taylor.integrator(tol, best), *schedule)[:, :, -1]
+    errors = [_position_km(ends[m], truth[:, m]) for m in range(cases)]
+    return {"tolerance": tol, "batch_size": best,
+            "seconds_per_case": by_size[best]["seconds_per_case"],
+            "median_final_error_km": float(np.median(errors)),
+            "max_final_error_km": float(np.max(errors)), "by_batch_size": by_size}
+
+
+def heyoka_batch(repeats, schedule, truth, target_km):
+    """The batch flown by heyoka (``bench.taylor``) at each of :data:`HEYOKA_TOLERANCES`.
+
+    Parameters
+    ----------
+    repeats : int
+        Timed runs at each setting (median CPU seconds, :func:`cpu_seconds`).
+    schedule : tuple
+        (x0[4], acs, alphas, durations), the last three of shape (M, N), as
+        ``taylor.fly`` takes them.
+    truth : numpy.ndarray, shape (5, M)
+        Each case's final state by CVODES at the reference tolerance.
+    target_km : float
+        The closed form's median final error over the M cases.
+
+    Returns
+    -------
+    dict
+        ``points`` (per tolerance: ``seconds_per_case`` at the fastest of
+        :data:`HEYOKA_LANES`' batch sizes, each size's seconds and compile seconds,
+        ``median_final_error_km``), ``equal_error`` (the loosest tolerance whose
+        median final error is at most ``target_km``, or None), ``tight`` (1e-12) and
+        ``python_loop_seconds_per_case`` (the part of a point's time spent in the
+        Python loop around heyoka's calls, ``taylor.fly_prepared(steps=False)``); or
+        ``{"skipped": reason}`` when heyoka does not import.  Each time is of
+        ``taylor.fly_prepared``, from the lanes ``taylor.prepare`` made beforehand.
+    """
+    from esail_opt.bench import taylor
+
+    if not taylor.available():
+        return {"skipped": "heyoka is not installed (pip install 'esail_opt[bench]')"}
+    import heyoka
+
+    cases = schedule[1].shape[0]
+    simd = heyoka.recommended_simd_size()
+    points = [_heyoka_point(tol, [lanes * simd for lanes in HEYOKA_LANES], schedule, truth,
+                            repeats) for tol in HEYOKA_TOLERANCES]
+    equal = next((p for p in points if p["median_final_error_km"] <= target_km), None)
+    # The loop around heyoka's calls alone, at the batch size of its equal-error point:
+    # the part of its time spent driving it arc by arc from Python.
+    floor_size = equal["batch_size"] if equal else simd
+    ready = taylor.prepare(floor_size, *schedule)
+    floor = cpu_seconds(lambda: taylor.fly_prepared(taylor.integrator(1e-12, floor_size),
+                                                    ready, steps=False), repeats) / cases
+    return {"points": points, "equal_error": equal, "python_loop_seconds_per_case": floor,
+            "python_loop_batch_size": floor_size,
+            "tight": next(p for p in points if p["tolerance"] == 1e-12),
+            "simd_size": simd, "heyoka_version": heyoka.__version__,
+            "how": "Eqs. 1-2 as dynamics.rhs, replayed on heyoka expressions; a_c R and "
+                   "a_c T runtime parameters set per arc; taylor_adaptive_batch, "
+                   "propagate_until each arc's end, one thread"}
+
+
+def _closed_form_batch(repeats, stacked, native):
+    """The batch's closed form compiled across cases and, for comparison, by CasADi one
+    case at a time (:func:`batch`): seconds, compile seconds, states and q3."""
+    import time
+
+    import casadi as ca
+    import numpy as np
+
+    from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
+    from esail_opt.propagation.batch import batch_function
+
+    cases = stacked[0].shape[1]
+    model = ArcModel(sub_arcs=1, nodes=PANEL_NODES)
+    start = time.perf_counter()
+    closed = batch_function(ARCS, cases, length_in="time", model=model, jit=native)
+    compile_seconds = time.perf_counter() - start
+    # Every method is timed from arguments already in the form it takes (DM for
+    # CasADi, heyoka's lanes), to results in its own form: only the flight is timed.
+    given = [ca.DM(a) for a in stacked]
+    seconds = cpu_seconds(lambda: closed(*given), repeats)
+    xs, q3 = (np.array(v) for v in closed(*given))
+    # The same batch as CasADi compiles it, one case at a time: what the compile across
+    # cases gains, and how far its numbers move (libmvec's elementary functions).
+    start = time.perf_counter()
+    scalar = batch_function(ARCS, cases, length_in="time", model=model, jit=native,
+                            across_cases=False)
+    scalar_compile = time.perf_counter() - start
+    scalar_seconds = cpu_seconds(lambda: scalar(*given), repeats)
+    scalar_xs = np.array(scalar(*given)[0])
+    moved = np.max(np.abs(xs - scalar_xs) / np.max(np.abs(scalar_xs), axis=1, keepdims=True))
+    return {"seconds": seconds, "compile_seconds": compile_seconds, "xs": xs, "q3": q3,
+            "one_case_at_a_time": {
+                "seconds": scalar_seconds, "compile_seconds": scalar_compile,
+                "largest_difference_over_row_size": float(moved),
+                "how": "the same mapped Function compiled by CasADi's own JIT, as before "
+                       "the compile across cases"}}
+
+
+def _cvodes_points(repeats, stacked, timed, truth):
+    """CVODES on the ``timed`` cases of the batch at each of the race's tolerances, per
+    case and as one mapped call, with the median final error (:func:`batch`)."""
+    import casadi as ca
+    import numpy as np
+
+    from esail_opt.propagation.simulate import schedule_function
+
+    points = []
+    per_case = [[ca.DM(stacked[0][:, m])] + [ca.DM(a[:, m * ARCS:(m + 1) * ARCS])
+                                            for a in stacked[1:]] for m in timed]
+    for tol in RACE_TOLERANCES:
+        fun = schedule_function(ARCS, 1, "time", tol=tol)
+        loop = cpu_seconds(lambda f=fun: [f(*args) for args in per_case], repeats)
+        mapped_args = (stacked[0][:, timed],
+                       *(np.concatenate([a[:, m * ARCS:(m + 1) * ARCS] for m in timed], axis=1)
+                         for a in stacked[1:]))
+        mapped = fun.map(timed.size)
+        mapped_given = [ca.DM(a) for a in mapped_args]
+        together = cpu_seconds(lambda f=mapped, a=mapped_given: f(*a), repeats)
+        ends = np.array(mapped(*mapped_given))[:, ARCS - 1::ARCS]
+        miss = [_position_km(ends[:, k], truth[:, m]) for k, m in enumerate(timed)]
+        points.append({"tolerance": tol, "seconds_per_case": min(loop, together) / timed.size,
+                       "per_case_calls_seconds": loop, "mapped_call_seconds": together,
+                       "median_final_error_km": float(np.median(miss))})
+    return points
+
+
 def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     """Many cases of the ten years at ARCS arcs: the closed form in one call against CVODES
     per case.
 
     The cases are the case above with pitch and a_c on ``grid`` (default
     :data:`BATCH_GRID`).  The closed form is the race's (second-order arcs on the exact
-    angular momentum, in time), all cases in one compiled mapped call
-    (``propagation.batch.batch_function(..., jit=True)``; its compile, once per
-    process, is reported apart as ``compile_seconds``; ``native`` False keeps it on
-    CasADi's virtual machine).  Each case's final error is the
+    angular momentum, in time), all cases in one compiled call
+    (``propagation.batch.batch_function(..., jit=True)``, compiled across cases; its
+    compile, once per process, is reported apart as ``compile_seconds``; ``native``
+    False keeps it on CasADi's virtual machine).  The same mapped Function compiled
+    by CasADi one case at a time is timed too (``closed_form_one_case_at_a_time``,
+    with how far its states are from the compile across cases, over each state
+    row's largest value).  Each case's final error is the
     distance of its final position from CVODES at ``simulate.VERIFY_TOLERANCE``, as the
     race measures it; ``median_final_error_km`` is their median over all cases.
 
@@ -221,93 +398,148 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     final error over the timed cases) reaches the closed form's median final error over
     the same cases, read as the race reads its curves (``precision.seconds_at_miss``).
 
+    heyoka flies every case at each of :data:`HEYOKA_TOLERANCES` (:func:`heyoka_batch`,
+    the ``heyoka`` block).  Every time is the median CPU time of this process
+    (:func:`cpu_seconds`; each method runs on one thread), from arguments already in
+    the form the method takes.  ``per_case`` sets the methods side by side
+    (:func:`per_case_table`).
+
     Returns
     -------
     dict
         The ``batch`` block: ``cases``, ``arcs``, ``closed_form_seconds``,
         ``cvodes_seconds_equal_error``, ``cvodes_seconds_tight``, ``ratio_equal_error``,
-        ``ratio_tight``, ``median_final_error_km``, and what they were read from
-        (``cvodes_cases_timed``, ``cvodes_points``, ``compile_seconds``, the grid, ...).
+        ``ratio_tight``, ``median_final_error_km``, ``heyoka``, ``per_case``, and what
+        they were read from (``cvodes_cases_timed``, ``cvodes_points``,
+        ``compile_seconds``, the grid, ...).
     """
-    import time
-
     import numpy as np
 
     from esail_opt.bench.precision import seconds_at_miss
-    from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
-    from esail_opt.propagation.batch import batch_function
     from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
 
     grid = BATCH_GRID if grid is None else grid
     alphas, acs = _batch_cases(grid)
     cases = alphas.size
     x0, _, _, lengths = _schedule(ARCS)
-    rows = np.ones((1, ARCS))
-    per_case = [(x0, ac * rows, alpha * rows, lengths) for alpha, ac in zip(alphas, acs)]
     stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
                np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
-    start = time.perf_counter()
-    closed = batch_function(ARCS, cases, length_in="time",
-                            model=ArcModel(sub_arcs=1, nodes=PANEL_NODES), jit=native)
-    compile_seconds = time.perf_counter() - start
-    closed_seconds = median_seconds(lambda: closed(*stacked), repeats)
-    xs, q3 = (np.array(v) for v in closed(*stacked))
+    closed = _closed_form_batch(repeats, stacked, native)
+    xs, q3 = closed["xs"], closed["q3"]
     finals = xs[:, ARCS - 1::ARCS]
     truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE).map(cases)(
         *stacked))[:, ARCS - 1::ARCS]
     errors = np.array([_position_km(finals[:, m], truth[:, m]) for m in range(cases)])
 
     timed = np.unique(np.linspace(0, cases - 1, min(cvodes_cases, cases)).round().astype(int))
-    points = []
-    for tol in RACE_TOLERANCES:
-        fun = schedule_function(ARCS, 1, "time", tol=tol)
-        loop = median_seconds(lambda f=fun: [f(*per_case[m]) for m in timed], repeats)
-        mapped_args = (stacked[0][:, timed],
-                       *(np.concatenate([a[:, m * ARCS:(m + 1) * ARCS] for m in timed], axis=1)
-                         for a in stacked[1:]))
-        mapped = fun.map(timed.size)
-        together = median_seconds(lambda f=mapped: f(*mapped_args), repeats)
-        ends = np.array(mapped(*mapped_args))[:, ARCS - 1::ARCS]
-        miss = [_position_km(ends[:, k], truth[:, m]) for k, m in enumerate(timed)]
-        points.append({"tolerance": tol, "seconds_per_case": min(loop, together) / timed.size,
-                       "per_case_calls_seconds": loop, "mapped_call_seconds": together,
-                       "median_final_error_km": float(np.median(miss))})
+    points = _cvodes_points(repeats, stacked, timed, truth)
     target = float(np.median(errors[timed]))
     equal = seconds_at_miss([(p["seconds_per_case"], p["median_final_error_km"])
                              for p in points], target)
     tight = next(p["seconds_per_case"] for p in points if p["tolerance"] == 1e-12)
     equal_total = None if equal is None else equal * cases
-    return {
-        "cases": int(cases), "arcs": ARCS, "closed_form_seconds": closed_seconds,
+    block = {
+        "cases": int(cases), "arcs": ARCS, "closed_form_seconds": closed["seconds"],
         "cvodes_seconds_equal_error": equal_total, "cvodes_seconds_tight": tight * cases,
-        "ratio_equal_error": None if equal is None else equal_total / closed_seconds,
-        "ratio_tight": tight * cases / closed_seconds,
+        "ratio_equal_error": None if equal is None else equal_total / closed["seconds"],
+        "ratio_tight": tight * cases / closed["seconds"],
         "median_final_error_km": float(np.median(errors)),
         "max_final_error_km": float(np.max(errors)),
         "median_final_error_km_timed_cases": target,
+        "cvodes_median_final_error_km_tight": next(
+            p["median_final_error_km"] for p in points if p["tolerance"] == 1e-12),
         "smallest_q3": float(np.min(q3)),
         "cvodes_cases_timed": int(timed.size),
         "cvodes_points": points,
-        "compile_seconds": compile_seconds, "compiled": native,
+        "compile_seconds": closed["compile_seconds"], "compiled": native,
+        "closed_form_one_case_at_a_time": closed["one_case_at_a_time"],
         "grid": {key: list(value) for key, value in grid.items()},
-        "note": "closed form: every case in one compiled mapped call (median of repeats); "
-                "CVODES: seconds per case on cvodes_cases_timed evenly spread cases, the "
-                "faster of per-case calls and one mapped call, times cases; final error: "
-                "distance of the final position from CVODES at the reference tolerance",
+        "heyoka": heyoka_batch(repeats, (x0[:4], np.repeat(acs[:, None], ARCS, 1),
+                                         np.repeat(alphas[:, None], ARCS, 1),
+                                         np.tile(lengths, (cases, 1))),
+                               truth, float(np.median(errors))),
+        "note": "times are median CPU seconds of this process, each method on one thread; "
+                "closed form: every case in one compiled mapped call; CVODES: seconds per "
+                "case on cvodes_cases_timed evenly spread cases, the faster of per-case "
+                "calls and one mapped call, times cases; heyoka: every case, its batch mode "
+                "arc by arc; final error: distance of the final position from CVODES at "
+                "the reference tolerance",
     }
+    block["per_case"] = per_case_table(block)
+    return block
 
 
-def race_figure(curves):
-    """The race as a log-log work-precision diagram, on a new Figure."""
+def per_case_table(block):
+    """The batch's methods side by side: seconds per case, median final error, and each
+    one's time over the closed form's (above 1: the closed form is faster).
+
+    CVODES at equal error is read on its curve at the closed form's error (so that error
+    is the closed form's, over the timed cases); heyoka at equal error is its loosest
+    tolerance measured whose median error is within the closed form's.  Rows of a
+    method that was skipped or never reached that error are left out.
+    """
+    cases, closed = block["cases"], block["closed_form_seconds"] / block["cases"]
+    rows = [("closed form", closed, block["median_final_error_km"], None),
+            ("closed form, one case at a time",
+             block["closed_form_one_case_at_a_time"]["seconds"] / cases,
+             block["median_final_error_km"], None)]
+    taylor = block["heyoka"]
+    for key, label in (("equal_error", "heyoka at equal error"), ("tight", "heyoka at 1e-12")):
+        point = taylor.get(key)
+        if point is not None:
+            rows.append((label, point["seconds_per_case"], point["median_final_error_km"],
+                         point["tolerance"]))
+    if block["cvodes_seconds_equal_error"] is not None:
+        rows.append(("CVODES at equal error", block["cvodes_seconds_equal_error"] / cases,
+                     block["median_final_error_km_timed_cases"], None))
+    rows.append(("CVODES at 1e-12", block["cvodes_seconds_tight"] / cases,
+                 block["cvodes_median_final_error_km_tight"], 1e-12))
+    return [{"method": name, "seconds_per_case": seconds, "median_final_error_km": error,
+             "tolerance": tol, "ratio_over_closed_form": seconds / closed}
+            for name, seconds, error, tol in rows]
+
+
+def race_figure(curves, block=None):
+    """The race as a log-log work-precision diagram, on a new Figure; with the
+    ``batch`` block, the batch's methods beside it (:func:`batch_points`)."""
+    from matplotlib.figure import Figure
+
     from esail_opt.bench.precision import draw_precision
 
-    ax = draw_precision({"problem": f"{YEARS:g}-year raising, alpha {ALPHA_DEG:g} deg",
-                         "ac_mm_s2": AC_MM_S2, "points": curves["points"]},
-                        xlabel="time of one propagation call [s]",
-                        ylabel=("final position error [km] (vs CVODES at "
-                                f"{curves['reference_tolerance']:g})"))
-    ax.figure.tight_layout()
-    return ax.figure
+    axes = Figure(figsize=(6.0 if block is None else 12.0, 4.8)).subplots(
+        1, 1 if block is None else 2, squeeze=False)[0]
+    draw_precision({"problem": f"{YEARS:g}-year raising, alpha {ALPHA_DEG:g} deg",
+                    "ac_mm_s2": AC_MM_S2, "points": curves["points"]}, ax=axes[0],
+                   xlabel="time of one propagation call [s]",
+                   ylabel=("final position error [km] (vs CVODES at "
+                           f"{curves['reference_tolerance']:g})"))
+    if block is not None:
+        ax = draw_precision({"problem": "batch", "ac_mm_s2": AC_MM_S2,
+                             "points": batch_points(block)}, ax=axes[1],
+                            xlabel="CPU time per case, one thread [s]",
+                            ylabel="median final position error [km]")
+        grid = block["grid"]
+        ax.set_title(f"{block['cases']} raisings, pitch {grid['alpha_deg'][0]:g} to "
+                     f"{grid['alpha_deg'][1]:g} deg, a_c {grid['ac_mm_s2'][0]:g} to "
+                     f"{grid['ac_mm_s2'][1]:g} mm/s^2", fontsize="medium")
+    axes[0].figure.tight_layout()
+    return axes[0].figure
+
+
+def batch_points(block):
+    """The batch's (seconds per case, median final error) points, each method's
+    settings a curve: the closed form both ways, CVODES and heyoka per tolerance."""
+    closed = block["per_case"][:2]
+    points = [{"method": name, "setting": "", "seconds": row["seconds_per_case"],
+               "miss_km": row["median_final_error_km"]}
+              for name, row in zip(("closed_form", "closed_form_one_case_at_a_time"), closed)]
+    points += [{"method": "cvodes", "setting": f"tol {p['tolerance']:g}",
+                "seconds": p["seconds_per_case"], "miss_km": p["median_final_error_km"]}
+               for p in block["cvodes_points"]]
+    points += [{"method": "heyoka", "setting": f"tol {p['tolerance']:g}",
+                "seconds": p["seconds_per_case"], "miss_km": p["median_final_error_km"]}
+               for p in block["heyoka"].get("points", [])]
+    return points
 
 
 def _print_race(curves):
@@ -343,18 +575,25 @@ def _print(data, repeats):
 
 
 def _print_batch(block):
-    rows = [("closed form, all cases in one call", block["closed_form_seconds"], "s"),
-            ("CVODES per case at equal final error, scaled to all cases",
-             block["cvodes_seconds_equal_error"], "s"),
-            ("CVODES per case at 1e-12, scaled to all cases", block["cvodes_seconds_tight"], "s"),
-            ("ratio at equal error", block["ratio_equal_error"], ""),
-            ("ratio against 1e-12", block["ratio_tight"], ""),
-            ("median final position error of the closed form", block["median_final_error_km"],
-             "km")]
+    rows = []
+    for row in block["per_case"]:
+        rows += [(f"{row['method']}: time per case", 1e6 * row["seconds_per_case"], "us"),
+                 (f"{row['method']}: median final error", row["median_final_error_km"], "km"),
+                 (f"{row['method']}: time over the closed form's",
+                  row["ratio_over_closed_form"], "")]
     print_table(f"bench propagate: batch of {block['cases']} cases, {block['arcs']} arcs, "
-                f"CVODES timed on {block['cvodes_cases_timed']}",
-                [(label, "never" if v is None else float(v), "" if v is None else unit)
-                 for label, v, unit in rows])
+                f"CVODES timed on {block['cvodes_cases_timed']} (CPU time, one thread)", rows)
+    taylor = block["heyoka"]
+    if "skipped" in taylor:
+        print(f"  heyoka skipped: {taylor['skipped']}")
+        return
+    print(f"  of heyoka's time per case, the Python loop around its calls: "
+          f"{1e6 * taylor['python_loop_seconds_per_case']:.3g} us")
+    if taylor["equal_error"] is not None:
+        print(f"  heyoka at equal error: tolerance {taylor['equal_error']['tolerance']:g}, "
+              f"batch size {taylor['equal_error']['batch_size']}")
+    else:
+        print("  heyoka reached the closed form's error at none of its tolerances")
 
 
 def run(out, repeats, grid=None):
@@ -409,6 +648,6 @@ def run(out, repeats, grid=None):
     _print_race(data["race"])
     _print_batch(data["batch"])
     path = Path(out) / "propagate.json"
-    save_figure(race_figure(data["race"]), Path(out) / "propagate.png")
+    save_figure(race_figure(data["race"], data["batch"]), Path(out) / "propagate.png")
     write_json(path, json_ready(data))
     return path

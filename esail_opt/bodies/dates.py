@@ -37,6 +37,11 @@ ISO_FORM = "YYYY-MM-DD[THH:MM[:SS]]"
 _JD_2000_MIDNIGHT = J2000_JD - 0.5
 _ORDINAL_2000 = _dt.date(2000, 1, 1).toordinal()
 
+#: The dates (TDB) every date a problem gives must lie in: departures, arrivals, scans
+#: and a small body's epoch.  The bodies' smooth tracks for the NLP span these years
+#: (``bodies.lookup``); the DE421 tables themselves run wider (``bodies.ephemeris``).
+TRACK_SPAN = ("2000-01-01", "2060-01-01")
+
 _PATTERN = re.compile(
     r"(\d{4})-(\d{2})-(\d{2})"
     r"(?:[T ](\d{2}):(\d{2})(?::(\d{2})(\.\d+)?)?)?"
@@ -144,3 +149,14 @@ def jd_split_from_tu(t):
 
 def _same_kind(value, like):
     return float(value) if np.ndim(like) == 0 else value
+
+
+def check_tracked(jd, field):
+    """Return the Julian date ``jd`` if it lies in :data:`TRACK_SPAN`, else raise
+    InputError naming ``field`` and the span."""
+    lo, hi = (jd_from_iso(day) for day in TRACK_SPAN)
+    if not lo <= jd <= hi:  # NaN is refused too
+        shown = iso_from_jd(jd) if math.isfinite(jd) else repr(jd)
+        raise InputError(f"{field} = {shown} is outside the dates esail_opt tracks bodies "
+                         f"on, [{TRACK_SPAN[0]}, {TRACK_SPAN[1]}] (TDB)")
+    return jd

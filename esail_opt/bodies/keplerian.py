@@ -18,10 +18,18 @@ from dataclasses import dataclass, field as _field
 
 import numpy as np
 
-from esail_opt.bodies.dates import iso_from_jd, jd_from_iso
+from esail_opt.bodies.dates import check_tracked, iso_from_jd, jd_from_iso
 from esail_opt.bodies.ephemeris import polar_from_ecliptic
-from esail_opt.errors import InputError, check_range
+from esail_opt.errors import InputError, check_printable, check_range
 from esail_opt.physics import constants as units
+
+#: The semimajor axes a small body may have, au: the range every other target's
+#: radius takes (``optimisation.goals``), so that a body is refused where a circular
+#: orbit of its radius would be.  Below 0.05 au (ten solar radii) the orbit grazes
+#: the Sun; beyond 100 au the period passes 1000 years.  Outside it the seeding and
+#: the NLP failed later, with a line naming another field (the seed's pitch, the
+#: revolutions).
+A_AU_RANGE = (0.05, 100.0)
 
 #: Newton's method on Kepler's equation stops when the step is below this, rad.
 KEPLER_TOL = 1e-15
@@ -76,7 +84,7 @@ class SmallBody:
     name : str
         What the body is called, e.g. ``"(101955) Bennu"``.
     a_au : float
-        Semimajor axis, au, > 0.
+        Semimajor axis, au, in [0.05, 100] (:data:`A_AU_RANGE`).
     e : float
         Eccentricity in [0, 1) (elliptic orbits only).
     inclination_deg : float
@@ -90,7 +98,10 @@ class SmallBody:
     mean_anomaly_deg : float
         Mean anomaly at the epoch, deg, in [-360, 360].
     epoch : str
-        ISO 8601 date of the elements, TDB.
+        ISO 8601 date of the elements, TDB, in the tracked span 2000-2060
+        (``dates.TRACK_SPAN``): the two-body model drifts from the real body as the
+        date moves from the epoch, so elements from outside the years a mission is
+        flown in are refused rather than carried decades.
     source : str
         Where the elements come from.
 
@@ -112,11 +123,11 @@ class SmallBody:
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.strip():
             raise InputError(f"body.name = {self.name!r} must be a non-empty string")
+        check_printable("body.name", self.name)
         if not isinstance(self.source, str):
             raise InputError(f"body.source = {self.source!r} must be a string")
         checked = {
-            "a_au": check_range("body.a_au", self.a_au, 0.0, low_open=True, high=math.inf,
-                                high_open=True, unit="au"),
+            "a_au": check_range("body.a_au", self.a_au, *A_AU_RANGE, unit="au"),
             "e": check_range("body.e", self.e, 0.0, 1.0, high_open=True),
             "inclination_deg": check_range("body.inclination_deg", self.inclination_deg,
                                            0.0, 90.0, high_open=True, unit="deg"),
@@ -128,7 +139,8 @@ class SmallBody:
         }
         for key, value in checked.items():
             object.__setattr__(self, key, value)
-        object.__setattr__(self, "epoch_jd", jd_from_iso(self.epoch, "body.epoch"))
+        object.__setattr__(self, "epoch_jd",
+                           check_tracked(jd_from_iso(self.epoch, "body.epoch"), "body.epoch"))
 
     @property
     def mean_motion(self):

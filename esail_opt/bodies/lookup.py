@@ -7,9 +7,8 @@ it never has to know which kind it holds.
 
 Every track spans :data:`TRACK_SPAN`, built once per body and process: one NLP then
 serves a scan over any dates in it, and the dates stay parameters of the NLP rather
-than part of its structure.  Sixty years cost about half a second of fitting for
-Earth, Mars or Venus; the whole of DE421 (three centuries) would cost seconds per body
-and process, for dates no mission analysis here asks for.  The exact state's polar angle is put on the track's branch
+than part of its structure.  The span is sixty years rather than the whole of DE421,
+since fitting grows with the span and no mission analysis here asks for other dates.  The exact state's polar angle is put on the track's branch
 (theta unwrapped from the span's start), so that a seed flown from the exact state and
 the NLP's departure from the track agree on theta, not only modulo 2 pi.
 """
@@ -21,9 +20,10 @@ import math
 import numpy as np
 
 from esail_opt.bodies import ephemeris
-from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, jd_from_tu, jd_split_from_tu, tu_from_jd
+from esail_opt.bodies.dates import (
+    TRACK_SPAN, check_tracked, jd_from_iso, jd_from_tu, jd_split_from_tu, tu_from_jd)
 from esail_opt.bodies.keplerian import SmallBody
-from esail_opt.bodies.track import track_of
+from esail_opt.bodies.track import track3_on, track_of
 from esail_opt.errors import InputError
 
 
@@ -72,9 +72,6 @@ def source(body):
     return "JPL DE421 (jplephem), heliocentric, ecliptic of J2000"
 
 
-#: The dates (TDB) every problem on the calendar must lie in: departures, arrivals and
-#: scans.
-TRACK_SPAN = ("2000-01-01", "2060-01-01")
 
 
 @functools.lru_cache(maxsize=None)
@@ -140,9 +137,48 @@ def mean_radius_au(body):
 
 
 def check_span(jd, field):
-    """Raise InputError, naming ``field``, if ``jd`` lies outside what the tracks cover."""
-    lo, hi = (jd_from_tu(t) for t in span_tu())
-    if not lo <= jd <= hi:
-        raise InputError(f"{field} = {iso_from_jd(jd)} is outside the dates esail_opt "
-                         f"tracks bodies on, [{TRACK_SPAN[0]}, {TRACK_SPAN[1]}] (TDB)")
-    return jd
+    """Raise InputError, naming ``field``, if ``jd`` lies outside what the tracks cover
+    (:data:`TRACK_SPAN`); return ``jd``."""
+    return check_tracked(jd, field)
+
+
+# ------------------------------------------------------------------- in three dimensions
+
+
+def ecliptic_state(body, jd, field="body", jd2=0.0):
+    """Exact heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU) of a
+    planet (DE421, unprojected) or a small body (its six elements) at Julian date(s)
+    ``jd`` (TDB) plus ``jd2`` days: shape (6,) for a scalar date, (6, M) for M dates.
+    Its projection on the ecliptic is :func:`polar_state`'s state (theta there is put on
+    the track's branch)."""
+    body = _key(body)
+    if isinstance(body, SmallBody):
+        return body.ecliptic_state(jd, field, jd2)
+    return ephemeris.ecliptic_state(body, jd, field, jd2)
+
+
+def ecliptic_state_at(body, t, field="body"):
+    """:func:`ecliptic_state` at canonical time ``t`` (TU since J2000 TDB), the date kept
+    in two parts as in :func:`polar_state_at`."""
+    jd, days = jd_split_from_tu(float(t))
+    return ecliptic_state(body, jd, field, days)
+
+
+@functools.lru_cache(maxsize=None)
+def _track3(key):
+    return track3_on(_track(key), key, refine=True)
+
+
+def track3(body):
+    """The body's smooth 3-D track over :data:`TRACK_SPAN` (``bodies.track.Track3``),
+    built on :func:`track`'s samples: its projection on the ecliptic is that track, unless
+    the height above the ecliptic needed finer samples than the plane (then the two agree
+    to their errors, tens of metres)."""
+    return _track3(_key(body))
+
+
+def track3_correction(body, t):
+    """The body's exact ecliptic state less its smooth 3-D track's at time ``t`` (TU since
+    J2000 TDB), as :func:`track_correction` in the plane: tens of metres, what a polish
+    adds to hold its metre against the source itself."""
+    return ecliptic_state_at(body, t) - np.ravel(track3(body).state(float(t)))

@@ -304,8 +304,9 @@ def _check_arrival_window(window):
     if not isinstance(window, (tuple, list)) or len(window) != 2:
         raise InputError(f"target.arrival_window = {window!r} is not a pair (earliest, latest) "
                          "of ISO 8601 dates")
-    lo = dates.jd_from_iso(window[0], "target.arrival_window[0]")
-    hi = dates.jd_from_iso(window[1], "target.arrival_window[1]")
+    # In the tracked span: the NLP sees the body through its track, which ends there.
+    lo, hi = (lookup.check_span(dates.jd_from_iso(day, f"target.arrival_window[{i}]"),
+                                f"target.arrival_window[{i}]") for i, day in enumerate(window))
     if hi < lo:
         raise InputError(f"target.arrival_window = {tuple(window)!r}: its end comes before its "
                          "start")
@@ -321,7 +322,8 @@ class _BodyTarget:
     body : str or SmallBody
         A planet name (``bodies.ephemeris.PLANETS``) or a :class:`~esail_opt.bodies.SmallBody`.
     arrival_window : (str, str) or None
-        Earliest and latest arrival, ISO 8601 dates (TDB); None leaves the arrival free.
+        Earliest and latest arrival, ISO 8601 dates (TDB) in the tracked span 2000-2060,
+        ending after the earliest departure; None leaves the arrival free.
 
     The NLP sees the body through a smooth fit of its ephemeris (``bodies.track``), and
     the verification holds the flown state to the ephemeris itself at the flown arrival

@@ -269,7 +269,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
 
 
 def solve_problem(problem, segment=None, options=None, guess=None, progress=None,
-                  staged=True, threads=None):
+                  staged=True):
     """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
 
     ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, with its
@@ -283,13 +283,8 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     each stage's status.  ``staged=False`` solves the free NLP alone, for a guess that
     is already an optimum of a nearby problem.
 
-    The equal-length stage is evaluated on one thread: on the shipped problems it ran
-    about as fast on one as on two (faster on three of the four that are solved in
-    stages), and the other core is then left to whatever else the run is
-    doing meanwhile (the figures' worker of ``esail-opt solve`` imports matplotlib and
-    makes the timeline's frame during this stage), where a thread of the solve that
-    shares a core makes its every evaluation wait.  The optimum does not depend on it.
-    ``threads`` sets the free-length stage's (default ``transcription.segment_threads``).
+    The equal-length stage is evaluated on one thread, being small; the free-length
+    stage takes ``transcription.segment_threads``.  The optimum depends on neither.
     """
     seg = problem.segments
     first = None
@@ -302,7 +297,7 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
                                     progress=progress)
         if first.outcome.found:
             guess = first.as_guess()
-    tr = transcribe(problem, segment, guess, threads=threads)
+    tr = transcribe(problem, segment, guess)
     result = solve_transcription(tr, options, progress=progress)
     if first is not None:
         result.iterations += first.iterations

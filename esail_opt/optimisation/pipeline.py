@@ -138,8 +138,7 @@ def _quiet(text):
     """The progress callback of a caller that wants none."""
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False, threads=None,
-          before_polish=None):
+def solve(problem, segments=None, progress=None, samples=16, polish=False):
     """Run the whole pipeline on ``problem``.
 
     Parameters
@@ -153,17 +152,6 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         Flight samples per segment for the plots (the verdicts do not depend on them).
     polish : bool
         Then polish the optimum (``optimisation.polish``) and verify that schedule too.
-    threads : int, optional
-        Threads that evaluate the NLPs' segments, the closed form's and the polish's
-        (default ``transcription.segment_threads``).  ``esail-opt solve`` asks for one:
-        its figures' worker has the other core meanwhile, importing matplotlib while the
-        closed form is solved and drawing the timeline's closed form while the polish
-        runs (``app.plot_worker``).  The optimum does not depend on it.
-    before_polish : callable, optional
-        With ``polish``: ``before_polish(run)`` gets the :class:`Run` of the stages
-        before the polish (its ``polish`` None) as soon as they end, so that a caller can
-        start on what does not depend on the polish while it runs (``esail-opt solve``
-        draws its timeline's closed form, ``app.plot_worker``).
 
     Returns
     -------
@@ -194,12 +182,12 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     say(f"{problem.name}: building the NLP ({count} x {problem.segments.sub_arcs} sub-arcs)")
     result, tr = solve_problem(problem, guess=guess, progress=say,
-                               staged=not problem.free_date(), options=options, threads=threads)
+                               staged=not problem.free_date(), options=options)
     starts = ()
     if not result.outcome.found:
-        result, tr, starts = _other_starts(problem, result, tr, say, threads)
+        result, tr, starts = _other_starts(problem, result, tr, say)
     elif problem.objective.free_acceleration and problem.tracks_body():
-        result, tr, starts = _least_acceleration_class(problem, result, tr, say, threads)
+        result, tr, starts = _least_acceleration_class(problem, result, tr, say)
     if seed is not None:
         # The scan that chose the date is part of the run's Ipopt record.
         result.iterations += seed.iterations
@@ -208,11 +196,10 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False, threa
         + ("error control until the flight meets the tolerance" if result.outcome.found
            else "no start found a point; flying the last iterate to report its miss"))
     return finish(problem, result, tr, samples=samples, polish=polish, progress=say,
-                  starts=starts, sub_arcs_requested=seg.sub_arcs, threads=threads,
-                  before_polish=before_polish)
+                  starts=starts, sub_arcs_requested=seg.sub_arcs)
 
 
-def _other_starts(problem, result, tr, say, threads=None):
+def _other_starts(problem, result, tr, say):
     """Ipopt's "infeasible" from one start is a local statement: before giving up, try
     the starts the global search would (other turn counts on a rendezvous body, other
     constant-pitch seeds of an orbit transfer), and keep the first that finds a point.
@@ -225,8 +212,7 @@ def _other_starts(problem, result, tr, say, threads=None):
     seconds = result.solve_seconds
     for start in multistart.fallback_starts(problem, tr.guess):
         say(f"{problem.name}: {result.status}; trying {start.label}")
-        other, other_tr = solve_problem(problem, guess=start.guess, progress=say,
-                                        threads=threads)
+        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
         records.append(StartTried(start.label, other.status, other.iterations))
         # The run's Ipopt record covers every start it took to get here.
         if other.outcome.found:
@@ -239,7 +225,7 @@ def _other_starts(problem, result, tr, say, threads=None):
     return result, tr, tuple(records)
 
 
-def _least_acceleration_class(problem, result, tr, say, threads=None):
+def _least_acceleration_class(problem, result, tr, say):
     """The least a_c over the turn counts k on the target body, for a MinAcceleration
     rendezvous (``multistart.descend_turns`` from the seed's k, each k a cold solve
     from its own seed).  A warm-started scan drifts to the better k where a lone solve
@@ -256,8 +242,7 @@ def _least_acceleration_class(problem, result, tr, say, threads=None):
     def solve_class(k):
         start = multistart.rendezvous_starts(problem, [k])[0]
         say(f"{problem.name}: trying the turn count k = {k}")
-        other, other_tr = solve_problem(problem, guess=start.guess, progress=say,
-                                        threads=threads)
+        other, other_tr = solve_problem(problem, guess=start.guess, progress=say)
         records.append(StartTried(start.label, other.status, other.iterations))
         seconds.append(other.solve_seconds)
         return (other, other_tr) if other.outcome.found else None
@@ -272,7 +257,7 @@ def _least_acceleration_class(problem, result, tr, say, threads=None):
 
 
 def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
-           sub_arcs_requested=None, threads=None, before_polish=None):
+           sub_arcs_requested=None):
     """The stages after a closed-form optimum is found: error control, CVODES
     verification and, with ``polish``, the polish.
 
@@ -289,8 +274,8 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         ``result``'s NLP: the error control re-solves it warm; without it a new one is
         built.  Either way the error control and the polish keep ``result``'s revolution
         class.
-    samples, polish, progress, threads, before_polish
-        As for :func:`solve` (``threads`` for the polish).
+    samples, polish, progress
+        As for :func:`solve`.
     starts : sequence of StartTried
         The starts tried before this one.
     sub_arcs_requested : int, optional
@@ -327,12 +312,10 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
               sub_arcs_requested=requested)
     if not polish:
         return run
-    if before_polish is not None:
-        before_polish(run)
-    return dataclasses.replace(run, polish=_polish(problem, result, samples, say, threads))
+    return dataclasses.replace(run, polish=_polish(problem, result, samples, say))
 
 
-def _polish(problem, result, samples, say, threads=None):
+def _polish(problem, result, samples, say):
     """Polish ``result`` and judge the polished flight against :data:`POLISH_TOLERANCE`."""
     # A closed form that found no optimum has nothing worth polishing.
     if not result.outcome.found:
@@ -340,7 +323,7 @@ def _polish(problem, result, samples, say, threads=None):
                          f"NOT polished: the closed-form solve ended {result.status}",
                          closed_form_objective=result.objective)
     say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
-    exact, _ = polishing.polish(problem, result, threads=threads)
+    exact, _ = polishing.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")
     check = verify(problem, exact, samples)

@@ -173,8 +173,7 @@ def _on_ephemeris(tr, problem, result):
     return dataclasses.replace(tr, corrections=body_corrections(problem, result))
 
 
-def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS,
-           threads=None):
+def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS):
     """Re-solve ``problem`` on Eqs. 1-2 in time, warm-started from ``result``.
 
     The NLP's segments are RK4 arcs in time (``propagation.rk4``), with as many steps
@@ -202,9 +201,6 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         RK4 steps per segment to choose from (:func:`rk4_polish_segment`).
     max_rounds : int
         Defect corrections at most.
-    threads : int, optional
-        Threads that evaluate the RK4 NLP's segments (default
-        ``transcription.segment_threads``).
 
     Returns
     -------
@@ -221,7 +217,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         segment = rk4_segment(steps[0], problem.sail.coefficients, "time")
     else:
         segment = rk4_polish_segment(problem, result.x_start, start, steps)
-    tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time", threads=threads),
+    tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time"),
                        problem, result)
     opts = {"ipopt.mu_init": START_MU, **(polish_options() if options is None else options)}
     exact = solve_transcription(tr, opts)

@@ -29,7 +29,7 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.bodies import dates, lookup
-from esail_opt.errors import InputError, check_range
+from esail_opt.errors import InputError, check_printable, check_range
 from esail_opt.optimisation.goals import (
     OBJECTIVES, TARGETS, BodyIntercept, BodyRendezvous, CircularOrbit, FinalStateExpression,
     MaxEnergy, MaxRadius, MinAcceleration, MinTime, Orbit, Rendezvous,
@@ -45,6 +45,17 @@ __all__ = [
     "Rendezvous", "BodyRendezvous", "BodyIntercept", "PathConstraints", "Tolerance",
     "Problem", "EXACT", "BEST_FIT",
 ]
+
+
+#: What a problem's name may hold, as its refusal says: it names the output folder.
+NAME_ALLOWED = ("printable characters without '/' or '\\' (the problem name is its "
+                "output folder's name)")
+
+
+def _check_bool(name, value):
+    # A string would be truthy whatever it says ("no", "False").
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} = {value!r} is not True or False")
 
 
 def _check_finite_positive_int(name, value, low=1):
@@ -87,6 +98,7 @@ class ParkingOrbit:
         check_range("departure.e", self.e, 0, 1, high_open=True)
         check_range("departure.omega_deg", self.omega_deg, -360, 360, unit="deg")
         check_range("departure.nu_deg", self.nu_deg, -360, 360, unit="deg")
+        _check_bool("departure.free_anomaly", self.free_anomaly)
 
     def state(self, nu=None):
         """Canonical polar state at true anomaly ``nu`` (rad; default the stated one).
@@ -146,12 +158,12 @@ class BodyDeparture:
         A planet name (``esail_opt.bodies.ephemeris.PLANETS``; "earth" is the Earth-Moon
         barycentre, see ``bodies.ephemeris``) or a :class:`~esail_opt.bodies.SmallBody`.
     date : str or None
-        Departure date, ISO 8601 (read as TDB).  With ``window`` it is only the seed of
-        the free date; without either it is required.
+        Departure date, ISO 8601 (read as TDB), in the tracked span 2000-2060.  Give
+        it or ``window``, not both.
     window : (str, str) or None
-        Earliest and latest departure, ISO 8601 (TDB): the date becomes a decision
-        variable of the NLP inside it.  Without ``date`` the tool seeds it by a coarse
-        scan of the window of its own.
+        Earliest and latest departure, ISO 8601 (TDB), in the same span: the date
+        becomes a decision variable of the NLP inside it, seeded by a coarse scan of
+        the window.
     vinf_km_s : float
         Hyperbolic excess speed from the launcher, km/s, in [0, 10]; 0 (the default)
         leaves on the body's own orbit.
@@ -174,6 +186,12 @@ class BodyDeparture:
         if self.date is None and self.window is None:
             raise InputError("departure.date = None: give a date (ISO 8601, e.g. "
                              "'2031-06-01') or a window (earliest, latest)")
+        if self.date is not None and self.window is not None:
+            # A window frees the date, and its seed comes from a scan of the window:
+            # a date given with it would be silently ignored.
+            raise InputError(f"departure.date = {self.date!r} and departure.window = "
+                             f"{self.window!r}: give one of them, not both (a window "
+                             "frees the date; a date fixes it)")
         if self.date is not None:
             lookup.check_span(dates.jd_from_iso(self.date, "departure.date"), "departure.date")
         if self.window is not None:
@@ -184,9 +202,6 @@ class BodyDeparture:
             if hi < lo:
                 raise InputError(f"departure.window = {tuple(self.window)!r}: its end comes "
                                  "before its start")
-            if self.date is not None and not lo <= dates.jd_from_iso(self.date) <= hi:
-                raise InputError(f"departure.date = {self.date!r} is outside departure.window "
-                                 f"[{self.window[0]}, {self.window[1]}]")
         check_range("departure.vinf_km_s", self.vinf_km_s, 0, 10, unit="km/s")
         if self.vinf_angle_deg is not None:
             check_range("departure.vinf_angle_deg", self.vinf_angle_deg, -180, 180, unit="deg")
@@ -211,7 +226,7 @@ class BodyDeparture:
 
     def epoch_jd(self):
         """The departure date (or the free date's seed) as a Julian date, TDB; a window
-        without a date seeds at its start (``optimisation.pipeline`` scans it first)."""
+        seeds at its start (``optimisation.pipeline`` scans it first)."""
         return dates.jd_from_iso(self.date if self.date is not None else self.window[0])
 
     def epoch(self):
@@ -288,8 +303,7 @@ class Sail:
         check_range("sail.coefficients[1] (b2)", self.coefficients[1], 0, b1)
         lo = check_range("sail.alpha_min_deg", self.alpha_min_deg, -90, 90, unit="deg")
         check_range("sail.alpha_max_deg", self.alpha_max_deg, lo, 90, unit="deg")
-        if not isinstance(self.throttle, (bool, np.bool_)):
-            raise InputError(f"sail.throttle = {self.throttle!r} is not True or False")
+        _check_bool("sail.throttle", self.throttle)
         k_lo = check_range("sail.throttle_min", self.throttle_min, 0, 1)
         check_range("sail.throttle_max", self.throttle_max, k_lo, 1)
 
@@ -346,6 +360,8 @@ class Segments:
                 raise InputError(f"segments.count = {self.count!r} and segments.per_revolution "
                                  f"= {self.per_revolution!r}: give one of them, not both")
         _check_finite_positive_int("segments.sub_arcs", self.sub_arcs)
+        _check_bool("segments.equal", self.equal)
+        _check_bool("segments.extrapolate", self.extrapolate)
 
     def count_for(self, angle):
         """Number of segments for a seed that flies ``angle`` rad: ``count`` if fixed,
@@ -417,7 +433,9 @@ class Problem:
     Attributes
     ----------
     name : str
-        Used for the default output folder ``results/<name>/``.
+        Used for the default output folder ``results/<name>/``: printable characters
+        (``str.isprintable``: no control character, no lone surrogate) without ``/``
+        or ``\\``.  A ``$`` is allowed.
     departure : ParkingOrbit or PolarState
     sail : Sail
     segments : Segments
@@ -448,8 +466,10 @@ class Problem:
     description: str = ""
 
     def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name or any(c in self.name for c in "/\\"):
-            raise InputError(f"name = {self.name!r} is not a non-empty file-name string")
+        check_printable("name", self.name, NAME_ALLOWED)
+        if any(c in self.name for c in "/\\"):
+            raise InputError(f"name = {self.name!r} holds a path separator; allowed: "
+                             f"{NAME_ALLOWED}")
         for attr, kinds in (("departure", (ParkingOrbit, PolarState, BodyDeparture)),
                             ("sail", (Sail,)),
                             ("segments", (Segments,)),
@@ -472,6 +492,8 @@ class Problem:
                              "nothing to reach); use a fixed-time objective")
         if dated and self.objective.fixed_time:
             self._check_arrival_tracked()
+        if dated and getattr(self.target, "arrival_window", None) is not None:
+            self._check_arrival_after_departure()
         if self.guess_alpha_deg is not None:
             lo, hi = self.sail.alpha_min_deg, self.sail.alpha_max_deg
             check_range("guess_alpha_deg", self.guess_alpha_deg, lo, hi, unit="deg")
@@ -490,6 +512,20 @@ class Problem:
                 f"{dates.iso_from_jd(latest)} the flight ends {dates.iso_from_jd(end)} TDB, "
                 f"after {lookup.TRACK_SPAN[1]}, the last date bodies are tracked on; "
                 "shorten the flight or depart earlier")
+
+    def _check_arrival_after_departure(self):
+        """Refuse an arrival window that closes before the sail can leave: at or before
+        the departure date, or the earliest date of a departure window."""
+        dep = self.departure
+        earliest = dep.window_jd[0] if dep.window is not None else dep.epoch_jd()
+        field = "departure.window[0]" if dep.window is not None else "departure.date"
+        closes = self.target.arrival_jd[1]
+        if closes <= earliest:
+            raise InputError(
+                f"target.arrival_window = {tuple(self.target.arrival_window)!r} closes on "
+                f"{dates.iso_from_jd(closes)} TDB, not after {field} = "
+                f"{dates.iso_from_jd(earliest)}: the arrival window must end after the "
+                "earliest departure")
 
     def with_segments(self, count):
         """The same problem with ``count`` control segments (``--segments``; it replaces

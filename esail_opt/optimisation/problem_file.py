@@ -5,12 +5,18 @@ A file is loaded by path (:func:`load_problem`), or, for the shipped ones, by na
 
 Every way a file can be wrong ends in one :class:`~esail_opt.errors.InputError` line that
 the command line prints: a missing file, an exception raised while it runs (a range
-check of :mod:`.problem`, a syntax error, a ``sys.exit()``), no ``problem`` in it, or one
-of another type.
+check of :mod:`.problem`, a syntax error, a ``sys.exit()``, any ``BaseException`` but
+``KeyboardInterrupt``), an end of its process (``os._exit``, a signal; see
+:func:`load_problem`), no ``problem`` in it, or one of another type.
 """
 
+import contextlib
 import importlib.resources
+import os
 import runpy
+import signal
+import sys
+import threading
 from pathlib import Path
 
 from esail_opt.errors import InputError
@@ -23,16 +29,39 @@ SHIPPED_PACKAGE = "esail_opt.problems"
 def load_problem(path):
     """Run the file at ``path`` and return its ``problem``.
 
+    Where the process may fork (a POSIX system, and no other thread running, since a
+    forked copy of a threaded process can deadlock), the file is first run in a forked
+    child only to learn whether it returns control at all (:func:`_check_in_child`): a
+    file that ends its process, by ``os._exit``, a signal or anything else, ends only
+    the child, and is bad input.  Otherwise it then runs here, where every exception
+    (``SystemExit``, ``GeneratorExit``, a bare ``BaseException``) is bad input too and
+    ``KeyboardInterrupt`` keeps meaning an interrupt.  The file runs twice; its output
+    is shown once, from here (the child's is discarded).  Without a fork (a pool's
+    worker, which has threads) it runs only here: the command line's own process has
+    loaded it before any worker starts.
+
     Raises
     ------
     InputError
         With one line naming the file and what is wrong.
+    KeyboardInterrupt
+        Ctrl-C (or SIGTERM's :class:`~esail_opt.errors.Terminated`) while it ran, or
+        the file raised it.
     """
     path = Path(path)
     if not path.is_file():
         raise InputError(f"problem file {str(path)!r} does not exist")
+    if hasattr(os, "fork") and threading.active_count() == 1:
+        _check_in_child(path)
+    return _run(path)
+
+
+def _run(path):
+    """Run the file in this process and return its checked ``problem``."""
     try:
         namespace = runpy.run_path(str(path), run_name="problem_file")
+    except KeyboardInterrupt:
+        raise
     except InputError as err:
         raise InputError(f"{path.name}: {err}") from None
     except SystemExit as err:
@@ -40,9 +69,10 @@ def load_problem(path):
         # "converged and verified" with nothing solved.
         raise InputError(f"{path.name}: the file called sys.exit({err.code!r}) while it was "
                          "loaded; a problem file must define `problem`, not exit") from None
-    except Exception as err:  # a user file can fail in any way; report it in one line
+    except BaseException as err:  # a user file can fail in any way; report it in one line
         detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
-        raise InputError(f"{path.name}: {type(err).__name__}: {detail}") from None
+        raise InputError(f"{path.name}: {type(err).__name__}"
+                         + (f": {detail}" if detail else "")) from None
     if "problem" not in namespace:
         raise InputError(f"{path.name}: problem is missing (the file must define "
                          "`problem = esail_opt.Problem(...)`)")
@@ -51,6 +81,73 @@ def load_problem(path):
         raise InputError(f"{path.name}: problem = {type(problem).__name__} is not an "
                          "esail_opt.Problem")
     return problem
+
+
+#: What the forked child writes on its pipe: the file returned control (whether or not
+#: it raised), or it was interrupted.  Nothing at all means the file ended the child.
+_RETURNED, _INTERRUPTED = b"returned", b"interrupted"
+
+
+def _check_in_child(path):
+    """Run the file in a forked child; raise if it ended the child's process.
+
+    Raises
+    ------
+    InputError
+        The child ended before it reported: the file exited (``os._exit``), killed its
+        process or crashed the interpreter.
+    KeyboardInterrupt
+        The child was interrupted (the same Ctrl-C reaches this process).
+    """
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()  # so that the child holds no copy of unwritten output
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child ends in _child
+        os.close(read)
+        _child(path, write)
+    os.close(write)
+    try:
+        with os.fdopen(read, "rb") as pipe:
+            report = pipe.read()
+        status = os.waitpid(pid, 0)[1]
+        pid = None
+    finally:
+        if pid is not None:  # interrupted here while the child ran
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+    if report == _RETURNED:
+        return
+    if report == _INTERRUPTED:
+        raise KeyboardInterrupt
+    code = os.waitstatus_to_exitcode(status)
+    how = f"exit status {code}" if code >= 0 else f"killed by {signal.Signals(-code).name}"
+    raise InputError(f"{path.name}: the file ended the process that loaded it ({how}) "
+                     "before it defined `problem`; a problem file must define `problem`, "
+                     "not exit")
+
+
+def _child(path, fd):
+    """The forked child: run the file, say on ``fd`` that it returned, and end without
+    clean-up (the atexit handlers and buffered output are the parent's)."""
+    try:
+        quiet = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(quiet, 1)
+        os.dup2(quiet, 2)
+        # sys.stdout may not write to fd 1 (a test's capture, an embedding host).
+        sys.stdout = sys.stderr = open(quiet, "w", closefd=False)
+        try:
+            runpy.run_path(str(path), run_name="problem_file")
+            report = _RETURNED
+        except KeyboardInterrupt:
+            report = _INTERRUPTED
+        except BaseException:  # the parent runs the file again and words the error
+            report = _RETURNED
+        os.write(fd, report)
+    finally:
+        os._exit(0)
 
 
 def _shipped_folder():

@@ -1,0 +1,185 @@
+"""heyoka's Taylor integrator flying Eqs. 1-2 under a piecewise-constant pitch: the
+strongest integrator the propagation bench sets against the closed form.
+
+heyoka is an optional dependency (the ``bench`` extra): :func:`available` says whether
+it imports, and nothing here imports it at module level.
+
+How the dynamics reach heyoka: the package's one form of Eqs. 1-2
+(``physics.dynamics.rhs``) is built once as a CasADi SX Function of the polar state
+and of the thrust (a_c R, a_c T), and its instructions are replayed on heyoka's
+expressions (:func:`system`), so heyoka flies the same formula as CVODES, written
+nowhere a second time.  The thrust's two components are heyoka runtime parameters:
+a pitch schedule changes them between arcs without compiling anything again, and
+``physics.thrust.radial_transverse`` turns each arc's pitch into them.
+
+How the arcs are flown: arc by arc, ``propagate_until`` each arc's end time in
+heyoka's batch mode (``taylor_adaptive_batch``, one SIMD lane a case, on the calling
+thread), setting the lanes' parameters before each arc.  The integrator stops on each
+arc's end exactly, so every arc starts with its own thrust from an exact state, as
+CVODES restarts on each segment.  A single expression switching the thrust with time
+was rejected: the Taylor series of a right-hand side that jumps inside a step is
+wrong across the jump, and heyoka's step control would not see it.
+"""
+
+import collections
+import functools
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.physics import dynamics
+from esail_opt.physics.thrust import EXACT, radial_transverse
+
+
+def available():
+    """Whether heyoka imports (the ``bench`` extra is installed)."""
+    try:
+        import heyoka  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _ops(hy):
+    """heyoka's form of each CasADi SX operation Eqs. 1-2 are built from."""
+    return {
+        ca.OP_ADD: lambda a, b: a + b, ca.OP_SUB: lambda a, b: a - b,
+        ca.OP_MUL: lambda a, b: a * b, ca.OP_DIV: lambda a, b: a / b,
+        ca.OP_NEG: lambda a: -a, ca.OP_SQ: lambda a: a**2, ca.OP_TWICE: lambda a: 2.0 * a,
+        ca.OP_INV: lambda a: 1.0 / a, ca.OP_SQRT: hy.sqrt,
+        ca.OP_POW: lambda a, b: a**b, ca.OP_CONSTPOW: lambda a, b: a**b,
+        ca.OP_SIN: hy.sin, ca.OP_COS: hy.cos,
+    }
+
+
+def system():
+    """Eqs. 1-2 (``dynamics.rhs``) as heyoka's ODE system.
+
+    Returns
+    -------
+    list of (heyoka.expression, heyoka.expression)
+        (variable, derivative) for r, theta, v_r, v_theta, in canonical units, with the
+        thrust a_c (r_E / r) (R, T) taken from the runtime parameters
+        ``par[0]`` = a_c R and ``par[1]`` = a_c T.
+
+    Raises
+    ------
+    NotImplementedError
+        If ``dynamics.rhs`` uses an operation this translation does not know.
+    """
+    import heyoka as hy
+
+    x, push = ca.SX.sym("x", 4), ca.SX.sym("push", 2)
+    # a_c = 1 with R, T standing for a_c R and a_c T: the same thrust a_c (R, T) / r.
+    fun = ca.Function("eqs_1_2", [x, push], [dynamics.rhs(x, 1.0, push[0], push[1])])
+    variables = hy.make_vars("r", "theta", "v_r", "v_theta")
+    inputs = (variables, (hy.par[0], hy.par[1]))
+    ops, work, rates = _ops(hy), {}, [None] * 4
+    for k in range(fun.n_instructions()):
+        op, args, out = fun.instruction_id(k), fun.instruction_input(k), fun.instruction_output(k)
+        if op == ca.OP_INPUT:
+            work[out[0]] = inputs[args[0]][args[1]]
+        elif op == ca.OP_OUTPUT:
+            rates[out[1]] = work[args[0]]
+        elif op == ca.OP_CONST:
+            work[out[0]] = hy.expression(float(fun.instruction_constant(k)))
+        elif op in ops:
+            work[out[0]] = ops[op](*(work[j] for j in args))
+        else:
+            raise NotImplementedError(f"CasADi operation {op} has no heyoka form here")
+    return list(zip(variables, rates))
+
+
+@functools.lru_cache(maxsize=None)
+def integrator(tol, batch_size=None):
+    """A heyoka batch integrator of :func:`system` at tolerance ``tol``, compiled once
+    per process and tolerance.
+
+    ``batch_size`` is the number of cases flown side by side, one a SIMD lane (default
+    heyoka's recommended SIMD width for doubles on this CPU).  The integrator is reused
+    by :func:`fly`, which sets its state, time and parameters every time.
+    """
+    import heyoka as hy
+
+    size = batch_size or hy.recommended_simd_size()
+    return hy.taylor_adaptive_batch(system(), np.zeros((4, size)), tol=tol,
+                                    pars=np.zeros((2, size)))
+
+
+def fly(ta, x0, acs, alphas, durations, coefficients=EXACT):
+    """M cases of a piecewise-constant pitch schedule flown on Eqs. 1-2 by heyoka.
+
+    Parameters
+    ----------
+    ta : heyoka.taylor_adaptive_batch
+        From :func:`integrator`; its lanes take the cases ``ta.batch_size`` at a time
+        (the last block repeats the last case in its spare lanes).
+    x0 : array_like, shape (4,) or (M, 4)
+        Polar start states [r, theta, v_r, v_theta], canonical units.
+    acs, alphas, durations : array_like, shape (M, N)
+        Characteristic acceleration (canonical, times any throttle), pitch (rad) and
+        duration (TU) of each case's N arcs.
+    coefficients : tuple of float
+        The thrust model's (b1, b2).
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 5, N)
+        Each case's [r, theta, v_r, v_theta, t] at the end of every arc.
+
+    Raises
+    ------
+    RuntimeError
+        If heyoka stops short of a case's last arc (a non-finite state).
+    """
+    lanes = prepare(ta.batch_size, x0, acs, alphas, durations, coefficients)
+    flown = np.concatenate([fly_prepared(ta, lanes), lanes.ends[:, None, :]], axis=1)
+    return flown[:, :, :lanes.cases].transpose(2, 1, 0)
+
+
+Lanes = collections.namedtuple("Lanes", "cases starts push_r push_t ends")
+
+
+def prepare(size, x0, acs, alphas, durations, coefficients=EXACT):
+    """:func:`fly`'s arguments as its lanes take them, ``size`` cases a block: the
+    start states (4 x lanes), the thrust parameters and the arcs' end times (N x
+    lanes each), the cases padded to whole blocks with the last one."""
+    acs, alphas, durations = (np.atleast_2d(np.asarray(v, float))
+                              for v in (acs, alphas, durations))
+    cases = alphas.shape[0]
+    R, T = (np.array(v, float).reshape(alphas.shape)
+            for v in radial_transverse(ca.DM(alphas), coefficients))
+    lanes = np.r_[np.arange(cases), np.full(-cases % size, cases - 1)]
+    starts = np.broadcast_to(np.asarray(x0, float).reshape(-1, 4), (cases, 4))[lanes].T
+    return Lanes(cases, starts.copy(), (acs * R)[lanes].T.copy(), (acs * T)[lanes].T.copy(),
+                 np.cumsum(durations, axis=1)[lanes].T.copy())
+
+
+def fly_prepared(ta, lanes, steps=True):
+    """The flight of :func:`fly` from its :func:`prepare`'d ``lanes``: the states
+    [r, theta, v_r, v_theta] at every arc's end, shape (N, 4, lanes).
+
+    ``steps`` False leaves out heyoka's ``propagate_until`` calls and the check of
+    their ends (the states are then the starts): what is left is the cost of the loop
+    around them from Python."""
+    size, ends = ta.batch_size, lanes.ends
+    out = np.empty((ends.shape[0], 4, ends.shape[1]))
+    state, pars = ta.state, ta.pars
+    for first in range(0, ends.shape[1], size):
+        block = slice(first, first + size)
+        state[:] = lanes.starts[:, block]
+        ta.set_time(0.0)
+        # Lanes that end their arcs together take one time: heyoka reads a float
+        # faster than an array, and the times are the same numbers.
+        shared = (ends[:, block] == ends[:, first:first + 1]).all()
+        times = ends[:, first].tolist() if shared else ends[:, block]
+        for k in range(ends.shape[0]):
+            pars[0] = lanes.push_r[k, block]
+            pars[1] = lanes.push_t[k, block]
+            if steps:
+                ta.propagate_until(times[k])
+            out[k, :, block] = state
+        if steps and not (np.array_equal(ta.time, ends[-1, block]) and np.isfinite(state).all()):
+            raise RuntimeError(f"heyoka stopped short of the last arc in cases "
+                               f"{first} to {first + size - 1}")
+    return out
