@@ -7,7 +7,9 @@ happens in use: a library cut short on disk, a signal from outside, a scheduler 
 killed, a path under a regular file, a SIGKILL at a random moment of a write.
 """
 
+import contextlib
 import errno
+import functools
 import json
 import os
 import random
@@ -20,10 +22,17 @@ from pathlib import Path
 
 import pytest
 
-from esail_opt.app import cli, files, sweep
+from esail_opt.app import cli, engine, files, sweep
 from esail_opt.errors import InputError, OutputError
 
 from conftest import PROBLEMS, REPO, TINY_PROBLEM as TINY
+
+
+def _journal(path, header):
+    """The sweep's journal at ``path`` under ``header``, as the sweep's run makes it."""
+    return engine.Journal(path, header, sweep.ROW_KINDS, len(header["values"]),
+                          functools.partial(sweep.belongs, header["values"]))
+
 
 
 def _env(**extra):
@@ -553,17 +562,17 @@ def test_a_torn_journal_line_is_cut_off_before_the_next_row(tmp_path):
     """A row torn mid-append is ignored and cut off the file, so the next row starts a
     line of its own and a second resume keeps it."""
     path = tmp_path / sweep.JOURNAL
-    journal = sweep.Journal(path, HEADER)
+    journal = _journal(path, HEADER)
     journal.open(resume=False)
     journal.append({**sweep._empty_row(0, 0.5), "converged": True})
     with open(path, "a") as handle:
         handle.write('{"index": 1, "value": 1.0, "conv')
-    kept = sweep.Journal(path, HEADER).open(resume=True)
+    kept = _journal(path, HEADER).open(resume=True)
     assert list(kept) == [0]
-    sweep.Journal(path, HEADER).append({**sweep._empty_row(1, 1.0), "converged": True})
+    _journal(path, HEADER).append({**sweep._empty_row(1, 1.0), "converged": True})
     lines = path.read_text().splitlines()
     assert len(lines) == 3 and all(json.loads(line) for line in lines)
-    assert sorted(sweep.Journal(path, HEADER).open(resume=True)) == [0, 1]
+    assert sorted(_journal(path, HEADER).open(resume=True)) == [0, 1]
 
 
 @pytest.mark.parametrize("bad, message", [
@@ -575,14 +584,14 @@ def test_an_unreadable_journal_line_is_one_error_naming_file_and_line(tmp_path, 
     path = tmp_path / sweep.JOURNAL
     path.write_bytes((json.dumps(HEADER) + "\n").encode() + bad)
     with pytest.raises(InputError) as err:
-        sweep.Journal(path, HEADER).open(resume=True)
+        _journal(path, HEADER).open(resume=True)
     assert message in str(err.value) and str(path) in str(err.value)
     assert "\n" not in str(err.value)
 
 
 def test_a_failed_append_leaves_no_half_line(tmp_path, monkeypatch):
     path = tmp_path / sweep.JOURNAL
-    journal = sweep.Journal(path, HEADER)
+    journal = _journal(path, HEADER)
     journal.open(resume=False)
     before = path.read_bytes()
     real = os.write
@@ -642,3 +651,292 @@ def test_a_killed_runs_scratch_folder_is_removed_by_the_next_run(tmp_path):
     remove_orphaned_scratch(tmp_path)
     assert not dead.exists()
     assert live.exists() and other.exists()
+
+
+# ---------------------------------------------------------------- 7. refused before any change
+#
+# Every check that can refuse a scan (the options, the scheduler, a journal --resume
+# cannot continue, a row of it) is made before anything on disk changes.
+
+WINDOW = PROBLEMS / "earth_mars_window.py"
+
+
+def _scan_command(kind, problem, out, *extra):
+    if kind == "sweep":
+        return ("sweep", problem, "--param", "ac_mm_s2=0.5:1.5:3", "--out", out, *extra)
+    return ("porkchop", WINDOW, "--depart", "2030-01-01:2030-03-01:2", "--out", out, *extra)
+
+
+def _old_set(out, kind):
+    """A folder holding an earlier scan: a journal of five lines and its outputs."""
+    out.mkdir()
+    rows = [json.dumps({"journal": f"esail-opt {kind}", "problem": "earlier"})]
+    rows += [json.dumps({"index": i, "value": 0.1 * i}) for i in range(4)]
+    (out / f"{kind}.jsonl").write_text("\n".join(rows) + "\n")
+    for name in (f"{kind}.csv", f"{kind}.json", f"{kind}.png"):
+        (out / name).write_text(f"the earlier {name}\n")
+    return {p.name: p.read_bytes() for p in out.iterdir()}
+
+
+@pytest.mark.parametrize("kind", ["sweep", "porkchop"])
+def test_an_unreachable_scheduler_leaves_the_journal_and_outputs_as_they_were(tmp_path,
+                                                                             kind):
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    out = tmp_path / "out"
+    before = _old_set(out, kind)
+    run = _cli(*_scan_command(kind, problem, out, "--scheduler",
+                              f"tcp://127.0.0.1:{_free_port()}"))
+    assert run.returncode == 2
+    assert len(_messages(run.stderr)) == 1
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_a_refused_resume_leaves_the_torn_line_in_place(tmp_path):
+    """--resume of another problem's journal is refused, and the row torn at its end
+    (which an accepted resume would cut off) is still there."""
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    out = tmp_path / "out"
+    out.mkdir()
+    journal = out / sweep.JOURNAL
+    journal.write_text(json.dumps({**HEADER, "problem": "another"}) + "\n"
+                       + json.dumps(sweep._empty_row(0, 0.5)) + "\n"
+                       + '{"index": 1, "value": 1.0, "conv')
+    before = journal.read_bytes()
+    run = _cli(*_scan_command("sweep", problem, out, "--resume"))
+    assert run.returncode == 2
+    lines = _messages(run.stderr)
+    assert len(lines) == 1 and "belongs to another sweep" in lines[0]
+    assert journal.read_bytes() == before
+
+
+def test_a_journal_holding_part_of_its_header_is_not_cut_to_nothing(tmp_path):
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    out = tmp_path / "out"
+    out.mkdir()
+    journal = out / sweep.JOURNAL
+    journal.write_text(json.dumps(HEADER)[:40])  # the first write was cut off
+    run = _cli(*_scan_command("sweep", problem, out, "--resume"))
+    assert run.returncode == 2
+    assert "is not a sweep journal" in _messages(run.stderr)[0]
+    assert journal.read_text() == json.dumps(HEADER)[:40]
+
+
+@pytest.mark.parametrize("kind", ["sweep", "porkchop"])
+@pytest.mark.parametrize("dangling", [False, True])
+def test_a_symlinked_out_is_refused_before_anything_runs(tmp_path, kind, dangling):
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    target = tmp_path / "elsewhere"
+    if not dangling:
+        target.mkdir()
+    link = tmp_path / "out"
+    link.symlink_to(target)
+    run = _cli(*_scan_command(kind, problem, link))
+    assert run.returncode == 2
+    lines = _messages(run.stderr)
+    assert len(lines) == 1 and "--out" in lines[0] and "symbolic link" in lines[0], lines
+    assert not target.exists() if dangling else not list(target.iterdir())
+
+
+@pytest.mark.parametrize("row, message", [
+    ({"tof_days": "abc"}, "line 2 is not a valid row: tof_days = 'abc' is not a num"),
+    ({"converged": "yes"}, "line 2 is not a valid row: converged = 'yes' is not a bool"),
+    ({"index": 1.5}, "line 2 is not a valid row: index = 1.5 is not a int"),
+])
+def test_a_bad_journal_row_is_one_line_naming_its_line(tmp_path, row, message):
+    path = tmp_path / sweep.JOURNAL
+    good = {**sweep._empty_row(0, 0.5), "converged": True}
+    path.write_text(json.dumps(HEADER) + "\n" + json.dumps({**good, **row}) + "\n")
+    with pytest.raises(InputError) as err:
+        _journal(path, HEADER).open(resume=True)
+    assert message in str(err.value) and str(path) in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_verified_row_with_a_nan_time_is_not_verified(tmp_path):
+    """A hand-edited row claiming "verified" with a NaN time of flight is refused
+    through the command line (exit 2, one line with its line number), never counted
+    as a verified member (exit 0)."""
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    out = tmp_path / "out"
+    out.mkdir()
+    values = [0.5, 1.0, 1.5]
+    header = {"journal": "esail-opt sweep", "problem": "tiny",
+              "source_sha256": engine.source_digest(problem.read_text()),
+              "param": "ac_mm_s2", "values": values, "polish": False,
+              "tolerance": {"position_km": 1e6, "velocity_m_s": 1e4}}
+    lines = [json.dumps(header)]
+    for i, value in enumerate(values):
+        row = {**sweep._empty_row(i, value), "converged": True, "verified": True,
+               "status": "Solve_Succeeded", "objective": 1.0, "tof_days": 500.0}
+        lines.append(json.dumps(row))
+    lines[2] = lines[2].replace('"tof_days": 500.0', '"tof_days": NaN')
+    (out / sweep.JOURNAL).write_text("\n".join(lines) + "\n")
+    tolerance = ("--tol-km", "1e6", "--tol-m-s", "1e4")
+    run = _cli(*_scan_command("sweep", problem, out, "--resume", *tolerance))
+    assert run.returncode == 2, run.stderr
+    messages = _messages(run.stderr)
+    assert len(messages) == 1 and "line 3" in messages[0] and "NaN" in messages[0]
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--out", ""), ("--out",)),
+    (("--scheduler", "inproc://x"), ("--scheduler", "tcp://HOST:PORT")),
+    (("--scheduler", "tcp://127.0.0.1:99999"), ("--scheduler", "[1, 65535]")),
+    (("--scheduler", "tcp://127.0.0.1:0"), ("--scheduler", "[1, 65535]")),
+    (("--workers", "65"), ("workers", "[1, 64]")),
+])
+@pytest.mark.parametrize("kind", ["sweep", "porkchop"])
+def test_a_bad_scan_option_is_one_line_naming_it(tmp_path, capsys, kind, args, words):
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    out = tmp_path / "out"
+    command = list(map(str, _scan_command(kind, problem, out)))
+    if args[0] == "--out":
+        command = command[:-2]
+    assert cli.main([*command, *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and all(word in err for word in words), err
+    assert not out.exists()
+
+
+def test_search_refuses_an_empty_out(tmp_path, capsys):
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    assert cli.main(["search", str(problem), "--out", ""]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out" in err
+
+
+def test_a_negative_tof_range_is_one_line_not_a_usage_message(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli.main(["porkchop", str(WINDOW), "--depart", "2030-01-01:2030-03-01:2",
+                     "--tof", "-100:850:2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tof START" in err and "usage" not in err, err
+    assert not out.exists()
+
+
+def test_a_cache_out_of_inodes_is_full(tmp_path, monkeypatch):
+    """Creating a file fails for want of inodes while bytes are free: the cache is
+    full, and a run does not try a compile there."""
+    from esail_opt.propagation import compiled as cc
+
+    real = os.statvfs(tmp_path)
+
+    class NoInodes:
+        f_bavail, f_frsize = real.f_bavail, real.f_frsize
+        f_files, f_favail = 1_000_000, 0
+
+    monkeypatch.setattr(cc.os, "statvfs", lambda folder: NoInodes)
+    reason = cc._unusable(tmp_path)
+    assert reason is not None and "inodes" in reason
+
+
+# ---------------------------------------------------------------- 8. what a killed worker leaves
+
+
+def _naming(needle):
+    """Pids of the live processes whose command line holds ``needle``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit() and int(entry.name) != os.getpid():
+            try:
+                if os.fsencode(needle) in (entry / "cmdline").read_bytes() \
+                        and _alive(int(entry.name)):
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGTERM])
+def test_a_process_killed_mid_compile_leaves_no_compiler_and_no_files(tmp_path, signum):
+    """A process compiling the cache's first library is ended by a signal it does not
+    handle (a pool worker's end): no gcc runs on, no build folder stays in the cache,
+    and no assembler file stays in the temporary folder."""
+    cache, scratch = tmp_path / "cache", tmp_path / "tmp"
+    scratch.mkdir()
+    child = ("from esail_opt.propagation.compiled import compiled; "
+             "from esail_opt.propagation.rectified import panel_function; "
+             "compiled(panel_function())")
+    env = {k: v for k, v in _env(ESAIL_OPT_CACHE=str(cache), TMPDIR=str(scratch)).items()
+           if k != "ESAIL_OPT_COMPILE"}
+    proc = subprocess.Popen([sys.executable, "-c", child], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and proc.poll() is None:
+            if any(b"cc1" in Path(f"/proc/{p}/cmdline").read_bytes()
+                   for p in _naming(str(cache)) if Path(f"/proc/{p}").exists()):
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, "the compile ended before it could be killed"
+        time.sleep(0.5)  # well inside cc1's work on the Hessian block
+        proc.send_signal(signum)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and (_naming(str(cache)) or list(cache.glob(".build-*"))):
+        time.sleep(0.2)
+    left = _naming(str(cache))
+    for pid in left:  # not to outlive the test either way
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    assert not left, "a compiler outlived the process that started it"
+    assert not list(cache.glob(".build-*"))
+    assert not list(scratch.glob("cc*"))
+
+
+@pytest.mark.slow
+def test_a_member_whose_file_ends_its_worker_leaks_no_folder(tmp_path):
+    """A problem file that calls os._exit in the workers (not in the command's own
+    process) costs its member: it is lost with its worker, tried again and reported,
+    and no try leaves its folder in the temporary folder."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    problem = tmp_path / "exits.py"
+    problem.write_text("import multiprocessing, os\n"
+                       "if multiprocessing.parent_process() is not None:\n"
+                       "    os._exit(3)\n" + TINY.format(name="exits"))
+    run = _cli("sweep", problem, "--param", "ac_mm_s2=1:1:1", "--workers", "1",
+               "--out", tmp_path / "out", env=_env(TMPDIR=str(scratch), ESAIL_OPT_COMPILE="0"))
+    assert run.returncode == 1, run.stderr
+    row = json.loads((tmp_path / "out" / "sweep.json").read_text())["rows"][0]
+    assert "worker lost 3 times" in row["error"]
+    assert not [p.name for p in scratch.iterdir() if p.name.startswith("esail_")]
+
+
+@pytest.mark.slow
+def test_an_unusable_cache_is_said_once_per_run_not_per_worker(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    env = {k: v for k, v in _env(ESAIL_OPT_CACHE=str(blocker / "cache")).items()
+           if k != "ESAIL_OPT_COMPILE"}
+    run = _cli("sweep", problem, "--param", "ac_mm_s2=0.5:1.5:2", "--workers", "2",
+               "--out", tmp_path / "out", env=env)
+    assert run.returncode == 0, run.stderr
+    said = [ln for ln in run.stderr.splitlines() if "cannot compile into the cache" in ln]
+    assert len(said) == 1, said
+
+
+def test_cells_out_is_checked_before_anything_runs(tmp_path, capsys):
+    out = tmp_path / "out"
+    base = ["porkchop", str(WINDOW), "--depart", "2030-01-01:2030-03-01:2", "--out", str(out)]
+    assert cli.main([*base, "--cells-out", ""]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--cells-out" in err
+    assert cli.main([*base, "--cells-out", str(tmp_path / "cells"), "--scheduler",
+                     "tcp://127.0.0.1:8786"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--cells-out" in err and "--scheduler" in err
+    assert not (out / "porkchop.jsonl").exists() and not (tmp_path / "cells").exists()

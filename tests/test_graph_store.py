@@ -2,6 +2,7 @@
 they are the Functions built, and anything that could make them differ builds anew."""
 
 import inspect
+import logging
 import os
 
 import numpy as np
@@ -103,3 +104,21 @@ def test_a_stored_graph_follows_the_umask(tmp_path, monkeypatch):
     (path,) = (tmp_path / "graphs").glob("*.casadi")
     assert path.stat().st_mode & 0o777 == 0o644
     assert not list((tmp_path / "graphs").glob(".*.tmp"))
+
+
+def test_a_graph_failing_its_checksum_is_said_in_one_line(tmp_path, monkeypatch, caplog):
+    """The README's promise: a stored arc graph that fails its checksum is rebuilt with
+    one line naming it; an intact one is read without a word."""
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    builds = []
+    store = graph_store.stored(_counted(builds))
+    store()
+    (path,) = (tmp_path / "graphs").glob("*.casadi")
+    text = path.read_text()
+    path.write_text(text[:-10] + "0123456789")  # same length, other bytes
+    with caplog.at_level(logging.WARNING, logger="esail_opt"):
+        store()
+        store()
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(builds) == 2
+    assert len(lines) == 1 and path.name in lines[0] and "checksum" in lines[0], lines

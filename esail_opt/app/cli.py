@@ -402,8 +402,9 @@ def _run_search(args):
     from esail_opt.app import search
     from esail_opt.app.files import check_output_dir
 
+    out = _out(args)
     problem = _load(args)
-    out = Path(args.out) if args.out else Path("results") / f"{problem.name}_search"
+    out = out or Path("results") / f"{problem.name}_search"
     check_output_dir(out, name=None if args.out else out.name)  # before the search
     progress = progress_printer("search")
     data, solutions = search.run(problem, args.extra_revolutions, polish=not args.no_polish,
@@ -438,9 +439,10 @@ def _add_sweep(sub):
     p.add_argument("--param", required=True, metavar="NAME=START:STOP:COUNT",
                    help="parameter and its grid, e.g. ac_mm_s2=0.2:2:10 (COUNT values, ends included)")
     p.add_argument("--workers", type=int, default=None,
-                   help="local worker processes, >= 1 (default: min(COUNT, CPUs))")
+                   help="local worker processes, in [1, 64] (default: min(COUNT, CPUs))")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on this Dask distributed scheduler instead (needs the dask extra)")
+                   help="run on this Dask distributed scheduler instead, tcp://HOST:PORT "
+                   "(needs the dask extra)")
     p.add_argument("--polish", action="store_true",
                    help="also polish every member on the exact Eqs. 1-2 (in time)")
     p.add_argument("--out", default=None,
@@ -450,6 +452,26 @@ def _add_sweep(sub):
                    "and run only the others (without it the journal starts afresh)")
     _add_tolerance(p)
     p.set_defaults(run=_run_sweep)
+
+
+def _out(args, option="--out"):
+    """The folder option ``option`` as a Path, None when it is not given; an empty one
+    is refused (it is not the default folder)."""
+    from pathlib import Path
+
+    value = getattr(args, option.lstrip("-").replace("-", "_"))
+    if value is None:
+        return None
+    if not str(value).strip():
+        raise InputError(f"{option} = {value!r}: give a folder name, or leave {option} "
+                         "out")
+    return Path(value)
+
+
+#: The options whose value is a range, which may start with a minus sign: given as
+#: ``--tof -100:850:2`` the value reaches its own check (one line naming it) instead of
+#: being taken for an option.
+_RANGE_OPTIONS = ("--param", "--depart", "--tof")
 
 
 def _sweepable():
@@ -462,6 +484,17 @@ class _Parser(argparse.ArgumentParser):
     """The subcommands' parser: a description's ``{sweepable}`` is filled in when the
     help is printed, so that building the parser (every command does) does not import
     the sweep module."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        args = list(sys.argv[1:] if args is None else args)
+        joined = []
+        for arg in args:
+            if joined and joined[-1] in _RANGE_OPTIONS and arg.startswith("-") \
+                    and ":" in arg:
+                joined[-1] = f"{joined[-1]}={arg}"
+            else:
+                joined.append(arg)
+        return super().parse_known_args(joined, namespace)
 
     def format_help(self):
         if self.description and "{sweepable}" in self.description:
@@ -476,7 +509,7 @@ def _run_sweep(args):
 
     name = args.param.partition("=")[0].strip()
     # The folder first: the journal goes there while the members run.
-    out = Path(args.out) if args.out else sweep.default_out_dir(args.problem_file, args.param)
+    out = _out(args) or sweep.default_out_dir(args.problem_file, args.param)
     result = sweep.run(args.problem_file, args.param, workers=args.workers,
                        scheduler=args.scheduler, polish=args.polish, out_dir=out,
                        resume=args.resume, tol_km=args.tol_km, tol_m_s=args.tol_m_s,
@@ -499,7 +532,7 @@ def _add_porkchop(sub):
         "needs).  Neighbouring cells share one NLP and warm-start from each other; every "
         "cell is verified on Eqs. 1-2 against the ephemeris.  Writes porkchop.json, "
         "porkchop.csv and porkchop.png; exit status 1 if any cell is not verified.  Runs "
-        "on the sweep's engine: journal (porkchop.jsonl), --resume, retries, Dask.",
+        "on the scan engine: journal (porkchop.jsonl), --resume, retries, Dask.",
     )
     p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
     p.add_argument("--depart", required=True, metavar="START:STOP:COUNT",
@@ -507,13 +540,17 @@ def _add_porkchop(sub):
     p.add_argument("--tof", default=None, metavar="START:STOP:COUNT",
                    help="times of flight in days, e.g. 200:400:12 (a two-dimensional scan)")
     p.add_argument("--workers", type=int, default=None,
-                   help="local worker processes, >= 1 (default: the CPUs)")
+                   help="local worker processes, in [1, 64] (default: the CPUs)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on this Dask distributed scheduler instead (needs the dask extra)")
+                   help="run on this Dask distributed scheduler instead, tcp://HOST:PORT "
+                   "(needs the dask extra)")
     p.add_argument("--out", default=None,
                    help="output directory (default results/<problem name>_porkchop)")
     p.add_argument("--resume", action="store_true",
                    help="keep the cells journaled in the output directory's porkchop.jsonl")
+    p.add_argument("--cells-out", default=None, metavar="DIR",
+                   help="also write each verified cell's solution folder (solution.json, "
+                   "schedule.csv) into DIR, as its cells end (local pool only)")
     _add_tolerance(p)
     p.set_defaults(run=_run_porkchop)
 
@@ -525,12 +562,13 @@ def _run_porkchop(args):
     from esail_opt.app.files import check_output_dir
     from esail_opt.optimisation.problem_file import load_problem
 
-    out = Path(args.out) if args.out else (
-        Path("results") / f"{load_problem(args.problem_file).name}_porkchop")
+    out = _out(args) or Path("results") / f"{load_problem(args.problem_file).name}_porkchop"
     check_output_dir(out)
+    cells = _out(args, "--cells-out")
     result = porkchop.run(args.problem_file, args.depart, args.tof, workers=args.workers,
                           scheduler=args.scheduler, out_dir=out, resume=args.resume,
-                          tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_line)
+                          tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_line,
+                          cells_out=cells)
     for path in porkchop.write(result, out):
         print(f"wrote {path}")
     best = result["best"]

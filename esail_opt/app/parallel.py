@@ -2,7 +2,7 @@
 
 :func:`run` calls ``function(index, *args)`` once per job on a
 :mod:`concurrent.futures` executor: a local process pool, or Dask distributed's
-executor when a scheduler address is given -- the same code path either way.  Results
+executor on a client of :func:`session` -- the same code path either way.  Results
 and failures are handed to the caller as each job ends, in finishing order.
 
 A job whose worker process dies (killed, out of memory, a crash in native code) is run
@@ -32,6 +32,7 @@ from pathlib import Path
 
 from esail_opt import processes
 from esail_opt.errors import InputError
+from esail_opt.propagation.compiled import SAID
 
 #: Times a job lost with its worker is run again before it is reported failed.
 RETRIES = 2
@@ -61,7 +62,8 @@ def first_line(err):
     return f"{type(err).__name__}: {detail}".rstrip(": ")
 
 
-def run(function, jobs, on_result, on_failure, workers=1, scheduler=None, retries=RETRIES):
+def run(function, jobs, on_result, on_failure, workers=1, client=None, address=None,
+        retries=RETRIES, quiet=()):
     """Run ``function(i, *jobs[i])`` for every job, reporting each as it ends.
 
     Parameters
@@ -76,11 +78,17 @@ def run(function, jobs, on_result, on_failure, workers=1, scheduler=None, retrie
         ``on_failure(i, message)`` when the executor failed job ``i`` or its worker was
         lost more than ``retries`` times; ``message`` is one line.
     workers : int
-        Local process-pool size, >= 1; ignored with ``scheduler``.
-    scheduler : str, optional
-        Address of a Dask distributed scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+        Local process-pool size, >= 1; ignored with ``client``.
+    client : distributed.Client, optional
+        A Dask client from :func:`session`; None runs on a local process pool.
+    address : str, optional
+        The client's scheduler address, for the lines that name it.
     retries : int
         Times a job lost with its worker is run again.
+    quiet : sequence of str
+        What the compile cache has already said in this process
+        (:func:`esail_opt.propagation.compiled.check_cache`), which the local workers
+        then do not say again.
 
     Returns
     -------
@@ -89,20 +97,38 @@ def run(function, jobs, on_result, on_failure, workers=1, scheduler=None, retrie
 
     Raises
     ------
-    InputError
-        Dask is missing or the scheduler cannot be reached (before any job runs).
     ClusterLost
         The Dask scheduler was lost, or every worker, for longer than
         :data:`SCHEDULER_LOST_SECONDS` or :data:`NO_WORKER_SECONDS` (one line).
     KeyboardInterrupt
         After stopping the workers (:class:`~esail_opt.errors.Terminated` for SIGTERM).
     """
-    with _quiet_dask() if scheduler is not None else contextlib.nullcontext():
-        client = _connect(scheduler) if scheduler is not None else None
-        runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
-                         scheduler)
-        runner.run()
+    runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
+                     address, quiet)
+    runner.run()
     return {i: (n, runner.causes[i]) for i, n in sorted(runner.losses.items())}
+
+
+@contextlib.contextmanager
+def session(scheduler):
+    """A Dask client on ``scheduler`` while inside (None without one), Dask's own log
+    lines kept off the terminal.
+
+    Raises
+    ------
+    InputError
+        Dask is missing or the scheduler cannot be reached, on entering.
+    """
+    if scheduler is None:
+        yield None
+        return
+    with _quiet_dask():
+        client = _connect(scheduler)
+        try:
+            yield client
+        finally:
+            with contextlib.suppress(Exception):
+                client.close(timeout=CONNECT_SECONDS)
 
 
 #: The start of a run's scratch folder's name in the temporary folder; the run's pid
@@ -129,8 +155,9 @@ class _Runner:
     """
 
     def __init__(self, function, jobs, on_result, on_failure, workers, client, retries,
-                 address=None):
+                 address=None, quiet=()):
         self.function, self.jobs = function, jobs
+        self.quiet = tuple(quiet)
         self.address = address
         self.unhealthy = {}  # what is wrong with the cluster -> since when (monotonic)
         self.on_result, self.on_failure = on_result, on_failure
@@ -171,7 +198,7 @@ class _Runner:
             # pure=False: a job run again must be a new task, not Dask's remembered
             # failure of the same arguments.
             self.executor = (self.client.get_executor(pure=False) if self.client is not None
-                             else _new_pool(self.workers))
+                             else _new_pool(self.workers, self.quiet))
         submitted = []
         try:
             for i in todo:
@@ -308,13 +335,16 @@ class _Runner:
 # ---------------------------------------------------------------- in the workers
 
 
-def _worker_init(threads, parent=None):
+def _worker_init(threads, parent=None, quiet=()):
     """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
     the whole process group) reaches only the parent, which decides what stops; it
-    evaluates its NLP's segments on its share of the cores (``ESAIL_OPT_THREADS``); and
-    it ends when its parent ``parent`` does, however the parent ended."""
+    evaluates its NLP's segments on its share of the cores (``ESAIL_OPT_THREADS``); it
+    does not repeat what the compile cache said in the parent (``quiet``); and it ends
+    when its parent ``parent`` does, however the parent ended."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
+    if quiet:
+        os.environ[SAID] = os.pathsep.join(quiet)
     if parent is not None:
         processes.die_with_parent(parent)
 
@@ -399,7 +429,7 @@ def _quiet_dask():
             logger.setLevel(level)
 
 
-def _new_pool(workers):
+def _new_pool(workers, quiet=()):
     """A fresh local process pool whose workers ignore SIGINT."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
@@ -410,7 +440,7 @@ def _new_pool(workers):
     return ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_worker_init,
-                               initargs=(max(1, cores // workers), os.getpid()))
+                               initargs=(max(1, cores // workers), os.getpid(), tuple(quiet)))
 
 
 def _pool_processes(pool, known):

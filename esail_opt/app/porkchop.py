@@ -6,9 +6,9 @@ at every departure date (its own objective: minimum time, say); with ``--tof
 flight replaced, which with ``MinAcceleration`` is the sail designer's porkchop: the
 characteristic acceleration a transfer needs, per launch date and duration.
 
-A porkchop is a sweep over dates, and runs on the sweep's engine
-(:mod:`esail_opt.app.parallel`: a process pool or Dask, a journal of finished work,
-``--resume``, retries of lost workers, Ctrl-C).  A job is a run of neighbouring cells
+This module describes the cells and the outputs; the scan engine
+(:mod:`esail_opt.app.engine`) runs them: a process pool or Dask, a journal of finished
+cells, ``--resume``, retries of lost workers, Ctrl-C.  A job is a run of neighbouring cells
 -- a block of dates, or one departure date's row of flight times -- solved in order by
 :func:`esail_opt.optimisation.scan.scan` on one NLP, each cell warm from its solved
 neighbour; the journal holds each job's cells as the job ends.
@@ -22,14 +22,12 @@ import dataclasses
 import io
 import math
 import os
-import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
-from esail_opt.app import parallel, sweep
-from esail_opt.app.files import write_table_set
+from esail_opt.app import engine, parallel
+from esail_opt.app.files import check_output_dir, write_table_set
 from esail_opt.app.parallel import first_line
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import MAX_RANGE_COUNT, InputError, check_range, number_range
@@ -41,6 +39,20 @@ CSV_FIELDS = ("index", "departure_date", "tof_days_grid", "converged", "verified
               "departure_jd", "arrival_date", "tof_days", "objective", "objective_unit",
               "target_miss_r_km", "target_miss_v_m_s", "relative_speed_km_s",
               "out_of_plane_km", "iterations", "start", "seconds", "error")
+#: What each field of a row holds (checked as a journal is read; "?": or null).
+ROW_KINDS = {"index": "int", "departure_date": "str", "tof_days_grid": "num?",
+             "converged": "bool", "verified": "bool", "status": "str?",
+             "departure_jd": "num", "arrival_date": "str?", "tof_days": "num?",
+             "objective": "num?", "objective_unit": "str?", "target_miss_r_km": "num?",
+             "target_miss_v_m_s": "num?", "relative_speed_km_s": "num?",
+             "out_of_plane_km": "num?", "iterations": "int?", "start": "str?",
+             "seconds": "num?", "error": "str?", "ac_mm_s2_required": "num?",
+             "departure_state": "dict?", "schedule": "list?"}
+#: What a row holds beyond the CSV's columns, in porkchop.json and its journal: the
+#: cell's flight as solution.json gives it (the state its schedule is flown from, the
+#: schedule, and for MinAcceleration the a_c it is flown at), so that a cell can be
+#: flown, or used, without solving it again.
+FLIGHT_FIELDS = ("ac_mm_s2_required", "departure_state", "schedule")
 JOURNAL = "porkchop.jsonl"
 #: The files a porkchop writes as one set (its journal is kept beside them).
 PORKCHOP_FILES = ("porkchop.csv", "porkchop.json", "porkchop.png")
@@ -163,7 +175,7 @@ def cell_problem(problem, grid, index):
 
 def _row(index, grid, cell=None, error=None):
     jd, tof = grid.cell(index)
-    row = dict.fromkeys(CSV_FIELDS)
+    row = dict.fromkeys(CSV_FIELDS + FLIGHT_FIELDS)
     row.update(index=index, departure_date=dates.iso_from_jd(jd), departure_jd=jd,
                tof_days_grid=tof, converged=False, verified=False, error=error)
     if cell is None:
@@ -180,27 +192,67 @@ def _row(index, grid, cell=None, error=None):
         tof_tu = float(np.sum(result.durations))
         row.update(tof_days=units.time_to_days(tof_tu), objective=cell.objective * factor,
                    objective_unit=unit.strip(),
-                   arrival_date=dates.iso_from_jd(dates.jd_from_tu(result.epoch + tof_tu)))
+                   arrival_date=dates.iso_from_jd(dates.jd_from_tu(result.epoch + tof_tu)),
+                   **_flight(cell))
     if not cell.verified and error is None:
         row["error"] = cell.note
     return row
 
 
+def _flight(cell):
+    """A solved cell's :data:`FLIGHT_FIELDS`, in solution.json's units and keys."""
+    from esail_opt.app.solution import _polar_dict, _schedule
+
+    problem, result = cell.problem, cell.result
+    out = {"departure_state": _polar_dict(problem.start_state(result)),
+           "schedule": _schedule(result, problem.throttled())}
+    if problem.objective.free_acceleration:
+        out["ac_mm_s2_required"] = problem.sail.ac_mm_s2 * result.ac_scale
+    return out
+
+
 def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departures=(),
-              tofs=None):
+              tofs=None, cells_out=None):
     """Solve one run of neighbouring cells on one NLP; their rows.  Never raises for a
-    cell: a failure is in its row."""
+    cell: a failure is in its row.  With ``cells_out``, each verified cell's solution
+    folder is written there as its job ends (:func:`write_cell`)."""
     grid = Grid(tuple(departures), None if tofs is None else tuple(tofs))
     try:
-        with tempfile.TemporaryDirectory(prefix="esail_porkchop_") as tmp:
-            path = Path(tmp) / filename
-            path.write_text(source)
-            problem = load_problem(path).with_tolerance(tol_km, tol_m_s)
+        problem = engine.load_source(source, filename).with_tolerance(tol_km, tol_m_s)
         cells = scan.scan([cell_problem(problem, grid, i) for i in indices],
                           neighbours=grid.neighbours(indices))
-        return [_row(i, grid, c) for i, c in zip(indices, cells)]
+        rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
     except Exception as err:  # the job's cells all say why
         return [_row(i, grid, error=first_line(err)) for i in indices]
+    for cell, row in zip(cells, rows):
+        if cells_out is not None and row["verified"]:
+            try:
+                write_cell(cell, row, cells_out)
+            except Exception as err:  # the cell flies; only its folder is missing
+                row["error"] = f"cell folder not written: {first_line(err)}"
+    return rows
+
+
+def cell_folder(row):
+    """The name of a cell's solution folder: its index, date and time of flight."""
+    tof = "" if row["tof_days_grid"] is None else f"_{row['tof_days_grid']:g}d"
+    return f"cell_{row['index']:04d}_{row['departure_date'][:10]}{tof}"
+
+
+def write_cell(cell, row, folder):
+    """Write a verified cell's solution folder (solution.json and schedule.csv, as
+    ``esail-opt solve --no-plots`` would) into ``folder``/:func:`cell_folder`.
+
+    The cell's optimum is handed to the pipeline's last stages
+    (:func:`esail_opt.optimisation.pipeline.finish`): the error control finds it within
+    its tolerance already, and the verification flies it once more with the
+    solution's samples.
+    """
+    from esail_opt.app.solution import Solution
+    from esail_opt.optimisation import pipeline
+
+    run = pipeline.finish(cell.problem, cell.result, cell.transcription)
+    return Solution.of(run).write(Path(folder) / cell_folder(row), plots=False)
 
 
 def check(problem, grid):
@@ -218,59 +270,89 @@ def check(problem, grid):
 
 
 def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=None,
-        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES):
-    """Scan ``problem_file`` over ``depart`` (and ``tof``); the table as a dict.
+        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES,
+        cells_out=None):
+    """Scan ``problem_file`` over ``depart`` (and ``tof``) on the scan engine
+    (:func:`esail_opt.app.engine.run`); the table as a dict.  With ``cells_out`` (a
+    folder on the machine of the local pool), each verified cell's solution folder is
+    written there as its job ends.
 
-    Raises InputError on bad input before any solve.
+    Raises InputError on bad input (the problem, the grid, the options, a journal that
+    ``resume`` cannot continue, an unreachable scheduler) before any solve and before
+    the journal changes.
     """
+    request = _request(problem_file, depart, tof, workers, scheduler, retries, resume,
+                       out_dir, tol_km, tol_m_s, cells_out)
+    outcome = engine.run(_scan(request), out_dir=out_dir, resume=resume,
+                         workers=request.workers, scheduler=scheduler, retries=retries,
+                         progress=progress)
+    return _table(request, outcome)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Request:
+    """A checked porkchop request: the problem, its grid, and the jobs' runs of cells."""
+
+    problem_file: str
+    problem: object
+    source: str
+    grid: Grid
+    jobs: list
+    workers: int
+    param: str
+    tol_km: object
+    tol_m_s: object
+    cells_out: object = None
+
+    def header(self):
+        """What identifies this porkchop in its journal."""
+        grid = self.grid
+        return {"journal": "esail-opt porkchop", "problem": self.problem.name,
+                "source_sha256": engine.source_digest(self.source), "param": self.param,
+                "values": [float(v) for v in grid.departures] + list(grid.tofs or []),
+                "polish": False, "tolerance": dataclasses.asdict(self.problem.tolerance)}
+
+
+def _request(problem_file, depart, tof, workers, scheduler, retries, resume, out_dir,
+             tol_km, tol_m_s, cells_out=None):
+    """The request of :func:`run`, checked before anything runs (InputError if bad)."""
     grid = Grid(tuple(parse_dates(depart)), None if tof is None else tuple(parse_tofs(tof)))
+    workers = engine.check_options(workers, scheduler, retries, resume, out_dir)
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check(problem, grid)
-    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
-                                or workers < 1):
-        raise InputError(f"workers = {workers!r} is outside [1, inf)")
-    if resume and out_dir is None:
-        raise InputError("resume needs out_dir, the folder holding the journal")
-    jobs_all = grid.jobs(workers or os.cpu_count() or 1)
-    workers = int(workers) if workers is not None else min(len(jobs_all), os.cpu_count() or 1)
-    source = Path(problem_file).read_text()
-    header = {"journal": "esail-opt porkchop", "problem": problem.name,
-              "source_sha256": sweep._source_digest(source),
-              "param": f"depart={depart} tof={tof}",
-              "values": [float(v) for v in grid.departures] + list(grid.tofs or []),
-              "polish": False, "tolerance": dataclasses.asdict(problem.tolerance)}
-    journal, kept = None, {}
-    if out_dir is not None:
-        journal = sweep.Journal(Path(out_dir) / JOURNAL, header, fields=CSV_FIELDS,
-                                count=int(np.prod(grid.shape)))
-        kept = journal.open(resume)
-    rows = dict(kept)
-    todo = {j: job for j, job in enumerate(jobs_all) if not all(i in rows for i in job)}
-    total = int(np.prod(grid.shape))
+    for folder in (out_dir, cells_out):
+        if folder is not None:
+            check_output_dir(folder)
+    if cells_out is not None and scheduler is not None:
+        raise InputError("--cells-out writes on this machine: it needs the local pool, "
+                         "not --scheduler")
+    jobs = grid.jobs(workers or os.cpu_count() or 1)
+    workers = workers or min(len(jobs), os.cpu_count() or 1)
+    return _Request(str(problem_file), problem, Path(problem_file).read_text(), grid, jobs,
+                    workers, f"depart={depart} tof={tof}", tol_km, tol_m_s,
+                    None if cells_out is None else str(Path(cells_out).resolve()))
 
-    def finished(j, job_rows):
-        for row in job_rows:
-            rows[row["index"]] = row
-            if journal is not None:
-                journal.append(row)
-            if progress:
-                progress(row, len(rows), total)
 
-    def failed(j, error):
-        finished(j, [_row(i, grid, error=error) for i in todo[j]])
+def _scan(request):
+    """The porkchop as the engine runs it: one job per run of neighbouring cells."""
+    grid = request.grid
+    common = (request.source, Path(request.problem_file).name, request.tol_km,
+              request.tol_m_s, [float(v) for v in grid.departures],
+              None if grid.tofs is None else list(grid.tofs), request.cells_out)
+    return engine.Scan(
+        journal_name=JOURNAL, header=request.header(), kinds=ROW_KINDS,
+        count=int(np.prod(grid.shape)), function=solve_job,
+        jobs={j: (job, (job, *common)) for j, job in enumerate(request.jobs)},
+        failed_row=lambda i, message: _row(i, grid, error=message))
 
-    started = time.perf_counter()
-    args = {j: (job, source, Path(problem_file).name, tol_km, tol_m_s,
-                [float(v) for v in grid.departures], None if grid.tofs is None else list(grid.tofs))
-            for j, job in todo.items()}
-    parallel.run(solve_job, args, finished, failed, workers=workers, scheduler=scheduler,
-                 retries=retries)
-    ordered = [rows[i] for i in range(total)]
-    verified = [r for r in ordered if r["verified"]]
-    best = min(verified, key=lambda r: r["objective"]) if verified else None
-    return {"problem": problem.name, "problem_file": str(problem_file),
+
+def _table(request, outcome):
+    """The table :func:`run` returns."""
+    problem, grid, rows = request.problem, request.grid, outcome.rows
+    verified = [r for r in rows if r["verified"]]
+    return {"problem": problem.name, "problem_file": request.problem_file,
             "objective": type(problem.objective).__name__,
-            "objective_unit": next((r["objective_unit"] for r in ordered if r["objective_unit"]),
+            "objective_unit": next((r["objective_unit"] for r in rows if r["objective_unit"]),
                                    None),
             "target": _target_name(problem),
             # What "verified" held each cell to, as sweep.json records it.
@@ -278,13 +360,12 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
                           "velocity_m_s": problem.tolerance.velocity_m_s},
             "departures": [dates.iso_from_jd(jd) for jd in grid.departures],
             "tofs_days": None if grid.tofs is None else list(grid.tofs),
-            "shape": list(grid.shape), "cells": total, "verified_cells": len(verified),
-            "not_verified": total - len(verified), "best": best,
-            "executor": (f"dask distributed at {scheduler}" if scheduler is not None
-                         else f"process pool, {workers} workers"),
-            "wall_seconds": time.perf_counter() - started,
-            "resumed": sorted(kept), "rows": ordered,
-            "journal": None if journal is None else str(journal.path)}
+            "shape": list(grid.shape), "cells": len(rows), "verified_cells": len(verified),
+            "not_verified": len(rows) - len(verified),
+            "best": min(verified, key=lambda r: r["objective"]) if verified else None,
+            "executor": outcome.executor, "wall_seconds": outcome.seconds,
+            "resumed": outcome.resumed, "rows": rows,
+            "journal": None if outcome.journal is None else str(outcome.journal)}
 
 
 def _target_name(problem):

@@ -2,44 +2,39 @@
 
 ``esail-opt sweep PROBLEM.py --param ac_mm_s2=0.2:2:10`` solves ten copies of the
 problem, each with ``sail.ac_mm_s2`` replaced, and writes ``sweep.csv``,
-``sweep.json`` and ``sweep.png``.  The members run through
-:mod:`esail_opt.app.parallel`: a local process pool by default, or Dask distributed's
-executor when a scheduler address is given -- the same code path either way, so moving
-a sweep to a cluster changes one option and no numbers.
+``sweep.json`` and ``sweep.png``.  This module describes the members and the outputs;
+the scan engine (:mod:`esail_opt.app.engine`) runs them, on a local process pool by
+default or on Dask distributed when a scheduler address is given -- the same code path
+either way, so moving a sweep to a cluster changes one option and no numbers.
 
 Each member is independent and returns a plain dict row.  A member that raises, does
 not converge, or converges to a schedule whose CVODES flight misses the problem's
 tolerance is reported in its row (``error`` says why); it never stops the others.  Rows
 are ordered by parameter value, whatever order the members finish in.
 
-A sweep survives its faults.  Every finished member is appended at once to the journal
-``sweep.jsonl`` in the output folder, so ``--resume`` runs only the members it lacks.  A
-member whose worker process dies is run again a bounded number of times, without
-charging the members on healthy workers.  Ctrl-C stops the workers within seconds,
-keeps the journal and writes nothing else.
+A sweep survives its faults (the engine's contract): every finished member is journaled
+in ``sweep.jsonl`` at once, ``--resume`` runs only the members it lacks, a member whose
+worker dies is run again a bounded number of times, and Ctrl-C stops the workers within
+seconds, keeping the journal and writing nothing else.  A value that no problem accepts
+is refused before any member runs.
 
 Only the names in :data:`SWEEPABLE` can be swept; each maps to one field of the
 :class:`~esail_opt.optimisation.problem.Problem` tree, so the mapping is explicit
 rather than a free-form attribute path a typo could send anywhere.
 """
 
-import contextlib
 import csv
 import dataclasses
-import errno
-import hashlib
+import functools
 import io
-import json
 import os
-import tempfile
 import time
 from pathlib import Path
 
-
-from esail_opt.app import parallel
-from esail_opt.app.files import atomic_path, check_output_dir, json_ready, write_table_set
+from esail_opt.app import engine, parallel
+from esail_opt.app.files import check_output_dir, write_table_set
 from esail_opt.app.parallel import first_line
-from esail_opt.errors import InputError, OutputError, number_range
+from esail_opt.errors import InputError, number_range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +69,14 @@ SWEEPABLE = {
 CSV_FIELDS = ("index", "value", "converged", "verified", "status", "tof_days", "objective",
               "target_miss_r_km", "target_miss_v_m_s", "iterations", "tof_days_exact",
               "exact_verified", "exact_target_miss_km", "seconds", "error")
+
+#: What each field of a row holds (:class:`esail_opt.app.engine.Journal` checks a
+#: journal's rows against it; "?": or null).
+ROW_KINDS = {"index": "int", "value": "num", "converged": "bool", "verified": "bool?",
+             "status": "str?", "tof_days": "num?", "objective": "num?",
+             "target_miss_r_km": "num?", "target_miss_v_m_s": "num?", "iterations": "int?",
+             "tof_days_exact": "num?", "exact_verified": "bool?",
+             "exact_target_miss_km": "num?", "seconds": "num?", "error": "str?"}
 
 #: The journal of finished members, in the sweep's output folder.
 JOURNAL = "sweep.jsonl"
@@ -141,7 +144,7 @@ def variant(problem, name, value):
     """The problem with the field that ``name`` maps to set to ``value``.
 
     Rebuilding each dataclass on the path re-runs its range checks, so an invalid value
-    raises InputError here, inside the member, where it becomes that member's row.
+    raises InputError here (the request's check builds every value's variant first).
     """
     if name == "segments":
         # A fixed count replaces a per-revolution rule, exactly as --segments does.
@@ -224,207 +227,38 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
         ``exact_target_miss_km``; None without.
     """
     from esail_opt.app import solution
-    from esail_opt.optimisation.problem_file import load_problem
 
     row = _empty_row(index, value)
     start = time.perf_counter()
     try:
-        with tempfile.TemporaryDirectory(prefix="esail_sweep_") as tmp:
-            path = Path(tmp) / filename
-            path.write_text(source)
-            problem = load_problem(path)
+        problem = engine.load_source(source, filename)
         problem = variant(problem, name, value).with_tolerance(tol_km, tol_m_s)
-        sol = solution.solve(problem, polish=polish)
-        check = sol.verification
-        verified = sol.flight_verified
-        row.update(converged=sol.converged, status=sol.status, tof_days=sol.tof_days,
-                   objective=sol.objective, iterations=sol.iterations,
-                   verified=bool(verified),
-                   target_miss_r_km=check.target_miss_r_km,
-                   target_miss_v_m_s=check.target_miss_v_m_s)
-        exact = sol.polish
-        if exact is not None:
-            row.update(tof_days_exact=exact.tof_days, exact_verified=exact.verified,
-                       exact_target_miss_km=(None if exact.verification is None
-                                             else exact.verification.target_miss_r_km))
-        if not sol.converged:
-            row["error"] = f"not converged: Ipopt {sol.status}"
-        elif check.error:
-            row["error"] = f"verification: {check.error}"
-        elif not verified:
-            row["error"] = _not_verified(sol, problem.tolerance)
+        _fill(row, solution.solve(problem, polish=polish), problem.tolerance)
     except Exception as err:  # a member may fail in any way; its row says how
         row["error"] = first_line(err)
     row["seconds"] = time.perf_counter() - start
     return row
 
 
-# ---------------------------------------------------------------- journal
-
-
-def _source_digest(source):
-    """SHA-256 of the problem file's text: a resumed journal must come from this file."""
-    return hashlib.sha256(source.encode()).hexdigest()
-
-
-def _short(value):
-    """A one-line, bounded repr for a journal mismatch message."""
-    if isinstance(value, list) and len(value) > 6:
-        return f"[{', '.join(map(repr, value[:3]))}, ..., {value[-1]!r}] ({len(value)} values)"
-    return repr(value)
-
-
-class Journal:
-    """The sweep's record on disk: a header line, then one JSON row per finished member.
-
-    Each row is one ``write`` of one whole line to a file opened for appending,
-    followed by ``fsync``: a crash or a kill leaves at most a torn last line, which
-    :meth:`open` ignores, and every row before it is on disk.
-
-    Parameters
-    ----------
-    path : Path
-        The journal file, ``<out_dir>/sweep.jsonl``.
-    header : dict
-        What identifies the sweep (problem, its file's digest, param, values, polish,
-        tolerance); a journal is resumed only under the same header.
-    fields : tuple of str
-        The keys a row holds (default the sweep's :data:`CSV_FIELDS`).
-    count : int, optional
-        Rows the grid has, for a journal whose rows are cells of a grid rather than
-        members of ``header["values"]`` (a porkchop): then a row is kept by its index
-        alone, the header having already matched the grid.
-    """
-
-    def __init__(self, path, header, fields=CSV_FIELDS, count=None):
-        self.path = Path(path)
-        self.header = header
-        self.fields = fields
-        self.count = count
-
-    def _belongs(self, i, row):
-        """Whether a journal row is this grid's: where the grid puts it."""
-        if not isinstance(i, int):
-            return False
-        if self.count is not None:
-            return 0 <= i < self.count
-        values = self.header["values"]
-        return 0 <= i < len(values) and row.get("value") == values[i]
-
-    def open(self, resume):
-        """Start the journal, or with ``resume`` read the rows it already holds.
-
-        A last line without its newline is a row torn by a crash mid-append: it is
-        ignored (that member runs again) and cut off the file before anything is
-        appended, so that the next row starts on a line of its own.
-
-        Returns
-        -------
-        dict
-            Index -> row of the members the journal holds (empty unless ``resume``).
-
-        Raises
-        ------
-        InputError
-            With ``resume``: the journal is not a sweep journal, belongs to another
-            problem, problem file, param grid, polish or tolerance, or a whole line of
-            it is not UTF-8 JSON (one line naming the file and the line).
-        """
-        kept = self._read() if resume and self.path.exists() else {}
-        if not kept:
-            # Fresh start (or nothing to keep): the header replaces any old journal
-            # whole, so a stale row can never be read as this sweep's.
-            with atomic_path(self.path) as tmp:
-                tmp.write_text(self._line(self.header))
-        return kept
-
-    def append(self, row):
-        """Add one finished member's row, on disk before returning.
-
-        A write that fails part-way (a full disk) is cut back off the file, so the
-        journal never keeps half a line that the next row would be glued to.
-
-        Raises
-        ------
-        OutputError
-            The row could not be written (one line; the journal is as it was).
-        """
-        data = self._line(row).encode()
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
-        try:
-            size = os.fstat(fd).st_size
-            try:
-                written = os.write(fd, data)
-                if written != len(data):
-                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-                os.fsync(fd)
-            except OSError as err:
-                with contextlib.suppress(OSError):
-                    os.ftruncate(fd, size)
-                raise OutputError(f"cannot append to the journal {str(self.path)!r}: "
-                                  f"{os.strerror(err.errno) if err.errno else err}") from None
-        finally:
-            os.close(fd)
-
-    @staticmethod
-    def _line(obj):
-        return json.dumps(json_ready(obj), allow_nan=False) + "\n"
-
-    def _lines(self):
-        """The journal's whole lines as (number, text); a torn last line is cut off the
-        file (and not returned)."""
-        raw = self.path.read_bytes()
-        whole = raw.rfind(b"\n") + 1
-        if whole < len(raw):
-            with open(self.path, "r+b") as handle:
-                handle.truncate(whole)
-                os.fsync(handle.fileno())
-        lines = []
-        for number, chunk in enumerate(raw[:whole].split(b"\n")[:-1], start=1):
-            try:
-                lines.append((number, chunk.decode("utf-8")))
-            except UnicodeDecodeError as err:
-                raise InputError(f"resume: {self.path} line {number} is not UTF-8 (byte "
-                                 f"{err.start + 1}); delete that line, or run without "
-                                 "--resume to start fresh") from None
-        return lines
-
-    def _read(self):
-        lines = self._lines()
-        try:
-            header = json.loads(lines[0][1]) if lines else None
-        except json.JSONDecodeError:
-            header = None
-        # "sweep" or "porkchop": the run whose journal this should be.
-        kind = self.header["journal"].split()[-1]
-        if not isinstance(header, dict) or header.get("journal") != self.header["journal"]:
-            raise InputError(f"resume: {self.path} is not a {kind} journal (line 1 is not "
-                             "its header); run without --resume to start fresh")
-        for key in ("problem", "source_sha256", "param", "values", "polish", "tolerance"):
-            if header.get(key) != self.header[key]:
-                what = ("the problem file changed since it was written" if key == "source_sha256"
-                        else f"its {key} is {_short(header.get(key))}, not "
-                             f"{_short(self.header[key])}")
-                raise InputError(f"resume: {self.path} belongs to another {kind}: {what}; "
-                                 "run without --resume to start fresh")
-        kept = {}
-        for number, line in lines[1:]:
-            if not line.strip():
-                continue
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError as err:
-                raise InputError(f"resume: {self.path} line {number} is not JSON "
-                                 f"({err.msg}, column {err.colno}); delete that line, or "
-                                 "run without --resume to start fresh") from None
-            if not isinstance(row, dict):
-                continue
-            i = row.get("index")
-            if self._belongs(i, row) and i not in kept:
-                full = dict.fromkeys(self.fields)
-                full.update({k: row[k] for k in self.fields if k in row})
-                kept[i] = full
-        return kept
+def _fill(row, sol, tolerance):
+    """Put a member's solution ``sol`` into its ``row``, with why it failed if it did."""
+    check = sol.verification
+    verified = sol.flight_verified
+    row.update(converged=sol.converged, status=sol.status, tof_days=sol.tof_days,
+               objective=sol.objective, iterations=sol.iterations, verified=bool(verified),
+               target_miss_r_km=check.target_miss_r_km,
+               target_miss_v_m_s=check.target_miss_v_m_s)
+    exact = sol.polish
+    if exact is not None:
+        row.update(tof_days_exact=exact.tof_days, exact_verified=exact.verified,
+                   exact_target_miss_km=(None if exact.verification is None
+                                         else exact.verification.target_miss_r_km))
+    if not sol.converged:
+        row["error"] = f"not converged: Ipopt {sol.status}"
+    elif check.error:
+        row["error"] = f"verification: {check.error}"
+    elif not verified:
+        row["error"] = _not_verified(sol, tolerance)
 
 
 # ---------------------------------------------------------------- the family
@@ -452,10 +286,9 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
         out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES):
     """Solve the family of ``problem_file`` over ``param`` and return the table.
 
-    Members are journaled to ``out_dir/sweep.jsonl`` as they finish.  The members run
-    through :func:`esail_opt.app.parallel.run`: one whose worker dies is run again on a
-    fresh pool, up to ``retries`` times, and on KeyboardInterrupt the workers are
-    stopped at once; the journal keeps what finished and the interrupt propagates.
+    The members run on the scan engine (:func:`esail_opt.app.engine.run`, whose contract
+    covers the journal ``out_dir/sweep.jsonl``, ``resume``, the ``retries`` of members
+    lost with their worker, the Dask ``scheduler`` and KeyboardInterrupt).
 
     Parameters
     ----------
@@ -464,73 +297,42 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
     param : str
         ``NAME=START:STOP:COUNT`` (see :func:`parse_param`).
     workers : int, optional
-        Process-pool size, >= 1 (default: min(COUNT, CPUs)); ignored with
-        ``scheduler``, whose cluster decides.
-    scheduler : str, optional
-        Address of a Dask distributed scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+        Process-pool size, in [1, 64] (default: min(COUNT, CPUs)).
     progress : callable, optional
         ``progress(row, done, total)`` after each member finished in this run.
     polish : bool
         Polish every member on the exact Eqs. 1-2 as well (see :func:`solve_member`).
-    out_dir : str or Path, optional
-        The sweep's output folder, for the journal; None keeps no journal.
-    resume : bool
-        Keep the members the journal in ``out_dir`` already holds and run only the
-        others (all of them if there is no journal).  Without it an existing journal
-        is replaced.
     tol_km, tol_m_s : float, optional
-        Verification bounds for every member, in [1e-3, 1e8] km and [1e-6, 1e5] m/s
-        (default: the problem file's).
-    retries : int
-        Times a member lost with its worker is run again, >= 0.
+        Verification bounds for every member (default: the problem file's).
 
     Returns
     -------
     dict
         ``problem``, ``problem_file``, ``param``, ``field``, ``unit``,
-        ``objective_meaning``, ``objective_shown_as`` ([factor, unit]: the objective
-        column's canonical numbers times the factor are in that unit), ``values``,
-        ``executor``, ``wall_seconds``, ``polished``, ``tolerance``, ``failed`` (count
-        of rows with an error), ``rows`` (one per value, in grid order), ``journal``
-        (its path or None), ``resumed`` (indices taken from the journal), ``solved``
-        (indices that finished in this run, in finishing order) and ``lost``
-        (``{"index", "value", "losses", "cause"}`` per member charged with a lost
-        worker).
+        ``objective_meaning``, ``objective_shown_as`` ([factor, unit] of the objective
+        column), ``values``, ``executor``, ``wall_seconds``, ``polished``,
+        ``tolerance``, ``failed`` (rows with an error), ``rows`` (in grid order),
+        ``journal`` (its path or None), ``resumed`` and ``solved`` (indices) and
+        ``lost`` (``{"index", "value", "losses", "cause"}`` per member charged with a
+        lost worker).
 
     Raises
     ------
     InputError
-        Bad ``param``, ``workers``, tolerance or ``retries``, an unreadable problem
-        file, a parameter the problem does not have, a journal of another sweep under
-        ``resume``, an unsafe ``out_dir`` name, or an unreachable scheduler -- all
-        before any solve.
+        Bad input of any kind (a value no problem accepts included), a journal that
+        ``resume`` cannot continue, or an unreachable scheduler: before any solve and
+        before the journal changes.
     OutputError
         ``out_dir`` cannot be created or written (before any solve).
     esail_opt.app.parallel.ClusterLost
-        The Dask scheduler or every worker was lost (one line saying what the journal
-        keeps); nothing else is written.
-    KeyboardInterrupt
-        After stopping the workers; the journal holds every member that finished.
+        The Dask cluster was lost (one line saying what the journal keeps).
     """
-    request = _check(problem_file, param, workers, retries, resume, out_dir, polish,
-                     tol_km, tol_m_s)
-    journal, kept = _open_journal(request, out_dir, resume)
-    rows = _Rows(request.values, kept, journal, progress)
-    executor = (f"dask distributed at {scheduler}" if scheduler is not None
-                else f"process pool, {request.workers} workers")
-    start = time.perf_counter()
-    todo = rows.todo()
-    try:
-        lost = parallel.run(solve_member, {i: request.member(i) for i in todo},
-                            rows.finished, rows.unfinished, workers=request.workers,
-                            scheduler=scheduler, retries=retries)
-    except parallel.ClusterLost as err:
-        kept = (f"the journal {journal.path} keeps the {len(rows.resumed) + len(rows.solved)} "
-                "finished members; run again with --resume for the other "
-                f"{len(todo) - len(rows.solved)}" if journal is not None
-                else f"{len(rows.solved)} of {len(todo)} members had finished")
-        raise parallel.ClusterLost(f"{err}; {kept}") from None
-    return _result(request, rows, journal, executor, time.perf_counter() - start, lost)
+    request = _check(problem_file, param, workers, scheduler, retries, resume, out_dir,
+                     polish, tol_km, tol_m_s)
+    outcome = engine.run(_scan(request), out_dir=out_dir, resume=resume,
+                         workers=request.workers, scheduler=scheduler, retries=retries,
+                         progress=progress)
+    return _result(request, outcome)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -573,28 +375,28 @@ class _Request:
     def header(self):
         """What identifies this sweep in its journal."""
         return {"journal": "esail-opt sweep", "problem": self.problem.name,
-                "source_sha256": _source_digest(self.source), "param": self.name,
+                "source_sha256": engine.source_digest(self.source), "param": self.name,
                 "values": self.values, "polish": bool(self.polish),
                 "tolerance": dataclasses.asdict(self.problem.tolerance)}
 
 
-def _check(problem_file, param, workers, retries, resume, out_dir, polish, tol_km, tol_m_s):
+def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, polish,
+           tol_km, tol_m_s):
     """The request of :func:`run`, checked before anything runs (InputError if bad)."""
     from esail_opt.optimisation.problem_file import load_problem
 
     name, values = parse_param(param)
-    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
-                                or workers < 1):
-        raise InputError(f"workers = {workers!r} is outside [1, inf)")
-    if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
-        raise InputError(f"retries = {retries!r} is outside [0, inf)")
-    if resume and out_dir is None:
-        raise InputError("resume needs out_dir, the folder holding the journal")
-    workers = int(workers) if workers is not None else min(len(values), os.cpu_count() or 1)
+    workers = engine.check_options(workers, scheduler, retries, resume, out_dir)
+    workers = workers or min(len(values), os.cpu_count() or 1)
     # Loaded here too, so a broken file, an inapplicable parameter or a bad tolerance
     # is one line at once instead of COUNT identical failed rows.
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check_applicable(problem, name)
+    for value in values:  # a value no problem takes is the command's mistake
+        try:
+            variant(problem, name, value)
+        except InputError as err:
+            raise InputError(f"param {name}: {err}") from None
     if out_dir is not None:
         check_output_dir(out_dir)  # before any member runs: a sweep that cannot be
         # written must not solve first
@@ -602,60 +404,30 @@ def _check(problem_file, param, workers, retries, resume, out_dir, polish, tol_k
                     Path(problem_file).read_text(), polish, tol_km, tol_m_s)
 
 
-def _open_journal(request, out_dir, resume):
-    """The journal in ``out_dir`` (None without a folder) and the rows it keeps."""
-    if out_dir is None:
-        return None, {}
-    journal = Journal(Path(out_dir) / JOURNAL, request.header())
-    return journal, journal.open(resume)
+def _failed_row(values, i, message):
+    """The row of member ``i`` whose worker did not return one."""
+    row = _empty_row(i, values[i])
+    row["error"] = message
+    return row
 
 
-class _Rows:
-    """The sweep's rows, in grid order, filled in as its members end.
-
-    Parameters
-    ----------
-    values : list
-        The grid.
-    kept : dict
-        Index -> row of the members taken from the journal.
-    journal : Journal or None
-        Where each solved member's row goes as it ends.
-    progress : callable or None
-        ``progress(row, done, total)`` after each member that ends in this run.
-    """
-
-    def __init__(self, values, kept, journal, progress):
-        self.values, self.journal, self.progress = values, journal, progress
-        self.rows = [kept.get(i) for i in range(len(values))]
-        self.resumed = sorted(kept)
-        self.solved = []  # indices ended in this run, in finishing order
-
-    def todo(self):
-        """Indices of the members without a row."""
-        return [i for i, row in enumerate(self.rows) if row is None]
-
-    def finished(self, i, row):
-        """Member ``i`` returned its row (which may still say it failed): journal it."""
-        if self.journal is not None:
-            self.journal.append(row)
-        self._end(i, row)
-
-    def unfinished(self, i, message):
-        """Member ``i`` did not finish (the executor failed it or lost its workers)."""
-        row = _empty_row(i, self.values[i])
-        row["error"] = message
-        # Not journaled: it did not finish, so a resumed sweep runs it again.
-        self._end(i, row)
-
-    def _end(self, i, row):
-        self.rows[i] = row
-        self.solved.append(i)
-        if self.progress:
-            self.progress(row, len(self.resumed) + len(self.solved), len(self.values))
+def _scan(request):
+    """The sweep as the engine runs it: one job per member."""
+    values = request.values
+    return engine.Scan(
+        journal_name=JOURNAL, header=request.header(), kinds=ROW_KINDS,
+        count=len(values), function=solve_member,
+        jobs={i: ([i], request.member(i)) for i in range(len(values))},
+        failed_row=functools.partial(_failed_row, values),
+        belongs=functools.partial(belongs, values))
 
 
-def _result(request, rows, journal, executor, seconds, lost):
+def belongs(values, i, row):
+    """Whether a journal row is member ``i`` of the grid ``values``: its value is."""
+    return row.get("value") == values[i]
+
+
+def _result(request, outcome):
     """The table :func:`run` returns."""
     spec = SWEEPABLE[request.name]
     return {"problem": request.problem.name, "problem_file": request.problem_file,
@@ -663,14 +435,15 @@ def _result(request, rows, journal, executor, seconds, lost):
             "objective_meaning": request.problem.objective.meaning,
             # What the objective column's canonical numbers are in a user's units.
             "objective_shown_as": list(request.problem.objective.shown_as()),
-            "values": request.values, "executor": executor, "wall_seconds": seconds,
-            "polished": request.polish,
+            "values": request.values, "executor": outcome.executor,
+            "wall_seconds": outcome.seconds, "polished": request.polish,
             "tolerance": dataclasses.asdict(request.problem.tolerance),
-            "failed": sum(1 for r in rows.rows if r["error"] is not None), "rows": rows.rows,
-            "journal": str(journal.path) if journal is not None else None,
-            "resumed": rows.resumed, "solved": rows.solved,
+            "failed": sum(1 for r in outcome.rows if r["error"] is not None),
+            "rows": outcome.rows,
+            "journal": None if outcome.journal is None else str(outcome.journal),
+            "resumed": outcome.resumed, "solved": outcome.solved,
             "lost": [{"index": i, "value": request.values[i], "losses": n, "cause": cause}
-                     for i, (n, cause) in lost.items()]}
+                     for i, (n, cause) in outcome.lost.items()]}
 
 
 # ---------------------------------------------------------------- output

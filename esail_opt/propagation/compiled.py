@@ -33,11 +33,14 @@ truncated one would be mapped into the process and crash it with SIGBUS.  A dama
 unloadable library is removed and built again, with one line.  A lock file per hash
 makes parallel workers (``esail-opt sweep``) wait for one compile instead of each
 running their own.  An interrupted compile kills its compilers (each in a session of its
-own) and removes its ``.build-<pid>-*`` folder; one whose process was killed outright
-is cleaned up by the next compile into the cache.  Without a C compiler, when a compile
+own) and removes its ``.build-<pid>-*`` folder; for a process killed outright a watcher
+process does both (:data:`_REAPER`), and the next compile into the cache sweeps up what
+is left.  The compilers run with ``-pipe`` and their temporary folder in the build
+folder, so nothing of theirs is left in the system's temporary folder.  Without a C compiler, when a compile
 fails, or when the cache cannot be written (a full disk, a read-only folder), the
-Function stays on the virtual machine and one log line says so; a cache whose disk ran
-out of space is not tried again until space is freed.
+Function stays on the virtual machine and one log line says so (once per run: a scan's
+workers do not repeat what its command said, :func:`check_cache`); a cache whose disk
+ran out of space, or of inodes, is not tried again until space is freed.
 
 Environment:
 
@@ -77,6 +80,9 @@ log = logging.getLogger("esail_opt")
 #: -O1: -O0 compiles faster but the Hessian blocks then run several times slower, and
 #: -O2 or -O3 take longer to compile and run no faster.
 FLAGS = ("-O1", "-fPIC")
+#: Flags that change how the compiler runs but not the code (so not in the key): no
+#: assembler file in the temporary folder.
+BUILD_FLAGS = ("-pipe",)
 #: Raised whenever what is written into a library changes, so old libraries are ignored.
 RECIPE = "segment+jac+adj1+jac_adj1 v2 checksummed"
 #: Suffix of a library's checksum file, written after the library itself.
@@ -84,8 +90,13 @@ CHECKSUM = ".sha256"
 #: Free space a compile needs in the cache (its objects and library are a few MB; the
 #: margin keeps the cache from filling a disk to the last block).
 MIN_FREE_BYTES = 64 << 20
+#: Free inodes a compile needs in the cache (a build creates a dozen files).
+MIN_FREE_INODES = 64
 #: The file that remembers a compile that ran out of space (see ``_unusable``).
 FAILED_MARKER = ".compile-failed"
+#: The environment variable in which a run tells its workers what it has said about
+#: the cache already (:func:`check_cache`): the names, separated by ``os.pathsep``.
+SAID = "ESAIL_OPT_CACHE_SAID"
 #: Values of ESAIL_OPT_COMPILE that force the virtual machine.
 OFF = ("0", "off", "no", "false", "vm")
 
@@ -220,6 +231,16 @@ def _free_bytes(folder):
     return stat.f_bavail * stat.f_frsize
 
 
+def _free_inodes(folder):
+    """Files that can still be created on ``folder``'s file system, or None where it
+    does not count them (``f_files`` of 0)."""
+    try:
+        stat = os.statvfs(folder)
+    except (OSError, AttributeError):
+        return None
+    return stat.f_favail if stat.f_files else None
+
+
 def _unusable(folder):
     """Why nothing can be compiled into ``folder`` now, in words, or None.
 
@@ -233,6 +254,10 @@ def _unusable(folder):
     free = _free_bytes(folder)
     if free is not None and free < MIN_FREE_BYTES:
         return f"its disk has {free / 2**20:.0f} MB free, less than {MIN_FREE_BYTES >> 20} MB"
+    inodes = _free_inodes(folder)
+    if inodes is not None and inodes < MIN_FREE_INODES:
+        return (f"its file system has {inodes} free inodes, less than {MIN_FREE_INODES} "
+                "(it is full)")
     marker = folder / FAILED_MARKER
     try:
         age = time.time() - marker.stat().st_mtime
@@ -318,26 +343,63 @@ def _one_line(err):
 # ---------------------------------------------------------------- building
 
 
+#: A reaper of one build's compilers, run beside the process that compiles: it reads
+#: the compilers' process groups, one a line, until its input closes.  A build that ends
+#: says "done" first; any other end of the builder (SIGKILL, SIGTERM's default action,
+#: ``os._exit``) closes the input without it, and the reaper kills the compilers'
+#: groups (cc1 and as with their driver) and removes the build folder.
+_REAPER = """
+import os, shutil, signal, sys
+for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+    signal.signal(sig, signal.SIG_IGN)
+words = sys.stdin.read().split()
+if words[-1:] != ["done"]:
+    for word in words:
+        try:
+            os.killpg(int(word), signal.SIGKILL)
+        except (OSError, ValueError):
+            pass
+    shutil.rmtree(sys.argv[1], ignore_errors=True)
+"""
+
+
 class _Compilers:
     """The compiler processes of one build, each in a session of its own, so that an
     interrupt ends them and what they started (cc1, as) at once: a compiler left
-    running would go on filling the cache's disk with nobody waiting for it."""
+    running would go on filling the cache's disk with nobody waiting for it.
 
-    def __init__(self):
+    A process that is killed outright cannot end them itself: a reaper process
+    (:data:`_REAPER`), told each compiler's group as it starts, ends them and removes
+    the build folder when this process goes without saying "done".  The compilers'
+    temporary files go into the build folder (``TMPDIR``), and ``-pipe`` spares them
+    the assembler file, so a killed compile leaves nothing in the temporary folder.
+    """
+
+    def __init__(self, build):
         self.lock = threading.Lock()
         self.running = []
         self.stopped = False
+        self.env = dict(os.environ, TMPDIR=str(build))
+        self.reaper = subprocess.Popen([sys.executable, "-I", "-S", "-c", _REAPER, str(build)],
+                                       stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                       stderr=subprocess.DEVNULL, start_new_session=True)
 
     def run(self, command):
         with self.lock:
             if self.stopped:
                 raise subprocess.CalledProcessError(-signal.SIGKILL, command, "", "stopped")
             proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                    text=True, start_new_session=True)
+                                    text=True, start_new_session=True, env=self.env)
             self.running.append(proc)
+            self._tell(f"{proc.pid}\n")
         out, err = proc.communicate()
         if proc.returncode != 0:
             raise subprocess.CalledProcessError(proc.returncode, command, out, err)
+
+    def _tell(self, text):
+        with contextlib.suppress(OSError, ValueError):
+            self.reaper.stdin.write(text.encode())
+            self.reaper.stdin.flush()
 
     def kill(self):
         with self.lock:
@@ -348,6 +410,15 @@ class _Compilers:
         for proc in self.running:
             with contextlib.suppress(Exception):
                 proc.wait(timeout=5)
+
+    def close(self):
+        """Dismiss the reaper: every compiler has ended (or been killed and waited)."""
+        with self.lock:
+            self._tell("done\n")
+            with contextlib.suppress(OSError):
+                self.reaper.stdin.close()
+        with contextlib.suppress(Exception):
+            self.reaper.wait(timeout=5)
 
 
 def _build(fun, compiler, target, links=()):
@@ -361,7 +432,6 @@ def _build(fun, compiler, target, links=()):
     loaded (an rpath of ``$ORIGIN``).  An interrupt or an error kills the compilers
     and removes the build folder before it propagates.
     """
-    compilers = _Compilers()
     with tempfile.TemporaryDirectory(dir=target.parent,
                                      prefix=f".build-{os.getpid()}-") as tmp:
         tmp = Path(tmp)
@@ -375,10 +445,11 @@ def _build(fun, compiler, target, links=()):
 
         def compile_one(source):
             obj = source.with_suffix(".o")
-            compilers.run([compiler, *FLAGS, "-c", str(source), "-o", str(obj)])
+            compilers.run([compiler, *FLAGS, *BUILD_FLAGS, "-c", str(source), "-o", str(obj)])
             return obj
 
         # The largest translation unit (the Hessian block) first, so it is never last.
+        compilers = _Compilers(tmp)
         pool = ThreadPoolExecutor(max(1, min(len(sources), os.cpu_count() or 1)))
         try:
             objects = list(pool.map(compile_one, sources[::-1]))
@@ -392,14 +463,58 @@ def _build(fun, compiler, target, links=()):
             raise
         finally:
             pool.shutdown(wait=True)
+            compilers.close()
         _publish(partial, target)
 
 
+def _said(key):
+    """Whether the line about ``key`` (a compiler, a cache folder) was said already, in
+    this process or by the one that started it (:data:`SAID`); it counts as said now."""
+    before = (key, True) in _loaded or key in os.environ.get(SAID, "").split(os.pathsep)
+    _loaded[(key, True)] = None
+    return before
+
+
+def _warn_no_compiler(compiler):
+    """One plain line, once per run, for a compiler that does not run."""
+    if not _said(compiler):
+        log.warning("esail-opt: no C compiler (%r does not run); the NLP stays on "
+                    "CasADi's virtual machine, several times slower "
+                    "(ESAIL_OPT_COMPILE=0 silences this)", compiler)
+
+
+def check_cache():
+    """Say now, once, why nothing will compile (no compiler, an unusable cache), so that
+    a run's workers need not each say it; what was said, for :data:`SAID`.
+
+    Returns
+    -------
+    tuple of str
+        The compiler's name or the cache folder that a line was said about (empty when
+        compiling is off or the cache is usable).
+    """
+    if not enabled():
+        return ()
+    compiler = os.environ.get("CC", "cc")
+    if _compiler_identity(compiler) is None:
+        _warn_no_compiler(compiler)
+        return (compiler,)
+    folder = cache_dir()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        reason = _unusable(folder)
+    except OSError as err:
+        reason = err.strerror or str(err)
+    if reason is None:
+        return ()
+    _warn_unusable(folder, reason)
+    return (str(folder),)
+
+
 def _warn_unusable(folder, reason):
-    """One plain line, once per process and folder, for a cache nothing compiles into."""
-    if ("unusable", str(folder)) in _loaded:
+    """One plain line, once per run and folder, for a cache nothing compiles into."""
+    if _said(str(folder)):
         return
-    _loaded[("unusable", str(folder))] = None
     log.warning("esail-opt: cannot compile into the cache %s: %s; the NLP stays on CasADi's "
                 "virtual machine (several times slower) -- free space there or set "
                 "ESAIL_OPT_CACHE to a writable folder (ESAIL_OPT_COMPILE=0 silences this)",
@@ -439,6 +554,25 @@ def _load(fun, folder, target, key, build):
     return ca.external(fun.name(), str(target))
 
 
+def _load_or_vm(fun, folder, target, key, build):
+    """:func:`_load`, or ``fun`` itself (on the virtual machine) when nothing can be
+    compiled, with one line saying why; a full disk is remembered (:func:`_unusable`)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        loaded = _load(fun, folder, target, key, build)
+        return fun if loaded is None else loaded
+    except (OSError, subprocess.CalledProcessError, RuntimeError) as err:
+        if _no_space(err):
+            _remember_no_space(folder)
+            _warn_unusable(folder, "its disk is full")
+        elif isinstance(err, OSError) and not isinstance(err, subprocess.SubprocessError):
+            _warn_unusable(folder, err.strerror or str(err))
+        else:
+            log.warning("esail-opt: compiling %s failed (%s); the NLP stays on CasADi's "
+                        "virtual machine", fun.name(), _one_line(err))
+        return fun  # not retried in this process: one line is enough
+
+
 def _record(target):
     """The text of ``target``'s checksum file, or None."""
     try:
@@ -470,23 +604,15 @@ def compiled(fun, calls=()):
         (``ESAIL_OPT_COMPILE=0``), no C compiler runs, the cache cannot be written (a
         full disk, a read-only folder: not retried on every run), or the compile fails
         (one warning on the ``esail_opt`` logger for all but the first).
-
-    Notes
-    -----
-    A cached library is loaded only if its checksum matches: a truncated library
-    mapped into the process would crash it (SIGBUS) instead of raising.  A damaged one
-    is removed and compiled again, with one line.
+    A cached library is loaded only if its checksum matches (a truncated library mapped
+    into the process would crash it); a damaged one is compiled again, with one line.
     """
     if not enabled():
         return fun
     compiler = os.environ.get("CC", "cc")
     identity = _compiler_identity(compiler)
     if identity is None:
-        if compiler not in _loaded:
-            log.warning("esail-opt: no C compiler (%r does not run); the NLP stays on "
-                        "CasADi's virtual machine, several times slower "
-                        "(ESAIL_OPT_COMPILE=0 silences this)", compiler)
-        _loaded[compiler] = None
+        _warn_no_compiler(compiler)
         return fun
     if calls and not sys.platform.startswith("linux"):
         # Its library finds theirs by an rpath of $ORIGIN and GNU ld's -l:name, which
@@ -510,20 +636,6 @@ def compiled(fun, calls=()):
         _build(fun, identity[0], target, links)
         log.info("esail-opt: compiled in %.1f s", time.perf_counter() - start)
 
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        loaded = _load(fun, folder, target, key, build)
-        if loaded is None:
-            loaded = fun
-    except (OSError, subprocess.CalledProcessError, RuntimeError) as err:
-        if _no_space(err):
-            _remember_no_space(folder)
-            _warn_unusable(folder, "its disk is full")
-        elif isinstance(err, OSError) and not isinstance(err, subprocess.SubprocessError):
-            _warn_unusable(folder, err.strerror or str(err))
-        else:
-            log.warning("esail-opt: compiling %s failed (%s); the NLP stays on CasADi's "
-                        "virtual machine", fun.name(), _one_line(err))
-        loaded = fun  # not retried in this process: one line is enough
+    loaded = _load_or_vm(fun, folder, target, key, build)
     _loaded[key] = loaded
     return loaded

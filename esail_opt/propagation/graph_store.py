@@ -9,8 +9,8 @@ A stored graph is named by a hash of what decides it: the builder's name and key
 arguments, the CasADi version, and the source of every module the closed form's
 formulas live in (:data:`SOURCES`).  Any edit to those modules therefore names new
 graphs, and the old ones are simply never read again.  A file holds the SHA-256 of the
-graph on its first line: a file that does not match (truncated, damaged) is built
-again and rewritten.  Files are written under a temporary name and renamed into place,
+graph on its first line: a file that does not match (truncated, damaged) is said in
+one line, built again and rewritten.  Files are written under a temporary name and renamed into place,
 so parallel workers never read half a graph, and they follow the umask, as the
 compiled libraries do, so that a cache folder can be shared.  When the cache cannot be written (a full
 disk, a read-only folder) the Function is built as before; the compiled libraries'
@@ -23,6 +23,7 @@ folder inside it).
 import functools
 import hashlib
 import inspect
+import logging
 import os
 import uuid
 from pathlib import Path
@@ -30,6 +31,8 @@ from pathlib import Path
 import casadi as ca
 
 from esail_opt.propagation.compiled import cache_dir
+
+log = logging.getLogger("esail_opt")
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 #: The modules whose code builds the stored graphs: every formula of the closed form,
@@ -55,18 +58,28 @@ def graph_path(name, kwargs):
 
 
 def _read(path):
-    """The Function stored at ``path``, or None if it is missing or does not match its
-    checksum."""
+    """The Function stored at ``path``, or None if it is missing or damaged: a file that
+    does not match its checksum, or does not read back as a Function, is said in one
+    line (it is then built again and rewritten)."""
     try:
         checksum, _, text = path.read_text().partition("\n")
-    except (OSError, UnicodeDecodeError):
+    except OSError:  # missing, or in a folder that cannot be read: nothing stored
         return None
+    except UnicodeDecodeError:
+        return _damaged(path, "it is not text")
     if hashlib.sha256(text.encode()).hexdigest() != checksum:
-        return None
+        return _damaged(path, "its checksum does not match (the file was truncated or "
+                              "changed)")
     try:
         return ca.Function.deserialize(text)
     except RuntimeError:
-        return None
+        return _damaged(path, "it does not read back as a CasADi Function")
+
+
+def _damaged(path, why):
+    log.warning("esail-opt: the stored arc graph %s is damaged: %s; building it again",
+                path.name, why)
+    return None
 
 
 def _write(path, fun):
