@@ -5,6 +5,9 @@ files under ``out_dir`` and returns the path of its JSON (``esail-opt-bench NAME
 command of :mod:`.cli`).
 Each is the ``run`` of its own module:
 
+* ``rockit`` (:mod:`.rockit_baseline`): ``esail-opt solve --polish`` against a generic
+  RK4 multiple-shooting script of the same transfer written with rockit, whole
+  processes side by side;
 * ``propagate``, ``solve`` (:mod:`.solve_speed`), ``polish``, ``lowthrust`` and
   ``sweep``: each timed against a baseline measured in the same run (:mod:`.timing`
   holds what they share);
@@ -22,8 +25,8 @@ heyoka's Taylor integrator, when the ``bench`` extra is installed.  The benches 
 application modules, none of which imports them.
 """
 
-from esail_opt.bench import (lowthrust, polish, porkchop, precision, propagate, solve_speed,
-                             sweep)
+from esail_opt.bench import (lowthrust, polish, porkchop, precision, propagate,
+                             rockit_baseline, solve_speed, sweep)
 
 BENCHES = {
     "propagate": propagate.run,
@@ -31,6 +34,7 @@ BENCHES = {
     "polish": polish.run,
     "lowthrust": lowthrust.run,
     "sweep": sweep.run,
+    "rockit": rockit_baseline.run,
     "precision": precision.run,
     "porkchop": porkchop.run,
 }
