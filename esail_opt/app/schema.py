@@ -99,7 +99,10 @@ polish : object
     command's exit status is 0 only when ``polish.verified`` holds too.
 """
 
+import numpy as np
+
 from esail_opt.errors import InputError
+from esail_opt.physics import constants as units
 
 SCHEMA_VERSION = 4
 #: Versions this code reads: versions 3 and 4 only added fields, so a version-2 file
@@ -115,3 +118,57 @@ def check(data, source):
         raise InputError(f"{source}: solution.json schema version {found}, but this esail_opt "
                          f"reads versions {', '.join(map(str, READABLE))}; solve the problem "
                          "again to rewrite it")
+
+
+#: The keys of a state in three dimensions, as version 5 will give every state:
+#: heliocentric, in the ecliptic of J2000, positions in au and velocities in km/s.
+STATE_KEYS = ("x_au", "y_au", "z_au", "vx_km_s", "vy_km_s", "vz_km_s")
+
+
+def state_fields(state):
+    """A canonical state as the fields of :data:`STATE_KEYS`.
+
+    Parameters
+    ----------
+    state : array_like, shape (6,) or (6, M)
+        ``[x, y, z, vx, vy, vz]`` in au and au/TU, ecliptic of J2000.
+
+    Returns
+    -------
+    dict
+        Floats for one state; lists of M floats for M states (trajectory samples).
+    """
+    values = np.asarray(state, dtype=float)
+    if values.shape[:1] != (6,) or values.ndim > 2:
+        raise ValueError(f"a state has 6 components by rows, got shape {values.shape}")
+    converted = np.concatenate([values[:3], units.speed_to_km_s(values[3:])])
+    return {key: (row.tolist() if values.ndim == 2 else float(row))
+            for key, row in zip(STATE_KEYS, converted)}
+
+
+def state_from_fields(fields, source):
+    """The canonical state (6,) or (6, M) that :func:`state_fields` wrote.
+
+    Raises InputError, naming ``source`` and the key, if a key is missing or a value is
+    not a finite number.
+    """
+    if not isinstance(fields, dict):
+        raise InputError(f"{source} = {fields!r} is not an object with {', '.join(STATE_KEYS)}")
+    rows = []
+    for key in STATE_KEYS:
+        if key not in fields:
+            raise InputError(f"{source}.{key} is missing")
+        try:
+            row = np.asarray(fields[key], dtype=float)
+        except (TypeError, ValueError):
+            row = np.array(np.nan)
+        if row.ndim > 1 or not np.all(np.isfinite(row)):
+            raise InputError(f"{source}.{key} = {fields[key]!r} is not a finite number "
+                             "(or list of them)")
+        rows.append(row)
+    if len({row.shape for row in rows}) != 1:
+        raise InputError(f"{source}: {', '.join(STATE_KEYS)} differ in length")
+    state = np.array(rows)
+    state[3:] = units.speed_from_km_s(state[3:])
+    return state
+

@@ -11,6 +11,12 @@ barycentre, in the ICRF, i.e. equatorial axes).  This module
   angle atan2(y, x) is the ecliptic longitude;
 - converts to canonical units: au (149,597,870.7 km) and au/TU.
 
+:func:`ecliptic_state` is the planet's whole state in three dimensions, out of the
+ecliptic as it is; :func:`polar_state` is its projection on the ecliptic, which the
+planar problems fly against.  The rotation between the two frames is written once, in
+:func:`ecliptic_from_icrf` and :func:`icrf_from_ecliptic` (the latter for outputs in
+DE421's own ICRF, such as an orbit ephemeris message).
+
 Which point ``earth`` is: the **Earth-Moon barycentre** (DE421's ``earthmoon``).  The sail
 starts from Earth's sphere of influence (about 925,000 km across), and the barycentre is
 only about 4,700 km from Earth's centre, below the 10,000 km tolerance of a rendezvous and
@@ -85,6 +91,51 @@ def check_span(jd, field="date"):
         )
 
 
+#: The rotation from DE421's ICRF (equatorial) axes to the ecliptic-J2000 axes, about x by
+#: :data:`OBLIQUITY_J2000`: ``ecliptic = ECLIPTIC_FROM_ICRF @ icrf``.  Its transpose turns
+#: back; both directions go through :func:`ecliptic_from_icrf` and
+#: :func:`icrf_from_ecliptic`, the one place the package rotates between the two.
+ECLIPTIC_FROM_ICRF = np.array([[1.0, 0.0, 0.0],
+                               [0.0, _COS_EPS, _SIN_EPS],
+                               [0.0, -_SIN_EPS, _COS_EPS]])
+
+
+def _rotate(matrix, vectors):
+    values = np.asarray(vectors, dtype=float)
+    if values.shape[:1] not in ((3,), (6,)):
+        raise ValueError(f"expected 3 or 6 components along the first axis, got shape {values.shape}")
+    rotated = np.empty_like(values)
+    # Written out term by term (not a matrix product, which may fuse or reorder the
+    # sums): the ecliptic states keep the exact bits they had before this function.
+    for block in range(0, values.shape[0], 3):
+        x, y, z = values[block], values[block + 1], values[block + 2]
+        for row in range(3):
+            rotated[block + row] = matrix[row, 0] * x + matrix[row, 1] * y + matrix[row, 2] * z
+    return rotated
+
+
+def ecliptic_from_icrf(vectors):
+    """Rotate ICRF (DE421's equatorial axes) vectors or states to the ecliptic of J2000.
+
+    Parameters
+    ----------
+    vectors : array_like, shape (3, ...) or (6, ...)
+        Positions ``[x, y, z]``, or states ``[x, y, z, vx, vy, vz]`` whose two halves are
+        each rotated; any units (a rotation keeps them).
+
+    Returns
+    -------
+    numpy.ndarray
+        A new array of the same shape.
+    """
+    return _rotate(ECLIPTIC_FROM_ICRF, vectors)
+
+
+def icrf_from_ecliptic(vectors):
+    """The inverse of :func:`ecliptic_from_icrf` (the transposed rotation), same contract."""
+    return _rotate(ECLIPTIC_FROM_ICRF.T, vectors)
+
+
 def planet_key(name, field="body"):
     """The canonical lower-case planet name, or InputError listing the allowed names."""
     key = name.strip().lower() if isinstance(name, str) else None
@@ -128,13 +179,7 @@ def ecliptic_state(name, jd, field="body", jd2=0.0):
         return np.concatenate((eph.position_from_bundle(bundle),
                                eph.velocity_from_bundle(bundle)))
 
-    equatorial = state(_SEGMENT.get(key, key)) - state("sun")
-    state = np.empty_like(equatorial)
-    for block in (0, 3):
-        x, y, z = equatorial[block], equatorial[block + 1], equatorial[block + 2]
-        state[block] = x
-        state[block + 1] = _COS_EPS * y + _SIN_EPS * z
-        state[block + 2] = -_SIN_EPS * y + _COS_EPS * z
+    state = ecliptic_from_icrf(state(_SEGMENT.get(key, key)) - state("sun"))
     state[:3] /= _AU_KM
     state[3:] *= units.TU_DAYS / _AU_KM
     return state[:, 0] if scalar else state

@@ -23,7 +23,7 @@ import numpy as np
 from esail_opt.bodies import ephemeris
 from esail_opt.bodies.dates import iso_from_jd, jd_from_iso, jd_from_tu, jd_split_from_tu, tu_from_jd
 from esail_opt.bodies.keplerian import SmallBody
-from esail_opt.bodies.track import track_of
+from esail_opt.bodies.track import track3_on, track_of
 from esail_opt.errors import InputError
 
 
@@ -146,3 +146,46 @@ def check_span(jd, field):
         raise InputError(f"{field} = {iso_from_jd(jd)} is outside the dates esail_opt "
                          f"tracks bodies on, [{TRACK_SPAN[0]}, {TRACK_SPAN[1]}] (TDB)")
     return jd
+
+
+# ------------------------------------------------------------------- in three dimensions
+
+
+def ecliptic_state(body, jd, field="body", jd2=0.0):
+    """Exact heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU) of a
+    planet (DE421, unprojected) or a small body (its six elements) at Julian date(s)
+    ``jd`` (TDB) plus ``jd2`` days: shape (6,) for a scalar date, (6, M) for M dates.
+    Its projection on the ecliptic is :func:`polar_state`'s state (theta there is put on
+    the track's branch)."""
+    body = _key(body)
+    if isinstance(body, SmallBody):
+        return body.ecliptic_state(jd, field, jd2)
+    return ephemeris.ecliptic_state(body, jd, field, jd2)
+
+
+def ecliptic_state_at(body, t, field="body"):
+    """:func:`ecliptic_state` at canonical time ``t`` (TU since J2000 TDB), the date kept
+    in two parts as in :func:`polar_state_at`."""
+    jd, days = jd_split_from_tu(float(t))
+    return ecliptic_state(body, jd, field, days)
+
+
+@functools.lru_cache(maxsize=None)
+def _track3(key):
+    return track3_on(_track(key), key, refine=True)
+
+
+def track3(body):
+    """The body's smooth 3-D track over :data:`TRACK_SPAN` (``bodies.track.Track3``),
+    built on :func:`track`'s samples: its projection on the ecliptic is that track, unless
+    the height above the ecliptic needed finer samples than the plane (then the two agree
+    to their errors, tens of metres)."""
+    return _track3(_key(body))
+
+
+def track3_correction(body, t):
+    """The body's exact ecliptic state less its smooth 3-D track's at time ``t`` (TU since
+    J2000 TDB), as :func:`track_correction` in the plane: tens of metres, what a polish
+    adds to hold its metre against the source itself."""
+    return ecliptic_state_at(body, t) - np.ravel(track3(body).state(float(t)))
+

@@ -66,6 +66,8 @@ class Track:
     max_error_km, max_error_m_s : float
         The largest in-plane position (km) and velocity (m/s) difference between the
         track and its exact source at the mid-points of the samples inside the window.
+    sampled_jd : numpy.ndarray
+        The Julian dates (TDB) sampled, uniformly spaced over :attr:`sampled_t_range`.
     sampled_t_range : tuple of float
         The times sampled, TU: :attr:`t_range` widened by a margin of at least 60 days
         at each end (less where a planet's window meets the ephemeris span).  The spline
@@ -98,6 +100,7 @@ class Track:
                  for k, label in enumerate(("r", "theta", "v_r", "v_theta"))]
         self.function = ca.Function("track", [t], [ca.vertcat(*parts)], ["t"], ["polar"])
         self.sampled_t_range = (float(t_grid[0]), float(t_grid[-1]))
+        self.sampled_jd = jd
         self._measure(source, jd)
 
     def _tag(self):
@@ -158,9 +161,13 @@ class Track:
 
 def _cartesian(polar):
     """In-plane [x, y, vx, vy] of polar state(s) (4, M)."""
-    r, th, vr, vt = polar
-    c, s = np.cos(th), np.sin(th)
-    return np.array([r * c, r * s, vr * c - vt * s, vr * s + vt * c])
+    return np.array(_in_plane(*polar, np.cos, np.sin))
+
+
+def _in_plane(r, th, vr, vt, cos, sin):
+    """[x, y, vx, vy] of a polar state, with numpy's or CasADi's cos and sin."""
+    c, s = cos(th), sin(th)
+    return [r * c, r * s, vr * c - vt * s, vr * s + vt * c]
 
 
 def track_of(body, start_jd, stop_jd, step_days=None):
@@ -220,4 +227,138 @@ def _period_days(polar):
     return units.time_to_days(2 * math.pi * a ** 1.5)
 
 
-__all__ = ["Track", "track_of"]
+class Track3:
+    """A body's 3-D state over a window of time as a smooth CasADi function.
+
+    Build one with :func:`track3_of` or :func:`track3_on`.  It is a planar
+    :class:`Track` (the state projected on the ecliptic, :attr:`planar`) plus the height
+    above the ecliptic z and its rate v_z, fitted by the same method on the same samples:
+    one cubic B-spline each, held at the sampled ends.  So the projection of this track
+    *is* the planar track, spline for spline, and a planar problem and a 3-D one built on
+    the same samples see the same body in the plane.  z and v_z are the components the
+    projection drops (:func:`esail_opt.bodies.ephemeris.polar_from_ecliptic`).  Their
+    samples are not as smooth as the in-plane ones: r and the longitude move slowly and
+    steadily, while z swings once a revolution with amplitude r sin i, so its spline
+    error is about (5/384) r sin i (2 pi h / P)^4 for a step h and period P (Venus's z
+    errs by more than its plane does).  The 3-D error is measured (:attr:`max_error_km`, :attr:`max_error_m_s`)
+    and, where the step is chosen here, the step is refined until it meets the targets
+    (:func:`track3_on`).
+
+    Attributes
+    ----------
+    planar : Track
+        The projected track whose samples this one shares.
+    name, jd_range, t_range, step_days, sampled_t_range, sampled_jd
+        As :attr:`planar`'s.
+    max_error_km, max_error_m_s : float
+        The largest 3-D position (km) and velocity (m/s) difference between the track and
+        its exact source at the mid-points of the samples inside the window.
+    function : casadi.Function
+        ``track3(t) -> [x, y, z, vx, vy, vz]`` (6x1), heliocentric, ecliptic of J2000,
+        au and au/TU, t in TU since J2000 TDB.  Beyond :attr:`sampled_t_range` it holds
+        the end state: bound t to :attr:`t_range` in the NLP.
+    cylindrical : casadi.Function
+        ``t -> [r, theta, v_r, v_theta, z, v_z]`` (6x1): the first four are
+        ``planar.function``'s outputs (theta unwrapped), the last two the fitted z and
+        v_z; :attr:`function` is these turned to Cartesian.
+    """
+
+    def __init__(self, planar, source):
+        self.planar = planar
+        for key in ("name", "jd_range", "t_range", "step_days", "sampled_t_range", "sampled_jd"):
+            setattr(self, key, getattr(planar, key))
+        jd = planar.sampled_jd
+        states = np.asarray(source(jd), dtype=float)
+        t_grid = tu_from_jd(jd)
+        t = ca.MX.sym("t")
+        held = ca.fmin(ca.fmax(t, t_grid[0]), t_grid[-1])  # as in Track: no zeros outside
+        z, v_z = (ca.interpolant(f"{planar._tag()}_{label}", "bspline", [t_grid], states[k])(held)
+                  for k, label in ((2, "z"), (5, "v_z")))
+        polar = planar.function(t)
+        self.cylindrical = ca.Function("track3_cylindrical", [t], [ca.vertcat(polar, z, v_z)],
+                                       ["t"], ["cylindrical"])
+        x, y, vx, vy = _in_plane(polar[0], polar[1], polar[2], polar[3], ca.cos, ca.sin)
+        self.function = ca.Function("track3", [t], [ca.vertcat(x, y, z, vx, vy, v_z)],
+                                    ["t"], ["state"])
+        self._measure(source, jd)
+
+    def state(self, t):
+        """The smooth ecliptic state ``[x, y, z, vx, vy, vz]`` (au, au/TU) at time(s) t.
+
+        Parameters
+        ----------
+        t : float, numpy.ndarray of shape (M,), or casadi SX/MX/DM scalar
+            Canonical time, TU since J2000 TDB; numeric times must lie in :attr:`t_range`
+            (InputError otherwise, as :meth:`Track.polar`).
+
+        Returns
+        -------
+        numpy.ndarray of shape (6,) or (6, M) for numeric t, a 6x1 CasADi expression for
+        symbolic t.
+        """
+        if isinstance(t, (ca.SX, ca.MX)):
+            return self.function(t)
+        times = np.asarray(t, dtype=float)
+        self.planar._check_times(times)
+        flat = np.atleast_1d(times).ravel()
+        values = np.array(self.function.map(flat.size)(flat.reshape(1, -1)))
+        return values[:, 0] if times.ndim == 0 else values
+
+    def _measure(self, source, jd_grid):
+        mids = 0.5 * (jd_grid[:-1] + jd_grid[1:])
+        mids = mids[(mids >= self.jd_range[0]) & (mids <= self.jd_range[1])]
+        diff = (np.array(self.function.map(mids.size)(tu_from_jd(mids).reshape(1, -1)))
+                - np.asarray(source(mids), dtype=float))
+        self.max_error_km = float(units.length_to_km(np.linalg.norm(diff[:3], axis=0).max()))
+        self.max_error_m_s = float(units.speed_to_m_s(np.linalg.norm(diff[3:], axis=0).max()))
+
+    def __repr__(self):
+        return (f"Track3({self.name!r}, {iso_from_jd(self.jd_range[0])} .. "
+                f"{iso_from_jd(self.jd_range[1])}, step {self.step_days:.3g} d, "
+                f"max error {self.max_error_km:.3g} km, {self.max_error_m_s:.3g} m/s)")
+
+
+def exact_state_source(body, field="track.body"):
+    """``jd -> (6, M)`` exact ecliptic states of a planet (DE421) or a SmallBody, au and au/TU.
+
+    Raises InputError, naming ``field``, for an unknown planet.
+    """
+    if isinstance(body, SmallBody):
+        return body.ecliptic_state
+    key = ephemeris.planet_key(body, field)
+    return lambda jd: ephemeris.ecliptic_state(key, jd, field)
+
+
+def track3_on(planar, body, refine=False):
+    """The :class:`Track3` of ``body`` on the samples of its planar track ``planar``
+    (:func:`track_of`'s, for the same body), so that the two agree in the plane exactly.
+
+    With ``refine``, if that 3-D track misses :data:`TARGET_ERROR_KM` or
+    :data:`TARGET_ERROR_M_S` (z and v_z may need finer samples than the plane, see
+    :class:`Track3`), the step is halved, up to :data:`MAX_HALVINGS` times, on a new
+    planar track of its own until it meets them; it then agrees with ``planar`` only to
+    the two tracks' errors.
+    """
+    source = exact_state_source(body)
+    track = Track3(planar, source)
+    for _ in range(MAX_HALVINGS if refine else 0):
+        if track.max_error_km <= TARGET_ERROR_KM and track.max_error_m_s <= TARGET_ERROR_M_S:
+            break
+        planar = track_of(body, *planar.jd_range, planar.step_days / 2)
+        track = Track3(planar, source)
+    return track
+
+
+def track3_of(body, start_jd, stop_jd, step_days=None):
+    """The smooth 3-D :class:`Track3` of a planet or small body over [start_jd, stop_jd].
+
+    Arguments and errors as :func:`track_of`, whose planar track it extends.  With the
+    default step, the planar track's step is halved further (up to :data:`MAX_HALVINGS`
+    times) while the 3-D error exceeds :data:`TARGET_ERROR_KM` or
+    :data:`TARGET_ERROR_M_S`; an explicit ``step_days`` is used as given.
+    """
+    return track3_on(track_of(body, start_jd, stop_jd, step_days), body,
+                     refine=step_days is None)
+
+
+__all__ = ["Track", "track_of", "Track3", "track3_of", "track3_on", "exact_state_source"]

@@ -1,8 +1,11 @@
-"""The full equations of motion, Eqs. 1-2, in canonical units."""
+"""The full equations of motion, Eqs. 1-2, in canonical units, and in three dimensions
+the Cartesian equations and the planar motion in a turning plane (THEORY.md §9)."""
 
 import functools
 
 import casadi as ca
+
+from esail_opt.physics import rotation
 
 
 def rhs(x, ac, R, T):
@@ -64,3 +67,63 @@ def taylor_step(x, ac, R, T, dt, order):
     dt^(order + 1); it is meant for steps that are a small part of an orbit.
     """
     return _taylor_function(order)(x, ac, R, T, dt)
+
+
+def _cross(a, b):
+    return ca.vertcat(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                      a[0] * b[1] - a[1] * b[0])
+
+
+def rhs_cartesian(y, ac, R, T, N):
+    """Time derivative of the Cartesian state ``[x, y, z, vx, vy, vz]`` under the Sun's
+    gravity and the E-sail's thrust ``ac (r_E / r) (R r_hat + T t_hat + N h_hat)``.
+
+    r_hat = r / |r|, h_hat = r x v / |r x v| and t_hat = h_hat x r_hat, from the state
+    alone: this is the reference that the turning-plane decomposition (:func:`rhs_turning`,
+    ``physics.plane_turn``) is checked against, so it uses none of it.  Canonical units,
+    mu = 1, r_E = 1 au; (R, T, N) from ``thrust.radial_transverse_normal``.
+    """
+    pos, vel = y[:3], y[3:6]
+    r = ca.norm_2(pos)
+    r_hat = pos / r
+    h_vec = _cross(pos, vel)
+    h_hat = h_vec / ca.norm_2(h_vec)
+    t_hat = _cross(h_hat, r_hat)
+    thrust = ac / r * (R * r_hat + T * t_hat + N * h_hat)
+    return ca.vertcat(vel, -pos / r**3 + thrust)
+
+
+def swept_angle_rate(y):
+    """d(theta)/dt = |r x v| / r^2 of a Cartesian state: the rate at which the Sun-sail
+    line sweeps angle, |d r_hat / dt|.  It is how a Cartesian flight measures a
+    schedule's lengths in theta, with no reference to any plane."""
+    pos, vel = y[:3], y[3:6]
+    return ca.norm_2(_cross(pos, vel)) / ca.sumsqr(pos)
+
+
+def rhs_cartesian_in_theta(y, ac, R, T, N):
+    """d[x, y, z, vx, vy, vz, t]/dtheta, theta the angle swept (:func:`swept_angle_rate`)."""
+    dt_dtheta = 1 / swept_angle_rate(y)
+    return ca.vertcat(rhs_cartesian(y, ac, R, T, N) * dt_dtheta, dt_dtheta)
+
+
+def plane_rate(x, ac, N):
+    """Angular velocity of the turning plane's frame, in that frame's own axes, per unit
+    time: (r f_N / h) r_hat = (ac N / h)(cos theta, sin theta, 0), f_N = ac N / r,
+    h = r v_theta (THEORY.md §9.2)."""
+    rate = ac * N / (x[0] * x[3])
+    return rate * ca.vertcat(ca.cos(x[1]), ca.sin(x[1]), 0)
+
+
+def rhs_turning(x, quat, ac, R, T, N):
+    """The motion in three dimensions as the planar motion in a turning plane: the
+    derivatives of the polar state ``[r, theta, v_r, v_theta]`` (Eqs. 1-2 with R and T,
+    :func:`rhs`) and of the plane's unit quaternion (``physics.rotation``'s convention:
+    the plane's frame has x along theta = 0, z along h_hat).
+
+    The frame turns about r_hat only (:func:`plane_rate`), so d quat/dt =
+    (1/2) quat (0, omega).  Returns the 8-vector d[x, quat]/dt.
+    """
+    omega = plane_rate(x, ac, N)
+    dq = 0.5 * rotation.multiply(quat, ca.vertcat(0, omega))
+    return ca.vertcat(rhs(x, ac, R, T), dq)

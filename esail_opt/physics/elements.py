@@ -8,6 +8,8 @@ from whatever fixed direction the polar state uses.
 
 import casadi as ca
 
+from esail_opt.physics import rotation
+
 
 def q_from_polar(x, r0):
     """Elements q (Eq. 5) of a polar state, normalised by the radius r0.
@@ -96,3 +98,58 @@ def ac_tilde(ac, r0):
     a~_c = ac / (mu / r0^2) * (r_E / r0) = ac r0.
     """
     return ac * r0
+
+
+def cartesian_from_polar3d(x, quat):
+    """Cartesian state ``[x, y, z, vx, vy, vz]`` of the polar state ``x = [r, theta, v_r,
+    v_theta]`` in the plane of unit quaternion ``quat``.
+
+    Convention (THEORY.md §9.3): ``quat`` takes the plane's frame to the fixed frame (the
+    ecliptic of J2000 for real bodies); the plane's frame has x along the direction from
+    which theta is measured, z along the angular momentum r x v, and y = z x x, so theta
+    grows with the motion.  Position and velocity both lie in the plane: the frame turns
+    about r_hat only, so its turn adds nothing to the velocity.  The identity quaternion
+    gives the planar model's state in the fixed frame's x-y plane.
+    """
+    r, th, vr, vt = x[0], x[1], x[2], x[3]
+    c, s = ca.cos(th), ca.sin(th)
+    pos = rotation.rotate(quat, ca.vertcat(r * c, r * s, 0))
+    vel = rotation.rotate(quat, ca.vertcat(vr * c - vt * s, vr * s + vt * c, 0))
+    return ca.vertcat(pos, vel)
+
+
+def polar3d_from_cartesian(y):
+    """Polar state and plane quaternion ``(x[4], quat[4])`` of a Cartesian state.
+
+    The plane's frame is the one reached from the fixed frame by the smallest rotation
+    that takes its z axis to h_hat (about the line of nodes, by the inclination), so
+    theta is the angle from the ascending node's side of that rotation's image of the
+    fixed x axis; at inclination 0 the quaternion is the identity and theta the
+    longitude, as in the planar model.  Any other frame of the same plane differs by a
+    turn about h_hat and a matching shift of theta (the map back,
+    :func:`cartesian_from_polar3d`, is the same).  Defined for every orbit but a
+    retrograde one exactly (h_hat = -z).
+    """
+    pos, vel = y[:3], y[3:6]
+    h_vec = ca.vertcat(pos[1] * vel[2] - pos[2] * vel[1], pos[2] * vel[0] - pos[0] * vel[2],
+                       pos[0] * vel[1] - pos[1] * vel[0])
+    h = ca.norm_2(h_vec)
+    hx, hy, hz = h_vec[0] / h, h_vec[1] / h, h_vec[2] / h
+    quat = ca.vertcat(1 + hz, -hy, hx, 0)
+    quat = quat / ca.norm_2(quat)
+    local = ca.mtimes(rotation.matrix(quat).T, pos)
+    r = ca.norm_2(pos)
+    vr = ca.dot(pos, vel) / r
+    return ca.vertcat(r, ca.atan2(local[1], local[0]), vr, h / r), quat
+
+
+def plane_normal(quat):
+    """h_hat, the unit normal of the plane of ``quat``, in the fixed frame."""
+    return rotation.rotate(quat, ca.vertcat(0, 0, 1))
+
+
+def inclination_and_node(quat):
+    """Inclination in [0, pi] and longitude of the ascending node of the plane of
+    ``quat``, radians (the node is undefined, and its derivative too, at inclination 0)."""
+    n = plane_normal(quat)
+    return ca.atan2(ca.sqrt(n[0] ** 2 + n[1] ** 2), n[2]), ca.atan2(n[0], -n[1])

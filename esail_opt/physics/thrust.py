@@ -35,3 +35,30 @@ def cone_angle(alpha, coefficients=EXACT):
     """Thrust cone angle atan(T / R) in radians: the thrust's tilt from the radial."""
     R, T = radial_transverse(alpha, coefficients)
     return ca.atan2(T, R)
+
+
+def radial_transverse_normal(alpha, delta, coefficients=EXACT):
+    """Thrust factors (R, T, N) in three dimensions, along r_hat, t_hat and h_hat.
+
+    The sail's normal n lies at pitch ``alpha`` from r_hat and is turned by the clock
+    angle ``delta`` about r_hat: delta = 0 keeps it in the orbital plane on the side of
+    the motion (t_hat), positive delta turns it toward h_hat = r x v / |r x v|.  The
+    solar wind is radial, so the sail's thrust is symmetric about r_hat: turning the
+    normal by delta about r_hat turns the planar thrust (Eqs. 3-4) by delta about r_hat.
+    Hence, for either coefficient set,
+
+        (R, T, N) = (b1 + b2 cos 2 alpha, b2 sin 2 alpha cos delta, b2 sin 2 alpha sin delta),
+
+    which is Eqs. 3-4 at delta = 0 (built from :func:`radial_transverse`, so the planar
+    factors are these to the last bit).  With :data:`EXACT` it is Huo et al.'s
+    a = (a_c/2)(r_E/r)[r_hat + (r_hat . n) n] (THEORY.md §9.1).
+
+    Parameters
+    ----------
+    alpha, delta : float or casadi expression
+        Pitch in [-pi/2, pi/2] and clock angle, radians.
+    coefficients : tuple of float
+        (b1, b2).
+    """
+    R, T = radial_transverse(alpha, coefficients)
+    return R, T * ca.cos(delta), T * ca.sin(delta)

@@ -1,0 +1,159 @@
+"""A flown trajectory as a CCSDS Orbit Ephemeris Message (OEM, CCSDS 502.0-B), in KVN.
+
+The message is what navigation and mission-analysis tools read (GMAT, Orekit, STK, SPICE's
+``mkspk``): one segment, centre ``SUN``, frame ``ICRF``, time system ``TDB``, positions in
+km and velocities in km/s, epochs ``YYYY-MM-DDTHH:MM:SS.ffffff``.  It is written through
+the ``oem`` package (its message, segment, metadata and header classes and its KVN writer),
+not by hand, so that its layout is that library's reading of the standard.
+
+Decisions:
+
+- **Frame.**  The package flies in the ecliptic of J2000 (:mod:`esail_opt.bodies.ephemeris`);
+  the message is in DE421's own ICRF axes, turned back by that module's one rotation
+  (:func:`~esail_opt.bodies.ephemeris.icrf_from_ecliptic`), so that a body's DE421 state
+  written here reads back as DE421's heliocentric ICRF state itself.
+- **Time.**  Epochs are TDB, the ephemeris's scale (:mod:`esail_opt.bodies.dates`), written
+  to the microsecond, the library's format: a state is labelled within 0.5 microseconds
+  of its epoch, 2 cm at 40 km/s.  Two epochs closer than that would print alike and are
+  refused.
+- **Digits.**  The library's scientific format keeps 15 significant digits: each position
+  coordinate to 0.5 mm within 1e9 km (6.7 au) of the Sun (5e-15 relative beyond), each
+  velocity coordinate to 0.5 nm/s below 100 km/s.
+- **Whole or nothing.**  The file is written under a temporary name beside ``path`` and
+  renamed onto it (:func:`esail_opt.app.files.atomic_path`): a reader sees the old file
+  or the new one.
+
+The ``oem`` package (and the astropy it reads times with) is imported on first use, not
+with this module: a command that never writes a message does not pay for it.
+"""
+
+import datetime as _dt
+
+import numpy as np
+
+from esail_opt.app.files import atomic_path
+from esail_opt.bodies.dates import jd_from_iso
+from esail_opt.bodies.ephemeris import icrf_from_ecliptic
+from esail_opt.errors import InputError
+from esail_opt.physics import constants as units
+
+#: The version of the standard written (the ``oem`` package's current one).
+OEM_VERSION = "2.0"
+CENTER_NAME = "SUN"
+REF_FRAME = "ICRF"
+TIME_SYSTEM = "TDB"
+#: The epochs' format, as the ``oem`` package writes them.
+EPOCH_FORMAT = "%Y-%m-%dT%H:%M:%S.%f"
+
+
+def states_km_km_s(states):
+    """Canonical states (6, N), au and au/TU, in km and km/s (what :func:`write_oem` takes)."""
+    values = np.array(states, dtype=float)
+    values[:3] = units.length_to_km(values[:3])
+    values[3:] = units.speed_to_km_s(values[3:])
+    return values
+
+
+def write_oem(path, object_name, epochs, states_km_kms_ecliptic, *, jd2=0.0, object_id=None,
+              originator="esail_opt", creation_date=None):
+    """Write a trajectory as a CCSDS OEM in KVN, heliocentric ICRF, TDB, km and km/s.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write (conventionally ``trajectory.oem``); its folder is created.
+    object_name : str
+        ``OBJECT_NAME``: the spacecraft, e.g. the problem's name.
+    epochs : sequence of str, or array_like of float, length N
+        The states' epochs, strictly increasing: ISO 8601 dates read as TDB
+        (:func:`esail_opt.bodies.dates.jd_from_iso`, one float's resolution, about 40
+        microseconds), or Julian dates (TDB).
+    states_km_kms_ecliptic : array_like, shape (6, N)
+        ``[x, y, z, vx, vy, vz]`` at each epoch, heliocentric, in the ecliptic of J2000,
+        km and km/s (:func:`states_km_km_s` converts canonical states).
+    jd2 : float or array_like of length N
+        Days added to each epoch: a flight's epochs as its departure's Julian date plus
+        its days since, which keeps the microseconds one float of a Julian date loses.
+    object_id : str, optional
+        ``OBJECT_ID``; ``object_name`` by default (a planned sail has no designator).
+    originator : str
+        ``ORIGINATOR``.
+    creation_date : datetime.datetime, optional
+        ``CREATION_DATE`` (UTC); now by default.
+
+    Raises
+    ------
+    InputError
+        Naming ``oem.<argument>``: states not of shape (6, N) or not finite, epochs of
+        another count, not finite or not increasing at the microsecond, or a name that is
+        empty or spans lines.
+    """
+    states = _checked_states(states_km_kms_ecliptic)
+    stamps = _epochs(epochs, jd2, states.shape[1])
+    fields = {"object_name": object_name, "object_id": object_name if object_id is None else object_id,
+              "originator": originator}
+    for key, value in fields.items():
+        if not isinstance(value, str) or not value.strip() or "\n" in value or "\r" in value:
+            raise InputError(f"oem.{key} = {value!r} must be a non-empty one-line string")
+    created = creation_date or _dt.datetime.now(_dt.timezone.utc)
+    message = _message(fields, created.strftime("%Y-%m-%dT%H:%M:%S"), stamps,
+                       icrf_from_ecliptic(states))
+    with atomic_path(path) as tmp:
+        message.save_as(tmp, file_format="kvn")
+
+
+def _checked_states(states):
+    values = np.asarray(states, dtype=float)
+    if values.ndim != 2 or values.shape[0] != 6 or values.shape[1] < 1:
+        raise InputError(f"oem.states has shape {values.shape}; expected (6, N), N >= 1: "
+                         "x, y, z (km) and vx, vy, vz (km/s) by rows")
+    if not np.all(np.isfinite(values)):
+        raise InputError("oem.states holds a value that is not finite")
+    return values
+
+
+def _epochs(epochs, jd2, count):
+    """The epochs as an astropy Time array (TDB, two-part Julian dates), checked."""
+    from astropy.time import Time
+
+    if isinstance(epochs, str):
+        epochs = [epochs]
+    listed = list(np.atleast_1d(np.asarray(epochs, dtype=object)))
+    if len(listed) != count:
+        raise InputError(f"oem.epochs has {len(listed)} dates for {count} states")
+    if all(isinstance(e, str) for e in listed):
+        first = np.array([jd_from_iso(e, f"oem.epochs[{k}]") for k, e in enumerate(listed)])
+    else:
+        try:
+            first = np.asarray(listed, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("oem.epochs must be ISO 8601 dates or Julian dates (TDB)") from None
+    extra = np.asarray(jd2, dtype=float)
+    if extra.ndim > 1 or extra.size not in (1, count):
+        raise InputError(f"oem.jd2 has {extra.size} values for {count} epochs")
+    second = np.broadcast_to(extra, first.shape)
+    if not (np.all(np.isfinite(first)) and np.all(np.isfinite(second))):
+        raise InputError("oem.epochs holds a date that is not finite")
+    stamps = Time(first, second, format="jd", scale="tdb", precision=6)
+    text = stamps.strftime(EPOCH_FORMAT)
+    if count > 1 and not all(a < b for a, b in zip(text[:-1], text[1:])):
+        raise InputError("oem.epochs must increase strictly, by at least a microsecond")
+    return stamps
+
+
+def _message(fields, created, stamps, states):
+    """The ``oem`` package's OrbitEphemerisMessage of one segment."""
+    from oem import OrbitEphemerisMessage
+    from oem.components import EphemerisSegment, HeaderSection, MetaDataSection
+
+    header = HeaderSection({"CCSDS_OEM_VERS": OEM_VERSION, "CREATION_DATE": created,
+                            "ORIGINATOR": fields["originator"]})
+    metadata = MetaDataSection({
+        "OBJECT_NAME": fields["object_name"], "OBJECT_ID": fields["object_id"],
+        "CENTER_NAME": CENTER_NAME, "REF_FRAME": REF_FRAME, "TIME_SYSTEM": TIME_SYSTEM,
+        "START_TIME": stamps[0].strftime(EPOCH_FORMAT),
+        "STOP_TIME": stamps[-1].strftime(EPOCH_FORMAT),
+    }, version=OEM_VERSION)
+    columns = (tuple(stamps),) + tuple(tuple(float(v) for v in row) for row in states)
+    segment = EphemerisSegment(metadata, columns, version=OEM_VERSION)
+    return OrbitEphemerisMessage(header, [segment])
