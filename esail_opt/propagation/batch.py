@@ -36,6 +36,7 @@ from esail_opt.physics.thrust import EXACT
 from esail_opt.propagation import compiled
 from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
 from esail_opt.propagation.rectified import angles_function, rectified_function
+from esail_opt.propagation.rectified3d import STATE, rectified3d_function
 
 log = logging.getLogger("esail_opt")
 
@@ -198,3 +199,43 @@ def arcs_at_angles(x0, ac, alphas, angles, *, coefficients=EXACT, nodes=PANEL_NO
         xs = np.vstack([states[:, m, : count - 1], elapsed[m, : count - 1]])
         out.append((np.column_stack([x5[m], xs]), q3[m, : count - 1]))
     return out
+
+
+@functools.lru_cache(maxsize=None)
+def batch3d_function(segments, cases, *, samples=1, coefficients=EXACT, model=ArcModel(),
+                     jit=False):
+    """``rectified3d.rectified3d_function`` mapped over ``cases``, laid out as
+    :func:`batch_function`: ``(x0[9 x M], ac, alpha, delta, length [1 x M N each]) ->
+    (xs[9 x M N S samples], q3[1 x M N S])``."""
+    single = rectified3d_function(segments, samples=samples, coefficients=coefficients,
+                                  model=model)
+    mapped = single.map(cases)
+    return _native(mapped) if jit else mapped
+
+
+def propagate_batch3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
+                      coefficients=EXACT, model=ArcModel(), jit=False):
+    """``rectified3d.propagate3d`` for M cases in one call.
+
+    ``x0`` (4,) or (M, 4) and ``quat0`` (4,) or (M, 4) are the start polar states and
+    planes; ``alphas``, ``deltas``, ``lengths`` (M, N) or (N,), angles in rad; ``ac``
+    scalar or (M,); the rest as :func:`propagate_batch`.  Returns ``xs`` of shape
+    (M, 9, N S samples + 1) and ``q3`` of shape (M, N S).
+    """
+    n = np.shape(np.atleast_2d(alphas))[1]
+    cases = max(np.atleast_2d(x0).shape[0], np.atleast_2d(quat0).shape[0], np.size(ac),
+                *(np.shape(np.atleast_2d(v))[0] for v in (alphas, deltas, lengths)))
+    rows = [_rows(v, cases, n, name) for v, name in (
+        (alphas, "alphas"), (deltas, "deltas"), (lengths, "lengths"),
+        (1.0 if throttles is None else throttles, "throttles"))]
+    acs = np.broadcast_to(np.asarray(ac, float).reshape(-1, 1), (cases, 1))
+    starts = np.column_stack([_rows(x0, cases, 4, "x0"), np.zeros(cases),
+                              _rows(quat0, cases, 4, "quat0")])
+    fun = batch3d_function(n, cases, samples=samples, coefficients=coefficients,
+                           model=model, jit=jit)
+    xs, q3 = fun(starts.T, (acs * rows[3]).reshape(1, -1),
+                 *(row.reshape(1, -1) for row in rows[:3]))
+    arcs = n * model.sub_arcs
+    xs = np.array(xs).reshape(STATE, cases, arcs * samples).transpose(1, 0, 2)
+    return (np.concatenate([starts[:, :, None], xs], axis=2),
+            np.array(q3).reshape(cases, arcs))

@@ -11,8 +11,9 @@ NLP takes it.
 
 import casadi as ca
 
-from esail_opt.physics.dynamics import rhs, rhs_in_theta
-from esail_opt.physics.thrust import EXACT, radial_transverse
+from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_cartesian_in_theta,
+                                        rhs_in_theta)
+from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse_normal
 
 
 def rk4_segment(steps, coefficients=EXACT, length_in="theta"):
@@ -53,12 +54,7 @@ def rk4_segment(steps, coefficients=EXACT, length_in="theta"):
             return rhs_in_theta(y[:4], ac, R, T)
         return ca.vertcat(rhs(y[:4], ac, R, T), 1)
 
-    k1 = f(x)
-    k2 = f(x + h / 2 * k1)
-    k3 = f(x + h / 2 * k2)
-    k4 = f(x + h * k3)
-    step = ca.Function("rk4_step", [x, ac, alpha, h],
-                       [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+    step = ca.Function("rk4_step", [x, ac, alpha, h], [_classic_step(f, x, h)])
 
     x0 = ca.SX.sym("x0", 5)
     ac, alpha, length = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("length")
@@ -69,3 +65,43 @@ def rk4_segment(steps, coefficients=EXACT, length_in="theta"):
     # segments exactly as it maps the closed form's.
     return ca.Function("segment_rk4", [x0, ac, alpha, length], [x1, ca.SX(0, 1)],
                        ["x0", "ac", "alpha", "length"], ["x1", "q3"]).expand()
+
+
+def _classic_step(f, x, h):
+    k1 = f(x)
+    k2 = f(x + h / 2 * k1)
+    k3 = f(x + h / 2 * k2)
+    k4 = f(x + h * k3)
+    return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def rk4_segment3d(steps, coefficients=EXACT, length_in="theta"):
+    """One segment of constant pitch and clock on the Cartesian equations
+    (``dynamics.rhs_cartesian``) by ``steps`` equal classic RK4 steps.
+
+    Returns ``(y0[7], ac, alpha, delta, length) -> (y1[7], q3[0])``, SX and expanded,
+    y = [x, y, z, vx, vy, vz, t] canonical; ``length`` is the angle the Sun-sail line
+    sweeps (rad, ``dynamics.rhs_cartesian_in_theta``) or a duration (TU), as
+    :func:`rk4_segment`'s.  The global error falls like steps^-4.
+    """
+    if int(steps) != steps or steps < 1:
+        raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
+    if length_in not in ("theta", "time"):
+        raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
+    y = ca.SX.sym("y", 7)
+    ac, alpha, delta, h = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "h"))
+    R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+
+    def f(z):
+        if length_in == "theta":
+            return rhs_cartesian_in_theta(z[:6], ac, R, T, N)
+        return ca.vertcat(rhs_cartesian(z[:6], ac, R, T, N), 1)
+
+    step = ca.Function("rk4_step3d", [y, ac, alpha, delta, h], [_classic_step(f, y, h)])
+    y0 = ca.SX.sym("y0", 7)
+    ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "length"))
+    y1 = y0
+    for _ in range(int(steps)):
+        y1 = step(y1, ac, alpha, delta, length / int(steps))
+    return ca.Function("segment_rk4_3d", [y0, ac, alpha, delta, length], [y1, ca.SX(0, 1)],
+                       ["y0", "ac", "alpha", "delta", "length"], ["y1", "q3"]).expand()

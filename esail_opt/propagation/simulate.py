@@ -15,8 +15,8 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.errors import SignalsHeld
-from esail_opt.physics.dynamics import rhs, rhs_in_theta
-from esail_opt.physics.thrust import EXACT, radial_transverse
+from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_cartesian_in_theta, rhs_in_theta)
+from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse_normal
 
 #: Tight enough that the reference is not the error being measured (THEORY.md §5.5).
 TOLERANCE = 1e-12
@@ -78,22 +78,28 @@ def segment_integrator(samples, length_in="time", coefficients=EXACT, tol=TOLERA
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, length = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("length")
     xs = integ(x0=x0, p=ca.vertcat(ac, alpha, length))["xf"]
-    return ca.Function("segment", [x0, ac, alpha, length], [xs])
+    return ca.Function("segment", [x0, ac, alpha, length], [xs],
+                       ["x0", "ac", "alpha", "length"], ["xs"])
 
 
 @functools.lru_cache(maxsize=None)
 def schedule_function(segments, samples, length_in="time", coefficients=EXACT, tol=TOLERANCE):
     """All segments chained: ``(x0[5], ac[N], alpha[N], length[N]) -> xs[5 x N*samples]``."""
-    seg = segment_integrator(samples, length_in, coefficients, tol)
-    x0 = ca.MX.sym("x0", 5)
-    ac, alpha, length = (ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "length"))
-    xs_sym = ca.MX.sym("xs0", 5)
-    a_s, al_s, l_s = ca.MX.sym("a"), ca.MX.sym("al"), ca.MX.sym("l")
-    block = seg(xs_sym, a_s, al_s, l_s)
-    stepper = ca.Function("stepper", [xs_sym, a_s, al_s, l_s], [block[:, -1], block])
+    return _chained(segment_integrator(samples, length_in, coefficients, tol), segments)
+
+
+def _chained(seg, segments):
+    """A segment Function ``(x0, *per-segment scalars) -> xs`` chained over ``segments``
+    segments, each starting where the one before ended, by one ``mapaccum``."""
+    xs_sym = ca.MX.sym("xs0", seg.sparsity_in(0))
+    scalars = [ca.MX.sym(f"p{k}") for k in range(1, seg.n_in())]
+    block = seg(xs_sym, *scalars)
+    stepper = ca.Function("stepper", [xs_sym, *scalars], [block[:, -1], block])
     chained = stepper.mapaccum("chain", segments, [0], [0])
-    _, blocks = chained(x0, ac, alpha, length)
-    return ca.Function("schedule", [x0, ac, alpha, length], [blocks])
+    x0 = ca.MX.sym("x0", seg.sparsity_in(0))
+    rows = [ca.MX.sym(seg.name_in(k), 1, segments) for k in range(1, seg.n_in())]
+    _, blocks = chained(x0, *rows)
+    return ca.Function("schedule", [x0, *rows], [blocks])
 
 
 @functools.lru_cache(maxsize=None)
@@ -167,3 +173,85 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time
     except RuntimeError as err:
         raise SimulationError(str(err).strip().splitlines()[-1]) from None
     return np.column_stack([start, xs])
+
+
+@functools.lru_cache(maxsize=None)
+def segment_integrator3d(samples, length_in="time", coefficients=EXACT, tol=TOLERANCE):
+    """CVODES over one segment of constant pitch and clock on the Cartesian equations
+    (``dynamics.rhs_cartesian``), sampled at tau = k / samples.
+
+    Returns ``(y0[7], ac, alpha, delta, length) -> ys[7 x samples]``, y = [x, y, z, vx,
+    vy, vz, t] canonical (any fixed frame, the ecliptic of J2000 for real bodies);
+    ``length`` is a duration (TU) or the angle the Sun-sail line sweeps (rad,
+    ``dynamics.swept_angle_rate``).  It is the 3-D verifier: it flies no plane and no
+    polar state, so it checks the turning-plane decomposition rather than using it.
+    """
+    y = ca.SX.sym("y", 7)
+    ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "length"))
+    R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+    if length_in == "time":
+        ode = ca.vertcat(rhs_cartesian(y[:6], ac, R, T, N), 1) * length
+    elif length_in == "theta":
+        ode = rhs_cartesian_in_theta(y[:6], ac, R, T, N) * length
+    else:
+        raise ValueError(f"length_in must be 'time' or 'theta', not {length_in!r}")
+    grid = [k / samples for k in range(1, samples + 1)]
+    opts = {"abstol": tol, "reltol": tol, "max_num_steps": MAX_STEPS[length_in],
+            "linear_multistep_method": "adams",
+            "disable_internal_warnings": True, "show_eval_warnings": False}
+    integ = ca.integrator("segment3d", "cvodes",
+                          {"x": y, "p": ca.vertcat(ac, alpha, delta, length), "ode": ode},
+                          0, grid, opts)
+    y0 = ca.MX.sym("y0", 7)
+    ac, alpha, delta, length = (ca.MX.sym(n) for n in ("ac", "alpha", "delta", "length"))
+    ys = integ(x0=y0, p=ca.vertcat(ac, alpha, delta, length))["xf"]
+    return ca.Function("segment3d", [y0, ac, alpha, delta, length], [ys],
+                       ["y0", "ac", "alpha", "delta", "length"], ["ys"])
+
+
+@functools.lru_cache(maxsize=None)
+def schedule_function3d(segments, samples, length_in="time", coefficients=EXACT,
+                        tol=TOLERANCE):
+    """All 3-D segments chained: ``(y0[7], ac[N], alpha[N], delta[N], length[N]) ->
+    ys[7 x N*samples]`` (:func:`segment_integrator3d`)."""
+    return _chained(segment_integrator3d(samples, length_in, coefficients, tol), segments)
+
+
+def simulate3d(y0, alphas, deltas, lengths, ac, throttles=None, samples=1, length_in="time",
+               coefficients=EXACT, tol=TOLERANCE):
+    """Fly the Cartesian equations from ``y0`` under a schedule of pitch and clock angles.
+
+    Parameters
+    ----------
+    y0 : array_like, shape (6,)
+        Cartesian state [x, y, z, vx, vy, vz], canonical units.
+    alphas, deltas, lengths : array_like, shape (N,)
+        Pitch and clock (rad) and length of each segment: duration (TU) if
+        ``length_in`` is ``"time"``, the angle the Sun-sail line sweeps (rad) if
+        ``"theta"``.
+    ac, throttles, samples, coefficients, tol
+        As :func:`simulate`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (7, N * samples + 1)
+        [x, y, z, vx, vy, vz, t] at the start and at every sample.
+
+    Raises
+    ------
+    SimulationError
+        If CVODES stops short.
+    """
+    alphas = np.atleast_1d(np.asarray(alphas, float))
+    n = alphas.size
+    kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
+    fun = schedule_function3d(n, samples, length_in, coefficients, tol)
+    start = np.r_[np.asarray(y0, float), 0.0]
+    try:
+        with SignalsHeld(), quiet_stderr():
+            ys = np.array(fun(start, ac * kappa, alphas,
+                              np.atleast_1d(np.asarray(deltas, float)),
+                              np.atleast_1d(np.asarray(lengths, float))))
+    except RuntimeError as err:
+        raise SimulationError(str(err).strip().splitlines()[-1]) from None
+    return np.column_stack([start, ys])

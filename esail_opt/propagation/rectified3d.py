@@ -1,0 +1,169 @@
+"""The rectified closed form in three dimensions: the planar rectified arc inside a plane
+that turns, arc after arc (THEORY.md §9).
+
+An arc of pitch alpha and clock delta has the thrust factors (R, T, N)
+(``thrust.radial_transverse_normal``).  Its polar state is the planar arc's with
+(R, T), exactly as :mod:`.rectified` flies it (the same ``closed_form`` arc, the same
+clock and the same invariant), and its plane turns by ``plane_turn.arc_turn`` with N
+at the arc model's order, composed onto the plane's quaternion at the arc's end.  The
+state is ``[r, theta, v_r, v_theta, t, qw, qx, qy, qz]``: the polar state and time of
+:mod:`.rectified`, theta measured inside the turning plane, and the unit quaternion of
+the plane (``physics.rotation``'s convention; ``elements.cartesian_from_polar3d``
+gives the Cartesian state).  At delta = 0 the plane never turns and the polar rows are
+:mod:`.rectified`'s.
+
+Lengths are angles (rad), as the NLP's closed-form segments are; the chain is one
+Function, an SX arc accumulated over the arcs with ``mapaccum``, on CasADi's virtual
+machine.  Richardson extrapolation, compiled panels and arcs of given duration are the
+planar propagator's only (``model.extrapolate`` is refused here).
+"""
+
+import functools
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.errors import InputError
+from esail_opt.physics import rotation
+from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
+from esail_opt.physics.dynamics import angular_momentum
+from esail_opt.physics.plane_turn import arc_turn, turned_plane
+from esail_opt.physics.thrust import EXACT, radial_transverse_normal
+from esail_opt.propagation.arcs import ArcModel
+
+#: Rows of the state: [r, theta, v_r, v_theta, t] and the plane's quaternion.
+STATE = 9
+
+
+def _inputs():
+    x0 = ca.SX.sym("x0", STATE)
+    return x0, ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("delta")
+
+
+@functools.lru_cache(maxsize=None)
+def panel_function3d(*, coefficients=EXACT, nodes=8):
+    """A first-order arc between two of its angles: ``(x0[9], ac, alpha, delta, phi_a,
+    phi_b) -> (state at phi_b [9], time from phi_a to phi_b, q3 at phi_b)``; the state's
+    time row is x0's (the caller adds the panels' times) and its plane has turned from
+    x0's by the first-order turn over [0, phi_b]."""
+    x0, ac, alpha, delta = _inputs()
+    phi_a, phi_b = ca.SX.sym("phi_a"), ca.SX.sym("phi_b")
+    R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+    arc = arc_frame(x0[:4], ac, R, T)
+    dt = x0[0] ** 1.5 * arc.time(phi_a, phi_b, nodes)
+    plane = turned_plane(x0[5:], x0[1], arc_turn(arc, N, phi_b, order=1))
+    state = ca.vertcat(arc_state(x0[:4], arc, phi_b), x0[4], plane)
+    return ca.Function("panel3d", [x0, ac, alpha, delta, phi_a, phi_b],
+                       [state, dt, arc.q(phi_b)[2]])
+
+
+@functools.lru_cache(maxsize=None)
+def end_function3d(*, coefficients=EXACT, nodes=2):
+    """A second-order arc from its start to an angle: ``(x0[9], ac, alpha, delta, phi) ->
+    (state at phi [9], time from 0 to phi, q3 at phi)``, the planar part
+    ``closed_form.SecondOrderArc``'s and the turn ``plane_turn.second_order_turn``'s,
+    both on the same ``nodes`` Gauss-Legendre points; q3 is the first-order margin."""
+    x0, ac, alpha, delta = _inputs()
+    phi = ca.SX.sym("phi")
+    R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+    arc = arc_frame(x0[:4], ac, R, T)
+    second = SecondOrderArc(arc, phi, nodes)
+    plane = turned_plane(x0[5:], x0[1], arc_turn(arc, N, phi, order=2, nodes=nodes))
+    state = ca.vertcat(arc_state(x0[:4], arc, phi, second.q_end), x0[4], plane)
+    return ca.Function("arc_end3d", [x0, ac, alpha, delta, phi],
+                       [state, x0[0] ** 1.5 * second.time, second.q_first[2]],
+                       {"cse": True})
+
+
+@functools.lru_cache(maxsize=None)
+def arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
+    """One 3-D arc of ``model`` sampled at phi_k = dtheta k / samples, k = 1..samples:
+    ``(x0[9], ac, alpha, delta, dtheta) -> (xs[9 x samples], q3)``, as
+    ``rectified.arc_function`` (order 1: the samples are the time's panels; order 2:
+    every sample is its own arc end from x0; ``model.invariant``: v_theta = h / r with
+    the exact h of Eq. 2 and the in-plane T), with the plane turned from x0's at each
+    sample."""
+    x0, ac, alpha, delta, dtheta = (ca.MX.sym(n, s) for n, s in (
+        ("x0", STATE), ("ac", 1), ("alpha", 1), ("delta", 1), ("dtheta", 1)))
+    phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
+    if model.order == 1:
+        piece = panel_function3d(coefficients=coefficients, nodes=model.nodes).map(samples)
+        states, dts, q3s = piece(x0, ac, alpha, delta, phis[:, :-1], phis[:, 1:])
+        elapsed = ca.cumsum(dts, 1)
+    else:
+        piece = end_function3d(coefficients=coefficients, nodes=model.nodes).map(samples)
+        states, elapsed, q3s = piece(x0, ac, alpha, delta, phis[:, 1:])
+    if model.invariant:
+        T = radial_transverse_normal(alpha, delta, coefficients)[1]
+        h = angular_momentum(x0, ac, T, elapsed)
+        states = ca.vertcat(states[:3, :], h / states[0, :], states[4:, :])
+    states = ca.vertcat(states[:4, :], x0[4] + elapsed, states[5:, :])
+    return ca.Function("arc3d", [x0, ac, alpha, delta, dtheta], [states, q3s[-1]],
+                       ["x0", "ac", "alpha", "delta", "dtheta"], ["xs", "q3"])
+
+
+@functools.lru_cache(maxsize=None)
+def rectified3d_function(segments, *, samples=1, coefficients=EXACT, model=ArcModel()):
+    """A schedule of ``segments`` segments of constant pitch and clock, each
+    ``model.sub_arcs`` arcs of equal angle, as one Function:
+    ``(x0[9], ac[1 x N], alpha[1 x N], delta[1 x N], length[1 x N]) ->
+    (xs[9 x N S samples], q3[1 x N S])``, lengths in theta (rad), ``ac`` per segment
+    (times any throttle).  The arcs restart from each other's ends: the plane's turns
+    compose by quaternion products, arc after arc."""
+    if model.extrapolate:
+        raise InputError("arc_model.extrapolate = True is not available in three "
+                         "dimensions; use False")
+    sub = model.sub_arcs
+    arc = arc_function3d(samples, coefficients=coefficients, model=model.one_arc())
+    xa = ca.MX.sym("x0", STATE)
+    ac, alpha, delta, length = (ca.MX.sym(n) for n in ("ac", "alpha", "delta", "length"))
+    xs, q3 = arc(xa, ac, alpha, delta, length)
+    step = ca.Function("step", [xa, ac, alpha, delta, length], [xs[:, -1], xs, q3])
+    chain = step.mapaccum("chain3d", segments * sub, [0], [0])
+    x0 = ca.MX.sym("x0", STATE)
+    rows = [ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "delta", "length")]
+    # Each segment's entry S times over, the length divided once: its S arcs.
+    per_arc = [ca.repmat(row, sub, 1).reshape((1, segments * sub)) for row in rows[:3]]
+    per_arc.append(ca.repmat(rows[3] / sub, sub, 1).reshape((1, segments * sub)))
+    _, blocks, q3s = chain(x0, *per_arc)
+    return ca.Function("rectified3d", [x0, *rows], [blocks, q3s],
+                       ["x0", "ac", "alpha", "delta", "length"], ["xs", "q3"])
+
+
+def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
+                coefficients=EXACT, model=ArcModel()):
+    """Rectified closed-form propagation in three dimensions of a schedule of pitch and
+    clock angles.
+
+    Parameters
+    ----------
+    x0 : array_like, shape (4,)
+        Polar state [r, theta, v_r, v_theta] inside the plane of ``quat0``, canonical.
+    quat0 : array_like, shape (4,)
+        The plane's unit quaternion (``elements.polar3d_from_cartesian`` gives both from
+        a Cartesian state).
+    alphas, deltas, lengths : array_like, shape (N,)
+        Pitch and clock (rad) and angle (rad) of each segment.
+    ac : float
+        Characteristic acceleration, canonical units.
+    throttles : array_like, shape (N,), optional
+        Factor on ac per segment (0 is a coast), default 1.
+    samples, coefficients, model
+        As ``rectified.propagate`` (lengths in theta, no extrapolation).
+
+    Returns
+    -------
+    xs : numpy.ndarray, shape (9, N * S * samples + 1)
+        [r, theta, v_r, v_theta, t, qw, qx, qy, qz] at the start and at every sample,
+        S = ``model.sub_arcs``.
+    q3 : numpy.ndarray, shape (N * S,)
+        First-order validity margin at each arc's end.
+    """
+    alphas = np.atleast_1d(np.asarray(alphas, float))
+    n = alphas.size
+    kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
+    fun = rectified3d_function(n, samples=samples, coefficients=coefficients, model=model)
+    start = np.r_[np.asarray(x0, float), 0.0, np.asarray(quat0, float)]
+    xs, q3 = fun(start, ac * kappa, alphas, np.atleast_1d(np.asarray(deltas, float)),
+                 np.atleast_1d(np.asarray(lengths, float)))
+    return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
