@@ -39,7 +39,7 @@ from esail_opt.propagation import compiled
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.rectified import (flies_native, piece_function, propagate,
                                              rectified_function)
-from esail_opt.propagation.rectified3d import rectified3d_function
+from esail_opt.propagation.rectified3d import arc_function3d
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError
@@ -175,18 +175,32 @@ def closed_form_segment3d(*, coefficients=EXACT, model=ArcModel()):
     q3[sub_arcs])``, x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] (the planar arc's
     state inside the plane of the unit quaternion, ``propagation.rectified3d``).
 
-    It is ``rectified3d.rectified3d_function`` of one segment, expanded to SX once, as
-    the planar :func:`closed_form_segment` is when nothing is compiled; the 3-D arcs are
-    not compiled (``model.native`` is ignored).
+    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX.  With
+    ``model.native`` it is compiled with its derivatives and the segment's chain of arc
+    calls compiled over it (``propagation.compiled``), as :func:`closed_form_segment`
+    does in the plane; otherwise, or where nothing compiles, the segment is the
+    expanded SX chain.
     """
-    model = dataclasses.replace(model, native=False)
-    chain = rectified3d_function(1, coefficients=coefficients, model=model).expand()
-    x0 = ca.SX.sym("x0", 9)
-    ac, alpha, delta, dtheta = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
-    xs, q3 = chain(x0, ac, alpha, delta, dtheta)
-    return ca.Function("segment3d", [x0, ac, alpha, delta, dtheta], [xs[:, -1], q3.T],
-                       ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"],
-                       {"cse": True})
+    if model.extrapolate:
+        raise InputError("segments.extrapolate = True is not available in three "
+                         "dimensions; use False")
+    one = dataclasses.replace(model.one_arc(), native=False)
+    arc = arc_function3d(1, coefficients=coefficients, model=one).expand()
+    fast = compiled.compiled(arc) if model.native else arc
+    native = fast is not arc
+    sym = ca.MX if native else ca.SX
+    x0 = sym.sym("x0", 9)
+    ac, alpha, delta, dtheta = (sym.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
+    x, margins = x0, []
+    for _ in range(model.sub_arcs):
+        xs, q3 = (fast if native else arc)(x, ac, alpha, delta, dtheta / model.sub_arcs)
+        x = xs[:, -1]
+        margins.append(q3)
+    segment = ca.Function("segment3d", [x0, ac, alpha, delta, dtheta],
+                          [x, ca.vertcat(*margins)],
+                          ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"],
+                          {"cse": True})
+    return compiled.compiled(segment, (arc,)) if native else segment
 
 
 def problem_segment(problem):
