@@ -144,8 +144,15 @@ def test_seed_of_a_3d_problem_is_continuous():
     assert np.abs(end - guess.nodes[:, 0]).max() < 1e-12
 
 
+def read_oem_states(text):
+    """The data lines of a KVN OEM: epochs (str) and states (6, N) in km and km/s."""
+    rows = [line.split() for line in text.splitlines()
+            if line[:4].isdigit() and len(line.split()) == 7]
+    return [r[0] for r in rows], np.array([[float(v) for v in r[1:]] for r in rows]).T
+
+
 @pytest.mark.slow
-def test_mars_rendezvous_in_3d_flies_onto_de421s_mars():
+def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
     """Done-when of the 3-D optimisation: a fixed-date 3-D Earth-Mars rendezvous, its
     schedule (pitch, clock and duration per segment) flown here by DOP853 at rtol 1e-12
     on the Cartesian equations from DE421's Earth, meets DE421's unprojected Mars at the
@@ -167,3 +174,28 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars():
     assert miss_m_s < problem.tolerance.velocity_m_s
     # Mars is 1.85 deg out of the ecliptic: the flight ends well off it, as Mars does.
     assert abs(y[2]) * AU_KM > 1e5
+    # The files: schema 5, the clock in schedule.csv, the departure state as DE421's Earth,
+    # and the OEM's last state (ICRF, km) on DE421's Mars (rotated back here).
+    import csv
+    import json
+
+    from esail_opt.app.solution import Solution
+
+    Solution.of(run).write(tmp_path, plots=False)
+    data = json.loads((tmp_path / "solution.json").read_text())
+    assert data["schema_version"] == 5
+    dep = data["problem"]["departure_state"]
+    earth = de421_ecliptic("earthmoon", jd0)
+    assert abs(dep["z_au"] - earth[2]) < 1e-12 and abs(dep["x_au"] - earth[0]) < 1e-12
+    rows = list(csv.DictReader((tmp_path / "schedule.csv").open()))
+    assert len(rows) == result.alpha.size
+    clock = np.radians([float(r["clock_deg"]) for r in rows])
+    assert np.abs(np.angle(np.exp(1j * (clock - result.delta)))).max() < 1e-12
+    incl = data["trajectory"]["cvodes"]["inclination_deg"]
+    assert incl[0] < 0.01 and abs(incl[-1] - 1.85) < 0.05  # Earth's plane to Mars's
+    epochs, states = read_oem_states((tmp_path / "trajectory.oem").read_text())
+    c, s = math.cos(EPS), math.sin(EPS)
+    to_icrf = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    mars_icrf = to_icrf @ mars[:3] * AU_KM
+    assert epochs[-1].startswith(data["arrival_date"][:16])
+    assert np.linalg.norm(states[:3, -1] - mars_icrf) < problem.tolerance.position_km
