@@ -21,6 +21,16 @@ CVODES arcs (:func:`cvodes_segment`, or :func:`cvodes_time_segment` in time), an
 polish (``optimisation.polish``) RK4 arcs in time (``propagation.rk4``), with
 the segment durations as the length variables: ``transcribe(..., length_in="time")``.
 
+In three dimensions (``Problem.three_d``: a real body, not ``planar=True``) a node adds
+the unit quaternion of its orbital plane, ``X[9 x N]`` = [r, theta, v_r, v_theta, t, qw,
+qx, qy, qz] with theta inside that plane, each segment adds a clock angle ``delta[N]``
+(after every planar variable, within ``Problem.clock_bounds``), and the segment is
+:func:`closed_form_segment3d`, the planar arc in a plane that turns
+(``propagation.rectified3d``).  The departure is the body's smooth 3-D track
+(``bodies.track.Track3``) at the epoch, and a body target's rows are Cartesian, the
+final node against the target's 3-D track at the arrival date: no turn count enters
+them.  Orbit targets keep their rows on the polar state, which hold in any plane.
+
 Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
 end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
 the last node, and the time of flight when the objective fixes it.
@@ -744,6 +754,10 @@ def transcribe(problem, segment=None, guess=None, length_in="theta", threads=Non
     in_time = length_in == "time"
     if segment is None:
         segment = problem_segment(problem)
+    elif segment.n_in() != (5 if problem.three_d() else 4):
+        raise ValueError(f"segment {segment.name()!r} has {segment.n_in()} inputs; a "
+                         f"{'3-D' if problem.three_d() else 'planar'} problem's segment takes "
+                         f"{5 if problem.three_d() else 4} (planar=True flies the planar ones)")
     guess = initial_guess(problem) if guess is None else guess
     scales = _Scales.of(guess)
     v, variables = _variables(problem, guess, scales, in_time)

@@ -1,4 +1,5 @@
-"""Verification of an optimised schedule on the full Eqs. 1-2 with CVODES.
+"""Verification of an optimised schedule on the full Eqs. 1-2 with CVODES (in three
+dimensions on the Cartesian equations, :func:`verify3d`).
 
 The schedule is flown from the departure state with the pitch switching at the NLP's
 segment start times and each segment lasting the NLP's own duration (the closed form's
@@ -113,17 +114,19 @@ def judge(problem, misses, error, tolerance, against_nlp=False):
     failed = []
     for what, r, v in checks:
         failed += [f"misses {what} by {text}" for text in _exceeded(r, v, r_err, v_err, tolerance)]
+    flight = ("the flight on the Cartesian equations" if problem.three_d()
+              else "the flight on Eqs. 1-2")
     if failed:
-        return False, "NOT verified: the flight on Eqs. 1-2 " + "; ".join(failed)
+        return False, f"NOT verified: {flight} " + "; ".join(failed)
     if all(v is not None for _, _, v in checks):
-        return True, (f"verified: the flight on Eqs. 1-2 is within {tolerance.position_km:g} "
+        return True, (f"verified: {flight} is within {tolerance.position_km:g} "
                       f"km and {tolerance.velocity_m_s:g} m/s of "
                       + " and ".join(c[0] for c in checks))
     # An intercept is held to a position only: the line must not claim a speed bound.
     held = [f"{tolerance.position_km:g} km" + ("" if v is None else
                                                 f" and {tolerance.velocity_m_s:g} m/s")
             + f" of {what}" for what, _, v in checks]
-    return True, "verified: the flight on Eqs. 1-2 is within " + ", and within ".join(held)
+    return True, f"verified: {flight} is within " + ", and within ".join(held)
 
 
 def closed_form_curve(problem, result, samples=16, defects=None):
