@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from esail_opt.physics import rotation
 from esail_opt.physics.constants import accel_from_mm_s2, time_from_years
@@ -146,3 +147,32 @@ def test_planar_state_is_the_identity_plane():
     back, quat = polar3d_from_cartesian(y)
     assert np.abs(np.array(back).ravel() - x).max() < 1e-15
     assert np.abs(np.array(quat).ravel() - rotation.IDENTITY).max() < 1e-15
+
+
+@settings(max_examples=60, deadline=None)
+@given(r=st.floats(0.2, 5.0), theta=st.floats(-10, 10), vr=st.floats(-0.5, 0.5),
+       vt=st.floats(0.2, 2.0), turn=st.tuples(*[st.floats(-1.2, 1.2)] * 3))
+def test_polar_plane_round_trip(r, theta, vr, vt, turn):
+    """(polar, plane) -> Cartesian -> (polar, plane') keeps r, v_r, v_theta and h_hat;
+    plane' differs from plane only by a turn about h_hat, matched by the shift of theta,
+    so both give the same Cartesian state."""
+    quat = rotation.from_rotation_vector(list(turn))
+    y = np.array(cartesian_from_polar3d([r, theta, vr, vt], quat)).ravel()
+    back, quat2 = polar3d_from_cartesian(y)
+    back = np.array(back).ravel()
+    assert np.abs(back[[0, 2, 3]] - [r, vr, vt]).max() < 1e-13 * max(1, r, 1 / r)
+    relative = np.array(rotation.matrix(quat)).T @ np.array(rotation.matrix(quat2))
+    spin = math.atan2(relative[1, 0], relative[0, 0])
+    assert np.abs(relative[:, 2] - [0, 0, 1]).max() < 1e-13
+    shift = (theta - back[1] - spin + math.pi) % (2 * math.pi) - math.pi
+    assert abs(shift) < 1e-12
+
+
+def test_inclination_and_node_of_a_plane():
+    """The plane reached by turning the fixed frame by i about the x axis and then by
+    Omega about z has inclination i and node Omega (rotation composed by scipy)."""
+    for inc, node in ((0.3, 1.1), (1.0, -2.5), (2.0, 0.2)):
+        quat_xyzw = Rotation.from_euler("ZX", [node, inc]).as_quat()
+        quat = np.r_[quat_xyzw[3], quat_xyzw[:3]]
+        i, n = (float(v) for v in inclination_and_node(quat))
+        assert abs(i - inc) < 1e-14 and abs(n - node) < 1e-14

@@ -5,6 +5,7 @@ itself checked here against DOP853 on the Cartesian equations written out in
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -14,9 +15,12 @@ from esail_opt.physics.elements import cartesian_from_polar3d, polar_from_classi
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.batch import propagate_batch3d
 from esail_opt.propagation.rectified import propagate
-from esail_opt.propagation.rectified3d import propagate3d
+from esail_opt.propagation.rectified3d import (cartesian_states, end_function3d,
+                                              panel_function3d, propagate3d,
+                                              rectified3d_function)
 from esail_opt.propagation.rk4 import rk4_segment3d
-from esail_opt.propagation.simulate import VERIFY_TOLERANCE, simulate, simulate3d
+from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, fly_segments3d, simulate,
+                                            simulate3d)
 from test_plane_turn import fly_cartesian_theta
 
 AC = accel_from_mm_s2(1.0)
@@ -29,7 +33,17 @@ LENGTHS = np.full(6, 1.0)
 
 
 def cartesian(xs, column=-1):
+    """The Cartesian state of one column, converted column by column; it is also
+    ``cartesian_states``'s (checked in ``test_cartesian_states_column_by_column``)."""
     return np.array(cartesian_from_polar3d(xs[:4, column], xs[5:, column])).ravel()
+
+
+def test_cartesian_states_column_by_column():
+    xs = propagate3d(X0, PLANE, ALPHAS, DELTAS, LENGTHS, AC, samples=3)[0]
+    whole = cartesian_states(xs)
+    for k in range(xs.shape[1]):
+        assert np.abs(whole[:6, k] - cartesian(xs, k)).max() < 1e-15
+    assert np.abs(whole[6] - xs[4]).max() == 0
 
 
 def reference():
@@ -102,17 +116,19 @@ def test_rectified_3d_converges_to_cartesian_cvodes():
             assert errs[-2, 0] / errs[-1, 0] > 3.4
 
 
-def test_batch_3d_is_the_single_case():
+@pytest.mark.parametrize("length_in", ["theta", "time"])
+def test_batch_3d_is_the_single_case(length_in):
     starts = np.array([X0, [1.2, 0.0, 0.0, 0.9]])
     planes = np.array([PLANE, rotation.IDENTITY])
     alphas = np.array([ALPHAS[:3], ALPHAS[3:]])
     deltas = np.array([DELTAS[:3], DELTAS[3:]])
     lengths = np.array([[1.0, 2.0, 0.5], [0.3, 0.4, 2.0]])
     acs = [AC, 0.5 * AC]
-    xs, q3 = propagate_batch3d(starts, planes, alphas, deltas, lengths, acs, samples=2)
+    xs, q3 = propagate_batch3d(starts, planes, alphas, deltas, lengths, acs, samples=2,
+                               length_in=length_in)
     for m in range(2):
         one, one_q3 = propagate3d(starts[m], planes[m], alphas[m], deltas[m], lengths[m],
-                                  acs[m], samples=2)
+                                  acs[m], samples=2, length_in=length_in)
         assert np.abs(xs[m] - one).max() < 1e-14
         assert np.abs(q3[m] - one_q3).max() < 1e-14
 
@@ -128,3 +144,86 @@ def test_rk4_3d_is_fourth_order_against_cvodes(length_in):
     assert errs[-1] < 1e-6
     for coarse, fine in zip(errs, errs[1:]):
         assert 12 < coarse / fine < 20
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_arc_derivatives_are_finite_on_circles_and_without_turn(order):
+    """The NLP differentiates the arc twice: its Jacobian and Hessian stay finite at a
+    circular start (e0 = 0) and at delta = 0 (no turn), where the rotation's exponential
+    and the closed form have removable singularities; and the Jacobian matches central
+    differences."""
+    x, p = ca.SX.sym("x", 9), ca.SX.sym("p", 4)
+    if order == 1:
+        out = panel_function3d()(x, p[0], p[1], p[2], 0, p[3])[0]
+    else:
+        out = end_function3d()(x, p[0], p[1], p[2], p[3])[0]
+    z = ca.vertcat(x, p)
+    value = ca.Function("v", [z], [out])
+    jac = ca.Function("j", [z], [ca.jacobian(out, z)])
+    hess = ca.Function("h", [z], [ca.hessian(ca.sum1(out), z)[0]])
+    circle = [1, 0.3, 0, 1, 0, *rotation.IDENTITY]
+    for point in ([*circle, 0.1, 0.5, 0.0, 0.8], [*circle, 0.1, 0.5, 0.4, 0.8]):
+        point = np.array(point, float)
+        j = np.array(jac(point))
+        assert np.isfinite(j).all() and np.isfinite(np.array(hess(point))).all()
+        step = 1e-6
+        for k in range(point.size):
+            dp = np.zeros(point.size)
+            dp[k] = step
+            fd = (np.array(value(point + dp)) - np.array(value(point - dp))).ravel() / (2 * step)
+            assert np.abs(fd - j[:, k]).max() < 1e-7
+
+
+def test_segments_flown_apart_are_the_chain():
+    """fly_segments3d from the chained flight's own segment starts gives its ends."""
+    ref = reference()
+    ends = fly_segments3d(ref[:, :-1], np.full(6, AC), ALPHAS, DELTAS, LENGTHS,
+                          length_in="theta", tol=VERIFY_TOLERANCE)
+    assert np.abs(ends - ref[:, 1:]).max() < 1e-12
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_compiled_arcs_are_the_virtual_machines(order):
+    """model.native changes the speed, not the numbers: the schedule's states and the
+    segment's Jacobian agree with the virtual machine's to rounding."""
+    fast, slow = (ArcModel(order=order, sub_arcs=3, native=flag) for flag in (True, False))
+    a = propagate3d(X0, PLANE, ALPHAS, DELTAS, LENGTHS, AC, samples=2, model=fast)[0]
+    b = propagate3d(X0, PLANE, ALPHAS, DELTAS, LENGTHS, AC, samples=2, model=slow)[0]
+    assert np.abs(a - b).max() < 1e-13
+    z = ca.MX.sym("z", 13)
+    jacs = []
+    for model in (fast, slow):
+        out = rectified3d_function(1, model=model)(z[:9], z[9], z[10], z[11], z[12])[0]
+        jacs.append(np.array(ca.Function("j", [z], [ca.jacobian(out, z)])(
+            np.r_[X0, 0.0, PLANE, AC, ALPHAS[0], DELTAS[0], 1.0])))
+    assert np.abs(jacs[0] - jacs[1]).max() < 1e-12
+
+
+def test_timed_3d_arcs_converge_to_cartesian_cvodes_in_time():
+    """Segments given as durations end at the asked time and converge to Cartesian
+    CVODES flown in time: like 1/N at first order, like 1/N^2 at second order."""
+    durations = np.full(6, 1.0)
+    y0 = np.array(cartesian_from_polar3d(X0, PLANE)).ravel()
+    ref = simulate3d(y0, ALPHAS, DELTAS, durations, AC, tol=VERIFY_TOLERANCE)
+    for order, least_ratio in ((1, 1.6), (2, 3.0)):
+        errs = []
+        for n in (4, 8, 16):
+            xs, _ = propagate3d(X0, PLANE, ALPHAS, DELTAS, durations, AC, length_in="time",
+                                model=ArcModel(order=order, sub_arcs=n, native=False))
+            end = cartesian_states(xs)[:, -1]
+            assert abs(end[6] - ref[6, -1]) < 1e-12
+            errs.append(np.linalg.norm(end[:3] - ref[:3, -1]))
+        assert errs[0] / errs[1] > least_ratio and errs[1] / errs[2] > least_ratio
+    assert errs[-1] < 3e-6
+
+
+@pytest.mark.parametrize("model", [ArcModel(native=False),
+                                   ArcModel(order=1, sub_arcs=2, native=False)])
+def test_timed_zero_clock_is_the_planar_timed_form(model):
+    x0 = [1.0, 0.3, 0.01, 1.02]
+    xs, _ = propagate3d(x0, PLANE, [0.5, -0.3], [0.0, 0.0], [2.0, 1.5], 0.1, samples=2,
+                        length_in="time", model=model)
+    flat, _ = propagate(x0, [0.5, -0.3], [2.0, 1.5], 0.1, samples=2, length_in="time",
+                        model=model)
+    assert np.abs(xs[:5] - flat).max() < 1e-13
+    assert np.abs(xs[5:] - PLANE[:, None]).max() == 0

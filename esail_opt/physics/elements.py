@@ -122,10 +122,9 @@ def polar3d_from_cartesian(y):
     """Polar state and plane quaternion ``(x[4], quat[4])`` of a Cartesian state.
 
     The plane's frame is the one reached from the fixed frame by the smallest rotation
-    that takes its z axis to h_hat (about the line of nodes, by the inclination), so
-    theta is the angle from the ascending node's side of that rotation's image of the
-    fixed x axis; at inclination 0 the quaternion is the identity and theta the
-    longitude, as in the planar model.  Any other frame of the same plane differs by a
+    that takes its z axis to h_hat (about the line of nodes, by the inclination), and
+    theta is measured from that rotation's image of the fixed x axis; at inclination 0
+    the quaternion is the identity and theta the longitude, as in the planar model.  Any other frame of the same plane differs by a
     turn about h_hat and a matching shift of theta (the map back,
     :func:`cartesian_from_polar3d`, is the same).  Defined for every orbit but a
     retrograde one exactly (h_hat = -z).

@@ -202,24 +202,25 @@ def arcs_at_angles(x0, ac, alphas, angles, *, coefficients=EXACT, nodes=PANEL_NO
 
 
 @functools.lru_cache(maxsize=None)
-def batch3d_function(segments, cases, *, samples=1, coefficients=EXACT, model=ArcModel(),
-                     jit=False):
+def batch3d_function(segments, cases, *, samples=1, length_in="theta", coefficients=EXACT,
+                     model=ArcModel(), jit=False):
     """``rectified3d.rectified3d_function`` mapped over ``cases``, laid out as
     :func:`batch_function`: ``(x0[9 x M], ac, alpha, delta, length [1 x M N each]) ->
     (xs[9 x M N S samples], q3[1 x M N S])``."""
-    single = rectified3d_function(segments, samples=samples, coefficients=coefficients,
-                                  model=model)
+    single = rectified3d_function(segments, samples=samples, length_in=length_in,
+                                  coefficients=coefficients, model=model)
     mapped = single.map(cases)
     return _native(mapped) if jit else mapped
 
 
 def propagate_batch3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
-                      coefficients=EXACT, model=ArcModel(), jit=False):
+                      length_in="theta", coefficients=EXACT, model=ArcModel(), jit=False):
     """``rectified3d.propagate3d`` for M cases in one call.
 
     ``x0`` (4,) or (M, 4) and ``quat0`` (4,) or (M, 4) are the start polar states and
-    planes; ``alphas``, ``deltas``, ``lengths`` (M, N) or (N,), angles in rad; ``ac``
-    scalar or (M,); the rest as :func:`propagate_batch`.  Returns ``xs`` of shape
+    planes; ``alphas``, ``deltas`` (rad) and ``lengths`` (angles or durations, as
+    ``length_in``) (M, N) or (N,); ``ac`` scalar or (M,); the rest as
+    :func:`propagate_batch`.  Returns ``xs`` of shape
     (M, 9, N S samples + 1) and ``q3`` of shape (M, N S).
     """
     n = np.shape(np.atleast_2d(alphas))[1]
@@ -231,8 +232,8 @@ def propagate_batch3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None,
     acs = np.broadcast_to(np.asarray(ac, float).reshape(-1, 1), (cases, 1))
     starts = np.column_stack([_rows(x0, cases, 4, "x0"), np.zeros(cases),
                               _rows(quat0, cases, 4, "quat0")])
-    fun = batch3d_function(n, cases, samples=samples, coefficients=coefficients,
-                           model=model, jit=jit)
+    fun = batch3d_function(n, cases, samples=samples, length_in=length_in,
+                           coefficients=coefficients, model=model, jit=jit)
     xs, q3 = fun(starts.T, (acs * rows[3]).reshape(1, -1),
                  *(row.reshape(1, -1) for row in rows[:3]))
     arcs = n * model.sub_arcs

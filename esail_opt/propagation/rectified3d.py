@@ -12,10 +12,11 @@ the plane (``physics.rotation``'s convention; ``elements.cartesian_from_polar3d`
 gives the Cartesian state).  At delta = 0 the plane never turns and the polar rows are
 :mod:`.rectified`'s.
 
-Lengths are angles (rad), as the NLP's closed-form segments are; the chain is one
-Function, an SX arc accumulated over the arcs with ``mapaccum``, on CasADi's virtual
-machine.  Richardson extrapolation, compiled panels and arcs of given duration are the
-planar propagator's only (``model.extrapolate`` is refused here).
+Lengths are angles (rad), as the NLP's closed-form segments are, or durations; the
+chain is one Function over SX arcs, compiled with their derivatives where
+``model.native`` and a compiler allow (``propagation.compiled``; angles only), as the
+planar NLP's arcs are.  Richardson extrapolation is the planar propagator's only
+(``model.extrapolate`` is refused here).
 """
 
 import functools
@@ -26,10 +27,14 @@ import numpy as np
 from esail_opt.errors import InputError
 from esail_opt.physics import rotation
 from esail_opt.physics.closed_form import SecondOrderArc, arc_frame, arc_state
-from esail_opt.physics.dynamics import angular_momentum
+from esail_opt.physics.dynamics import angular_momentum, plane_rate, taylor_step
+from esail_opt.physics.elements import cartesian_from_polar3d
 from esail_opt.physics.plane_turn import arc_turn, turned_plane
 from esail_opt.physics.thrust import EXACT, radial_transverse_normal
 from esail_opt.propagation.arcs import ArcModel
+from esail_opt.propagation.compiled import compiled
+from esail_opt.propagation.rectified import (FLAT, NEWTON_STEPS, TAYLOR_ORDER, clock_guess,
+                                             kepler_angle)
 
 #: Rows of the state: [r, theta, v_r, v_theta, t] and the plane's quaternion.
 STATE = 9
@@ -75,63 +80,170 @@ def end_function3d(*, coefficients=EXACT, nodes=2):
                        {"cse": True})
 
 
+def piece_function3d(*, coefficients=EXACT, model=ArcModel()):
+    """:func:`panel_function3d` (order 1) or :func:`end_function3d` (order 2) at
+    ``model.nodes``."""
+    if model.order == 1:
+        return panel_function3d(coefficients=coefficients, nodes=model.nodes)
+    return end_function3d(coefficients=coefficients, nodes=model.nodes)
+
+
+@functools.lru_cache(maxsize=None)
+def native_piece3d(*, coefficients=EXACT, model=ArcModel()):
+    """The compiled :func:`piece_function3d` (``propagation.compiled``, with its
+    derivatives), or None where it stays on the virtual machine (``model.native``
+    off, compiling off, no compiler, a failed compile)."""
+    if not model.native:
+        return None
+    piece = piece_function3d(coefficients=coefficients, model=model)
+    fast = compiled(piece)
+    return None if fast is piece else fast
+
+
+def _samples(x0, ac, alpha, delta, dtheta, samples, coefficients, model):
+    """(states[9 x samples], elapsed[1 x samples], q3[1 x samples]) of one arc, through
+    the compiled piece called once per sample where it exists, else a ``map``."""
+    order = model.order
+    fast = native_piece3d(coefficients=coefficients, model=model)
+    if fast is not None:
+        ends = [dtheta * (k / samples) for k in range(1, samples)] + [dtheta]
+        if order == 1:
+            calls = [fast(x0, ac, alpha, delta, a, b) for a, b in zip([0] + ends[:-1], ends)]
+        else:
+            calls = [fast(x0, ac, alpha, delta, b) for b in ends]
+        states, dts, q3s = (ca.horzcat(*parts) for parts in zip(*calls))
+        return states, ca.cumsum(dts, 1) if order == 1 else dts, q3s
+    phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
+    piece = piece_function3d(coefficients=coefficients, model=model).map(samples)
+    if order == 1:
+        states, dts, q3s = piece(x0, ac, alpha, delta, phis[:, :-1], phis[:, 1:])
+        return states, ca.cumsum(dts, 1), q3s
+    return piece(x0, ac, alpha, delta, phis[:, 1:])
+
+
 @functools.lru_cache(maxsize=None)
 def arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
     """One 3-D arc of ``model`` sampled at phi_k = dtheta k / samples, k = 1..samples:
     ``(x0[9], ac, alpha, delta, dtheta) -> (xs[9 x samples], q3)``, as
     ``rectified.arc_function`` (order 1: the samples are the time's panels; order 2:
     every sample is its own arc end from x0; ``model.invariant``: v_theta = h / r with
-    the exact h of Eq. 2 and the in-plane T), with the plane turned from x0's at each
-    sample."""
+    the exact h of Eq. 2 and the in-plane T; ``model.native``: compiled pieces, the arc
+    inlined where it is called), with the plane turned from x0's at each sample."""
     x0, ac, alpha, delta, dtheta = (ca.MX.sym(n, s) for n, s in (
         ("x0", STATE), ("ac", 1), ("alpha", 1), ("delta", 1), ("dtheta", 1)))
-    phis = dtheta * ca.DM(np.arange(samples + 1) / samples).T
-    if model.order == 1:
-        piece = panel_function3d(coefficients=coefficients, nodes=model.nodes).map(samples)
-        states, dts, q3s = piece(x0, ac, alpha, delta, phis[:, :-1], phis[:, 1:])
-        elapsed = ca.cumsum(dts, 1)
-    else:
-        piece = end_function3d(coefficients=coefficients, nodes=model.nodes).map(samples)
-        states, elapsed, q3s = piece(x0, ac, alpha, delta, phis[:, 1:])
+    states, elapsed, q3s = _samples(x0, ac, alpha, delta, dtheta, samples, coefficients,
+                                    model)
     if model.invariant:
         T = radial_transverse_normal(alpha, delta, coefficients)[1]
         h = angular_momentum(x0, ac, T, elapsed)
         states = ca.vertcat(states[:3, :], h / states[0, :], states[4:, :])
     states = ca.vertcat(states[:4, :], x0[4] + elapsed, states[5:, :])
+    native = native_piece3d(coefficients=coefficients, model=model) is not None
     return ca.Function("arc3d", [x0, ac, alpha, delta, dtheta], [states, q3s[-1]],
-                       ["x0", "ac", "alpha", "delta", "dtheta"], ["xs", "q3"])
+                       ["x0", "ac", "alpha", "delta", "dtheta"], ["xs", "q3"],
+                       FLAT if native else {})
 
 
 @functools.lru_cache(maxsize=None)
-def rectified3d_function(segments, *, samples=1, coefficients=EXACT, model=ArcModel()):
+def timed_arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
+    """As :func:`arc_function3d` (never compiled), but the last input is a duration (TU)
+    and the arc ends that long after x0, as ``rectified.timed_arc_function`` does it:
+
+    * order 1: the angle is the root of the closed form's clock by
+      ``rectified.NEWTON_STEPS`` Newton steps from ``rectified.kepler_angle``;
+    * order 2: the arc is flown to ``rectified.clock_guess``'s angle and the part of the
+      duration left is flown by the Taylor series of Eqs. 1-2
+      (``dynamics.taylor_step``), the plane turning meanwhile at its rate at the
+      remainder's midpoint (``dynamics.plane_rate``), an error third order in that
+      remainder.
+
+    Returns ``(x0[9], ac, alpha, delta, duration) -> (xs[9 x samples], q3, remainder)``.
+    """
+    order, nodes = model.order, model.nodes
+    x0, ac, alpha, delta = _inputs()
+    duration = ca.SX.sym("duration")
+    R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+    arc = arc_frame(x0[:4], ac, R, T)
+    time_unit = x0[0] ** 1.5
+    if order == 2:
+        angle = clock_guess(arc, duration / time_unit)
+    else:
+        angle = kepler_angle(arc, duration / time_unit)
+        for _ in range(NEWTON_STEPS):
+            time = time_unit * sum(arc.time(angle * (k - 1) / samples, angle * k / samples,
+                                            nodes) for k in range(1, samples + 1))
+            angle = angle - (time - duration) / (time_unit * arc.clock_rate(angle))
+    plain = ArcModel(order, model.invariant, False, 1, nodes, native=False)
+    xs, q3 = arc_function3d(samples, coefficients=coefficients, model=plain).expand()(
+        x0, ac, alpha, delta, angle)
+    remainder = x0[4] + duration - xs[4, -1]
+    if order == 2:
+        last = xs[:, -1]
+        middle = taylor_step(last[:4], ac, R, T, remainder / 2, TAYLOR_ORDER)
+        turn = plane_rate(middle, ac, N) * remainder
+        plane = rotation.multiply(last[5:], rotation.from_rotation_vector(turn))
+        end = taylor_step(last[:4], ac, R, T, remainder, TAYLOR_ORDER)
+        if model.invariant:
+            end = ca.vertcat(end[:3], angular_momentum(x0, ac, T, duration) / end[0])
+        xs = ca.horzcat(xs[:, :-1], ca.vertcat(end, x0[4] + duration, plane))
+    return ca.Function(
+        "timed_arc3d", [x0, ac, alpha, delta, duration], [xs, q3, remainder],
+        ["x0", "ac", "alpha", "delta", "duration"], ["xs", "q3", "remainder"], {"cse": True})
+
+
+@functools.lru_cache(maxsize=None)
+def rectified3d_function(segments, *, samples=1, length_in="theta", coefficients=EXACT,
+                         model=ArcModel()):
     """A schedule of ``segments`` segments of constant pitch and clock, each
     ``model.sub_arcs`` arcs of equal angle, as one Function:
     ``(x0[9], ac[1 x N], alpha[1 x N], delta[1 x N], length[1 x N]) ->
-    (xs[9 x N S samples], q3[1 x N S])``, lengths in theta (rad), ``ac`` per segment
-    (times any throttle).  The arcs restart from each other's ends: the plane's turns
-    compose by quaternion products, arc after arc."""
+    (xs[9 x N S samples], q3[1 x N S])``, lengths in theta (rad) or, with
+    ``length_in="time"``, durations (TU, :func:`timed_arc_function3d`, never compiled),
+    ``ac`` per segment (times any throttle).  The arcs restart from each other's ends: the plane's turns
+    compose by quaternion products, arc after arc.  On compiled pieces the chain is
+    unrolled and inlined, as ``rectified``'s (``rectified.FLAT``); otherwise one
+    ``mapaccum`` holds one copy of the arc for any N."""
     if model.extrapolate:
         raise InputError("arc_model.extrapolate = True is not available in three "
                          "dimensions; use False")
-    sub = model.sub_arcs
-    arc = arc_function3d(samples, coefficients=coefficients, model=model.one_arc())
+    if length_in not in ("theta", "time"):
+        raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
+    sub, one = model.sub_arcs, model.one_arc()
+    if length_in == "time":
+        timed = timed_arc_function3d(samples, coefficients=coefficients, model=one)
+        ins = timed.mx_in()
+        arc = ca.Function("arc3d", ins, timed.call(ins)[:2])
+        native = False
+    else:
+        arc = arc_function3d(samples, coefficients=coefficients, model=one)
+        native = native_piece3d(coefficients=coefficients, model=one) is not None
+    x0 = ca.MX.sym("x0", STATE)
+    rows = [ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "delta", "length")]
+    lengths = rows[3] / sub
+    if native:
+        x, blocks, q3s = x0, [], []
+        for k in range(segments * sub):
+            xs, q3 = arc(x, *(row[k // sub] for row in rows[:3]), lengths[k // sub])
+            blocks.append(xs)
+            q3s.append(q3)
+            x = xs[:, -1]
+        return ca.Function("rectified3d", [x0, *rows], [ca.horzcat(*blocks), ca.horzcat(*q3s)],
+                           ["x0", "ac", "alpha", "delta", "length"], ["xs", "q3"], FLAT)
     xa = ca.MX.sym("x0", STATE)
     ac, alpha, delta, length = (ca.MX.sym(n) for n in ("ac", "alpha", "delta", "length"))
     xs, q3 = arc(xa, ac, alpha, delta, length)
     step = ca.Function("step", [xa, ac, alpha, delta, length], [xs[:, -1], xs, q3])
     chain = step.mapaccum("chain3d", segments * sub, [0], [0])
-    x0 = ca.MX.sym("x0", STATE)
-    rows = [ca.MX.sym(n, 1, segments) for n in ("ac", "alpha", "delta", "length")]
     # Each segment's entry S times over, the length divided once: its S arcs.
-    per_arc = [ca.repmat(row, sub, 1).reshape((1, segments * sub)) for row in rows[:3]]
-    per_arc.append(ca.repmat(rows[3] / sub, sub, 1).reshape((1, segments * sub)))
+    per_arc = [ca.repmat(row, sub, 1).reshape((1, segments * sub))
+               for row in (*rows[:3], lengths)]
     _, blocks, q3s = chain(x0, *per_arc)
     return ca.Function("rectified3d", [x0, *rows], [blocks, q3s],
                        ["x0", "ac", "alpha", "delta", "length"], ["xs", "q3"])
 
 
 def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
-                coefficients=EXACT, model=ArcModel()):
+                length_in="theta", coefficients=EXACT, model=ArcModel()):
     """Rectified closed-form propagation in three dimensions of a schedule of pitch and
     clock angles.
 
@@ -143,13 +255,14 @@ def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, sampl
         The plane's unit quaternion (``elements.polar3d_from_cartesian`` gives both from
         a Cartesian state).
     alphas, deltas, lengths : array_like, shape (N,)
-        Pitch and clock (rad) and angle (rad) of each segment.
+        Pitch and clock (rad) and length of each segment: an angle (rad) for
+        ``length_in="theta"``, a duration (TU) for ``"time"``.
     ac : float
         Characteristic acceleration, canonical units.
     throttles : array_like, shape (N,), optional
         Factor on ac per segment (0 is a coast), default 1.
     samples, coefficients, model
-        As ``rectified.propagate`` (lengths in theta, no extrapolation).
+        As ``rectified.propagate`` (no extrapolation).
 
     Returns
     -------
@@ -162,8 +275,24 @@ def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, sampl
     alphas = np.atleast_1d(np.asarray(alphas, float))
     n = alphas.size
     kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = rectified3d_function(n, samples=samples, coefficients=coefficients, model=model)
+    fun = rectified3d_function(n, samples=samples, length_in=length_in,
+                               coefficients=coefficients, model=model)
     start = np.r_[np.asarray(x0, float), 0.0, np.asarray(quat0, float)]
     xs, q3 = fun(start, ac * kappa, alphas, np.atleast_1d(np.asarray(deltas, float)),
                  np.atleast_1d(np.asarray(lengths, float)))
     return np.column_stack([start, np.array(xs)]), np.array(q3).ravel()
+
+
+@functools.lru_cache(maxsize=None)
+def _cartesian_function():
+    x = ca.SX.sym("x", STATE)
+    return ca.Function("cartesian", [x], [ca.vertcat(cartesian_from_polar3d(x[:4], x[5:]),
+                                                      x[4])])
+
+
+def cartesian_states(xs):
+    """[x, y, z, vx, vy, vz, t] of every column of a 3-D state array ``xs`` (9 x K, as
+    :func:`propagate3d` returns), in the fixed frame of the planes' quaternions
+    (``elements.cartesian_from_polar3d``); shape (7, K)."""
+    xs = np.asarray(xs, float)
+    return np.array(_cartesian_function().map(xs.shape[1])(xs))

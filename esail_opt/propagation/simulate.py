@@ -255,3 +255,31 @@ def simulate3d(y0, alphas, deltas, lengths, ac, throttles=None, samples=1, lengt
     except RuntimeError as err:
         raise SimulationError(str(err).strip().splitlines()[-1]) from None
     return np.column_stack([start, ys])
+
+
+@functools.lru_cache(maxsize=None)
+def _segments_function3d(segments, length_in, coefficients, tol):
+    return segment_integrator3d(1, length_in, coefficients, tol).map(segments)
+
+
+def fly_segments3d(starts, ac, alphas, deltas, lengths, length_in="time",
+                   coefficients=EXACT, tol=TOLERANCE):
+    """Every segment flown on the Cartesian equations from its own start, not chained
+    (:func:`fly_segments` in three dimensions).
+
+    ``starts`` is [7 x N] Cartesian states with t; ``ac`` (times the throttle),
+    ``alphas``, ``deltas`` and ``lengths`` per segment.  Returns the ends [7 x N].
+
+    Raises
+    ------
+    SimulationError
+        If CVODES cannot fly a segment.
+    """
+    n = np.shape(starts)[1]
+    fun = _segments_function3d(n, length_in, coefficients, tol)
+    rows = [np.reshape(v, (1, -1)) for v in (ac, alphas, deltas, lengths)]
+    try:
+        with SignalsHeld(), quiet_stderr():
+            return np.array(fun(starts, *rows))
+    except RuntimeError as err:
+        raise SimulationError(str(err).strip().splitlines()[-1]) from None
