@@ -49,7 +49,7 @@ from esail_opt.physics import constants as units
 from esail_opt.physics import rotation
 from esail_opt.physics.elements import polar3d_from_cartesian
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments,
-                                            quiet_stderr, segment_integrator3d)
+                                            fly_segments3d)
 
 #: Rounds of defect correction after the first solve.
 MAX_ROUNDS = 8
@@ -138,16 +138,13 @@ def node_near(y, ref):
 
 def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
     """Every 3-D segment flown by CVODES on the Cartesian equations from its start node,
-    in the angle swept, as nodes next to the model's ends (:func:`node_near`)."""
-    n = starts.shape[1]
+    in the angle swept (``simulate.fly_segments3d``), as nodes next to the model's ends
+    (:func:`node_near`)."""
     y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
-    fun = segment_integrator3d(1, "theta", problem.sail.coefficients, tol).map(n)
-    try:
-        with quiet_stderr():
-            ends = np.array(fun(y0, ac, alpha, delta, lengths))
-    except RuntimeError as err:
-        raise SimulationError(str(err).strip().splitlines()[-1]) from None
-    return np.column_stack([node_near(ends[:, k], model_ends[:, k]) for k in range(n)])
+    ends = fly_segments3d(y0, ac, alpha, delta, lengths, "theta", problem.sail.coefficients,
+                          tol)
+    return np.column_stack([node_near(ends[:, k], model_ends[:, k])
+                            for k in range(starts.shape[1])])
 
 
 def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TOLERANCE):
