@@ -394,6 +394,12 @@ class _BodyTarget:
         rows = yf[:3] - body[:3]
         return [ca.vertcat(rows, yf[3:6] - body[3:6]) if self.matches_velocity else rows]
 
+    def turns_lag(self, xf, tf, turns, t0=0.0):
+        """theta_f less the body's planar track angle and ``turns`` whole turns: the
+        sail's polar angle (in its own plane, on the track's branch) against the body's
+        in the ecliptic, rad; within half a turn it fixes a 3-D rendezvous's turn count."""
+        return xf[1] - self.body_state(t0, tf)[1] - 2 * math.pi * turns
+
     def miss3d(self, y, t, t0=0.0):
         """Distance (and, for a rendezvous, relative speed) of the Cartesian state ``y``
         from the body's exact, unprojected ecliptic state at t0 + t (DE421, or a small

@@ -245,22 +245,29 @@ class BodyDeparture:
         dvr, dvt = self._excess(angle)
         return ca.vertcat(x[0], x[1], x[2] + dvr, x[3] + dvt)
 
-    def plane_state(self, y, angle):
+    def plane_state(self, y, angle, t0):
         """The 3-D departure as the NLP's start: the polar state inside the plane of the
         body's ecliptic state ``y`` (``elements.polar3d_from_cartesian``) plus the excess
         velocity at ``angle`` in that plane, and the plane's quaternion: an 8-vector
         [r, theta, v_r, v_theta, qw, qx, qy, qz] (numbers or CasADi expressions).  The
-        excess lies in the body's orbital plane, as in the planar model."""
+        excess lies in the body's orbital plane, as in the planar model.
+
+        theta is put on the branch of the body's planar track at epoch ``t0`` (whole
+        turns added), so that it is continuous in the epoch as the planar model's is and
+        a rendezvous counts its turns as there (the 2 pi jump of atan2 and the jump of
+        the whole turns cancel)."""
         x, quat = polar3d_from_cartesian(y)
+        ref = lookup.track(self.body).polar(t0)[1]
+        turns = ca.floor((ref - x[1]) / (2 * math.pi) + 0.5)
         dvr, dvt = self._excess(angle)
-        return ca.vertcat(x[0], x[1], x[2] + dvr, x[3] + dvt, quat)
+        return ca.vertcat(x[0], x[1] + 2 * math.pi * turns, x[2] + dvr, x[3] + dvt, quat)
 
     def plane_state_at(self, t0, angle=None):
         """:meth:`plane_state` of the body's exact ecliptic state (DE421 unprojected, or a
         small body's six elements) at epoch t0 (TU since J2000), as numbers."""
         y = lookup.ecliptic_state_at(self.body, t0, "departure.body")
         angle = self.seed_angle() if angle is None else angle
-        return np.array(self.plane_state(ca.DM(y), angle), float).ravel()
+        return np.array(self.plane_state(ca.DM(y), angle, t0), float).ravel()
 
     def cartesian_at(self, t0, angle=None):
         """The exact 3-D departure [x, y, z, vx, vy, vz] (ecliptic of J2000, canonical) at
@@ -271,7 +278,7 @@ class BodyDeparture:
     def nlp_plane_state(self, t0, angle, correction=0):
         """:meth:`plane_state` inside the NLP: on the body's smooth 3-D track at epoch
         ``t0`` (number or symbol) plus ``correction`` (Cartesian, 6)."""
-        return self.plane_state(lookup.track3(self.body).function(t0) + correction, angle)
+        return self.plane_state(lookup.track3(self.body).function(t0) + correction, angle, t0)
 
 
 # ---------------------------------------------------------------- sail and arcs
