@@ -91,6 +91,13 @@ def test_the_departure_is_de421s_unprojected_earth():
     assert np.abs(y[:3] - ref[:3]).max() < 1e-12
     assert np.abs(y[3:] - ref[3:]).max() < 1e-12
     assert abs(ref[2]) > 1e-6  # the Earth-Moon barycentre is off the ecliptic
+    # theta is on the branch of the planar track's unwrapped longitude (hundreds of
+    # radians since 1900), within the small angle between the two planes' axes.
+    from esail_opt.bodies import lookup
+
+    track_theta = float(lookup.track("earth").polar(problem.epoch())[1])
+    assert track_theta > 100
+    assert abs(problem.plane_x0()[1] - track_theta) < 1e-3
 
 
 @pytest.mark.parametrize("alpha_deg, delta_deg", [(35.0, 0.0), (35.0, 60.0), (-50.0, -120.0)])
