@@ -163,7 +163,7 @@ def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TO
     lengths = result.lengths if length_in == "theta" else result.durations
     args = (start_nodes(result), problem.sail.ac * result.ac_scale * result.throttle[None, :],
             result.alpha[None, :], lengths[None, :])
-    if result.delta is not None:
+    if getattr(result, "delta", None) is not None:
         args = args[:3] + (result.delta[None, :], args[3])
         model = np.array(segment.map(result.alpha.size)(*args)[0])
         return _exact_ends3d(problem, *args, model, tol), model

@@ -149,7 +149,7 @@ def closed_form_curve(problem, result, samples=16, defects=None):
     starts = np.column_stack([first, result.nodes[:, :-1]])
     pieces = [first[:, None]]
     for k in range(result.alpha.size):
-        if result.delta is None:
+        if getattr(result, "delta", None) is None:
             xs, _ = propagate(starts[:4, k], [result.alpha[k]], [result.lengths[k]], ac,
                               throttles=[kappa[k]], samples=per_sub, coefficients=coeff,
                               model=model)
