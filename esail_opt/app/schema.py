@@ -16,7 +16,15 @@ units as the closed form's (km and m/s, where version 1 used m and mm/s), and ma
 gave the polish its own ``departure_state`` and calendar fields (a polish may move
 the departure and the a_c), and made ``problem.departure_state`` the state the
 verification flies from (for a body, its ephemeris rather than the NLP's track of it).
-Version 5 (this one) added ``classes`` and ``nearest_feasible``.
+Version 5 (this one) added ``classes`` and ``nearest_feasible``, and three dimensions: a
+problem flown in 3-D gives its
+``problem.departure_state``, ``final_state`` and ``verification.cvodes_final_state`` also
+as :data:`STATE_KEYS` (the polar keys are then inside the state's own turning plane),
+its schedule rows a ``clock_deg``, its CVODES samples (``trajectory.cvodes``) the
+:data:`STATE_KEYS` and the osculating ``inclination_deg`` and ``node_deg``, and its
+verification's misses are in space against the body's unprojected state
+(``out_of_plane_km`` is then the flight's distance from the body along the ecliptic's
+normal).  Its folder also holds ``trajectory.oem``, the CVODES flight as a CCSDS OEM.
 
 Top level
 ---------
@@ -123,7 +131,7 @@ from esail_opt.physics import constants as units
 SCHEMA_VERSION = 5
 #: Versions this code reads: versions 3 to 5 only added fields, so a version-2 file
 #: reads as one of a problem off the calendar, a version-3 polish has no start of its
-#: own, and a file before version 5 names no classes.
+#: own, a file before version 5 names no classes, and a version-4 file is a planar one.
 READABLE = (2, 3, 4, 5)
 
 

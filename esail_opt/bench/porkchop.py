@@ -15,6 +15,7 @@ pool), so their seconds compare.  Only verified cells count: each method's secon
 cell are its wall time over its verified cells.
 """
 
+import dataclasses
 import time
 
 from esail_opt.app.files import write_json
@@ -46,7 +47,8 @@ def _grid():
 def _rows(grid):
     """The scan's runs as ``esail-opt porkchop`` makes them on one worker: one path
     through the grid, with each cell's grid neighbours."""
-    problem = shipped_problem(PROBLEM)
+    # The planar porkchop: its RK4 segments are the planar ones.
+    problem = dataclasses.replace(shipped_problem(PROBLEM), planar=True)
     return [([cell_problem(problem, grid, i) for i in job], grid.neighbours(job))
             for job in grid.jobs(1)]
 
