@@ -12,10 +12,17 @@ Version 2 added ``schema_version``, gave the polish's misses and bounds the same
 units as the closed form's (km and m/s, where version 1 used m and mm/s), and made an
 (a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.  Version 3 added the calendar: the fields under "On the calendar" below, a body's name in
 ``problem.departure`` and ``problem.target``, and a body target's
-``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.  Version 4 (this
-one) gave the polish its own ``departure_state`` and calendar fields (a polish may move
+``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.  Version 4 gave the polish its own ``departure_state`` and calendar fields (a polish may move
 the departure and the a_c), and made ``problem.departure_state`` the state the
 verification flies from (for a body, its ephemeris rather than the NLP's track of it).
+Version 5 (this one) added three dimensions: a problem flown in 3-D gives its
+``problem.departure_state``, ``final_state`` and ``verification.cvodes_final_state`` also
+as :data:`STATE_KEYS` (the polar keys are then inside the state's own turning plane),
+its schedule rows a ``clock_deg``, its CVODES samples (``trajectory.cvodes``) the
+:data:`STATE_KEYS` and the osculating ``inclination_deg`` and ``node_deg``, and its
+verification's misses are in space against the body's unprojected state
+(``out_of_plane_km`` is then the flight's distance from the body along the ecliptic's
+normal).  Its folder also holds ``trajectory.oem``, the CVODES flight as a CCSDS OEM.
 
 Top level
 ---------
@@ -104,11 +111,11 @@ import numpy as np
 from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
 
-SCHEMA_VERSION = 4
-#: Versions this code reads: versions 3 and 4 only added fields, so a version-2 file
-#: reads as one of a problem off the calendar and a version-3 polish has no start of its
-#: own.
-READABLE = (2, 3, 4)
+SCHEMA_VERSION = 5
+#: Versions this code reads: versions 3 to 5 only added fields, so a version-2 file
+#: reads as one of a problem off the calendar, a version-3 polish has no start of its
+#: own and a version-4 file is a planar one.
+READABLE = (2, 3, 4, 5)
 
 
 def check(data, source):

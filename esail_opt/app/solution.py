@@ -28,10 +28,12 @@ import numpy as np
 
 from esail_opt.app import schema
 from esail_opt.app.files import json_ready, publish, write_json
+from esail_opt.app.oem import states_km_km_s, write_oem
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import FigureError, InputError
 from esail_opt.optimisation import pipeline
 from esail_opt.optimisation.pipeline import Outcome, Round, StartTried
+from esail_opt.optimisation.transcription import node_cartesian
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
 
@@ -41,11 +43,22 @@ SCHEDULE_FIELDS = ("t_days", "theta_deg", "alpha_deg", "duration_days", "dtheta_
 THROTTLE_FIELD = "throttle"
 #: The closed form's local error per segment, km (absent from polished schedules).
 LOCAL_ERROR_FIELD = "local_error_km"
+#: The column a problem flown in three dimensions adds: the clock angle, deg.
+CLOCK_FIELD = "clock_deg"
 #: Every file :meth:`Solution.write` may put in its folder: the set that a new write
 #: replaces whole (anything else in the folder is the user's and stays).
 SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_polished.csv",
-                  "trajectory.png", "timeline.png")
+                  "trajectory.png", "timeline.png", "trajectory.oem")
 STATE_FIELDS = ("r_au", "theta_deg", "vr_km_s", "vtheta_km_s", "a_au", "e")
+#: What a 3-D flight's samples add: the Cartesian state (``schema.STATE_KEYS``) and the
+#: osculating plane, deg.
+PLANE_FIELDS = ("inclination_deg", "node_deg")
+
+
+def _three_d_part(d, keys):
+    """The keys of ``d`` among ``keys``, or None when it has none of them (a planar
+    record, or a file of schema version 4)."""
+    return {k: d[k] for k in keys if k in d} or None
 #: The misses every verification writes, in the file's order (a target's own extras,
 #: such as an (a, e) target's ``target_miss_a_km``, follow them).
 CORE_MISSES = ("miss_r_km", "miss_v_m_s", "miss_theta_deg", "verifier_error_r_km",
@@ -69,13 +82,16 @@ class State:
     vtheta_km_s: Optional[float]
     a_au: Optional[float]
     e: Optional[float]
+    # In three dimensions: x_au .. vz_km_s in the ecliptic of J2000 (``schema.STATE_KEYS``).
+    cartesian: Optional[Dict[str, float]] = None
 
     @classmethod
     def from_json(cls, d):
-        return cls(**{k: d[k] for k in STATE_FIELDS})
+        return cls(**{k: d[k] for k in STATE_FIELDS},
+                   cartesian=_three_d_part(d, schema.STATE_KEYS))
 
     def to_json(self):
-        return {k: getattr(self, k) for k in STATE_FIELDS}
+        return {**{k: getattr(self, k) for k in STATE_FIELDS}, **(self.cartesian or {})}
 
 
 @dataclass(frozen=True)
@@ -89,15 +105,20 @@ class Samples:
     a_au: List[Optional[float]]
     e: List[Optional[float]]
     t_days: List[Optional[float]]
+    # A 3-D flight's Cartesian samples and osculating plane (``PLANE_FIELDS``).
+    three_d: Optional[Dict[str, list]] = None
 
     FIELDS = STATE_FIELDS + ("t_days",)
 
     @classmethod
     def from_json(cls, d):
-        return None if d is None else cls(**{k: list(d[k]) for k in cls.FIELDS})
+        if d is None:
+            return None
+        return cls(**{k: list(d[k]) for k in cls.FIELDS},
+                   three_d=_three_d_part(d, schema.STATE_KEYS + PLANE_FIELDS))
 
     def to_json(self):
-        return {k: list(getattr(self, k)) for k in self.FIELDS}
+        return {**{k: list(getattr(self, k)) for k in self.FIELDS}, **(self.three_d or {})}
 
 
 @dataclass(frozen=True)
@@ -112,14 +133,18 @@ class Segment:
     dtheta_deg: float
     throttle: Optional[float] = None
     local_error_km: Optional[float] = None
+    clock_deg: Optional[float] = None
 
     @classmethod
     def from_json(cls, d):
         return cls(**{k: d[k] for k in SCHEDULE_FIELDS},
-                   throttle=d.get(THROTTLE_FIELD), local_error_km=d.get(LOCAL_ERROR_FIELD))
+                   throttle=d.get(THROTTLE_FIELD), local_error_km=d.get(LOCAL_ERROR_FIELD),
+                   clock_deg=d.get(CLOCK_FIELD))
 
     def to_json(self, throttled, local_error):
         out = {k: getattr(self, k) for k in SCHEDULE_FIELDS}
+        if self.clock_deg is not None:
+            out[CLOCK_FIELD] = self.clock_deg
         if throttled:
             out[THROTTLE_FIELD] = self.throttle
         if local_error:
@@ -620,8 +645,9 @@ class Solution:
         digits a polished 2500-day schedule, flown from the CSV, ended 3.5 m from its
         target where the same schedule at full precision ends 8 mm from it.)"""
         schedule = self.polish.schedule if polished else self.schedule
+        clocked = len(schedule) and schedule[0].clock_deg is not None
         fields = SCHEDULE_FIELDS + tuple(
-            f for f, on in ((THROTTLE_FIELD, schedule.throttled),
+            f for f, on in ((CLOCK_FIELD, clocked), (THROTTLE_FIELD, schedule.throttled),
                             (LOCAL_ERROR_FIELD, schedule.local_errors)) if on and len(schedule))
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
@@ -656,6 +682,8 @@ class Solution:
             if self.polish is not None and self.polish.ran:
                 names.append("schedule_polished.csv")
                 (stage / names[-1]).write_text(self.schedule_csv(polished=True))
+            if self._write_oem(stage / "trajectory.oem"):
+                names.append("trajectory.oem")
             if plots:
                 from esail_opt.app import plots as plotting
 
@@ -665,6 +693,19 @@ class Solution:
         if failures:
             raise FigureError(failures, written)
         return written
+
+    def _write_oem(self, path):
+        """The CVODES flight of a 3-D solution as ``trajectory.oem`` (``app.oem``);
+        False, and nothing written, for a planar one or a failed flight."""
+        flight = self.trajectory_cvodes
+        if flight is None or flight.three_d is None or not self.dated:
+            return False
+        states = schema.state_from_fields(
+            {k: flight.three_d[k] for k in schema.STATE_KEYS}, "trajectory.cvodes")
+        days = np.asarray(flight.t_days, float)
+        write_oem(path, self.problem.name, np.full(days.size, dates.jd_from_iso(
+            self.departure_date)), states_km_km_s(states), jd2=days)
+        return True
 
     # -- printing
     def summary(self):
@@ -714,8 +755,13 @@ class Solution:
             # A rendezvous's relative speed is its velocity miss, printed below.
             speed = ("" if body.relative_speed_km_s is None or body.kind != "BodyIntercept"
                      else f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
-            lines.append(f"  {body.name}: {body.out_of_plane_km:.4g} km from the ecliptic at "
-                         f"arrival, which the planar model ignores{speed}")
+            if self.final_state.cartesian is not None:
+                lines.append(f"  {body.name}: flown in 3-D against its unprojected state, "
+                             f"{body.out_of_plane_km:.4g} km from it along the ecliptic's "
+                             f"normal at arrival{speed}")
+            else:
+                lines.append(f"  {body.name}: {body.out_of_plane_km:.4g} km from the ecliptic "
+                             f"at arrival, which the planar model ignores{speed}")
         return lines
 
     def _polish_lines(self):
@@ -811,10 +857,31 @@ def _polar_dict(x):
     return {k: np.asarray(v).tolist() for k, v in out.items()}
 
 
-def _trajectory(xs):
+def _trajectory(xs, cartesian=None):
+    """Samples of a flight; a 3-D flight's Cartesian samples (7 x M, canonical) add the
+    state in ``schema.STATE_KEYS`` and the osculating inclination and node, deg."""
     out = _polar_dict(xs[:4])
     out["t_days"] = units.time_to_days(np.asarray(xs[4])).tolist()
+    if cartesian is not None:
+        out.update(schema.state_fields(cartesian[:6]))
+        h = np.cross(cartesian[:3].T, cartesian[3:6].T).T
+        out["inclination_deg"] = np.degrees(np.arctan2(np.hypot(h[0], h[1]), h[2])).tolist()
+        out["node_deg"] = np.degrees(np.arctan2(h[0], -h[1])).tolist()
     return out
+
+
+def _state_dict(x, cartesian=None):
+    """:func:`_polar_dict` of one state, with its Cartesian fields in three dimensions."""
+    out = _polar_dict(x)
+    if cartesian is not None:
+        out.update(schema.state_fields(np.asarray(cartesian, float)[:6]))
+    return out
+
+
+def _final_state(result):
+    """The NLP's final state; a 3-D node adds its Cartesian state."""
+    nodes = result.nodes
+    return _state_dict(nodes[:4, -1], None if result.delta is None else node_cartesian(nodes[:, -1]))
 
 
 def _fields(obj):
@@ -874,6 +941,10 @@ def _schedule(result, throttled=False):
         for t, th, al, dt, ln in zip(starts_t, starts_th, result.alpha, result.durations,
                                      result.lengths)
     ]
+    if result.delta is not None:
+        # The NLP's clock is unbounded: reported in [-180, 180).
+        for row, delta in zip(rows, result.delta):
+            row[CLOCK_FIELD] = (math.degrees(delta) + 180) % 360 - 180
     if throttled:
         for row, kappa in zip(rows, result.throttle):
             row[THROTTLE_FIELD] = float(kappa)
@@ -885,7 +956,9 @@ def _verification_data(check):
     out = dict(check.misses)
     out["error"] = check.error
     if check.error is None:
-        out["cvodes_final_state"] = _polar_dict(check.cvodes[:4, -1])
+        cart = getattr(check, "cartesian", None)
+        out["cvodes_final_state"] = _state_dict(check.cvodes[:4, -1],
+                                                None if cart is None else cart[:, -1])
         out["cvodes_tof_days"] = units.time_to_days(float(check.cvodes[4, -1]))
     return out
 
@@ -943,14 +1016,15 @@ def _run_data(run):
         "constraint_violation": result.constraint_violation,
         "min_q3": float(np.min(result.q3)),
         "schedule": schedule,
-        "final_state": _polar_dict(result.nodes[:4, -1]),
+        "final_state": _final_state(result),
         "verification": _verification_data(check),
         "refinement": {"rounds": ([] if controlled is None
                                   else [dataclasses.asdict(r) for r in controlled.history]),
                        "starts": [dataclasses.asdict(s) for s in run.starts]},
         "trajectory": {
             "closed_form": _trajectory(check.closed_form),
-            "cvodes": _trajectory(check.cvodes) if check.error is None else None,
+            "cvodes": (_trajectory(check.cvodes, getattr(check, "cartesian", None))
+                       if check.error is None else None),
         },
         **_calendar_data(problem, result, check),
     }
@@ -965,6 +1039,15 @@ def _run_data(run):
                                               if polished.check.error is None else None)
         data["polish"] = _polish_data(problem, polished)
     return data
+
+
+def _departure_state(problem, result):
+    """The state the verification flies from; in three dimensions the exact polar
+    state inside the departure's plane and its Cartesian ecliptic state."""
+    if not problem.three_d():
+        return _polar_dict(problem.start_state(result))
+    plane = problem.departure.plane_state_at(result.epoch, result.vinf_angle)
+    return _state_dict(plane[:4], problem.start_state(result))
 
 
 def _problem_data(problem, result, sub_arcs_requested):
@@ -983,7 +1066,7 @@ def _problem_data(problem, result, sub_arcs_requested):
         "departure": _fields(dep),
         # The state the verification flies from: for a body, its ephemeris, not the
         # NLP's smooth track of it.
-        "departure_state": _polar_dict(problem.start_state(result)),
+        "departure_state": _departure_state(problem, result),
         "r_min_au": problem.path.r_min_au, "q3_margin": problem.path.q3_margin,
     }
     if problem.throttled():

@@ -41,11 +41,15 @@ from typing import Optional
 import numpy as np
 
 from esail_opt.optimisation.ipopt import build_solver, solve_transcription
-from esail_opt.optimisation.goals import state_miss
-from esail_opt.optimisation.transcription import problem_segment, strain, transcribe
+from esail_opt.optimisation.goals import cartesian_miss, state_miss
+from esail_opt.optimisation.transcription import (node_cartesian, problem_segment, start_node,
+                                                  strain, transcribe)
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
-from esail_opt.propagation.simulate import VERIFY_TOLERANCE, SimulationError, fly_segments
+from esail_opt.physics import rotation
+from esail_opt.physics.elements import polar3d_from_cartesian
+from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments,
+                                            quiet_stderr, segment_integrator3d)
 
 #: Rounds of defect correction after the first solve.
 MAX_ROUNDS = 8
@@ -111,8 +115,39 @@ class ErrorControl:
 
 
 def start_nodes(result):
-    """Each segment's start state [5 x N] with time: the departure, then the nodes."""
-    return np.column_stack([np.r_[result.x_start, 0.0], result.nodes[:, :-1]])
+    """Each segment's start state [5 x N] with time (9 rows in three dimensions): the
+    departure, then the nodes."""
+    return np.column_stack([start_node(result.x_start), result.nodes[:, :-1]])
+
+
+def node_near(y, ref):
+    """The Cartesian state ``y`` (7 rows, with t) as a 3-D node (9 rows) in the gauge of
+    the node ``ref``: its plane's frame is ref's turned by the smallest rotation that
+    takes ref's normal to y's, and its theta is on ref's branch.  A node's plane frame
+    is free up to a turn about the normal (traded against theta); this picks the one
+    next to ``ref``, so that ``node_near(y, ref) - ref`` is a small defect."""
+    ref = np.asarray(ref, float)
+    quat_ref = ref[5:9] / np.linalg.norm(ref[5:9])
+    turn = np.array(rotation.matrix(quat_ref), float)
+    local = np.r_[turn.T @ y[:3], turn.T @ y[3:6]]
+    x, quat = (np.array(v, float).ravel() for v in polar3d_from_cartesian(local))
+    theta = ref[1] + (x[1] - ref[1] + np.pi) % (2 * np.pi) - np.pi
+    return np.r_[x[0], theta, x[2], x[3], y[6],
+                 np.array(rotation.multiply(quat_ref, quat), float).ravel()]
+
+
+def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
+    """Every 3-D segment flown by CVODES on the Cartesian equations from its start node,
+    in the angle swept, as nodes next to the model's ends (:func:`node_near`)."""
+    n = starts.shape[1]
+    y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
+    fun = segment_integrator3d(1, "theta", problem.sail.coefficients, tol).map(n)
+    try:
+        with quiet_stderr():
+            ends = np.array(fun(y0, ac, alpha, delta, lengths))
+    except RuntimeError as err:
+        raise SimulationError(str(err).strip().splitlines()[-1]) from None
+    return np.column_stack([node_near(ends[:, k], model_ends[:, k]) for k in range(n)])
 
 
 def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TOLERANCE):
@@ -131,9 +166,20 @@ def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TO
     lengths = result.lengths if length_in == "theta" else result.durations
     args = (start_nodes(result), problem.sail.ac * result.ac_scale * result.throttle[None, :],
             result.alpha[None, :], lengths[None, :])
+    if result.delta is not None:
+        args = args[:3] + (result.delta[None, :], args[3])
+        model = np.array(segment.map(result.alpha.size)(*args)[0])
+        return _exact_ends3d(problem, *args, model, tol), model
     model = np.array(segment.map(result.alpha.size)(*args)[0])
     exact = fly_segments(*args, length_in, problem.sail.coefficients, tol)
     return exact, model
+
+
+def _node_miss_km(a, b):
+    """Position difference of two nodes, km (in three dimensions, in space)."""
+    if a.size > 5:
+        return cartesian_miss(node_cartesian(a), node_cartesian(b))[0]
+    return state_miss(a, b)[0]
 
 
 def _row(rnd, problem, result, check, local_km, seconds):
@@ -201,7 +247,7 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
         verified = check.judge(problem)[0] and result.converged
         try:
             exact, plain = segment_ends(problem, result)
-            local_km = np.array([state_miss(a, b)[0] for a, b in zip(exact.T, plain.T)])
+            local_km = np.array([_node_miss_km(a, b) for a, b in zip(exact.T, plain.T)])
         except SimulationError as err:
             exact = None
             say(f"error control: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")

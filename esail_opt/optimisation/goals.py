@@ -29,7 +29,7 @@ from esail_opt.physics.elements import classical_from_polar, orbital_energy
 
 __all__ = ["MinTime", "MaxRadius", "MaxEnergy", "FinalStateExpression", "MinAcceleration",
            "CircularOrbit", "Orbit", "Rendezvous", "BodyRendezvous", "BodyIntercept",
-           "OBJECTIVES", "TARGETS", "state_miss"]
+           "OBJECTIVES", "TARGETS", "state_miss", "cartesian_miss"]
 
 
 def cartesian(x):
@@ -50,6 +50,14 @@ def state_miss(x, y):
     return (units.length_to_km(float(np.linalg.norm(px - py))),
             units.speed_to_m_s(float(np.linalg.norm(vx - vy))),
             math.degrees(float(x[1] - y[1])))
+
+
+def cartesian_miss(y, z):
+    """Miss between two Cartesian states [x, y, z, vx, vy, vz] (canonical): (position
+    km, velocity m/s)."""
+    d = np.asarray(y, float).ravel()[:6] - np.asarray(z, float).ravel()[:6]
+    return (units.length_to_km(float(np.linalg.norm(d[:3]))),
+            units.speed_to_m_s(float(np.linalg.norm(d[3:]))))
 
 
 # ---------------------------------------------------------------- objectives
@@ -378,6 +386,26 @@ class _BodyTarget:
         return _miss(dr, dv if self.matches_velocity else None,
                      relative_speed_km_s=dv / 1e3,
                      out_of_plane_km=units.length_to_km(abs(z_au)))
+
+
+    def constraints3d(self, yf, tf, t0=0.0):
+        """The final Cartesian state ``yf`` (ecliptic, canonical) on the body's smooth
+        3-D track (``bodies.track.Track3``) at t0 + tf: position, and velocity for a
+        rendezvous.  No turn count: Cartesian rows are the same on every revolution."""
+        body = lookup.track3(self.body).function(t0 + tf)
+        rows = yf[:3] - body[:3]
+        return [ca.vertcat(rows, yf[3:6] - body[3:6]) if self.matches_velocity else rows]
+
+    def miss3d(self, y, t, t0=0.0):
+        """Distance (and, for a rendezvous, relative speed) of the Cartesian state ``y``
+        from the body's exact, unprojected ecliptic state at t0 + t (DE421, or a small
+        body's six elements), with the relative speed at encounter and the part of the
+        distance along the ecliptic's normal."""
+        body = lookup.ecliptic_state_at(self.body, t0 + t, "target.body")
+        dr, dv = cartesian_miss(y, body)
+        return _miss(dr, dv if self.matches_velocity else None,
+                     relative_speed_km_s=dv / 1e3,
+                     out_of_plane_km=units.length_to_km(abs(float(np.ravel(y)[2] - body[2]))))
 
 
 @dataclass(frozen=True)

@@ -78,6 +78,9 @@ class NLPResult:
     epoch: float = 0.0  # departure, TU since J2000 (dated problems)
     ac_scale: float = 1.0  # a_c over the sail's (MinAcceleration)
     vinf_angle: float = 0.0  # excess velocity's direction, rad
+    # Clock per segment, rad, in three dimensions (None: planar); the nodes then have 9
+    # rows, the plane's quaternion after [r, theta, v_r, v_theta, t].
+    delta: np.ndarray = None
 
     @property
     def converged(self):
@@ -89,7 +92,7 @@ class NLPResult:
         lengths = self.durations if durations else self.lengths
         return Guess(self.alpha, lengths, self.nodes, self.nu0, self.revolutions_k,
                      self.throttle, self.theta_window, self.epoch, self.ac_scale,
-                     self.vinf_angle)
+                     self.vinf_angle, self.delta)
 
     def accelerations(self, problem):
         """Each segment's characteristic acceleration as flown, canonical: the sail's
@@ -265,6 +268,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         w=w, lam_x=np.array(sol["lam_x"]).ravel(), lam_g=np.array(sol["lam_g"]).ravel(),
         revolutions_k=tr.guess.revolutions_k, theta_window=tr.guess.theta_window,
         epoch=parts[8].item(), ac_scale=parts[9].item(), vinf_angle=parts[10].item(),
+        delta=parts[11].ravel() if parts[11].size else None,
     )
 
 

@@ -148,7 +148,8 @@ def _stretched(problem, guess, total):
     """``guess`` with its segments stretched to sweep ``total`` rad, nodes re-flown
     (continuity exact), or None if that flight leaves the closed form's validity."""
     lengths = guess.lengths * (total / float(np.sum(guess.lengths)))
-    xs = flown_segments(problem, guess.alpha, lengths, problem.x0())
+    start = problem.plane_x0() if problem.three_d() else problem.x0()
+    xs = flown_segments(problem, guess.alpha, lengths, start, delta=guess.delta)
     if not np.all(np.isfinite(xs)):
         return None
     return dataclasses.replace(guess, lengths=lengths, nodes=xs[:, 1:])

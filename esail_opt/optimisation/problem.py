@@ -35,7 +35,8 @@ from esail_opt.optimisation.goals import (
     MaxEnergy, MaxRadius, MinAcceleration, MinTime, Orbit, Rendezvous,
 )
 from esail_opt.physics import constants as units
-from esail_opt.physics.elements import orbital_energy, polar_from_classical
+from esail_opt.physics.elements import (cartesian_from_polar3d, orbital_energy,
+                                        polar3d_from_cartesian, polar_from_classical)
 from esail_opt.physics.thrust import BEST_FIT, EXACT
 from esail_opt.propagation.arcs import ArcModel
 
@@ -259,6 +260,34 @@ class BodyDeparture:
         dvr, dvt = self._excess(angle)
         return ca.vertcat(x[0], x[1], x[2] + dvr, x[3] + dvt)
 
+    def plane_state(self, y, angle):
+        """The 3-D departure as the NLP's start: the polar state inside the plane of the
+        body's ecliptic state ``y`` (``elements.polar3d_from_cartesian``) plus the excess
+        velocity at ``angle`` in that plane, and the plane's quaternion: an 8-vector
+        [r, theta, v_r, v_theta, qw, qx, qy, qz] (numbers or CasADi expressions).  The
+        excess lies in the body's orbital plane, as in the planar model."""
+        x, quat = polar3d_from_cartesian(y)
+        dvr, dvt = self._excess(angle)
+        return ca.vertcat(x[0], x[1], x[2] + dvr, x[3] + dvt, quat)
+
+    def plane_state_at(self, t0, angle=None):
+        """:meth:`plane_state` of the body's exact ecliptic state (DE421 unprojected, or a
+        small body's six elements) at epoch t0 (TU since J2000), as numbers."""
+        y = lookup.ecliptic_state_at(self.body, t0, "departure.body")
+        angle = self.seed_angle() if angle is None else angle
+        return np.array(self.plane_state(ca.DM(y), angle), float).ravel()
+
+    def cartesian_at(self, t0, angle=None):
+        """The exact 3-D departure [x, y, z, vx, vy, vz] (ecliptic of J2000, canonical) at
+        epoch t0 with the excess velocity at ``angle``: what a 3-D schedule is flown from."""
+        x = self.plane_state_at(t0, angle)
+        return np.array(cartesian_from_polar3d(x[:4], x[4:]), float).ravel()
+
+    def nlp_plane_state(self, t0, angle, correction=0):
+        """:meth:`plane_state` inside the NLP: on the body's smooth 3-D track at epoch
+        ``t0`` (number or symbol) plus ``correction`` (Cartesian, 6)."""
+        return self.plane_state(lookup.track3(self.body).function(t0) + correction, angle)
+
 
 # ---------------------------------------------------------------- sail and arcs
 
@@ -285,6 +314,13 @@ class Sail:
     throttle_min, throttle_max : float
         Bounds on kappa, a subset of [0, 1] with min <= max (used only with
         ``throttle``); equal bounds fix kappa, e.g. 1 reproduces the always-on NLP.
+    clock_min_deg, clock_max_deg : float
+        Bounds on the clock angle delta of a problem flown in three dimensions, deg, a
+        subset of [-180, 180] with min <= max: the sail's normal turned by delta about
+        the Sun-sail line (0: in the orbital plane, on the side of the motion; positive
+        toward the angular momentum; ``physics.thrust.radial_transverse_normal``).  The
+        full circle (the default) leaves delta free and unbounded; a planar problem
+        has no clock angle.
     """
 
     ac_mm_s2: float
@@ -294,6 +330,8 @@ class Sail:
     throttle: bool = False
     throttle_min: float = 0.0
     throttle_max: float = 1.0
+    clock_min_deg: float = -180.0
+    clock_max_deg: float = 180.0
 
     def __post_init__(self):
         check_range("sail.ac_mm_s2", self.ac_mm_s2, 0, 100, low_open=True, unit="mm/s^2")
@@ -306,6 +344,8 @@ class Sail:
         _check_bool("sail.throttle", self.throttle)
         k_lo = check_range("sail.throttle_min", self.throttle_min, 0, 1)
         check_range("sail.throttle_max", self.throttle_max, k_lo, 1)
+        c_lo = check_range("sail.clock_min_deg", self.clock_min_deg, -180, 180, unit="deg")
+        check_range("sail.clock_max_deg", self.clock_max_deg, c_lo, 180, unit="deg")
 
     @property
     def ac(self):
@@ -421,6 +461,10 @@ class Tolerance:
         check_range("tolerance.velocity_m_s", self.velocity_m_s, 1e-6, 1e5, unit="m/s")
 
 
+#: Whether a real-body problem that does not say (``Problem(planar=None)``) flies in the
+#: ecliptic projection.
+PLANAR_DEFAULT = False
+
 Departure = Union[ParkingOrbit, PolarState, BodyDeparture]
 Objective = Union[MinTime, MaxRadius, MaxEnergy, FinalStateExpression, MinAcceleration]
 Target = Optional[Union[CircularOrbit, Orbit, Rendezvous, BodyRendezvous, BodyIntercept]]
@@ -451,6 +495,13 @@ class Problem:
     tolerance : Tolerance
         What the flown schedule must meet to be reported as verified.
     description : str
+    planar : bool or None
+        Fly a real-body problem in the ecliptic projection (True: each body's state
+        projected on the ecliptic, the model before three dimensions) or in three
+        dimensions (False: DE421's unprojected states, a clock angle per segment,
+        the planar motion in a turning plane).  None takes :data:`PLANAR_DEFAULT`.  A
+        problem off the calendar (circles, (a, e) orbits, ``Rendezvous``) is planar
+        whatever this says, and False is refused there.
     """
 
     name: str
@@ -464,6 +515,7 @@ class Problem:
     max_revolutions: float = 20.0
     tolerance: Tolerance = Tolerance()
     description: str = ""
+    planar: Optional[bool] = None
 
     def __post_init__(self):
         check_printable("name", self.name, NAME_ALLOWED)
@@ -498,6 +550,11 @@ class Problem:
             lo, hi = self.sail.alpha_min_deg, self.sail.alpha_max_deg
             check_range("guess_alpha_deg", self.guess_alpha_deg, lo, hi, unit="deg")
         check_range("max_revolutions", self.max_revolutions, 0, 1000, low_open=True)
+        if self.planar not in (None, True, False):
+            raise InputError(f"planar = {self.planar!r} is not True, False or None")
+        if self.planar is False and not dated:
+            raise InputError("planar = False needs a real body: three dimensions are for "
+                             "departure = BodyDeparture(...); idealised problems are planar")
 
     def _check_arrival_tracked(self):
         """A fixed time of flight from a body says when the flight ends: refuse, before
@@ -542,9 +599,23 @@ class Problem:
 
     # -- canonical views, the only unit conversions of this layer
 
+    def three_d(self):
+        """Whether the problem flies in three dimensions: a real-body problem unless
+        ``planar`` is True (or, when None, :data:`PLANAR_DEFAULT` says so)."""
+        planar = PLANAR_DEFAULT if self.planar is None else self.planar
+        return self.dated() and not planar
+
     def x0(self):
-        """Departure polar state, canonical units, as a numpy array."""
+        """Departure polar state, canonical units, as a numpy array: in three dimensions
+        the polar state inside the departure's plane (:meth:`plane_x0`'s first four)."""
+        if self.three_d():
+            return self.plane_x0()[:4]
         return np.array(self.departure.state(), float).ravel()
+
+    def plane_x0(self):
+        """The 3-D departure at the (seed) epoch as [r, theta, v_r, v_theta, qw, qx, qy,
+        qz] (``BodyDeparture.plane_state_at``)."""
+        return self.departure.plane_state_at(self.epoch())
 
     def throttled(self):
         """Whether each segment has a throttle variable: a throttled sail, or a
@@ -574,10 +645,20 @@ class Problem:
     def start_state(self, result):
         """The departure state a schedule is flown from in its verification: exact (the
         body's ephemeris at the result's epoch, with its excess velocity), not the NLP's
-        smooth track of it."""
+        smooth track of it; in three dimensions the Cartesian ecliptic state."""
+        if self.three_d():
+            return self.departure.cartesian_at(result.epoch, result.vinf_angle)
         if self.dated():
             return self.departure.state_at(result.epoch, result.vinf_angle)
         return np.asarray(result.x_start, float)
+
+    def clock_bounds(self):
+        """Bounds of the clock variables, rad: unbounded for the full circle (delta is an
+        angle, and a box at +-180 deg would be a wall through one attitude)."""
+        lo, hi = self.sail.clock_min_deg, self.sail.clock_max_deg
+        if lo == -180 and hi == 180:
+            return -np.inf, np.inf
+        return math.radians(lo), math.radians(hi)
 
     def alpha_bounds(self):
         return math.radians(self.sail.alpha_min_deg), math.radians(self.sail.alpha_max_deg)

@@ -39,9 +39,11 @@ from esail_opt.propagation import compiled
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.rectified import (flies_native, piece_function, propagate,
                                              rectified_function)
+from esail_opt.propagation.rectified3d import arc_function3d
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError
+from esail_opt.physics.elements import cartesian_from_polar3d
 from esail_opt.physics.thrust import EXACT
 
 #: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
@@ -166,10 +168,64 @@ def closed_form_segment(*, coefficients=EXACT, model=ArcModel()):
     return segment
 
 
+@functools.lru_cache(maxsize=None)
+def closed_form_segment3d(*, coefficients=EXACT, model=ArcModel()):
+    """One segment of constant pitch and clock in three dimensions, ``model.sub_arcs``
+    rectified closed-form arcs: ``(x0[9], ac, alpha, delta, dtheta) -> (x1[9],
+    q3[sub_arcs])``, x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] (the planar arc's
+    state inside the plane of the unit quaternion, ``propagation.rectified3d``).
+
+    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX.  With
+    ``model.native`` it is compiled with its derivatives and the segment's chain of arc
+    calls compiled over it (``propagation.compiled``), as :func:`closed_form_segment`
+    does in the plane; otherwise, or where nothing compiles, the segment is the
+    expanded SX chain.
+    """
+    if model.extrapolate:
+        raise InputError("segments.extrapolate = True is not available in three "
+                         "dimensions; use False")
+    one = dataclasses.replace(model.one_arc(), native=False)
+    arc = arc_function3d(1, coefficients=coefficients, model=one).expand()
+    fast = compiled.compiled(arc) if model.native else arc
+    native = fast is not arc
+    sym = ca.MX if native else ca.SX
+    x0 = sym.sym("x0", 9)
+    ac, alpha, delta, dtheta = (sym.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
+    x, margins = x0, []
+    for _ in range(model.sub_arcs):
+        xs, q3 = (fast if native else arc)(x, ac, alpha, delta, dtheta / model.sub_arcs)
+        x = xs[:, -1]
+        margins.append(q3)
+    segment = ca.Function("segment3d", [x0, ac, alpha, delta, dtheta],
+                          [x, ca.vertcat(*margins)],
+                          ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"],
+                          {"cse": True})
+    return compiled.compiled(segment, (arc,)) if native else segment
+
+
 def problem_segment(problem):
-    """The closed-form segment of ``problem``'s NLP, on its :func:`arc_model`."""
+    """The closed-form segment of ``problem``'s NLP, on its :func:`arc_model`: planar, or
+    :func:`closed_form_segment3d` for a problem that flies in three dimensions."""
+    if problem.three_d():
+        return closed_form_segment3d(coefficients=problem.sail.coefficients,
+                                     model=arc_model(problem))
     return closed_form_segment(coefficients=problem.sail.coefficients,
                                model=arc_model(problem))
+
+
+def start_node(x_start):
+    """The first segment's start node, with time 0: [r, theta, v_r, v_theta, 0], or in
+    three dimensions [r, theta, v_r, v_theta, 0, qw, qx, qy, qz] from the 8-row start."""
+    x = np.asarray(x_start, float).ravel()
+    return np.r_[x[:4], 0.0, x[4:]]
+
+
+def node_cartesian(node):
+    """The Cartesian ecliptic state [x, y, z, vx, vy, vz] of a 3-D node (9 rows; its
+    quaternion normalised) as numbers."""
+    node = np.asarray(node, float).ravel()
+    quat = node[5:9] / np.linalg.norm(node[5:9])
+    return np.array(cartesian_from_polar3d(node[:4], quat), float).ravel()
 
 
 @functools.lru_cache(maxsize=None)
@@ -213,17 +269,21 @@ def cvodes_time_segment(coefficients=EXACT):
                        ["x0", "ac", "alpha", "duration"], ["x1", "q3"])
 
 
-def flown_segments(problem, alpha, lengths, x_start, throttle=None):
+def flown_segments(problem, alpha, lengths, x_start, throttle=None, delta=None):
     """The NLP's own chain of segments flown forward from ``x_start`` (no continuity
-    defects): node states [5 x N+1] with time, for checks and tests.  ``throttle`` is
-    kappa per segment, default 1."""
+    defects): node states [5 x N+1] with time (9 rows in three dimensions, from an
+    8-row ``x_start``), for checks and tests.  ``throttle`` is kappa per segment,
+    default 1; ``delta`` the clock per segment in three dimensions, default 0."""
     n = len(alpha)
     kappa = np.ones(n) if throttle is None else np.asarray(throttle, float)
-    x = np.r_[np.asarray(x_start, float), 0.0]
+    x = start_node(x_start)
+    controls = [np.asarray(alpha, float)[None, :]]
+    if problem.three_d():
+        controls.append((np.zeros(n) if delta is None else np.asarray(delta, float))[None, :])
     # One call of the accumulated segment, not one Python call per segment (3.8 against
     # 0.8 ms for 60 segments, the same numbers).
     ends = problem_segment(problem).mapaccum(n)(
-        x, problem.sail.ac * kappa[None, :], np.asarray(alpha, float)[None, :],
+        x, problem.sail.ac * kappa[None, :], *controls,
         np.asarray(lengths, float)[None, :])[0]
     return np.column_stack([x, np.array(ends)])
 
@@ -249,6 +309,7 @@ class Guess:
     epoch: float = 0.0  # departure, TU since J2000 (dated problems)
     ac_scale: float = 1.0  # a_c over the sail's (MinAcceleration)
     vinf_angle: float = 0.0  # excess velocity's direction, rad (BodyDeparture)
+    delta: np.ndarray = None  # clock per segment, rad (three dimensions; None: 0)
 
 
 def _fly_until(problem, x0, alpha, stop, what):
@@ -339,15 +400,18 @@ def initial_guess(problem):
                            f"the target radius ({radius:g} au)")
     n = problem.segments.count_for(angle)
     lengths = np.full(n, angle / n)
-    # The nodes come from the NLP's own segment map, so continuity holds exactly.
-    xs = flown_segments(problem, np.full(n, alpha), lengths, x0)
+    # The nodes come from the NLP's own segment map, so continuity holds exactly.  In
+    # three dimensions the seed's clock is 0: the planar flight above in a fixed plane.
+    xs = flown_segments(problem, np.full(n, alpha), lengths,
+                        problem.plane_x0() if problem.three_d() else x0)
     nodes = xs[:, 1:]
     t0 = problem.epoch()
     k = (problem.target.turns_behind(nodes[1, -1], nodes[4, -1], t0)
          if problem.tracks_body() else 0)
     nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
     angle = problem.departure.seed_angle() if problem.dated() else 0.0
-    return Guess(np.full(n, alpha), lengths, nodes, nu0, k, epoch=t0, vinf_angle=angle)
+    return Guess(np.full(n, alpha), lengths, nodes, nu0, k, epoch=t0, vinf_angle=angle,
+                 delta=np.zeros(n) if problem.three_d() else None)
 
 
 @dataclass
@@ -380,11 +444,17 @@ class Transcription:
     def segments(self):
         return self.guess.alpha.size
 
+    @property
+    def rows(self):
+        """Rows of a node: 5, or 9 in three dimensions (the plane's quaternion)."""
+        return self.guess.nodes.shape[0]
+
     def parameters(self, defects=None):
         """The NLP's parameter vector: the segment defects of the defect correction
-        (5 x N; default none), then the epoch, the time of flight and the bodies'
+        (rows x N; default none), then the epoch, the time of flight and the bodies'
         corrections."""
-        d = np.zeros(5 * self.segments) if defects is None else np.ravel(defects, order="F")
+        d = (np.zeros(self.rows * self.segments) if defects is None
+             else np.ravel(defects, order="F"))
         return np.r_[d, self.epoch, self.tof, self.corrections]
 
     def at(self, problem):
@@ -405,6 +475,12 @@ def body_corrections(problem, result):
     departure body's ephemeris less its track at the departure epoch, then the target
     body's at the arrival (``bodies.lookup.track_correction``); zeros for a problem off
     the calendar and for a target that is not a real body."""
+    if problem.three_d():
+        # Cartesian in three dimensions (``lookup.track3_correction``), 6 + 6.
+        body = getattr(problem.target, "body", None)
+        arrival = result.epoch + float(np.sum(result.durations))
+        return np.r_[lookup.track3_correction(problem.departure.body, result.epoch),
+                     np.zeros(6) if body is None else lookup.track3_correction(body, arrival)]
     out = np.zeros(8)
     if not problem.dated():
         return out
@@ -467,8 +543,10 @@ class _Scales:
         turns = 2 * math.pi * round(float(guess.nodes[1, 0]) / (2 * math.pi))
         th = max(1.0, float(abs(guess.nodes[1, -1] - turns)))
         t = max(1.0, float(guess.nodes[4, -1]))
-        return cls(float(np.mean(guess.lengths)), np.array([1.0, th, 1.0, 1.0, t]),
-                   float(guess.epoch), np.array([0.0, turns, 0.0, 0.0, 0.0]))
+        # A 3-D node's quaternion rows are of order one already.
+        extra = guess.nodes.shape[0] - 5
+        return cls(float(np.mean(guess.lengths)), np.r_[1.0, th, 1.0, 1.0, t, np.ones(extra)],
+                   float(guess.epoch), np.r_[0.0, turns, 0.0, 0.0, 0.0, np.zeros(extra)])
 
     def scaled(self, nodes):
         """Nodes (5 x N, numbers) in the NLP's scaled variables."""
@@ -496,6 +574,10 @@ def _node_bounds(problem, guess, scales, n):
     any, boxes the last node's theta."""
     lo = np.tile([[max(problem.path.r_min_au, 1e-3)], [-np.inf], [-10.0], [1e-2], [0.0]], n)
     hi = np.tile([[100.0], [np.inf], [10.0], [20.0], [np.inf]], n)
+    if problem.three_d():
+        # A unit quaternion's components; continuity keeps the norm, the box only
+        # keeps Ipopt's trial points near it.
+        lo, hi = np.vstack([lo, np.full((4, n), -1.5)]), np.vstack([hi, np.full((4, n), 1.5)])
     if guess.theta_window is not None:
         lo[1, -1], hi[1, -1] = guess.theta_window
     return scales.scaled(lo), scales.scaled(hi)
@@ -519,12 +601,15 @@ def _variables(problem, guess, scales, in_time):
     free_date = problem.free_date()
     free_ac = problem.objective.free_acceleration
     free_angle = problem.dated() and problem.departure.free_direction
+    three_d = problem.three_d()
     v = {"alpha": ca.MX.sym("alpha", n), "length": ca.MX.sym("length", n),
-         "nodes": ca.MX.sym("nodes", 5, n), "nu0": ca.MX.sym("nu0", 1 if free_nu else 0),
+         "nodes": ca.MX.sym("nodes", 9 if three_d else 5, n),
+         "nu0": ca.MX.sym("nu0", 1 if free_nu else 0),
          "kappa": ca.MX.sym("kappa", 0 if kappa_bounds is None else n),
          "epoch": ca.MX.sym("epoch", 1 if free_date else 0),
          "ac_scale": ca.MX.sym("ac_scale", 1 if free_ac else 0),
-         "vinf_angle": ca.MX.sym("vinf_angle", 1 if free_angle else 0)}
+         "vinf_angle": ca.MX.sym("vinf_angle", 1 if free_angle else 0),
+         "delta": ca.MX.sym("delta", n if three_d else 0)}
     blocks = _Blocks()
     blocks.add("alpha", v["alpha"], *_pitch_bounds(problem), guess.alpha)
     max_angle = 2 * math.pi * problem.max_revolutions
@@ -546,6 +631,9 @@ def _variables(problem, guess, scales, in_time):
     # a_c stays inside the sail's own range, (0, 100] mm/s^2.
     blocks.add("ac_scale", v["ac_scale"], 1e-4, 100.0 / problem.sail.ac_mm_s2, guess.ac_scale)
     blocks.add("vinf_angle", v["vinf_angle"], -2 * math.pi, 2 * math.pi, guess.vinf_angle)
+    # The clock comes after everything planar, so a planar NLP's layout is unchanged.
+    blocks.add("delta", v["delta"], *problem.clock_bounds(),
+               0.0 if guess.delta is None else guess.delta)
     return v, blocks
 
 
@@ -557,29 +645,36 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
     nodes = v["nodes"] * ca.DM(scales.node) + ca.DM(scales.shift)
     dep = problem.departure
     epoch = scales.epoch + v["epoch"][0] if v["epoch"].numel() else p["epoch"]
+    three_d = problem.three_d()
     if problem.dated():
         angle = v["vinf_angle"][0] if v["vinf_angle"].numel() else dep.seed_angle()
-        x_start = dep.nlp_state(epoch, angle) + p["corrections"][:4]
+        x_start = (dep.nlp_plane_state(epoch, angle, p["corrections"][:6]) if three_d
+                   else dep.nlp_state(epoch, angle) + p["corrections"][:4])
     else:
         x_start = dep.state(v["nu0"][0]) if v["nu0"].numel() else ca.DM(problem.x0())
-    starts = ca.horzcat(ca.vertcat(x_start, 0), nodes[:, :-1])
+    starts = ca.horzcat(ca.vertcat(x_start[:4], 0, x_start[4:]), nodes[:, :-1])
     # The closed form (and Eqs. 1-2) take a_c per segment, so a throttle simply scales it.
     ac_scale = v["ac_scale"][0] if v["ac_scale"].numel() else 1
     ac = problem.sail.ac * ac_scale * (v["kappa"].T if v["kappa"].numel() else 1)
     length = v["length"] * scales.length
     threads = min(threads, n) if segment.name() not in INTEGRATOR_SEGMENTS else 1
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
-    ends, q3 = mapped(starts, ac, v["alpha"].T, length.T)
+    controls = [v["alpha"].T] + ([v["delta"].T] if three_d else [])
+    ends, q3 = mapped(starts, ac, *controls, length.T)
     # The defect correction (optimisation.error_control): a constant per segment, added
     # to its end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter,
     # so one solver serves every round of the error control.
-    defects = ca.MX.sym("defects", 5, n)
+    defects = ca.MX.sym("defects", nodes.shape[0], n)
     swept = (nodes[1, :] - starts[1, :]).T
     elapsed = (nodes[4, :] - starts[4, :]).T
-    return {"nodes": nodes, "x_start": x_start, "ends": ends + defects, "q3": ca.vec(q3),
-            "defects": defects, "lengths": swept if in_time else length,
-            "durations": length if in_time else elapsed,
-            "xf": nodes[:4, -1], "tf": nodes[4, -1], "epoch": epoch, "ac_scale": ac_scale}
+    out = {"nodes": nodes, "x_start": x_start, "ends": ends + defects, "q3": ca.vec(q3),
+           "defects": defects, "lengths": swept if in_time else length,
+           "durations": length if in_time else elapsed,
+           "xf": nodes[:4, -1], "tf": nodes[4, -1], "epoch": epoch, "ac_scale": ac_scale}
+    if three_d:
+        quat = nodes[5:, -1]
+        out["yf"] = cartesian_from_polar3d(nodes[:4, -1], quat / ca.norm_2(quat))
+    return out
 
 
 def _constraints(problem, guess, v, p, flight, scales, in_time):
@@ -596,7 +691,12 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     g.add("durations", flight["durations"] / scales.time, 0, np.inf)
     if problem.fixed_tof() is not None:
         g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
-    if problem.target is not None:
+    if hasattr(problem.target, "constraints3d") and "yf" in flight:
+        # In three dimensions a body target's rows are Cartesian, on its 3-D track.
+        yf = flight["yf"] - (p["corrections"][6:] if problem.target.tracks_body else 0)
+        target = problem.target.constraints3d(yf, flight["tf"], flight["epoch"])
+        g.add("target", ca.vertcat(*target), 0, 0)
+    elif problem.target is not None:
         # A body target's rows compare the final state with the body's track; its
         # correction moves the track onto the ephemeris (zero for other targets).
         real = getattr(problem.target, "body", None) is not None
@@ -647,8 +747,9 @@ def transcribe(problem, segment=None, guess=None, length_in="theta", threads=Non
     guess = initial_guess(problem) if guess is None else guess
     scales = _Scales.of(guess)
     v, variables = _variables(problem, guess, scales, in_time)
+    n_corr = 12 if problem.three_d() else 8
     params = {"epoch": ca.MX.sym("epoch"), "tof": ca.MX.sym("tof"),
-              "corrections": ca.MX.sym("corrections", 8)}
+              "corrections": ca.MX.sym("corrections", n_corr)}
     flight = _flight(problem, segment, v, params, scales, in_time,
                      segment_threads() if threads is None else threads)
     g = _constraints(problem, guess, v, params, flight, scales, in_time)
@@ -668,12 +769,13 @@ def transcribe(problem, segment=None, guess=None, length_in="theta", threads=Non
     unpack = ca.Function("unpack", [w, p], [v["alpha"], flight["lengths"], flight["nodes"],
                                             flight["durations"], flight["x_start"],
                                             flight["q3"], nu0, throttle, flight["epoch"],
-                                            flight["ac_scale"], angle],
+                                            flight["ac_scale"], angle, v["delta"]],
                          ["w", "p"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
-                                      "nu0", "throttle", "epoch", "ac_scale", "vinf_angle"])
+                                      "nu0", "throttle", "epoch", "ac_scale", "vinf_angle",
+                                      "delta"])
     tof = problem.fixed_tof()
     return Transcription({"x": w, "p": p, "f": f, "g": g_expr},
                          ca.Function("g", [w, p], [g_expr], ["w", "p"], ["g"]),
                          np.clip(w0, lbx, ubx), lbx, ubx, lbg, ubg, unpack, guess, g.sizes,
                          problem.objective.shown_as(), problem.epoch(),
-                         0.0 if tof is None else tof)
+                         0.0 if tof is None else tof, np.zeros(n_corr))

@@ -22,10 +22,12 @@ from typing import Optional
 
 import numpy as np
 
-from esail_opt.optimisation.goals import state_miss
-from esail_opt.optimisation.transcription import arc_model
+from esail_opt.optimisation.goals import cartesian_miss, state_miss
+from esail_opt.optimisation.transcription import arc_model, node_cartesian, start_node
 from esail_opt.propagation.rectified import propagate
-from esail_opt.propagation.simulate import CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate
+from esail_opt.propagation.rectified3d import propagate3d
+from esail_opt.propagation.simulate import (CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate,
+                                            simulate3d)
 
 
 def target_miss(target, x, t, t0=0.0):
@@ -44,6 +46,9 @@ class Verification:
     closed_form: np.ndarray  # 5 x M samples of the NLP's closed form, from its nodes
     misses: dict
     error: Optional[str] = None
+    # In three dimensions: the flight's 7 x M Cartesian samples [x, y, z, vx, vy, vz, t]
+    # (ecliptic of J2000, canonical), of which ``cvodes`` is a polar view for the plots.
+    cartesian: Optional[np.ndarray] = None
 
     def judge(self, problem, tolerance=None, against_nlp=False):
         """:func:`judge` of this flight's misses."""
@@ -134,16 +139,22 @@ def closed_form_curve(problem, result, samples=16, defects=None):
     """
     model = arc_model(problem)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
-    x0 = np.asarray(result.x_start, float)
     kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
              else np.asarray(result.throttle, float))
     per_sub = max(1, samples // model.sub_arcs)
-    starts = np.column_stack([np.r_[x0, 0.0], result.nodes[:, :-1]])
-    pieces = [np.r_[x0, 0.0][:, None]]
+    first = start_node(result.x_start)
+    starts = np.column_stack([first, result.nodes[:, :-1]])
+    pieces = [first[:, None]]
     for k in range(result.alpha.size):
-        xs, _ = propagate(starts[:4, k], [result.alpha[k]], [result.lengths[k]], ac,
-                          throttles=[kappa[k]], samples=per_sub, coefficients=coeff,
-                          model=model)
+        if result.delta is None:
+            xs, _ = propagate(starts[:4, k], [result.alpha[k]], [result.lengths[k]], ac,
+                              throttles=[kappa[k]], samples=per_sub, coefficients=coeff,
+                              model=model)
+        else:
+            xs, _ = propagate3d(starts[:4, k], starts[5:, k], [result.alpha[k]],
+                                [result.delta[k]], [result.lengths[k]], ac,
+                                throttles=[kappa[k]], samples=per_sub, coefficients=coeff,
+                                model=model)
         xs = xs[:, 1:]
         xs[4] += starts[4, k]
         if defects is not None:
@@ -174,6 +185,8 @@ def verify(problem, result, samples=16, defects=None):
     -------
     Verification
     """
+    if getattr(result, "delta", None) is not None:
+        return verify3d(problem, result, samples, defects)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     # CVODES flies from the exact departure (a body's ephemeris, not the NLP's track).
     x0_exact = problem.start_state(result)
@@ -206,3 +219,62 @@ def verify(problem, result, samples=16, defects=None):
                   "target_miss_r_km": None, "target_miss_v_m_s": None,
                   "verifier_error_r_km": None, "verifier_error_v_m_s": None}
     return Verification(flown, closed, misses, error)
+
+
+def polar_view(flight, x_start):
+    """A 3-D flight's Cartesian samples (7 x M) as [r, theta, v_r, v_theta, t] for the
+    plots: theta is the angle swept, unwrapped from the departure's own theta (the
+    8-row ``x_start``), v_theta = |r x v| / r.  A view, not a model: nothing here is
+    flown."""
+    pos, vel = flight[:3], flight[3:6]
+    r = np.linalg.norm(pos, axis=0)
+    h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
+    cos = np.clip(np.sum(pos[:, 1:] * pos[:, :-1], axis=0) / (r[1:] * r[:-1]), -1, 1)
+    # Samples are a small part of a turn apart, so each step's angle is below pi.
+    theta = float(x_start[1]) + np.r_[0.0, np.cumsum(np.arccos(cos))]
+    return np.vstack([r, theta, np.sum(pos * vel, axis=0) / r, h / r, flight[6]])
+
+
+def verify3d(problem, result, samples=16, defects=None):
+    """:func:`verify` in three dimensions: the schedule of pitch and clock angles flown
+    by CVODES on the Cartesian equations (``simulate.simulate3d``, in time, the NLP's
+    durations) from the exact 3-D departure (``Problem.start_state``), and its final
+    state held, in Cartesian coordinates of the ecliptic of J2000, to the NLP's final
+    node and to the target body's exact, unprojected state at the flown arrival
+    (``miss3d``).  The flight uses no plane, no polar state and no closed form: it checks
+    the turning-plane decomposition the NLP flew rather than using it."""
+    ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
+    y0 = problem.start_state(result)
+    kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
+             else np.asarray(result.throttle, float))
+    closed = closed_form_curve(problem, result, samples, defects)
+    args = (y0, result.alpha, result.delta, result.durations, ac)
+    try:
+        flown = simulate3d(*args, throttles=kappa, samples=samples, length_in="time",
+                           coefficients=coeff, tol=VERIFY_TOLERANCE)
+        check = simulate3d(*args, throttles=kappa, length_in="time", coefficients=coeff,
+                           tol=CHECK_TOLERANCE)
+    except Exception as err:  # CVODES gave up: report, do not hide
+        misses = {k: None for k in ("miss_r_km", "miss_v_m_s", "miss_theta_deg",
+                                    "target_miss_r_km", "target_miss_v_m_s",
+                                    "verifier_error_r_km", "verifier_error_v_m_s")}
+        return Verification(np.full((5, 1), np.nan), closed, misses,
+                            f"CVODES failed: {err}", np.full((7, 1), np.nan))
+    yf = flown[:6, -1]
+    dr, dv = cartesian_miss(yf, node_cartesian(result.nodes[:, -1]))
+    view = polar_view(flown, result.x_start)
+    misses = {"miss_r_km": dr, "miss_v_m_s": dv,
+              "miss_theta_deg": float(np.degrees(view[1, -1] - result.nodes[1, -1]))}
+    err_r, err_v = cartesian_miss(check[:6, -1], yf)
+    misses.update(verifier_error_r_km=err_r, verifier_error_v_m_s=err_v)
+    tf = float(flown[6, -1])
+    tof_nlp = float(np.sum(result.durations))
+    if hasattr(problem.target, "miss3d"):
+        misses.update(problem.target.miss3d(yf, tf, result.epoch))
+        nlp = problem.target.miss3d(node_cartesian(result.nodes[:, -1]), tof_nlp,
+                                    result.epoch)
+        misses["nlp_target_miss_r_km"] = nlp["target_miss_r_km"]
+    else:
+        # An orbit target (or none) holds r, v_r and h only: the plane's polar view is exact.
+        misses.update(target_miss(problem.target, view[:4, -1], tf, result.epoch))
+    return Verification(view, closed, misses, None, flown)
