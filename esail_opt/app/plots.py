@@ -230,11 +230,15 @@ def _draw_bodies(ax, sol):
 
 
 def trajectory_figure(solution, ax=None):
-    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes.
+    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes;
+    a solution flown in three dimensions is drawn by :func:`_trajectory3d_figure`.
 
-    Drawn into ``ax`` if given, else into a new figure; returns the figure.
+    Drawn into ``ax`` if given (in 3-D a pair of Axes: from above, from the side), else
+    into a new figure; returns the figure.
     """
     sol = solution
+    if three_d(sol):
+        return _trajectory3d_figure(sol, ax)
     prob = sol.problem
     created = ax is None
     fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
@@ -287,6 +291,98 @@ def trajectory_figure(solution, ax=None):
     if created:
         _fit_columns(fig, [[ax]])
     return fig
+
+
+# ------------------------------------------------------------------- in three dimensions
+
+
+def three_d(sol):
+    """Whether ``sol`` was flown in three dimensions: its schedule has a clock angle
+    (solution.json's ``clock_deg``, schema 5)."""
+    return len(sol.schedule) > 0 and sol.schedule[0].clock_deg is not None
+
+
+def _flight3d(sol):
+    """The CVODES flight's Cartesian samples (``Samples.three_d``) as float arrays, with
+    its ``t_days``; None when the flight failed.  The closed form's samples are polar in
+    their own turning plane and have no place in the ecliptic's frame, so the 3-D views
+    show the flight on the Cartesian equations, which meets them within the tolerance."""
+    cv = sol.trajectory_cvodes
+    if cv is None or cv.three_d is None:
+        return None
+    out = {k: np.asarray(v, float) for k, v in cv.three_d.items()}
+    out["t_days"] = np.asarray(cv.t_days, float)
+    return out
+
+
+#: Where the 3-D trajectory's two views sit on their 6.4 x 9 in figure (fractions):
+#: from above, square, and under it from the side, z against time.
+TRAJECTORY3D_SIZE = (6.4, 9.0)
+TRAJECTORY3D_MARGINS = dict(left=0.12, right=0.965, bottom=0.06, top=0.945, hspace=0.2)
+TRAJECTORY3D_HEIGHTS = (3.0, 1.15)
+
+
+def _trajectory3d_figure(sol, axes=None):
+    """A 3-D solution's path from above (x, y: the ecliptic of J2000) and from the side
+    (z against the time since departure, days), with the bodies' real 3-D tracks over the
+    flight and the segment starts (the CVODES samples at the schedule's start times)."""
+    created = axes is None
+    if created:
+        fig = Figure(figsize=TRAJECTORY3D_SIZE, dpi=DPI)
+        fig.subplots_adjust(**TRAJECTORY3D_MARGINS)
+        top, side = fig.subplots(2, 1, height_ratios=TRAJECTORY3D_HEIGHTS)
+    else:
+        fig, (top, side) = axes_or_new(axes)
+    _draw_bodies3d(top, side, sol)
+    flight = _flight3d(sol)
+    if flight is None:
+        side.text(0.5, 0.5, "no 3-D flight (CVODES failed)", ha="center",
+                  transform=side.transAxes)
+    else:
+        t = flight["t_days"]
+        top.plot(flight["x_au"], flight["y_au"], color="tab:red", lw=1.2,
+                 label="CVODES (Cartesian equations)")
+        side.plot(t, flight["z_au"], color="tab:red", lw=1.2, label="CVODES (Cartesian equations)")
+        starts = [row.t_days for row in sol.schedule]
+        x, y, z = (np.interp(starts, t, flight[k]) for k in ("x_au", "y_au", "z_au"))
+        top.plot(x, y, "o", ms=3, color="k", label="segment starts")
+        side.plot(starts, z, "o", ms=3, color="k", label="segment starts")
+    top.plot([0], [0], "*", color="orange", ms=12)
+    side.axhline(0.0, color="0.3", lw=0.6)
+    top.set_aspect("equal")
+    top.set(xlabel="x (au)", ylabel="y (au)")
+    side.set(xlabel="t since departure (days)", ylabel="z (au)")
+    title = f"{sol.problem.name}: tof {sol.tof_days:.1f} d, {sol.status}, in 3-D"
+    top.set_title(title + "\nfrom above: the ecliptic of J2000", y=1.0, parse_math=False)
+    side.set_title("from the side: height above the ecliptic", fontsize=9, y=1.0)
+    _plain_legend(top.legend(fontsize=7, loc="upper right"))
+    for ax in (top, side):
+        ax.grid(alpha=0.3)
+    if created:
+        _fit_columns(fig, [[top], [side]])
+    return fig
+
+
+def _draw_bodies3d(top, side, sol):
+    """The departure and target bodies on their real 3-D states over the flight (DE421
+    unprojected, or a small body's six elements): x, y from above, z against time from
+    the side, each marked at the departure and at the arrival."""
+    from esail_opt.bodies import dates, lookup
+
+    if not sol.dated:
+        return
+    prob = sol.problem
+    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
+    jd = np.linspace(start, end, 200)
+    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
+    if sol.target_body is not None:
+        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
+    for label, body, colour in pairs:
+        x, y, z = lookup.ecliptic_state(lookup.resolve(body), jd)[:3]
+        t = jd - start
+        for ax, (u, v) in ((top, (x, y)), (side, (t, z))):
+            ax.plot(u, v, color=colour, lw=0.8, ls="--", label=f"{label} over the flight")
+            ax.plot(u[[0, -1]], v[[0, -1]], "o", color=colour, ms=4)
 
 
 def _pitch_schedule(sol, polished):
