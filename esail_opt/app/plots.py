@@ -133,16 +133,34 @@ def _fit_columns(fig, axes):
             ax.set_position(spec.get_position(fig))
 
 
-def _timeline_axes(throttled):
-    """A new timeline figure and its 4 x 2 array of Axes, placed once by fixed margins
-    (see :func:`axes_or_new` on why not constrained layout); ``throttled`` widens the
-    right margin for the throttle's axis."""
+#: The timeline's height with its three rows of series, inches.
+TIMELINE_HEIGHT_IN = 10.5
+
+
+def _timeline_rows(rows):
+    """The series' and the error row's grids for ``rows`` rows of series, and the
+    figure's height: each row of series as tall as in the three-row timeline, and the
+    margins and the error row as many inches as there."""
+    h = TIMELINE_HEIGHT_IN
+    top, bottom, space = (TIMELINE_SERIES_ROWS[k] for k in ("top", "bottom", "hspace"))
+    panel = (top - bottom) * h / (3 + 2 * space)
+    height = h + (rows - 3) * panel * (1 + space)
+    series = dict(top=1 - (1 - top) * h / height, bottom=bottom * h / height, hspace=space)
+    errors = {k: v * h / height for k, v in TIMELINE_ERROR_ROW.items()}
+    return series, errors, height
+
+
+def _timeline_axes(throttled, rows=3):
+    """A new timeline figure and its (``rows`` + 1) x 2 array of Axes, placed once by
+    fixed margins (see :func:`axes_or_new` on why not constrained layout); ``throttled``
+    widens the right margin for the throttle's axis."""
     columns = dict(TIMELINE_COLUMNS)
     if throttled:
         columns["right"] = TIMELINE_RIGHT_WITH_THROTTLE
-    fig = Figure(figsize=(10, 10.5), dpi=DPI)
-    series = fig.add_gridspec(3, 2, **columns, **TIMELINE_SERIES_ROWS).subplots()
-    errors = fig.add_gridspec(1, 2, **columns, **TIMELINE_ERROR_ROW).subplots(squeeze=False)
+    series_rows, error_row, height = _timeline_rows(rows)
+    fig = Figure(figsize=(10, height), dpi=DPI)
+    series = fig.add_gridspec(rows, 2, **columns, **series_rows).subplots()
+    errors = fig.add_gridspec(1, 2, **columns, **error_row).subplots(squeeze=False)
     return fig, np.vstack([series, errors])
 
 
@@ -436,18 +454,21 @@ TIMELINE_PANELS = (("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"),
 
 def timeline_figure(solution, axes=None):
     """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
-    errors and the error-control rounds.
+    errors and the error-control rounds.  A solution flown in three dimensions adds a
+    row: the clock angle per segment and the CVODES flight's osculating inclination to
+    the ecliptic (r, v_r and v_theta are then those of the flight's own turning plane).
 
-    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into a new figure placed
-    by fixed margins (:func:`_timeline_axes`); returns the figure.
+    Drawn into ``axes`` (a 4 x 2 array of Axes, 5 x 2 in 3-D) if given, else into a new
+    figure placed by fixed margins (:func:`_timeline_axes`); returns the figure.
 
     Each series panel's limits span every flight it shows, with matplotlib's margins.
     """
     sol = solution
     created = axes is None
     throttled = _throttled(sol.schedule)
-    fig, axes = _timeline_axes(throttled) if created else axes_or_new(axes)
-    for ax in axes[:3].ravel():
+    rows = 4 if three_d(sol) else 3
+    fig, axes = _timeline_axes(throttled, rows) if created else axes_or_new(axes)
+    for ax in axes[:rows].ravel():
         ax.sharex(axes[0, 0])
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = sol.trajectory_polished is not None
@@ -458,10 +479,13 @@ def timeline_figure(solution, axes=None):
             _series(ax, sol, key)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    for ax in axes[2]:
+    if rows == 4:
+        _clock_panel(axes[3, 0], sol)
+        _inclination_panel(axes[3, 1], sol)
+    for ax in axes[rows - 1]:
         ax.set_xlabel("t (days)")
-    _local_error_panel(axes[3, 0], sol)
-    _error_control_panel(axes[3, 1], sol)
+    _local_error_panel(axes[rows, 0], sol)
+    _error_control_panel(axes[rows, 1], sol)
     _plain_legend(axes[0, 0].legend(fontsize=7))
     verdict = "verified" if sol.flight_verified else "NOT verified"
     fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
@@ -470,6 +494,35 @@ def timeline_figure(solution, axes=None):
     if created:
         _fit_columns(fig, axes)
     return fig
+
+
+#: The clock panel's and the inclination panel's y labels (3-D timelines).
+CLOCK_LABEL = "clock delta (deg)"
+INCLINATION_LABEL = "osculating i to ecliptic (deg)"
+
+
+def _clock_panel(ax, sol):
+    """The clock angle per segment as steps against time, held to the arrival as the
+    pitch is; 0 is in the orbital plane, positive toward the angular momentum."""
+    sched = sol.schedule
+    t = [row.t_days for row in sched] + [sol.tof_days]
+    clock = [row.clock_deg for row in sched]
+    ax.step(t, clock + clock[-1:], where="post", color="k", scalex=False)
+    ax.set_ylim(-190, 190)
+    ax.set_yticks(range(-180, 181, 90))
+    ax.set_ylabel(CLOCK_LABEL)
+
+
+def _inclination_panel(ax, sol):
+    """The CVODES flight's osculating inclination to the ecliptic of J2000."""
+    cv = sol.trajectory_cvodes
+    if cv is None or cv.three_d is None:
+        ax.text(0.5, 0.5, "no 3-D flight (CVODES failed)", ha="center",
+                transform=ax.transAxes)
+    else:
+        ax.plot(cv.t_days, cv.three_d["inclination_deg"], color="tab:red", lw=0.9,
+                label="CVODES")
+    ax.set_ylabel(INCLINATION_LABEL)
 
 
 def _series(ax, sol, key):
