@@ -118,6 +118,7 @@ def _fit_columns(fig, axes):
     axes = np.atleast_2d(axes)
     left = room(axes[:, 0])
     grids = {id(g): g for g in (ax.get_subplotspec().get_gridspec() for ax in axes[:, 0])}
+    _fit_right(fig, renderer, grids.values(), pad)
     for grid in grids.values():
         if axes.shape[1] == 1:
             grid.update(left=left)
@@ -131,6 +132,20 @@ def _fit_columns(fig, axes):
         spec = ax.get_subplotspec()
         if spec is not None and id(spec.get_gridspec()) in grids:
             ax.set_position(spec.get_position(fig))
+
+
+def _fit_right(fig, renderer, grids, pad):
+    """Move the right edge of ``grids`` left by as much as an x tick label reaches past
+    the figure's right edge less ``pad`` (a fraction of its width), and not at all when
+    none does: the last label is centred on a panel's right end, and a time axis that
+    ends at 1000 days puts half of its "1000" beyond a margin fixed for shorter ones."""
+    width = fig.bbox.width
+    boxes = [ax.xaxis.get_tightbbox(renderer) for ax in fig.axes]
+    reach = max((box.x1 for box in boxes if box is not None), default=0.0) / width
+    over = reach - (1 - pad)
+    if over > 0:
+        for grid in grids:
+            grid.update(right=grid.get_subplot_params(fig).right - over)
 
 
 #: The timeline's height with its three rows of series, inches.
