@@ -36,7 +36,7 @@ def flown3d():
     bodies), on few segments: a schema-5 solution with a clock per segment and CVODES
     samples in the ecliptic's frame."""
     problem = eo.Problem("em3d", eo.BodyDeparture(body="earth", date="2031-01-01"),
-                         eo.Sail(1.0), eo.Segments(6, 2), eo.MinTime(),
+                         eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
                          eo.BodyRendezvous(body="mars"))
     assert problem.three_d()
     sol = eo.solve(problem)
