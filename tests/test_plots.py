@@ -195,12 +195,25 @@ def _lines(ax):
     return {line.get_label(): line for line in ax.get_lines()}
 
 
-def test_planar_figures_keep_their_axes(polished):
+@pytest.fixture(scope="module")
+def planar_mars():
+    """The 3-D fixture's problem with ``planar=True``: a real-body problem in the
+    ecliptic projection."""
+    problem = eo.Problem("em2d", eo.BodyDeparture(body="earth", date="2031-01-01"),
+                         eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
+                         eo.BodyRendezvous(body="mars"), planar=True)
+    assert not problem.three_d()
+    return eo.solve(problem)
+
+
+@pytest.mark.parametrize("which", ["polished", "planar_mars"])
+def test_planar_figures_keep_their_axes(which, request):
     """A planar solution has no clock: one trajectory view, and the timeline's eight
     panels (none of them the clock or the inclination)."""
-    assert not plots.three_d(polished)
-    assert len(plots.trajectory_figure(polished).axes) == 1
-    labels = [ax.get_ylabel() for ax in plots.timeline_figure(polished).axes]
+    sol = request.getfixturevalue(which)
+    assert not plots.three_d(sol)
+    assert len(plots.trajectory_figure(sol).axes) == 1
+    labels = [ax.get_ylabel() for ax in plots.timeline_figure(sol).axes]
     assert len(labels) == 8
     assert plots.CLOCK_LABEL not in labels and plots.INCLINATION_LABEL not in labels
 

@@ -10,6 +10,13 @@ tolerance.
 A polished solution adds the CVODES flight of its polished schedule to both, and the
 pitch panel shows that schedule.
 
+A solution flown in three dimensions (its schedule has a clock angle, solution.json
+schema 5) draws ``trajectory.png`` from above and from the side (z against the days
+since departure), the bodies on their unprojected tracks, and adds the clock angle and
+the osculating inclination to ``timeline.png``.  Both 3-D views show the CVODES flight
+on the Cartesian equations: the closed form's samples are polar in their own turning
+plane, and the record holds no Cartesian form of them.
+
 Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
 caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
 The figures are drawn in the calling process, one after the other, and saved by
