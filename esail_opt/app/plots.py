@@ -269,19 +269,10 @@ def _draw_bodies(ax, sol):
                 color=colour, ms=4)
 
 
-def trajectory_figure(solution, ax=None):
-    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes;
-    a solution flown in three dimensions is drawn by :func:`_trajectory3d_figure`.
-
-    Drawn into ``ax`` if given (in 3-D a pair of Axes: from above, from the side), else
-    into a new figure; returns the figure.
-    """
-    sol = solution
-    if three_d(sol):
-        return _trajectory3d_figure(sol, ax)
+def _draw_orbits(ax, sol):
+    """The planar view's guides: the departure and target orbits, or the bodies over
+    the flight for a dated problem."""
     prob = sol.problem
-    created = ax is None
-    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
     dep = prob.departure
     if dep.kind == "ParkingOrbit":
         ax.plot(*_orbit_xy(dep.a_au, dep.e, np.radians(dep.omega_deg)), color="0.6",
@@ -301,6 +292,22 @@ def trajectory_figure(solution, ax=None):
             xy = _orbit_xy(tgt.radius_au, 0.0)
             label = "target orbit"
         ax.plot(*xy, color="tab:green", lw=0.8, ls="--", label=label)
+
+
+def trajectory_figure(solution, ax=None):
+    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes;
+    a solution flown in three dimensions is drawn by :func:`_trajectory3d_figure`.
+
+    Drawn into ``ax`` if given (in 3-D a pair of Axes: from above, from the side), else
+    into a new figure; returns the figure.
+    """
+    sol = solution
+    if three_d(sol):
+        return _trajectory3d_figure(sol, ax)
+    prob = sol.problem
+    created = ax is None
+    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
+    _draw_orbits(ax, sol)
     cf = sol.trajectory_closed_form
     ax.plot(*_samples_xy(cf), color="tab:blue", lw=1.6, label="closed form (NLP)")
     cv = sol.trajectory_cvodes
@@ -346,7 +353,8 @@ def _flight3d(sol):
     """The CVODES flight's Cartesian samples (``Samples.three_d``) as float arrays, with
     its ``t_days``; None when the flight failed.  The closed form's samples are polar in
     their own turning plane and have no place in the ecliptic's frame, so the 3-D views
-    show the flight on the Cartesian equations, which meets them within the tolerance."""
+    show the flight on the Cartesian equations (a verified one is within the tolerance
+    of the closed form's nodes)."""
     cv = sol.trajectory_cvodes
     if cv is None or cv.three_d is None:
         return None
