@@ -3,6 +3,8 @@ in which nothing is clipped or overlaps, names drawn as written, and what the co
 writes and says when a figure cannot be drawn (`solve`, `solve --no-plots`, `plot`)."""
 
 import copy
+import csv
+import io
 import json
 import shutil
 
@@ -26,6 +28,20 @@ def polished():
     problem = eo.Problem("tiny", eo.ParkingOrbit(1.0), eo.Sail(1.0), eo.Segments(6, 2),
                          eo.MinTime(), eo.CircularOrbit(0.723))
     return eo.solve(problem, polish=True)
+
+
+@pytest.fixture(scope="module")
+def flown3d():
+    """A fixed-date Earth-Mars rendezvous flown in three dimensions (the default for real
+    bodies), on few segments: a schema-5 solution with a clock per segment and CVODES
+    samples in the ecliptic's frame."""
+    problem = eo.Problem("em3d", eo.BodyDeparture(body="earth", date="2031-01-01"),
+                         eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
+                         eo.BodyRendezvous(body="mars"))
+    assert problem.three_d()
+    sol = eo.solve(problem)
+    assert sol.verified, sol.verification_note
+    return sol
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +162,7 @@ def test_timeline_limits_hold_the_closed_form_and_its_flight(polished):
     assert high == pytest.approx(t.max() + 0.05 * np.ptp(t), rel=1e-12)
 
 
-@pytest.mark.parametrize("which", ["polished", "throttled", "narrow"])
+@pytest.mark.parametrize("which", ["polished", "throttled", "narrow", "flown3d"])
 def test_nothing_is_clipped_or_overlapping(which, request):
     sol = request.getfixturevalue(which)
     for fig in (plots.trajectory_figure(sol), plots.timeline_figure(sol)):
@@ -167,6 +183,105 @@ def test_nothing_is_clipped_or_overlapping(which, request):
                     continue
                 assert not boxes[ax].overlaps(other.get_window_extent()), (
                     ax.get_ylabel(), other.get_ylabel())
+
+
+# ---------------------------------------------------------------- in three dimensions
+
+AU_KM = 149597870.7  # written out again here, not taken from the package
+FLOWN = "CVODES (Cartesian equations)"
+
+
+def _lines(ax):
+    return {line.get_label(): line for line in ax.get_lines()}
+
+
+@pytest.fixture(scope="module")
+def planar_mars():
+    """The 3-D fixture's problem with ``planar=True``: a real-body problem in the
+    ecliptic projection."""
+    problem = eo.Problem("em2d", eo.BodyDeparture(body="earth", date="2031-01-01"),
+                         eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
+                         eo.BodyRendezvous(body="mars"), planar=True)
+    assert not problem.three_d()
+    return eo.solve(problem)
+
+
+@pytest.mark.parametrize("which", ["polished", "planar_mars"])
+def test_planar_figures_keep_their_axes(which, request):
+    """A planar solution has no clock: one trajectory view, and the timeline's eight
+    panels (none of them the clock or the inclination)."""
+    sol = request.getfixturevalue(which)
+    assert not plots.three_d(sol)
+    assert len(plots.trajectory_figure(sol).axes) == 1
+    labels = [ax.get_ylabel() for ax in plots.timeline_figure(sol).axes]
+    assert len(labels) == 8
+    assert plots.CLOCK_LABEL not in labels and plots.INCLINATION_LABEL not in labels
+
+
+def test_trajectory_in_3d_shows_the_flight_from_above_and_from_the_side(flown3d):
+    """The top view is the CVODES flight's x, y and the side view its z (au) against its
+    t (days); the bodies' tracks start and end where the verified flight does (the
+    departure is the Earth's state, the rendezvous meets Mars within the tolerance)."""
+    d = flown3d.to_json()
+    cv = d["trajectory"]["cvodes"]
+    assert d["schema_version"] == 5
+    top, side = plots.trajectory_figure(flown3d).axes
+    assert (top.get_xlabel(), top.get_ylabel()) == ("x (au)", "y (au)")
+    assert (side.get_xlabel(), side.get_ylabel()) == ("t since departure (days)", "z (au)")
+    x, y = _lines(top)[FLOWN].get_data()
+    np.testing.assert_array_equal(x, cv["x_au"])
+    np.testing.assert_array_equal(y, cv["y_au"])
+    t, z = _lines(side)[FLOWN].get_data()
+    np.testing.assert_array_equal(t, cv["t_days"])
+    np.testing.assert_array_equal(z, cv["z_au"])
+    assert np.ptp(z) * AU_KM > 1e6  # Mars's plane is 1.85 deg off: the flight leaves the ecliptic
+    assert len(_lines(side)["segment starts"].get_xdata()) == len(d["schedule"])
+    miss_au = d["tolerance"]["position_km"] / AU_KM
+    for ax in (top, side):
+        earth, mars = (_lines(ax)[f"{b} over the flight"].get_data() for b in ("earth", "mars"))
+        flight = _lines(ax)[FLOWN].get_data()
+        for body, end, bound in ((earth, 0, 1e-9), (mars, -1, miss_au)):
+            assert abs(body[0][end] - flight[0][end]) <= bound
+            assert abs(body[1][end] - flight[1][end]) <= bound
+    assert abs(_lines(side)["mars over the flight"].get_xdata()[-1] - d["tof_days"]) < 1e-6
+
+
+def test_timeline_in_3d_adds_the_clock_and_the_inclination(flown3d):
+    """Two panels more than the planar timeline: the clock's steps are schedule.csv's
+    clock_deg held to the arrival, the inclination the CVODES samples'."""
+    d = flown3d.to_json()
+    fig = plots.timeline_figure(flown3d)
+    panels = {ax.get_ylabel(): ax for ax in fig.axes}
+    assert len(fig.axes) == 10 and set(SERIES) <= set(panels)
+    clock_rows = [float(row["clock_deg"]) for row in
+                  csv.DictReader(io.StringIO(flown3d.schedule_csv()))]
+    (step,) = panels[plots.CLOCK_LABEL].get_lines()
+    np.testing.assert_array_equal(step.get_ydata(), clock_rows + clock_rows[-1:])
+    np.testing.assert_array_equal(step.get_xdata(),
+                                  [row["t_days"] for row in d["schedule"]] + [d["tof_days"]])
+    (incl,) = panels[plots.INCLINATION_LABEL].get_lines()
+    cv = d["trajectory"]["cvodes"]
+    np.testing.assert_array_equal(incl.get_xdata(), cv["t_days"])
+    np.testing.assert_array_equal(incl.get_ydata(), cv["inclination_deg"])
+    assert panels[plots.INCLINATION_LABEL].get_xlabel() == "t (days)"
+
+
+def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
+    """`esail-opt plot` on a folder whose solution.json is schema 5 draws both figures,
+    in 3-D as the fresh solution's."""
+    from esail_opt.app import cli
+
+    folder = tmp_path / "run"
+    flown3d.write(folder, plots=False)
+    assert json.loads((folder / "solution.json").read_text())["schema_version"] == 5
+    assert cli.main(["plot", str(folder)]) == 0
+    for name, _ in plots.FIGURES:
+        assert (folder / name).stat().st_size > 10_000
+    loaded = Solution.load(folder / "solution.json")
+    top, side = plots.trajectory_figure(loaded).axes
+    np.testing.assert_array_equal(_lines(side)[FLOWN].get_ydata(),
+                                  flown3d.trajectory_cvodes.three_d["z_au"])
+    assert len(plots.timeline_figure(loaded).axes) == 10
 
 
 @pytest.mark.parametrize("limits", [(2e-4, 20.0), (300.0, 8000.0), (5000.0, 8000.0)])

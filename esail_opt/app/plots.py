@@ -10,6 +10,13 @@ tolerance.
 A polished solution adds the CVODES flight of its polished schedule to both, and the
 pitch panel shows that schedule.
 
+A solution flown in three dimensions (its schedule has a clock angle, solution.json
+schema 5) draws ``trajectory.png`` from above and from the side (z against the days
+since departure), the bodies on their unprojected tracks, and adds the clock angle and
+the osculating inclination to ``timeline.png``.  Both 3-D views show the CVODES flight
+on the Cartesian equations: the closed form's samples are polar in their own turning
+plane, and the record holds no Cartesian form of them.
+
 Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
 caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
 The figures are drawn in the calling process, one after the other, and saved by
@@ -118,6 +125,7 @@ def _fit_columns(fig, axes):
     axes = np.atleast_2d(axes)
     left = room(axes[:, 0])
     grids = {id(g): g for g in (ax.get_subplotspec().get_gridspec() for ax in axes[:, 0])}
+    _fit_right(fig, renderer, grids.values(), pad)
     for grid in grids.values():
         if axes.shape[1] == 1:
             grid.update(left=left)
@@ -133,16 +141,48 @@ def _fit_columns(fig, axes):
             ax.set_position(spec.get_position(fig))
 
 
-def _timeline_axes(throttled):
-    """A new timeline figure and its 4 x 2 array of Axes, placed once by fixed margins
-    (see :func:`axes_or_new` on why not constrained layout); ``throttled`` widens the
-    right margin for the throttle's axis."""
+def _fit_right(fig, renderer, grids, pad):
+    """Move the right edge of ``grids`` left by as much as an x tick label reaches past
+    the figure's right edge less ``pad`` (a fraction of its width), and not at all when
+    none does: the last label is centred on a panel's right end, and a time axis that
+    ends at 1000 days puts half of its "1000" beyond a margin fixed for shorter ones."""
+    width = fig.bbox.width
+    boxes = [ax.xaxis.get_tightbbox(renderer) for ax in fig.axes]
+    reach = max((box.x1 for box in boxes if box is not None), default=0.0) / width
+    over = reach - (1 - pad)
+    if over > 0:
+        for grid in grids:
+            grid.update(right=grid.get_subplot_params(fig).right - over)
+
+
+#: The timeline's height with its three rows of series, inches.
+TIMELINE_HEIGHT_IN = 10.5
+
+
+def _timeline_rows(rows):
+    """The series' and the error row's grids for ``rows`` rows of series, and the
+    figure's height: each row of series as tall as in the three-row timeline, and the
+    margins and the error row as many inches as there."""
+    h = TIMELINE_HEIGHT_IN
+    top, bottom, space = (TIMELINE_SERIES_ROWS[k] for k in ("top", "bottom", "hspace"))
+    panel = (top - bottom) * h / (3 + 2 * space)
+    height = h + (rows - 3) * panel * (1 + space)
+    series = dict(top=1 - (1 - top) * h / height, bottom=bottom * h / height, hspace=space)
+    errors = {k: v * h / height for k, v in TIMELINE_ERROR_ROW.items()}
+    return series, errors, height
+
+
+def _timeline_axes(throttled, rows=3):
+    """A new timeline figure and its (``rows`` + 1) x 2 array of Axes, placed once by
+    fixed margins (see :func:`axes_or_new` on why not constrained layout); ``throttled``
+    widens the right margin for the throttle's axis."""
     columns = dict(TIMELINE_COLUMNS)
     if throttled:
         columns["right"] = TIMELINE_RIGHT_WITH_THROTTLE
-    fig = Figure(figsize=(10, 10.5), dpi=DPI)
-    series = fig.add_gridspec(3, 2, **columns, **TIMELINE_SERIES_ROWS).subplots()
-    errors = fig.add_gridspec(1, 2, **columns, **TIMELINE_ERROR_ROW).subplots(squeeze=False)
+    series_rows, error_row, height = _timeline_rows(rows)
+    fig = Figure(figsize=(10, height), dpi=DPI)
+    series = fig.add_gridspec(rows, 2, **columns, **series_rows).subplots()
+    errors = fig.add_gridspec(1, 2, **columns, **error_row).subplots(squeeze=False)
     return fig, np.vstack([series, errors])
 
 
@@ -229,15 +269,10 @@ def _draw_bodies(ax, sol):
                 color=colour, ms=4)
 
 
-def trajectory_figure(solution, ax=None):
-    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes.
-
-    Drawn into ``ax`` if given, else into a new figure; returns the figure.
-    """
-    sol = solution
+def _draw_orbits(ax, sol):
+    """The planar view's guides: the departure and target orbits, or the bodies over
+    the flight for a dated problem."""
     prob = sol.problem
-    created = ax is None
-    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
     dep = prob.departure
     if dep.kind == "ParkingOrbit":
         ax.plot(*_orbit_xy(dep.a_au, dep.e, np.radians(dep.omega_deg)), color="0.6",
@@ -257,6 +292,22 @@ def trajectory_figure(solution, ax=None):
             xy = _orbit_xy(tgt.radius_au, 0.0)
             label = "target orbit"
         ax.plot(*xy, color="tab:green", lw=0.8, ls="--", label=label)
+
+
+def trajectory_figure(solution, ax=None):
+    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes;
+    a solution flown in three dimensions is drawn by :func:`_trajectory3d_figure`.
+
+    Drawn into ``ax`` if given (in 3-D a pair of Axes: from above, from the side), else
+    into a new figure; returns the figure.
+    """
+    sol = solution
+    if three_d(sol):
+        return _trajectory3d_figure(sol, ax)
+    prob = sol.problem
+    created = ax is None
+    fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
+    _draw_orbits(ax, sol)
     cf = sol.trajectory_closed_form
     ax.plot(*_samples_xy(cf), color="tab:blue", lw=1.6, label="closed form (NLP)")
     cv = sol.trajectory_cvodes
@@ -287,6 +338,99 @@ def trajectory_figure(solution, ax=None):
     if created:
         _fit_columns(fig, [[ax]])
     return fig
+
+
+# ------------------------------------------------------------------- in three dimensions
+
+
+def three_d(sol):
+    """Whether ``sol`` was flown in three dimensions: its schedule has a clock angle
+    (solution.json's ``clock_deg``, schema 5)."""
+    return len(sol.schedule) > 0 and sol.schedule[0].clock_deg is not None
+
+
+def _flight3d(sol):
+    """The CVODES flight's Cartesian samples (``Samples.three_d``) as float arrays, with
+    its ``t_days``; None when the flight failed.  The closed form's samples are polar in
+    their own turning plane and have no place in the ecliptic's frame, so the 3-D views
+    show the flight on the Cartesian equations (a verified one is within the tolerance
+    of the closed form's nodes)."""
+    cv = sol.trajectory_cvodes
+    if cv is None or cv.three_d is None:
+        return None
+    out = {k: np.asarray(v, float) for k, v in cv.three_d.items()}
+    out["t_days"] = np.asarray(cv.t_days, float)
+    return out
+
+
+#: Where the 3-D trajectory's two views sit on their 6.4 x 9 in figure (fractions):
+#: from above, square, and under it from the side, z against time.
+TRAJECTORY3D_SIZE = (6.4, 9.0)
+TRAJECTORY3D_MARGINS = dict(left=0.12, right=0.965, bottom=0.06, top=0.945, hspace=0.2)
+TRAJECTORY3D_HEIGHTS = (3.0, 1.15)
+
+
+def _trajectory3d_figure(sol, axes=None):
+    """A 3-D solution's path from above (x, y: the ecliptic of J2000) and from the side
+    (z against the time since departure, days), with the bodies' real 3-D tracks over the
+    flight and the segment starts (the CVODES samples at the schedule's start times)."""
+    created = axes is None
+    if created:
+        fig = Figure(figsize=TRAJECTORY3D_SIZE, dpi=DPI)
+        fig.subplots_adjust(**TRAJECTORY3D_MARGINS)
+        top, side = fig.subplots(2, 1, height_ratios=TRAJECTORY3D_HEIGHTS)
+    else:
+        fig, (top, side) = axes_or_new(axes)
+    _draw_bodies3d(top, side, sol)
+    flight = _flight3d(sol)
+    if flight is None:
+        side.text(0.5, 0.5, "no 3-D flight (CVODES failed)", ha="center",
+                  transform=side.transAxes)
+    else:
+        t = flight["t_days"]
+        top.plot(flight["x_au"], flight["y_au"], color="tab:red", lw=1.2,
+                 label="CVODES (Cartesian equations)")
+        side.plot(t, flight["z_au"], color="tab:red", lw=1.2, label="CVODES (Cartesian equations)")
+        starts = [row.t_days for row in sol.schedule]
+        x, y, z = (np.interp(starts, t, flight[k]) for k in ("x_au", "y_au", "z_au"))
+        top.plot(x, y, "o", ms=3, color="k", label="segment starts")
+        side.plot(starts, z, "o", ms=3, color="k", label="segment starts")
+    top.plot([0], [0], "*", color="orange", ms=12)
+    side.axhline(0.0, color="0.3", lw=0.6)
+    top.set_aspect("equal")
+    top.set(xlabel="x (au)", ylabel="y (au)")
+    side.set(xlabel="t since departure (days)", ylabel="z (au)")
+    title = f"{sol.problem.name}: tof {sol.tof_days:.1f} d, {sol.status}, in 3-D"
+    top.set_title(title + "\nfrom above: the ecliptic of J2000", y=1.0, parse_math=False)
+    side.set_title("from the side: height above the ecliptic", fontsize=9, y=1.0)
+    _plain_legend(top.legend(fontsize=7, loc="upper right"))
+    for ax in (top, side):
+        ax.grid(alpha=0.3)
+    if created:
+        _fit_columns(fig, [[top], [side]])
+    return fig
+
+
+def _draw_bodies3d(top, side, sol):
+    """The departure and target bodies on their real 3-D states over the flight (DE421
+    unprojected, or a small body's six elements): x, y from above, z against time from
+    the side, each marked at the departure and at the arrival."""
+    from esail_opt.bodies import dates, lookup
+
+    if not sol.dated:
+        return
+    prob = sol.problem
+    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
+    jd = np.linspace(start, end, 200)
+    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
+    if sol.target_body is not None:
+        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
+    for label, body, colour in pairs:
+        x, y, z = lookup.ecliptic_state(lookup.resolve(body), jd)[:3]
+        t = jd - start
+        for ax, (u, v) in ((top, (x, y)), (side, (t, z))):
+            ax.plot(u, v, color=colour, lw=0.8, ls="--", label=f"{label} over the flight")
+            ax.plot(u[[0, -1]], v[[0, -1]], "o", color=colour, ms=4)
 
 
 def _pitch_schedule(sol, polished):
@@ -340,18 +484,21 @@ TIMELINE_PANELS = (("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"),
 
 def timeline_figure(solution, axes=None):
     """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
-    errors and the error-control rounds.
+    errors and the error-control rounds.  A solution flown in three dimensions adds a
+    row: the clock angle per segment and the CVODES flight's osculating inclination to
+    the ecliptic (r, v_r and v_theta are then those of the flight's own turning plane).
 
-    Drawn into ``axes`` (a 4 x 2 array of Axes) if given, else into a new figure placed
-    by fixed margins (:func:`_timeline_axes`); returns the figure.
+    Drawn into ``axes`` (a 4 x 2 array of Axes, 5 x 2 in 3-D) if given, else into a new
+    figure placed by fixed margins (:func:`_timeline_axes`); returns the figure.
 
     Each series panel's limits span every flight it shows, with matplotlib's margins.
     """
     sol = solution
     created = axes is None
     throttled = _throttled(sol.schedule)
-    fig, axes = _timeline_axes(throttled) if created else axes_or_new(axes)
-    for ax in axes[:3].ravel():
+    rows = 4 if three_d(sol) else 3
+    fig, axes = _timeline_axes(throttled, rows) if created else axes_or_new(axes)
+    for ax in axes[:rows].ravel():
         ax.sharex(axes[0, 0])
     # With a polish, the pitch panel shows the polished schedule: the one that flies.
     polished = sol.trajectory_polished is not None
@@ -362,10 +509,13 @@ def timeline_figure(solution, axes=None):
             _series(ax, sol, key)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    for ax in axes[2]:
+    if rows == 4:
+        _clock_panel(axes[3, 0], sol)
+        _inclination_panel(axes[3, 1], sol)
+    for ax in axes[rows - 1]:
         ax.set_xlabel("t (days)")
-    _local_error_panel(axes[3, 0], sol)
-    _error_control_panel(axes[3, 1], sol)
+    _local_error_panel(axes[rows, 0], sol)
+    _error_control_panel(axes[rows, 1], sol)
     _plain_legend(axes[0, 0].legend(fontsize=7))
     verdict = "verified" if sol.flight_verified else "NOT verified"
     fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
@@ -374,6 +524,35 @@ def timeline_figure(solution, axes=None):
     if created:
         _fit_columns(fig, axes)
     return fig
+
+
+#: The clock panel's and the inclination panel's y labels (3-D timelines).
+CLOCK_LABEL = "clock delta (deg)"
+INCLINATION_LABEL = "osculating i to ecliptic (deg)"
+
+
+def _clock_panel(ax, sol):
+    """The clock angle per segment as steps against time, held to the arrival as the
+    pitch is; 0 is in the orbital plane, positive toward the angular momentum."""
+    sched = sol.schedule
+    t = [row.t_days for row in sched] + [sol.tof_days]
+    clock = [row.clock_deg for row in sched]
+    ax.step(t, clock + clock[-1:], where="post", color="k", scalex=False)
+    ax.set_ylim(-190, 190)
+    ax.set_yticks(range(-180, 181, 90))
+    ax.set_ylabel(CLOCK_LABEL)
+
+
+def _inclination_panel(ax, sol):
+    """The CVODES flight's osculating inclination to the ecliptic of J2000."""
+    cv = sol.trajectory_cvodes
+    if cv is None or cv.three_d is None:
+        ax.text(0.5, 0.5, "no 3-D flight (CVODES failed)", ha="center",
+                transform=ax.transAxes)
+    else:
+        ax.plot(cv.t_days, cv.three_d["inclination_deg"], color="tab:red", lw=0.9,
+                label="CVODES")
+    ax.set_ylabel(INCLINATION_LABEL)
 
 
 def _series(ax, sol, key):
