@@ -239,8 +239,11 @@ def descend_turns(k0, best, solve, better, steps=TURN_STEPS):
 #: the iterations the seed's own class took, and at least PROBE_MIN: the closed-form NLP
 #: of a class that has a transfer converges from its constant-pitch seed in about as many
 #: iterations as the seed's own (42 to 58 on Earth-Mars 2035), while one that ends
-#: infeasible wanders for hundreds before Ipopt says so.
-PROBE_FACTOR = 1.5
+#: infeasible wanders for hundreds before Ipopt says so.  In three dimensions a class
+#: with a transfer can need twice the seed's (Earth-Venus minimum a_c: the best class,
+#: at a fifth of the seed's a_c, was still infeasible when stopped at 1.5 times), so the
+#: cap is three times: a hopeless class still costs a bounded multiple of the answer.
+PROBE_FACTOR = 3.0
 PROBE_MIN = 60
 #: A probe stopped at its cap at a point this close to feasible (the largest constraint
 #: violation, canonical units) is still descending in a class that has transfers, and is
