@@ -30,7 +30,8 @@ EPS = 84381.448 * math.pi / 180 / 3600
 def mars_problem(**more):
     fields = dict(name="em3d", departure=eo.BodyDeparture(body="earth", date="2031-01-01"),
                   sail=eo.Sail(ac_mm_s2=1.0), segments=eo.Segments(count=20, sub_arcs=2),
-                  objective=eo.MinTime(), target=eo.BodyRendezvous(body="mars"))
+                  objective=eo.MinTime(), target=eo.BodyRendezvous(body="mars"),
+                  planar=False)
     return eo.Problem(**{**fields, **more})
 
 
@@ -67,6 +68,7 @@ def de421_ecliptic(segment, jd):
 
 def test_problem_switches():
     assert mars_problem().three_d()
+    assert not mars_problem(planar=None).three_d()  # planar unless asked
     assert not mars_problem(planar=True).three_d()
     circle = dict(name="c", departure=eo.ParkingOrbit(a_au=1.0), sail=eo.Sail(ac_mm_s2=1.0),
                   target=eo.CircularOrbit(radius_au=1.5))

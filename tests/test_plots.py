@@ -32,12 +32,12 @@ def polished():
 
 @pytest.fixture(scope="module")
 def flown3d():
-    """A fixed-date Earth-Mars rendezvous flown in three dimensions (the default for real
-    bodies), on few segments: a schema-5 solution with a clock per segment and CVODES
+    """A fixed-date Earth-Mars rendezvous flown in three dimensions (``planar=False``),
+    on few segments: a schema-5 solution with a clock per segment and CVODES
     samples in the ecliptic's frame."""
     problem = eo.Problem("em3d", eo.BodyDeparture(body="earth", date="2031-01-01"),
                          eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
-                         eo.BodyRendezvous(body="mars"))
+                         eo.BodyRendezvous(body="mars"), planar=False)
     assert problem.three_d()
     sol = eo.solve(problem)
     assert sol.verified, sol.verification_note
