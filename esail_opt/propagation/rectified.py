@@ -268,6 +268,20 @@ def clock_guess(arc, duration):
 
 
 @functools.lru_cache(maxsize=None)
+def angle_for_duration(arc, r0, duration, order, samples, nodes):
+    """The arc angle that lasts ``duration`` from radius ``r0``: the second order's clock
+    guess, or Newton steps on the first order's quadrature of the time."""
+    time_unit = r0 ** 1.5
+    if order == 2:
+        return clock_guess(arc, duration / time_unit)
+    angle = kepler_angle(arc, duration / time_unit)
+    for _ in range(NEWTON_STEPS):
+        time = time_unit * sum(arc.time(angle * (k - 1) / samples, angle * k / samples,
+                                        nodes) for k in range(1, samples + 1))
+        angle = angle - (time - duration) / (time_unit * arc.clock_rate(angle))
+    return angle
+
+
 def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
     """As :func:`arc_function` (``model`` as there, never compiled), but the last input
     is a duration (TU), and the arc ends exactly that long after x0.
@@ -298,15 +312,7 @@ def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
     ac, alpha, duration = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("duration")
     R, T = radial_transverse(alpha, coefficients)
     arc = arc_frame(x0[:4], ac, R, T)
-    time_unit = x0[0] ** 1.5
-    if order == 2:
-        angle = clock_guess(arc, duration / time_unit)
-    else:
-        angle = kepler_angle(arc, duration / time_unit)
-        for _ in range(NEWTON_STEPS):
-            time = time_unit * sum(arc.time(angle * (k - 1) / samples, angle * k / samples,
-                                            nodes) for k in range(1, samples + 1))
-            angle = angle - (time - duration) / (time_unit * arc.clock_rate(angle))
+    angle = angle_for_duration(arc, x0[0], duration, order, samples, nodes)
     plain = ArcModel(order, model.invariant, False, 1, nodes, native=False)
     xs, q3 = arc_function(samples, coefficients=coefficients, model=plain).expand()(
         x0, ac, alpha, angle)

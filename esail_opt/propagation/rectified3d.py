@@ -33,8 +33,7 @@ from esail_opt.physics.plane_turn import arc_turn, turned_plane
 from esail_opt.physics.thrust import EXACT, radial_transverse_normal
 from esail_opt.propagation.arcs import ArcModel
 from esail_opt.propagation.compiled import compiled
-from esail_opt.propagation.rectified import (FLAT, NEWTON_STEPS, TAYLOR_ORDER, clock_guess,
-                                             kepler_angle)
+from esail_opt.propagation.rectified import FLAT, TAYLOR_ORDER, angle_for_duration
 
 #: Rows of the state: [r, theta, v_r, v_theta, t] and the plane's quaternion.
 STATE = 9
@@ -164,15 +163,7 @@ def timed_arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
     duration = ca.SX.sym("duration")
     R, T, N = radial_transverse_normal(alpha, delta, coefficients)
     arc = arc_frame(x0[:4], ac, R, T)
-    time_unit = x0[0] ** 1.5
-    if order == 2:
-        angle = clock_guess(arc, duration / time_unit)
-    else:
-        angle = kepler_angle(arc, duration / time_unit)
-        for _ in range(NEWTON_STEPS):
-            time = time_unit * sum(arc.time(angle * (k - 1) / samples, angle * k / samples,
-                                            nodes) for k in range(1, samples + 1))
-            angle = angle - (time - duration) / (time_unit * arc.clock_rate(angle))
+    angle = angle_for_duration(arc, x0[0], duration, order, samples, nodes)
     plain = ArcModel(order, model.invariant, False, 1, nodes, native=False)
     xs, q3 = arc_function3d(samples, coefficients=coefficients, model=plain).expand()(
         x0, ac, alpha, delta, angle)
