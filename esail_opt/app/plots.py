@@ -253,14 +253,9 @@ def _samples_xy(samples):
 def _draw_bodies(ax, sol):
     """The departure and target bodies on their real orbits over the flight (ephemeris
     or elements, projected on the ecliptic), each at the departure and at the arrival."""
-    from esail_opt.bodies import dates, lookup
+    from esail_opt.bodies import lookup
 
-    prob = sol.problem
-    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
-    jd = np.linspace(start, end, 200)
-    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
-    if sol.target_body is not None:
-        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
+    start, jd, pairs = _flight_bodies(sol)
     for label, body, colour in pairs:
         r, th = lookup.polar_states(lookup.resolve(body), jd)[:2]
         ax.plot(r * np.cos(th), r * np.sin(th), color=colour, lw=0.8, ls="--",
@@ -415,16 +410,11 @@ def _draw_bodies3d(top, side, sol):
     """The departure and target bodies on their real 3-D states over the flight (DE421
     unprojected, or a small body's six elements): x, y from above, z against time from
     the side, each marked at the departure and at the arrival."""
-    from esail_opt.bodies import dates, lookup
+    from esail_opt.bodies import lookup
 
     if not sol.dated:
         return
-    prob = sol.problem
-    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
-    jd = np.linspace(start, end, 200)
-    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
-    if sol.target_body is not None:
-        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
+    start, jd, pairs = _flight_bodies(sol)
     for label, body, colour in pairs:
         x, y, z = lookup.ecliptic_state(lookup.resolve(body), jd)[:3]
         t = jd - start
@@ -641,3 +631,16 @@ def write_figures(figures, out_dir):
             tmp.write_bytes(data)
         written.append(out / name)
     return written, failures
+
+
+def _flight_bodies(sol):
+    """The departure date (JD), 200 dates over the flight, and (label, body, colour) of
+    the departure and target bodies, which both trajectory views draw."""
+    from esail_opt.bodies import dates
+
+    prob = sol.problem
+    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
+    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
+    if sol.target_body is not None:
+        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
+    return start, np.linspace(start, end, 200), pairs
