@@ -1058,11 +1058,11 @@ def _polish_data(problem, polished):
         "within_bounds_vs_target": polished.within_target,
         "verified": polished.verified, "note": polished.note,
         "schedule": _schedule(exact, problem.throttled()),
-        "final_state": _polar_dict(exact.nodes[:4, -1]),
+        "final_state": _final_state(exact),
         "verification": _verification_data(check),
         # What the polished schedule is flown from and with: a polish may move the
         # departure (a free date, anomaly or excess-velocity angle) and the a_c.
-        "departure_state": _polar_dict(problem.start_state(exact)),
+        "departure_state": _departure_state(problem, exact),
         **_calendar_data(problem, exact, check),
     }
 
@@ -1115,8 +1115,9 @@ def _run_data(run):
             data["objective_closed_form"] = polished.closed_form_objective
             data["objective_exact"] = exact.objective
             data["tof_days_exact"] = units.time_to_days(float(np.sum(exact.durations)))
-            data["trajectory"]["polished"] = (_trajectory(polished.check.cvodes)
-                                              if polished.check.error is None else None)
+            data["trajectory"]["polished"] = (
+                _trajectory(polished.check.cvodes, getattr(polished.check, "cartesian", None))
+                if polished.check.error is None else None)
         data["polish"] = _polish_data(problem, polished)
     return data
 

@@ -515,10 +515,6 @@ def _polish(problem, result, samples, say):
         return PolishRun(None, None, False,
                          f"NOT polished: the closed-form solve ended {result.status}",
                          closed_form_objective=result.objective)
-    if result.delta is not None:
-        return PolishRun(None, None, False, "NOT polished: the polish flies the planar "
-                         "model only; solve with planar=True to polish",
-                         closed_form_objective=result.objective)
     say(f"{problem.name}: polishing on the exact Eqs. 1-2 in time ({result.alpha.size} segments)")
     exact, _ = polishing.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "

@@ -8,12 +8,18 @@ segment's closed-form arc for Eqs. 1-2 in time; the segment durations become the
 variables, and the closed form's q3 margin goes (it has no meaning for an exact arc).
 
 The exact arc is an RK4 arc whose truncation error is removed by defect correction
-against CVODES (:func:`polish`): Ipopt then differentiates a small expanded SX graph
+against CVODES (:func:`polish`).  In three dimensions (``Problem.three_d``) it is an RK4
+arc on the Cartesian equations between the NLP's 3-D nodes
+(``transcription.rk4_time_segment3d``), corrected against CVODES on the same Cartesian
+equations (``simulate.fly_segments3d``), with a clock angle per segment beside the pitch;
+no part of it flies the turning-plane decomposition, which is only how its nodes are
+named: Ipopt then differentiates a small expanded SX graph
 rather than CVODES's forward and adjoint sensitivities, which made each iteration
 about 40 times cheaper at the same optimum (Earth-Mars at 1 and 0.1 mm/s^2).  CVODES
 arcs with sensitivities (:func:`~esail_opt.optimisation.transcription.cvodes_time_segment`)
-remain the fallback when the RK4 NLP does not converge, and the benchmark's cold exact
-shooting.
+remain the fallback when the planar RK4 NLP does not converge, and the benchmark's cold
+exact shooting; in three dimensions the fallback is the RK4 NLP again with the most
+steps of :data:`RK4_STEPS`.
 
 Every variable is warm-started from the closed-form optimum: the pitch as it is, the
 durations from the NLP's segment times, and the nodes from a CVODES flight of that
@@ -25,14 +31,16 @@ import time
 
 import numpy as np
 
-from esail_opt.optimisation.goals import state_miss
+from esail_opt.optimisation.goals import cartesian_miss, state_miss
 from esail_opt.optimisation.ipopt import build_solver, ipopt_options, solve_transcription
 from esail_opt.optimisation.problem import Tolerance
-from esail_opt.optimisation.error_control import segment_ends
+from esail_opt.optimisation.error_control import node_near, segment_ends, start_nodes
 from esail_opt.optimisation.transcription import (body_corrections, cvodes_time_segment,
-                                                  transcribe)
+                                                  node_cartesian, rk4_time_segment3d,
+                                                  start_node, transcribe)
 from esail_opt.propagation.rk4 import rk4_segment
-from esail_opt.propagation.simulate import VERIFY_TOLERANCE, SimulationError, simulate
+from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments3d,
+                                            simulate, simulate3d)
 
 #: Ipopt's bound on the final constraint violation (canonical units).  The verified miss
 #: must be below 1 m against the polished NLP's own final node, and continuity defects
@@ -86,16 +94,49 @@ def polish_options(max_iter=200):
     return opts
 
 
-def exact_guess(problem, x_start, guess):
-    """A start for the exact (CVODES-in-time) NLP from any schedule.
+def exact_segment(problem, steps):
+    """The polish's exact segment in time with ``steps`` RK4 steps: on Eqs. 1-2
+    (``rk4.rk4_segment``), or between 3-D nodes on the Cartesian equations
+    (``transcription.rk4_time_segment3d``)."""
+    if problem.three_d():
+        return rk4_time_segment3d(steps, problem.sail.coefficients)
+    return rk4_segment(steps, problem.sail.coefficients, "time")
 
-    ``guess`` holds the schedule (pitch, durations in TU, throttle) and its revolution
-    class.  The nodes become the CVODES flight of that schedule from ``x_start``, so
+
+def _controls(guess):
+    """The per-segment controls a segment takes after its a_c: pitch, and the clock in
+    three dimensions (rows of one)."""
+    rows = [guess.alpha[None, :]]
+    if getattr(guess, "delta", None) is not None:
+        rows.append(np.asarray(guess.delta, float)[None, :])
+    return rows
+
+
+def _flown_nodes3d(problem, x_start, guess):
+    """The schedule ``guess`` flown by CVODES on the Cartesian equations from the
+    NLP's 3-D start ``x_start``, as nodes next to ``guess``'s own
+    (``error_control.node_near``)."""
+    flown = simulate3d(node_cartesian(start_node(x_start)), guess.alpha, guess.delta,
+                       guess.lengths, problem.sail.ac * guess.ac_scale,
+                       throttles=guess.throttle, length_in="time",
+                       coefficients=problem.sail.coefficients)
+    return np.column_stack([node_near(flown[:, k + 1], guess.nodes[:, k])
+                            for k in range(guess.alpha.size)])
+
+
+def exact_guess(problem, x_start, guess):
+    """A start for the exact (in-time) NLP from any schedule.
+
+    ``guess`` holds the schedule (pitch, clock in three dimensions, durations in TU,
+    throttle) and its revolution class.  The nodes become the CVODES flight of that
+    schedule from ``x_start`` (on the Cartesian equations in three dimensions), so
     every continuity constraint holds at the start; if that flight fails, ``guess``
     itself is returned, its own nodes unchanged.  The polish passes a closed-form
     optimum here; the benchmark passes the constant-pitch seed (a cold start).
     """
     try:
+        if problem.three_d():
+            return dataclasses.replace(guess, nodes=_flown_nodes3d(problem, x_start, guess))
         flown = simulate(x_start, guess.alpha, guess.lengths, problem.sail.ac * guess.ac_scale,
                          throttles=guess.throttle, samples=1, length_in="time",
                          coefficients=problem.sail.coefficients)
@@ -104,57 +145,84 @@ def exact_guess(problem, x_start, guess):
     return dataclasses.replace(guess, nodes=flown[:, 1:])
 
 
-def rk4_polish_segment(problem, x_start, start, steps=RK4_STEPS):
-    """The polish's RK4 segment in time: the first of ``steps`` steps per segment whose
-    largest position or velocity defect at ``start`` is under :data:`STEP_DEFECT` (the
-    last one otherwise).
+def _states(problem, nodes):
+    """What a defect is measured on: the polar state [r, theta, v_r, v_theta], or the
+    Cartesian state in three dimensions (a node's quaternion and theta trade a turn)."""
+    if problem.three_d():
+        return np.column_stack([node_cartesian(n) for n in np.asarray(nodes).T])
+    return np.asarray(nodes)[:4]
 
-    ``start`` is :func:`exact_guess`'s flown start, so its nodes follow Eqs. 1-2 and
-    each segment's defect is its next node less the RK4 arc from its own node.  (Solving
-    the first NLP with these defects already in place was tried: the Earth-Mars spiral
-    at 0.1 mm/s^2 then ran out of iterations, where the uncorrected start converges.)
+
+def rk4_polish_segment(problem, x_start, start, steps=RK4_STEPS):
+    """The polish's RK4 segment in time (:func:`exact_segment`): the first of ``steps``
+    steps per segment whose largest position or velocity defect at ``start`` is under
+    :data:`STEP_DEFECT` (the last one otherwise).
+
+    ``start`` is :func:`exact_guess`'s flown start, so its nodes follow the exact
+    equations and each segment's defect is its next node less the RK4 arc from its own
+    node.  (Solving the first NLP with these defects already in place was tried: the
+    Earth-Mars spiral at 0.1 mm/s^2 then ran out of iterations, where the uncorrected
+    start converges.)
     """
-    nodes_from = np.column_stack([np.r_[x_start, 0.0], start.nodes[:, :-1]])
+    nodes_from = np.column_stack([start_node(x_start), start.nodes[:, :-1]])
     args = (nodes_from, problem.sail.ac * start.ac_scale * start.throttle[None, :],
-            start.alpha[None, :],
-            start.lengths[None, :])
+            *_controls(start), start.lengths[None, :])
     for count in steps:
-        segment = rk4_segment(count, problem.sail.coefficients, "time")
-        defects = start.nodes - np.array(segment.map(start.alpha.size)(*args)[0])
-        if np.max(np.abs(defects[:4])) < STEP_DEFECT:
+        segment = exact_segment(problem, count)
+        ends = np.array(segment.map(start.alpha.size)(*args)[0])
+        if np.max(np.abs(_states(problem, start.nodes) - _states(problem, ends))) < STEP_DEFECT:
             break
     return segment
 
 
-def _lands(problem, result):
-    """Whether the schedule, flown on Eqs. 1-2 from the departure, ends within
-    :data:`LANDING_KM` and :data:`LANDING_M_S` of the NLP's final node (raises
-    SimulationError if it cannot fly)."""
-    flown = simulate(problem.start_state(result), result.alpha, result.durations,
-                     problem.sail.ac * result.ac_scale,
-                     throttles=result.throttle, coefficients=problem.sail.coefficients,
+def _final_miss(problem, result):
+    """(km, m/s) between the schedule flown by the verifier's CVODES from the departure
+    and the NLP's final node (raises SimulationError if it cannot fly)."""
+    ac, coefficients = problem.sail.ac * result.ac_scale, problem.sail.coefficients
+    if problem.three_d():
+        flown = simulate3d(problem.start_state(result), result.alpha, result.delta,
+                           result.durations, ac, throttles=result.throttle,
+                           coefficients=coefficients, tol=VERIFY_TOLERANCE)
+        return cartesian_miss(flown[:6, -1], node_cartesian(result.nodes[:, -1]))
+    flown = simulate(problem.start_state(result), result.alpha, result.durations, ac,
+                     throttles=result.throttle, coefficients=coefficients,
                      tol=VERIFY_TOLERANCE)
-    r_km, v_m_s, _ = state_miss(flown[:4, -1], result.nodes[:4, -1])
+    return state_miss(flown[:4, -1], result.nodes[:4, -1])[:2]
+
+
+def _lands(problem, result):
+    """Whether the schedule, flown on the exact equations from the departure, ends
+    within :data:`LANDING_KM` and :data:`LANDING_M_S` of the NLP's final node (raises
+    SimulationError if it cannot fly)."""
+    r_km, v_m_s = _final_miss(problem, result)
     return r_km <= LANDING_KM and v_m_s <= LANDING_M_S
 
 
 def _on_bodies(problem, result):
     """Whether the NLP's departure and final states sit within :data:`LANDING_KM` and
     :data:`LANDING_M_S` of the bodies' ephemeris at its own dates (True off the
-    calendar and for targets that are not real bodies).
+    calendar and for targets that are not real bodies; in three dimensions, against the
+    unprojected states).
 
     The corrections that put them there were taken at the previous round's dates; a
     round that moved the dates leaves its ends off by what the track's error changed
     over the move, and another round follows."""
     if not problem.dated():
         return True
-    r_km, v_m_s, _ = state_miss(result.x_start, problem.start_state(result))
+    tof = float(np.sum(result.durations))
+    if problem.three_d():
+        r_km, v_m_s = cartesian_miss(node_cartesian(start_node(result.x_start)),
+                                     problem.start_state(result))
+    else:
+        r_km, v_m_s, _ = state_miss(result.x_start, problem.start_state(result))
     if r_km > LANDING_KM or v_m_s > LANDING_M_S:
         return False
     if getattr(problem.target, "body", None) is None:
         return True
-    miss = problem.target.miss(result.nodes[:4, -1], float(np.sum(result.durations)),
-                               result.epoch)
+    if problem.three_d():
+        miss = problem.target.miss3d(node_cartesian(result.nodes[:, -1]), tof, result.epoch)
+    else:
+        miss = problem.target.miss(result.nodes[:4, -1], tof, result.epoch)
     v_m_s = miss["target_miss_v_m_s"]
     return miss["target_miss_r_km"] <= LANDING_KM and (v_m_s is None or v_m_s <= LANDING_M_S)
 
@@ -173,19 +241,88 @@ def _on_ephemeris(tr, problem, result):
     return dataclasses.replace(tr, corrections=body_corrections(problem, result))
 
 
-def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS):
-    """Re-solve ``problem`` on Eqs. 1-2 in time, warm-started from ``result``.
+def _defects(problem, result, segment):
+    """Each segment's end flown by CVODES at the verifier's tolerance from its own start
+    node, less ``segment``'s end from the same node (raises SimulationError)."""
+    if not problem.three_d():
+        flown, model = segment_ends(problem, result, segment, "time", VERIFY_TOLERANCE)
+        return flown - model
+    starts = start_nodes(result)
+    ac = result.accelerations(problem)[None, :]
+    args = (ac, *_controls(result), result.durations[None, :])
+    model = np.array(segment.map(result.alpha.size)(starts, *args)[0])
+    y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
+    ends = fly_segments3d(y0, *args, "time", problem.sail.coefficients, VERIFY_TOLERANCE)
+    flown = np.column_stack([node_near(ends[:, k], model[:, k]) for k in range(ends.shape[1])])
+    return flown - model
 
-    The NLP's segments are RK4 arcs in time (``propagation.rk4``), with as many steps
-    as :func:`rk4_polish_segment` chooses; each round flies every segment from its node
+
+def _corrected(problem, tr, segment, exact, opts, max_rounds):
+    """Rounds of defect correction from the first solve ``exact`` until the flight
+    lands on the NLP's final node and the bodies (at most ``max_rounds``).  Returns
+    (result, transcription, landed); the result's stages and iterations cover every
+    round."""
+    stages, iterations = list(exact.stages), exact.iterations
+    solver, landed = None, False
+    for round_ in range(max_rounds + 1):
+        if not exact.outcome.found:
+            break
+        try:
+            landed = _lands(problem, exact) and _on_bodies(problem, exact)
+            if landed or round_ == max_rounds:
+                break
+            defects = _defects(problem, exact, segment)
+        except SimulationError:
+            break  # an arc CVODES cannot fly: the fallback tries other arcs
+        tr = _on_ephemeris(tr, problem, exact)
+        solver = solver or build_solver(tr, opts, warm=True)
+        exact = solve_transcription(tr, defects=defects, warm=exact, solver=solver)
+        stages += exact.stages
+        iterations += exact.iterations
+    exact.stages, exact.iterations = stages, iterations
+    return exact, tr, landed
+
+
+def _first_solve(problem, result, start, schedule, steps, opts):
+    """The polish's first solve from ``start``, on RK4 arcs of the steps
+    :func:`rk4_polish_segment` picks (the fewest if CVODES could not fly the start):
+    (result, transcription, segment)."""
+    if start is schedule:  # CVODES could not fly it: no defects to choose the steps by
+        segment = exact_segment(problem, steps[0])
+    else:
+        segment = rk4_polish_segment(problem, result.x_start, start, steps)
+    tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time"),
+                       problem, result)
+    return solve_transcription(tr, opts), tr, segment
+
+
+def _fallback(problem, result, start, opts, steps, max_rounds):
+    """The polish again when the RK4 NLP did not land: on CVODES arcs in the plane
+    (slower but steadier), on RK4 arcs of the most steps in three dimensions."""
+    if problem.three_d():
+        segment = exact_segment(problem, steps[-1])
+        tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time"),
+                           problem, result)
+        return _corrected(problem, tr, segment, solve_transcription(tr, opts), opts,
+                          max_rounds)[:2]
+    tr = _on_ephemeris(transcribe(problem, cvodes_time_segment(problem.sail.coefficients),
+                                  start, length_in="time"), problem, result)
+    return solve_transcription(tr, opts), tr
+
+
+def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS):
+    """Re-solve ``problem`` on the exact equations in time, warm-started from ``result``.
+
+    The NLP's segments are RK4 arcs in time (:func:`exact_segment`: on Eqs. 1-2, or on
+    the Cartesian equations in three dimensions), with as many steps as
+    :func:`rk4_polish_segment` chooses; each round flies every segment from its node
     with CVODES, adds the difference to the segment's end (the defect, a parameter of
-    the NLP), and re-solves warm with the same solver, until
-    the schedule flown on Eqs. 1-2 lands within :data:`LANDING_KM` and
-    :data:`LANDING_M_S` of the NLP's final node.
-    The chain then follows Eqs. 1-2 from every node, so the optimum is the exact one,
-    while each Ipopt iteration differentiates a small expanded SX graph instead of
-    CVODES's sensitivities.  If the RK4 NLP fails or its flight never lands, the polish
-    is solved again on CVODES arcs (:func:`~.transcription.cvodes_time_segment`).
+    the NLP), and re-solves warm with the same solver, until the schedule flown by
+    CVODES lands within :data:`LANDING_KM` and :data:`LANDING_M_S` of the NLP's final
+    node (:func:`_corrected`).  The chain then follows the exact equations from every
+    node, so the optimum is the exact one, while each Ipopt iteration differentiates a
+    small expanded SX graph instead of CVODES's sensitivities.  If the RK4 NLP fails or
+    its flight never lands, the polish is solved again (:func:`_fallback`).
 
     Parameters
     ----------
@@ -213,41 +350,17 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
     started = time.perf_counter()
     schedule = result.as_guess(durations=True)
     start = exact_guess(problem, result.x_start, schedule)
-    if start is schedule:  # CVODES could not fly it: no defects to choose the steps by
-        segment = rk4_segment(steps[0], problem.sail.coefficients, "time")
-    else:
-        segment = rk4_polish_segment(problem, result.x_start, start, steps)
-    tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time"),
-                       problem, result)
     opts = {"ipopt.mu_init": START_MU, **(polish_options() if options is None else options)}
-    exact = solve_transcription(tr, opts)
-    stages, iterations = list(exact.stages), exact.iterations
-    solver, landed = None, False
-    for round_ in range(max_rounds + 1):
-        if not exact.outcome.found:
-            break
-        try:
-            landed = _lands(problem, exact) and _on_bodies(problem, exact)
-            if landed or round_ == max_rounds:
-                break
-            flown, model = segment_ends(problem, exact, segment, "time", VERIFY_TOLERANCE)
-        except SimulationError:
-            break  # an arc CVODES cannot fly: the fallback below tries CVODES arcs
-        defects = flown - model
-        tr = _on_ephemeris(tr, problem, exact)
-        solver = solver or build_solver(tr, opts, warm=True)
-        exact = solve_transcription(tr, defects=defects, warm=exact, solver=solver)
-        stages += exact.stages
-        iterations += exact.iterations
+    first, tr, segment = _first_solve(problem, result, start, schedule, steps, opts)
+    exact, tr, landed = _corrected(problem, tr, segment, first, opts, max_rounds)
     if not landed:
         # The RK4 NLP can wander off where the exact one would not: the 2-revolution
         # window of the Earth-Mars search ran out of iterations 1.2e8 km from the target,
         # and the k = 1 rendezvous converged to a schedule whose flight missed by 1.4e6
         # km.  CVODES arcs are slower but steadier.
-        tr = _on_ephemeris(transcribe(problem, cvodes_time_segment(problem.sail.coefficients),
-                                      start, length_in="time"), problem, result)
-        exact = solve_transcription(tr, opts)
-        stages, iterations = stages + exact.stages, iterations + exact.iterations
-    exact.stages, exact.iterations = stages, iterations
+        again, tr = _fallback(problem, result, start, opts, steps, max_rounds)
+        again.stages = exact.stages + again.stages
+        again.iterations += exact.iterations
+        exact = again
     exact.solve_seconds = time.perf_counter() - started
     return exact, tr

@@ -50,9 +50,11 @@ from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.rectified import (flies_native, piece_function, propagate,
                                              rectified_function)
 from esail_opt.propagation.rectified3d import arc_function3d
+from esail_opt.propagation.rk4 import rk4_segment3d
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError
+from esail_opt.physics import rotation
 from esail_opt.physics.elements import cartesian_from_polar3d
 from esail_opt.physics.thrust import EXACT
 
@@ -236,6 +238,65 @@ def node_cartesian(node):
     node = np.asarray(node, float).ravel()
     quat = node[5:9] / np.linalg.norm(node[5:9])
     return np.array(cartesian_from_polar3d(node[:4], quat), float).ravel()
+
+
+def node_from_swept(y, theta, quat_start):
+    """The 3-D node [r, theta, v_r, v_theta, qw, qx, qy, qz] (no time row) of the
+    Cartesian state ``y`` whose Sun-sail line has swept to the angle ``theta``, in the
+    gauge of the turning plane (THEORY.md §9.3) that starts at ``quat_start``.
+
+    The plane's frame never spins about its normal, so its x axis is where theta = 0:
+    x = cos(theta) r_hat - sin(theta) t_hat, y = sin(theta) r_hat + cos(theta) t_hat,
+    z = h_hat.  The quaternion is ``quat_start`` times the turn from its frame to that
+    one, read off the rotation matrix by its scalar-first branch, smooth while the
+    plane turns by less than a half turn over the arc.  CasADi operations: numbers or
+    symbols.
+    """
+    pos, vel = y[:3], y[3:6]
+    r = ca.norm_2(pos)
+    r_hat = pos / r
+    h_vec = ca.vertcat(pos[1] * vel[2] - pos[2] * vel[1], pos[2] * vel[0] - pos[0] * vel[2],
+                       pos[0] * vel[1] - pos[1] * vel[0])
+    h = ca.norm_2(h_vec)
+    h_hat = h_vec / h
+    t_hat = ca.vertcat(h_hat[1] * r_hat[2] - h_hat[2] * r_hat[1],
+                       h_hat[2] * r_hat[0] - h_hat[0] * r_hat[2],
+                       h_hat[0] * r_hat[1] - h_hat[1] * r_hat[0])
+    c, s = ca.cos(theta), ca.sin(theta)
+    frame = ca.horzcat(c * r_hat - s * t_hat, s * r_hat + c * t_hat, h_hat)
+    quat_start = quat_start / ca.norm_2(quat_start)
+    m = ca.mtimes(rotation.matrix(quat_start).T, frame)
+    w = 0.5 * ca.sqrt(1 + m[0, 0] + m[1, 1] + m[2, 2])
+    turn = ca.vertcat(w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w),
+                      (m[1, 0] - m[0, 1]) / (4 * w))
+    return ca.vertcat(r, theta, ca.dot(pos, vel) / r, h / r,
+                      rotation.multiply(quat_start, turn))
+
+
+@functools.lru_cache(maxsize=None)
+def rk4_time_segment3d(steps, coefficients=EXACT):
+    """The 3-D polish's segment: ``steps`` RK4 steps in time on the Cartesian equations
+    (``rk4.rk4_segment3d`` with the angle swept), between 3-D nodes.
+
+    ``(x0[9], ac, alpha, delta, duration) -> (x1[9], q3[0])``, x = [r, theta, v_r,
+    v_theta, t, qw, qx, qy, qz]: the node is turned into its Cartesian state
+    (``elements.cartesian_from_polar3d``), flown, and named again by
+    :func:`node_from_swept` with theta advanced by the angle swept, so that its ends
+    are in the same gauge as the closed form's (:func:`closed_form_segment3d`) and the
+    NLP's continuity rows mean the same thing for both.  SX, expanded; q3 is empty, as
+    for every exact arc.
+    """
+    x0 = ca.SX.sym("x0", 9)
+    ac, alpha, delta, duration = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "duration"))
+    quat = x0[5:] / ca.norm_2(x0[5:])
+    y0 = ca.vertcat(cartesian_from_polar3d(x0[:4], quat), x0[4], x0[1])
+    y1 = rk4_segment3d(steps, coefficients, "time", swept=True)(y0, ac, alpha, delta,
+                                                                  duration)[0]
+    node = node_from_swept(y1[:6], y1[7], quat)
+    x1 = ca.vertcat(node[:4], y1[6], node[4:])
+    return ca.Function("segment_rk4_time3d", [x0, ac, alpha, delta, duration],
+                       [x1, ca.SX(0, 1)],
+                       ["x0", "ac", "alpha", "delta", "duration"], ["x1", "q3"]).expand()
 
 
 @functools.lru_cache(maxsize=None)

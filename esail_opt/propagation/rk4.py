@@ -12,7 +12,7 @@ NLP takes it.
 import casadi as ca
 
 from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_cartesian_in_theta,
-                                        rhs_in_theta)
+                                        rhs_in_theta, swept_angle_rate)
 from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse_normal
 
 
@@ -75,30 +75,36 @@ def _classic_step(f, x, h):
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
-def rk4_segment3d(steps, coefficients=EXACT, length_in="theta"):
+def rk4_segment3d(steps, coefficients=EXACT, length_in="theta", swept=False):
     """One segment of constant pitch and clock on the Cartesian equations
     (``dynamics.rhs_cartesian``) by ``steps`` equal classic RK4 steps.
 
     Returns ``(y0[7], ac, alpha, delta, length) -> (y1[7], q3[0])``, SX and expanded,
     y = [x, y, z, vx, vy, vz, t] canonical; ``length`` is the angle the Sun-sail line
     sweeps (rad, ``dynamics.rhs_cartesian_in_theta``) or a duration (TU), as
-    :func:`rk4_segment`'s.  The global error falls like steps^-4.
+    :func:`rk4_segment`'s.  The global error falls like steps^-4.  With ``swept`` (in
+    time only) y has an eighth row, the angle swept (``dynamics.swept_angle_rate``),
+    integrated with the motion: the polish names its 3-D nodes' plane by it.
     """
     if int(steps) != steps or steps < 1:
         raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
     if length_in not in ("theta", "time"):
         raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
-    y = ca.SX.sym("y", 7)
+    if swept and length_in != "time":
+        raise ValueError("swept = True counts the angle of a segment in time only")
+    rows = 8 if swept else 7
+    y = ca.SX.sym("y", rows)
     ac, alpha, delta, h = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "h"))
     R, T, N = radial_transverse_normal(alpha, delta, coefficients)
 
     def f(z):
         if length_in == "theta":
             return rhs_cartesian_in_theta(z[:6], ac, R, T, N)
-        return ca.vertcat(rhs_cartesian(z[:6], ac, R, T, N), 1)
+        rate = [swept_angle_rate(z[:6])] if swept else []
+        return ca.vertcat(rhs_cartesian(z[:6], ac, R, T, N), 1, *rate)
 
     step = ca.Function("rk4_step3d", [y, ac, alpha, delta, h], [_classic_step(f, y, h)])
-    y0 = ca.SX.sym("y0", 7)
+    y0 = ca.SX.sym("y0", rows)
     ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "length"))
     y1 = y0
     for _ in range(int(steps)):
