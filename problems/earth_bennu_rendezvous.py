@@ -2,9 +2,10 @@
 
 a_c = 1 mm/s^2, leaving the Earth-Moon barycentre's orbit on 2031-03-01 (TDB) with no
 excess speed.  Bennu flies on its JPL osculating elements (``eo.BENNU`` names their
-source), on Keplerian motion; its orbit is inclined 6 deg to the ecliptic, which the
-two-dimensional model drops: ``solution.json`` reports how far out of the plane Bennu
-is at the arrival (``target_body.out_of_plane_km``).
+source), on Keplerian motion from all six of them; its orbit is inclined 6 deg to the
+ecliptic, and the transfer flies in three dimensions to meet it (``planar=True`` would
+drop the inclination, and ``solution.json`` would report how far out of the plane Bennu
+is at the arrival, ``target_body.out_of_plane_km``).
 """
 
 import esail_opt as eo

@@ -1,8 +1,8 @@
 """Earth to Mars on their real orbits, minimum time, leaving on 2035-07-15.
 
 a_c = 1 mm/s^2, a rendezvous with Mars (its DE421 position and velocity at arrival),
-departing from the Earth-Moon barycentre's orbit with no excess speed, the problem as an
-analyst first writes it: everything else at its default.  Its fastest transfer is not in
+departing from the Earth-Moon barycentre's orbit with no excess speed, in three
+dimensions (a real body's default), the problem as an analyst first writes it: everything else at its default.  Its fastest transfer is not in
 the turn count that a constant-pitch seed winds, so ``esail-opt solve`` looks at the
 turn counts around the seed's and keeps the best verified one.
 """

@@ -1,7 +1,10 @@
 """Earth to Mars on their real orbits, minimum time, leaving between 2030 and 2033.
 
 a_c = 1 mm/s^2, a rendezvous with Mars (its DE421 position and velocity at arrival),
-departing from the Earth-Moon barycentre's orbit with no excess speed.  The departure
+departing from the Earth-Moon barycentre's orbit with no excess speed, in three
+dimensions: between DE421's unprojected states, with a pitch and a clock angle per
+segment, so that the sail climbs 1.85 deg out of Earth's plane to meet Mars in its own
+(``earth_mars_window_planar.py`` is the ecliptic projection, for comparison).  The departure
 date is free in the window: ``esail-opt solve`` seeds it by a coarse scan of the window
 and then lets the optimiser move it.  ``esail-opt porkchop problems/earth_mars_window.py
 --depart 2030-01-01:2033-01-01:25`` shows how the time of flight changes with the date

@@ -2,7 +2,9 @@
 
 Leaving the Earth-Moon barycentre's orbit on 2031-01-01 and meeting Venus (DE421
 position and velocity) 650 days later, the throttle free on every segment: the a_c the
-sail must have for that launch date and flight time.  Its porkchop, over launch dates
+sail must have for that launch date and flight time, in three dimensions: it also
+turns the orbital plane onto Venus's, 3.39 deg off the ecliptic
+(``earth_venus_min_ac_planar.py`` is the ecliptic projection, for comparison).  Its porkchop, over launch dates
 and flight times, is the sail designer's chart:
 
     esail-opt porkchop problems/earth_venus_min_ac.py --depart 2031-01-01:2032-06-01:6 \\

@@ -84,6 +84,7 @@ MARS_FIXED = eo.Problem(
     segments=eo.Segments(count=30, sub_arcs=3, equal=True),
     objective=eo.MinAcceleration(tof_days=700.0),
     target=eo.BodyRendezvous(body="mars"),
+    planar=True,  # flown here on the polar Eqs. 1-2 in the ecliptic
 )
 
 
@@ -120,6 +121,7 @@ MARS_POLISHED = eo.Problem(
     segments=eo.Segments(count=30, sub_arcs=3, equal=False),
     objective=eo.MinTime(),
     target=eo.BodyRendezvous(body="mars"),
+    planar=True,  # flown here on the polar Eqs. 1-2 in the ecliptic
 )
 
 

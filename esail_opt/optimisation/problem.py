@@ -469,9 +469,10 @@ class Tolerance:
 
 
 #: Whether a real-body problem that does not say (``Problem(planar=None)``) flies in the
-#: ecliptic projection.  Still True: the 3-D model has no polish yet, and its solves take
-#: about twice the planar ones' iterations; ``planar=False`` asks for three dimensions.
-PLANAR_DEFAULT = True
+#: ecliptic projection.  False: a real body's orbit is not in the ecliptic, and only the
+#: 3-D model meets its unprojected state; ``planar=True`` keeps the projected model, for
+#: comparison.  Problems off the calendar are planar whatever this says.
+PLANAR_DEFAULT = False
 
 Departure = Union[ParkingOrbit, PolarState, BodyDeparture]
 Objective = Union[MinTime, MaxRadius, MaxEnergy, FinalStateExpression, MinAcceleration]
