@@ -8,8 +8,8 @@ status=0
 run() { echo "+ $*" >&2; "$@" || { echo "exit $? from: $*" >&2; status=1; }; }
 
 for p in earth_bennu_rendezvous earth_mars_2035 earth_mars_low_thrust earth_mars_min_time \
-         earth_mars_window earth_mars_window_3d earth_venus_low_thrust earth_venus_min_ac \
-         earth_venus_min_ac_3d earth_venus_min_time mercury_departure orbit_raising_10yr \
+         earth_mars_window earth_mars_window_planar earth_venus_low_thrust earth_venus_min_ac \
+         earth_venus_min_ac_planar earth_venus_min_time mercury_departure orbit_raising_10yr \
          spiral_out_5au; do
   run esail-opt solve "problems/$p.py"
 done

@@ -22,7 +22,7 @@ from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.rectified import propagate, rectified_function
 
 #: Shipped problems that take minutes at their defaults (a scan of departure dates).
-SLOW = {"earth_mars_window", "earth_mars_window_3d"}
+SLOW = {"earth_mars_window", "earth_mars_window_planar"}
 SHIPPED = sorted(p for p in PROBLEMS.glob("*.py") if p.name != "__init__.py")
 #: Closed-form samples per segment drawn by the check below.
 SAMPLES = 6
