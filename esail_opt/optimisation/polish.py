@@ -8,18 +8,23 @@ segment's closed-form arc for Eqs. 1-2 in time; the segment durations become the
 variables, and the closed form's q3 margin goes (it has no meaning for an exact arc).
 
 The exact arc is an RK4 arc whose truncation error is removed by defect correction
-against CVODES (:func:`polish`).  In three dimensions (``Problem.three_d``) it is an RK4
-arc on the Cartesian equations between the NLP's 3-D nodes
-(``transcription.rk4_time_segment3d``), corrected against CVODES on the same Cartesian
-equations (``simulate.fly_segments3d``), with a clock angle per segment beside the pitch;
-no part of it flies the turning-plane decomposition, which is only how its nodes are
-named: Ipopt then differentiates a small expanded SX graph
+against CVODES (:func:`polish`): Ipopt then differentiates a small expanded SX graph
 rather than CVODES's forward and adjoint sensitivities, which made each iteration
 about 40 times cheaper at the same optimum (Earth-Mars at 1 and 0.1 mm/s^2).  CVODES
 arcs with sensitivities (:func:`~esail_opt.optimisation.transcription.cvodes_time_segment`)
 remain the fallback when the planar RK4 NLP does not converge, and the benchmark's cold
-exact shooting; in three dimensions the fallback is the RK4 NLP again with the most
-steps of :data:`RK4_STEPS`.
+exact shooting.
+
+In three dimensions (``Problem.three_d``) the exact arc is an RK4 arc on the Cartesian
+equations between the NLP's 3-D nodes (``transcription.rk4_time_segment3d``), corrected
+against CVODES on the same Cartesian equations (``simulate.fly_segments3d``), with a
+clock angle per segment beside the pitch (and the throttle where the problem has one).
+No part of it flies the turning-plane decomposition, which only names its nodes.  RK4
+rather than a 3-D CVODES segment for the reason above: the Hessian of one segment's
+Lagrangian was 15 to 50 times cheaper with RK4 at 4 to 16 steps than through CVODES's
+sensitivities at the check tolerance, and the defect correction brings either to the
+same exact optimum.  The fallback is the RK4 NLP again, with the most steps of
+:data:`RK4_STEPS`.
 
 Every variable is warm-started from the closed-form optimum: the pitch as it is, the
 durations from the NLP's segment times, and the nodes from a CVODES flight of that
