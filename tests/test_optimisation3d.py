@@ -18,8 +18,8 @@ from esail_opt.propagation.arcs import ArcModel
 from esail_opt.optimisation import pipeline
 from esail_opt.optimisation.error_control import node_near
 from esail_opt.optimisation.transcription import (closed_form_segment3d, initial_guess,
-                                                  node_cartesian, problem_segment,
-                                                  rk4_time_segment3d)
+                                                  node_cartesian, node_from_swept,
+                                                  problem_segment, rk4_time_segment3d)
 
 # Constants written out again here, not taken from the package.
 AU_KM = 149597870.7
@@ -148,6 +148,26 @@ def test_the_polish_segment3d_flies_the_cartesian_equations_in_the_closed_forms_
     closed = closed_form_segment3d(model=ArcModel(sub_arcs=8))
     other = np.array(closed(start, ac, alpha, delta, end[1] - start[1])[0]).ravel()
     assert np.abs(other - end).max() < 1e-7
+
+
+def test_node_from_swept_names_the_state_with_the_given_angle():
+    """node_from_swept writes a Cartesian state as a node whose theta is the angle given:
+    the node gives the state back, whatever the angle, and a node's own state with its
+    own theta gives the node back (quaternion up to sign)."""
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        quat = rng.normal(size=4)
+        quat /= np.linalg.norm(quat)
+        ref = np.r_[rng.uniform(0.5, 2), rng.uniform(-20, 20), rng.normal(0, 0.1),
+                    rng.uniform(0.6, 1.2), quat]
+        y = node_cartesian(np.r_[ref[:4], 0.0, ref[4:]])
+        again = np.array(node_from_swept(y, ref[1], quat), float).ravel()
+        sign = np.sign(np.dot(again[4:], ref[4:]))
+        np.testing.assert_allclose(np.r_[again[:4], sign * again[4:]], ref, rtol=0, atol=1e-12)
+        moved = np.array(node_from_swept(y, ref[1] + 0.3, quat), float).ravel()
+        assert abs(moved[1] - ref[1] - 0.3) < 1e-15
+        np.testing.assert_allclose(node_cartesian(np.r_[moved[:4], 0.0, moved[4:]]), y,
+                                   rtol=0, atol=1e-12)
 
 
 def test_node_near_keeps_the_state_and_the_gauge():
