@@ -9,6 +9,7 @@ from 2035-06-01, between 560 and 580 days from 2035-08-01, a_c held at 5 mm/s^2)
 verified cell's a_c is no worse than a lone solve of the same cell.
 """
 
+import json
 import math
 from types import SimpleNamespace
 
@@ -234,3 +235,71 @@ def test_a_chart_of_a_record_without_the_edge_still_draws():
     lines = _lines(porkchop.figure(table).axes[0])
     assert porkchop.EDGE_LABEL not in lines and porkchop.NO_SAIL_LABEL not in lines
     assert len(lines[porkchop.FAILED_LABEL].get_xdata()) == 4
+
+
+#: The edge of the feasible from two departure dates by the walk of the issue, independent
+#: of this package (a solved transfer stepped towards each cell, a_c held at 5 mm/s^2):
+#: no flight found at the shorter time of flight, one found at the longer (days).
+INDEPENDENT_EDGE = {"2035-06-01": (635.0, 640.0), "2035-08-01": (560.0, 580.0)}
+
+
+@pytest.fixture(scope="module")
+def chart(tmp_path_factory):
+    """The 3 x 2 porkchop, run as the command line runs it, with its journal."""
+    out = tmp_path_factory.mktemp("porkchop")
+    return out, porkchop.run(PROBLEM, DEPART, TOF, workers=2, out_dir=out)
+
+
+def _by_cell(table):
+    return {(row["departure_date"][:10], row["tof_days_grid"]): row for row in table["rows"]}
+
+
+@pytest.mark.slow
+def test_the_2035_porkchop_verifies_the_cells_with_a_sail_and_marks_the_others(chart):
+    out, table = chart
+    rows = _by_cell(table)
+    with_sail = {("2035-06-01", 650.0), ("2035-08-01", 650.0)}
+    assert {cell for cell, row in rows.items() if row["verified"]} == with_sail
+    assert {cell for cell, row in rows.items() if row["no_sail"]} == set(rows) - with_sail
+    assert table["verified_cells"] == 2 and table["no_sail_cells"] == 4
+    for (date, tof), row in rows.items():
+        edge, infeasible = row["edge_tof_days"], row["edge_infeasible_tof_days"]
+        assert infeasible < edge and edge - infeasible <= scan.EDGE_DAYS
+        assert row["edge_ac_mm_s2"] > 0
+        if date in INDEPENDENT_EDGE:
+            none_at, one_at = INDEPENDENT_EDGE[date]
+            # The verdicts agree with the independent walk: the cells with no sail lie
+            # below its edge and those that fly above it, and the edge this walk found
+            # lies where that one put it.
+            assert (tof < none_at) if row["no_sail"] else (tof >= one_at)
+            assert none_at < edge <= 650.0 and infeasible < one_at
+        else:  # 2035-04-01: no cell flies, the edge is longer than both
+            assert edge > 650.0 and infeasible >= 650.0
+    # The chart's line is that edge, one point per date.
+    (ax, *_) = porkchop.figure(table).axes
+    edge = _lines(ax)[porkchop.EDGE_LABEL]
+    assert list(edge.get_ydata()) == [rows[(d, 500.0)]["edge_tof_days"]
+                                      for d in ("2035-04-01", "2035-06-01", "2035-08-01")]
+    # Resumed from its journal, nothing is solved again and the marks are kept.
+    again = porkchop.run(PROBLEM, DEPART, TOF, workers=1, out_dir=out, resume=True)
+    assert again["resumed"] == list(range(6))
+    assert [r["no_sail"] for r in again["rows"]] == [r["no_sail"] for r in table["rows"]]
+    assert again["edge"] == table["edge"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("date", ["2035-06-01", "2035-08-01"])
+def test_a_porkchop_cell_needs_no_more_a_c_than_a_lone_solve(chart, date, tmp_path):
+    """``esail-opt solve`` of the cell's own problem file (the date and the time of
+    flight written in): the porkchop's a_c is within 0.5 % of it, or below."""
+    from esail_opt.app import cli
+
+    _, table = chart
+    row = _by_cell(table)[(date, 650.0)]
+    lone = tmp_path / "cell.py"
+    lone.write_text(PROBLEM.read_text().replace('date="2035-06-01"', f'date="{date}"'))
+    assert cli.main(["solve", str(lone), "--out", str(tmp_path / "out"), "--no-plots"]) == 0
+    solved = json.loads((tmp_path / "out" / "solution.json").read_text())
+    assert solved["verified"] and solved["departure_date"].startswith(date)
+    assert row["verified"]
+    assert row["ac_mm_s2_required"] <= 1.005 * solved["ac_mm_s2_required"]
