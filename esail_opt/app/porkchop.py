@@ -583,7 +583,8 @@ def _dates_tofs_chart(fig, ax, result, marks, label):
     tofs = np.array(result["tofs_days"])
     z = np.where(marks["ok"], marks["value"], np.nan).reshape(shape).T
     x = mdates.date2num(marks["when"].reshape(shape)[:, 0])
-    if np.isfinite(z).sum() >= 4:
+    contoured = np.isfinite(z).sum() >= 4
+    if contoured:
         cs = ax.contourf(x, tofs, z, levels=12, cmap="viridis")
         lines = ax.contour(x, tofs, z, levels=cs.levels[::2], colors="w", linewidths=0.6)
         ax.clabel(lines, fmt="%.2g", fontsize=7)
@@ -598,7 +599,13 @@ def _dates_tofs_chart(fig, ax, result, marks, label):
     if no_sail.any():
         ax.plot(xx[no_sail], yy[no_sail], "s", mfc="none", mec="0.3", ms=7,
                 label=NO_SAIL_LABEL)
-    ax.plot(xx[~bad], yy[~bad], ".", color="k", ms=2)
+    # Too few verified cells for contours: each is marked, its value beside it.
+    ax.plot(xx[~bad], yy[~bad], "." if contoured else "o", color="k" if contoured else "C0",
+            ms=2 if contoured else 6, label=None if contoured else "verified")
+    if not contoured:
+        for xv, yv, zv in zip(xx[~bad], yy[~bad], z[~bad]):
+            ax.annotate(f"{zv:.4g}", (xv, yv), xytext=(5, 5), textcoords="offset points",
+                        fontsize=8)
     edge = {e["departure_date"]: e["tof_days"]
             for e in result.get("edge") or edge_line(result["rows"])}
     if edge:
