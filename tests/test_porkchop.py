@@ -135,9 +135,8 @@ def test_jobs_hold_whole_dates():
 
 
 def _marked_rows():
-    """The six rows of the 3 x 2 chart: two verified, four with no sail, one walked
-    edge per date (the middle date's infeasible bound left out of the journal's
-    older rows on purpose below)."""
+    """The six rows of the 3 x 2 chart as hand-made rows: the 650 d cells of the last
+    two dates verified, the other four with no sail, and one walked edge per date."""
     grid = _grid()
     rows = _rows(grid, range(6))
     edges = {0: 700.0, 1: 640.0, 2: 570.0}
