@@ -453,16 +453,28 @@ def _at_tof(problem, tof_days):
     return dataclasses.replace(problem, objective=_objective_at(problem, tof_days))
 
 
-def shortest_feasible(problem, progress=None):
+def shortest_feasible(problem, progress=None, start=None):
     """The shortest time of flight from ``problem``'s departure at which its closed-form
     NLP converges, at least ``problem``'s own: a continuation in the time of flight.
 
-    The problem is solved cold at :data:`LONGER` multiples of its time of flight until
-    one converges; then the time of flight is halved towards the longest one found
-    infeasible, each step warm from the last converged one on the same NLP (its time of
-    flight is a parameter, ``Transcription.at``), to within :data:`EDGE_DAYS`.  A step
-    that does not converge within :data:`WALK_ITERATIONS` counts as infeasible, so the
-    edge may lie a little shorter than reported, never longer.
+    Without ``start``, the problem is solved cold at :data:`LONGER` multiples of its time
+    of flight until one converges.  Then the time of flight is halved towards the longest
+    one found infeasible (``problem``'s own when ``start`` is given), each step warm from
+    the last converged one on the same NLP (its time of flight is a parameter,
+    ``Transcription.at``), to within :data:`EDGE_DAYS`.  A step that does not converge
+    within :data:`WALK_ITERATIONS` counts as infeasible, so the edge may lie a little
+    shorter than reported, never longer.
+
+    Parameters
+    ----------
+    problem : Problem
+        A fixed-time problem that found no point at its time of flight.
+    progress : callable, optional
+        ``progress(text)``: one line per solve.
+    start : (Problem, NLPResult, Transcription), optional
+        A converged optimum from the same departure at a longer time of flight, with its
+        problem and NLP (a porkchop's solved cell of the same date): the walk starts
+        from it, warm, and skips the cold solves.
 
     Returns
     -------
@@ -470,22 +482,13 @@ def shortest_feasible(problem, progress=None):
         None when no time of flight of :data:`LONGER` converged.
     """
     say = progress or (lambda text: None)
-    asked = problem.objective.tof_days
-    lo, iterations, found = asked, 0, None
-    for factor in LONGER:
-        cell = _at_tof(problem, asked * factor)
-        guess = initial_guess(cell)
-        cell = sub_arcs_within_cap(cell, guess, MAX_SUB_ARCS)
-        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
-        result, tr = solve_problem(cell, guess=guess, progress=say)
-        iterations += result.iterations
-        if result.outcome.converged:
-            found = cell, result, tr
-            break
-        lo = asked * factor
+    lo, iterations = problem.objective.tof_days, 0
+    found = start if start is not None else _ladder(problem, say)
     if found is None:
         return None
-    cell, result, tr = found
+    cell, result, tr, *spent = found
+    if spent:
+        iterations, lo = spent
     solver = build_solver(tr, ipopt_options(max_iter=WALK_ITERATIONS), warm=True)
     while cell.objective.tof_days - lo > EDGE_DAYS:
         step = _at_tof(cell, 0.5 * (lo + cell.objective.tof_days))
@@ -497,3 +500,22 @@ def shortest_feasible(problem, progress=None):
         else:
             lo = step.objective.tof_days
     return Edge(cell, result, tr.at(cell), lo, iterations)
+
+
+def _ladder(problem, say):
+    """The cold solves at :data:`LONGER` multiples of ``problem``'s time of flight, up to
+    the first that converges: (its problem, optimum, NLP, the iterations spent, the
+    longest time of flight found infeasible), or None."""
+    asked = problem.objective.tof_days
+    lo, iterations = asked, 0
+    for factor in LONGER:
+        cell = _at_tof(problem, asked * factor)
+        guess = initial_guess(cell)
+        cell = sub_arcs_within_cap(cell, guess, MAX_SUB_ARCS)
+        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
+        result, tr = solve_problem(cell, guess=guess, progress=say)
+        iterations += result.iterations
+        if result.outcome.converged:
+            return cell, result, tr, iterations, lo
+        lo = asked * factor
+    return None
