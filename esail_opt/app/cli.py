@@ -579,7 +579,9 @@ def _run_porkchop(args):
     print(f"{result['verified_cells']}/{result['cells']} cells verified in "
           f"{result['wall_seconds']:.1f} s ({result['executor']})")
     if result["not_verified"]:
-        print(f"esail-opt porkchop: {result['not_verified']} cell(s) not verified",
+        no_sail = result.get("no_sail_cells", 0)
+        of_which = f", {no_sail} of them past the edge of the feasible (no sail)" if no_sail else ""
+        print(f"esail-opt porkchop: {result['not_verified']} cell(s) not verified{of_which}",
               file=sys.stderr)
         return 1
     return 0
