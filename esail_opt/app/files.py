@@ -5,7 +5,7 @@ Three mechanisms, used by every command that writes a folder (``solve``, ``searc
 
 * :func:`check_output_dir` runs before any solve: the folder's name must be a safe
   name, and the folder must be creatable and writable.  A run that cannot write its
-  results must not spend minutes solving first.
+  results must not solve first, and the check creates nothing.
 * :func:`publish` writes a run's files into a staging folder beside the target and
   then puts the whole set in place in one step, so a reader sees the old set or the
   new one, never a mix (see its docstring for what a reader can observe).
