@@ -36,7 +36,9 @@ from esail_opt.optimisation import multistart
 from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
                                           solve_transcription)
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
-from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
+from esail_opt.optimisation.problem import Problem
+from esail_opt.optimisation.transcription import (Transcription, initial_guess,
+                                                  sub_arcs_within_cap)
 from esail_opt.optimisation.verify import verify
 
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
@@ -76,9 +78,9 @@ def _objective_at(problem, tof_days):
 class Cell:
     """One solved cell: its problem, the closed-form optimum and its judged flight."""
 
-    problem: object
+    problem: Problem
     result: Optional[NLPResult]
-    transcription: object
+    transcription: Optional[Transcription]
     verified: bool
     note: str
     misses: dict
