@@ -194,8 +194,8 @@ def _figures():
 
 class _FigureNames:
     """The reproduce command's choices, read from ``reproduce.FIGURES`` only when argparse
-    asks: importing that module (scipy, matplotlib, the paper's cases) took 1.7 s, which
-    every other command paid for at start-up."""
+    asks: that module imports scipy, matplotlib and the paper's cases, which no other
+    command needs at start-up."""
 
     def __contains__(self, name):
         return name in _figures()

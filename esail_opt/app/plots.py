@@ -45,8 +45,8 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
     it once its last reference goes.  Without ``margins`` it has constrained
     layout; with them its grid is placed by those margins and the figure is made at
     :data:`DPI`.  Constrained layout measures every label in both directions and
-    then draws the figure a second time when it is saved, which doubled the cost of
-    the two figures that every solve writes: those are placed by margins chosen for
+    then draws the figure a second time when it is saved, a second drawing of the
+    two figures that every solve writes: those are placed by margins chosen for
     their fixed size and panels, with the left ones fitted by :func:`_fit_columns`.
 
     Parameters

@@ -198,8 +198,8 @@ def build_solver(tr, options=None, warm=False, progress=None):
     """An Ipopt solver for ``tr`` with its :class:`_Monitor` (``solver.monitor``).
 
     ``warm`` chooses :func:`warm_options`; ``progress(text)`` receives the iteration
-    lines.  Building takes seconds for the closed form, so the error control builds once
-    and re-solves.
+    lines.  Building is the costly part of a warm re-solve of the closed form, so the
+    error control builds once and re-solves.
     """
     opts = dict(ipopt_options() if options is None else options)
     if warm:
@@ -226,7 +226,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         :func:`warm_options`, instead of from ``tr.x0``.
     solver : (casadi.Function, _Monitor), optional
         :func:`build_solver`'s pair, already built for ``tr`` (the error control
-        re-solves one NLP several times; building it again costs seconds).
+        re-solves one NLP several times, and need not build it again).
     progress : callable, optional
         ``progress(text)`` gets a line on Ipopt's iterations every few seconds.
 

@@ -36,7 +36,9 @@ from esail_opt.optimisation import multistart
 from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
                                           solve_transcription)
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
-from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
+from esail_opt.optimisation.problem import Problem
+from esail_opt.optimisation.transcription import (Transcription, initial_guess,
+                                                  sub_arcs_within_cap)
 from esail_opt.optimisation.verify import verify
 
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
@@ -72,13 +74,13 @@ def _objective_at(problem, tof_days):
     return dataclasses.replace(problem.objective, tof_days=tof_days)
 
 
-@dataclass
+@dataclass(frozen=True)
 class Cell:
     """One solved cell: its problem, the closed-form optimum and its judged flight."""
 
-    problem: object
+    problem: Problem
     result: Optional[NLPResult]
-    transcription: object
+    transcription: Optional[Transcription]
     verified: bool
     note: str
     misses: dict
@@ -237,6 +239,16 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
     n = len(cells)
     if neighbours is None:
         neighbours = [[j for j in (i - 1, i + 1) if 0 <= j < n] for i in range(n)]
+    out, classes = _forward(solver, cells, say, explore)
+    _repair(solver, cells, out, classes, neighbours, say)
+    return out
+
+
+def _forward(solver, cells, say, explore):
+    """The forward pass: each cell solved warm from the one before it (and from its own
+    classes, :func:`_first_solves`), then settled (:func:`_settle`).  Returns the cells
+    and, per cell, the set of revolution classes its solves tried."""
+    n = len(cells)
     out = []
     classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
@@ -255,12 +267,20 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
         out.append(_settle(solver, tried))
         classes.append({c.result.revolutions_k for c in tried if c.result is not None})
         say(_line(i, n, out[-1]))
-    # Repair, back along the path and forward again: a cell is solved again from a
-    # neighbour that holds a class it has not tried, or, where the cell is worse than
-    # every neighbour with the same objective (a spike: the same time of flight, for a
-    # fixed-time scan), from each of them that did better.  Smooth slopes are left
-    # alone: a neighbour's start there only finds the optimum the cell already has.
-    # A start already taken for a cell gives the same solve again: each is taken once.
+    return out, classes
+
+
+def _repair(solver, cells, out, classes, neighbours, say):
+    """The repair pass, back along the path and forward again, replacing cells of
+    ``out`` in place (and adding to ``classes`` the classes tried).
+
+    A cell is solved again from a neighbour that holds a class it has not tried, or,
+    where the cell is worse than every neighbour with the same objective (a spike: the
+    same time of flight, for a fixed-time scan), from each of them that did better.
+    Smooth slopes are left alone: a neighbour's start there only finds the optimum the
+    cell already has.  A start already taken for a cell gives the same solve again:
+    each is taken once."""
+    n = len(cells)
     taken = {}  # (cell, neighbour) -> the neighbour's start last taken for the cell
     for order in (range(n - 1, -1, -1), range(n)):
         for i in order:
@@ -274,14 +294,23 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
                     continue
                 classes[i].add(k)
                 taken[(i, j)] = other.on_scan_nlp
-                again = solver.warm(cells[i], other, f"from {j}")
-                # Only a better closed-form optimum is worth its error control.
-                if again is not None and again.solved and (again.objective < out[i].objective or not out[i].verified):
-                    again = solver.finish(again)
-                    if _rank(again) < _rank(out[i]):
-                        out[i] = again
-                        say(_line(i, n, again) + f" (again, from cell {j + 1})")
-    return out
+                again = _again(solver, cells[i], other, j, out[i])
+                if again is not None:
+                    out[i] = again
+                    say(_line(i, n, again) + f" (again, from cell {j + 1})")
+
+
+def _again(solver, problem, other, j, cell):
+    """``problem`` solved again warm from the neighbour ``other`` (cell ``j``), finished,
+    if that ranks better than ``cell``; else None.  Only a better closed-form optimum
+    (or any, for a cell that did not verify) is worth its error control."""
+    again = solver.warm(problem, other, f"from {j}")
+    if again is None or not again.solved:
+        return None
+    if not (again.objective < cell.objective or not cell.verified):
+        return None
+    again = solver.finish(again)
+    return again if _rank(again) < _rank(cell) else None
 
 
 def _settle(solver, tried):
