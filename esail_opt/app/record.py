@@ -1,0 +1,205 @@
+"""Frozen records that are written to JSON from their fields and read back by the same
+field list.
+
+A record is a frozen dataclass deriving from :class:`Record`.  Each field is one key of
+its JSON object, named as the field unless :func:`key` says otherwise:
+
+* ``name``: the key; a dotted name puts it inside a nested object
+  (``"refinement.rounds"``);
+* ``omit``: a predicate ``omit(record, value)``; the key is left out of the object when it
+  holds (:func:`if_none` for a key that is absent rather than null);
+* ``flat``: a dict field whose items sit in the record's own object, beside its other
+  keys: either the tuple of keys it may hold, or :data:`REST` for every key that no other
+  field names.
+
+Values convert by their type: a record by its fields, an ``Enum`` by its value, any
+other dataclass by its fields, lists and tuples item by item; a class with its own
+``to_json`` and ``from_json`` converts itself.  Reading follows the fields' annotations:
+a field without a default must be present, one with a default may be absent (it then
+takes its default).
+
+A record holds plain JSON values only: :meth:`Record.__post_init__` turns numpy numbers
+into Python ones and NaN or infinity into None, so a record built in memory and the same
+record read back from its file are equal, to the last digit.
+"""
+
+import dataclasses
+import enum
+import functools
+import math
+import typing
+
+import numpy as np
+
+#: The ``flat`` of a field that takes every key no other field of its record names.
+REST = "*"
+_ABSENT = object()
+
+
+def key(name=None, *, omit=None, flat=None, default=dataclasses.MISSING):
+    """A record's field with its place in the JSON object (see the module's docstring).
+
+    ``default`` may be a dict or list: each record then gets a copy of its own.
+    """
+    meta = {k: v for k, v in (("key", name), ("omit", omit), ("flat", flat)) if v is not None}
+    if isinstance(default, (dict, list)):
+        return dataclasses.field(default_factory=functools.partial(type(default), default),
+                                 metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def if_none(record, value):
+    """``omit`` of a key that is absent, rather than null, when its field is None."""
+    return value is None
+
+
+@functools.lru_cache(maxsize=None)
+def _hints(cls):
+    return typing.get_type_hints(cls)
+
+
+def _unwrap(hint):
+    """``X`` of ``Optional[X]``; any other hint as it is."""
+    if typing.get_origin(hint) is typing.Union:
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        return args[0] if len(args) == 1 else hint
+    return hint
+
+
+def plain(value):
+    """``value`` as plain JSON values: numpy numbers as Python ones, NaN and infinity as
+    None, arrays and tuples inside lists and dicts as lists.  Records, enums and the
+    containers of a record's own fields are kept as they are (see :func:`_field_value`)."""
+    if isinstance(value, (Record, enum.Enum, str, bool, type(None))):
+        return value
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if isinstance(value, (np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: plain(v) for k, v in value.items()}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return type(value)(**{f.name: plain(getattr(value, f.name))
+                              for f in dataclasses.fields(value)})
+    return value
+
+
+def _field_value(hint, value):
+    """A field's value made plain, in the container its annotation names."""
+    if isinstance(value, (list, tuple)) and typing.get_origin(_unwrap(hint)) is tuple:
+        return tuple(plain(v) for v in value)
+    return plain(value)
+
+
+class Record:
+    """Base of the records: plain values on construction, JSON by the fields."""
+
+    def __post_init__(self):
+        hints = _hints(type(self))
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _field_value(hints[f.name], getattr(self, f.name)))
+
+    def to_json(self):
+        """The record's JSON object: a new dict of plain JSON values each call."""
+        return write(self)
+
+    @classmethod
+    def from_json(cls, data):
+        """The record that :meth:`to_json` wrote as ``data`` (None for None)."""
+        return None if data is None else read(cls, data)
+
+
+def encode(value):
+    """A field's value as JSON."""
+    if isinstance(value, enum.Enum):
+        return value.value
+    if hasattr(value, "to_json"):
+        return value.to_json()
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return write(value)
+    if isinstance(value, (list, tuple)):
+        return [encode(v) for v in value]
+    if isinstance(value, dict):
+        return {k: encode(v) for k, v in value.items()}
+    return value
+
+
+def decode(hint, value):
+    """JSON ``value`` as a field annotated ``hint``."""
+    hint = _unwrap(hint)
+    if value is None:
+        return None
+    origin = typing.get_origin(hint)
+    if origin in (list, tuple):
+        item = typing.get_args(hint)[0]
+        return origin(decode(item, v) for v in value)
+    if isinstance(hint, type):
+        if issubclass(hint, enum.Enum):
+            return hint(value)
+        if hasattr(hint, "from_json"):
+            return hint.from_json(value)
+        if dataclasses.is_dataclass(hint):
+            return read(hint, value)
+    return value
+
+
+def _name(f):
+    return f.metadata.get("key", f.name)
+
+
+def write(record):
+    """The JSON object of a dataclass ``record``, its keys in the order of its fields."""
+    out = {}
+    for f in dataclasses.fields(record):
+        value = getattr(record, f.name)
+        omit = f.metadata.get("omit")
+        if omit is not None and omit(record, value):
+            continue
+        if "flat" in f.metadata:
+            out.update(encode(value or {}))
+            continue
+        *parents, last = _name(f).split(".")
+        where = out
+        for parent in parents:
+            where = where.setdefault(parent, {})
+        where[last] = encode(value)
+    return out
+
+
+def _lookup(data, name, required):
+    """The value at a dotted ``name`` in ``data``; ``_ABSENT`` when it is not there and
+    not ``required`` (a missing required key raises KeyError naming it)."""
+    for part in name.split("."):
+        if not required and part not in data:
+            return _ABSENT
+        data = data[part]
+    return data
+
+
+def read(cls, data):
+    """The dataclass ``cls`` from the JSON object ``data`` that :func:`write` made.
+
+    Raises KeyError naming a missing key; TypeError or ValueError for a value of the
+    wrong kind.
+    """
+    fields = dataclasses.fields(cls)
+    named = {_name(f).split(".")[0] for f in fields if "flat" not in f.metadata}
+    hints, values = _hints(cls), {}
+    for f in fields:
+        flat = f.metadata.get("flat")
+        if flat == REST:
+            values[f.name] = {k: v for k, v in data.items() if k not in named}
+        elif flat is not None:
+            values[f.name] = {k: data[k] for k in flat if k in data} or None
+        else:
+            required = (f.default is dataclasses.MISSING
+                        and f.default_factory is dataclasses.MISSING)
+            value = _lookup(data, _name(f), required)
+            if value is not _ABSENT:
+                values[f.name] = decode(hints[f.name], value)
+    return cls(**values)
