@@ -474,6 +474,12 @@ class Solution(Record):
 
         return solution_files.write(self, out_dir, plots)
 
+    def schedule_csv(self, polished=False):
+        """:func:`esail_opt.app.solution_files.schedule_csv` of this solution."""
+        from esail_opt.app import solution_files
+
+        return solution_files.schedule_csv(self, polished)
+
     def plot(self, out_dir=None):
         """:func:`esail_opt.app.solution_files.plot` of this solution."""
         from esail_opt.app import solution_files
