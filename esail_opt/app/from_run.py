@@ -133,7 +133,7 @@ def _part(obj):
     fields = {k: getattr(obj, k) for k in obj.__dataclass_fields__}
     if "body" in fields:
         fields["body"] = lookup.describe(fields["body"])
-    return Part(type(obj).__name__, fields)
+    return Part(kind=type(obj).__name__, fields=fields)
 
 
 def _settings(problem, result, sub_arcs_requested):

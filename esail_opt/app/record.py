@@ -26,10 +26,11 @@ record read back from its file are equal, to the last digit.
 import dataclasses
 import enum
 import functools
-import math
 import typing
 
 import numpy as np
+
+from esail_opt.app.files import json_ready
 
 #: The ``flat`` of a field that takes every key no other field of its record names.
 REST = "*"
@@ -37,14 +38,8 @@ _ABSENT = object()
 
 
 def key(name=None, *, omit=None, flat=None, default=dataclasses.MISSING):
-    """A record's field with its place in the JSON object (see the module's docstring).
-
-    ``default`` may be a dict or list: each record then gets a copy of its own.
-    """
+    """A record's field with its place in the JSON object (see the module's docstring)."""
     meta = {k: v for k, v in (("key", name), ("omit", omit), ("flat", flat)) if v is not None}
-    if isinstance(default, (dict, list)):
-        return dataclasses.field(default_factory=functools.partial(type(default), default),
-                                 metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
 
 
@@ -67,26 +62,18 @@ def _unwrap(hint):
 
 
 def plain(value):
-    """``value`` as plain JSON values: numpy numbers as Python ones, NaN and infinity as
-    None, arrays and tuples inside lists and dicts as lists.  Records, enums and the
-    containers of a record's own fields are kept as they are (see :func:`_field_value`)."""
-    if isinstance(value, (Record, enum.Enum, str, bool, type(None))):
-        return value
-    if isinstance(value, (float, np.floating)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if isinstance(value, (np.integer, np.bool_)):
-        return value.item()
+    """``value`` as plain JSON values (:func:`~esail_opt.app.files.json_ready`, arrays
+    and tuples as lists); records and enums are kept, other dataclasses made plain."""
     if isinstance(value, np.ndarray):
-        return plain(value.tolist())
+        value = value.tolist()
     if isinstance(value, (list, tuple)):
         return [plain(v) for v in value]
     if isinstance(value, dict):
         return {k: plain(v) for k, v in value.items()}
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+    if dataclasses.is_dataclass(value) and not isinstance(value, (type, Record)):
         return type(value)(**{f.name: plain(getattr(value, f.name))
                               for f in dataclasses.fields(value)})
-    return value
+    return json_ready(value)
 
 
 def _field_value(hint, value):
@@ -197,9 +184,7 @@ def read(cls, data):
         elif flat is not None:
             values[f.name] = {k: data[k] for k in flat if k in data} or None
         else:
-            required = (f.default is dataclasses.MISSING
-                        and f.default_factory is dataclasses.MISSING)
-            value = _lookup(data, _name(f), required)
+            value = _lookup(data, _name(f), f.default is dataclasses.MISSING)
             if value is not _ABSENT:
                 values[f.name] = decode(hints[f.name], value)
     return cls(**values)

@@ -23,18 +23,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple
 
-from esail_opt.app import schema
-from esail_opt.app.record import REST, Record, if_none, key, plain, read
+from esail_opt.app import report, schema, solution_files
+from esail_opt.app.record import REST, Record, if_none, key, read
 from esail_opt.errors import InputError
 from esail_opt.optimisation import pipeline
 from esail_opt.optimisation.pipeline import Outcome, Round, StartTried
 
 #: What a 3-D flight's samples add besides the Cartesian state: the osculating plane, deg.
 PLANE_FIELDS = ("inclination_deg", "node_deg")
-
-
-def _bad_file(source, what):
-    return InputError(f"{source}: solution.json {what}; solve the problem again to rewrite it")
 
 
 @dataclass(frozen=True)
@@ -156,7 +152,7 @@ class Flight(Record):
     verifier_error_v_m_s: Optional[float]
     target_miss_r_km: Optional[float]
     target_miss_v_m_s: Optional[float]
-    extra: Dict[str, Optional[float]] = key(flat=REST, default={})
+    extra: Dict[str, Optional[float]] = key(flat=REST)
     nlp_target_miss_r_km: Optional[float] = key(omit=_flight_failed, default=None)
     error: Optional[str] = None
     cvodes_final_state: Optional[State] = key(omit=_flight_failed, default=None)
@@ -167,47 +163,20 @@ class Flight(Record):
         return self.extra.get(name)
 
 
-class Part:
+@dataclass(frozen=True)
+class Part(Record):
     """A problem part (departure or target) as solved: its kind and its fields, which
     depend on the kind (``part.a_au`` of a ParkingOrbit, ``part.body`` of a
     BodyDeparture; a body is given as its description)."""
 
-    __slots__ = ("kind", "fields")
-
-    def __init__(self, kind, fields):
-        object.__setattr__(self, "kind", kind)
-        object.__setattr__(self, "fields", plain(dict(fields)))
-
-    def __setattr__(self, name, value):
-        raise dataclasses.FrozenInstanceError(f"cannot assign to field {name!r}")
+    kind: str
+    fields: Dict[str, object] = key(flat=REST)
 
     def __getattr__(self, name):
         try:
-            return object.__getattribute__(self, "fields")[name]
-        except (KeyError, AttributeError):
+            return self.__dict__["fields"][name]
+        except KeyError:
             raise AttributeError(f"{type(self).__name__} has no field {name!r}") from None
-
-    def __eq__(self, other):
-        return (isinstance(other, Part) and self.kind == other.kind
-                and self.fields == other.fields)
-
-    def __repr__(self):
-        return f"Part({self.kind!r}, {self.fields!r})"
-
-    def __reduce__(self):
-        # Copies and pickles rebuild through __init__: __setattr__ refuses every field.
-        return (Part, (self.kind, self.fields))
-
-    def has(self, name):
-        """Whether this kind of part has field ``name``."""
-        return name in self.fields
-
-    @classmethod
-    def from_json(cls, d):
-        return None if d is None else cls(d["kind"], {k: v for k, v in d.items() if k != "kind"})
-
-    def to_json(self):
-        return {"kind": self.kind, **plain(self.fields)}
 
 
 @dataclass(frozen=True)
@@ -456,7 +425,8 @@ class Solution(Record):
         try:
             return read(cls, data)
         except (KeyError, TypeError, ValueError, AttributeError) as err:
-            raise _bad_file(source, f"has no valid field {err}") from None
+            raise InputError(f"{source}: solution.json has no valid field {err}; solve the "
+                             "problem again to rewrite it") from None
 
     @classmethod
     def load(cls, path):
@@ -468,32 +438,11 @@ class Solution(Record):
             raise InputError(f"{path}: cannot read solution.json ({err})") from None
         return cls.from_json(data, path)
 
-    def write(self, out_dir, plots=True):
-        """:func:`esail_opt.app.solution_files.write` of this solution."""
-        from esail_opt.app import solution_files
-
-        return solution_files.write(self, out_dir, plots)
-
-    def schedule_csv(self, polished=False):
-        """:func:`esail_opt.app.solution_files.schedule_csv` of this solution."""
-        from esail_opt.app import solution_files
-
-        return solution_files.schedule_csv(self, polished)
-
-    def plot(self, out_dir=None):
-        """:func:`esail_opt.app.solution_files.plot` of this solution."""
-        from esail_opt.app import solution_files
-
-        return solution_files.plot(self, out_dir)
-
-    def summary(self):
-        """The lines printed after a solve (:func:`esail_opt.app.report.summary`)."""
-        from esail_opt.app import report
-
-        return report.summary(self)
-
-    def __str__(self):
-        return self.summary()
+    # The folder and the terminal summary are jobs of their own modules.
+    write = solution_files.write
+    schedule_csv = solution_files.schedule_csv
+    plot = solution_files.plot
+    summary = __str__ = report.summary
 
 
 def solve(problem, segments=None, progress=None, samples=16, polish=False):
