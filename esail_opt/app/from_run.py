@@ -117,15 +117,15 @@ def _tof_days(result):
 def _flight(check):
     """The :class:`Flight` of a verification (closed form and polish alike)."""
     named = {f.name for f in dataclasses.fields(Flight)}
+    flown = {}
+    if check.error is None:
+        cart = getattr(check, "cartesian", None)
+        flown = {"cvodes_final_state": state(check.cvodes[:4, -1],
+                                             None if cart is None else cart[:, -1]),
+                 "cvodes_tof_days": units.time_to_days(float(check.cvodes[4, -1]))}
     misses = check.misses
-    out = Flight(**{k: v for k, v in misses.items() if k in named},
-                 extra={k: v for k, v in misses.items() if k not in named}, error=check.error)
-    if check.error is not None:
-        return dataclasses.replace(out, nlp_target_miss_r_km=None)
-    cart = getattr(check, "cartesian", None)
-    return dataclasses.replace(
-        out, cvodes_final_state=state(check.cvodes[:4, -1], None if cart is None else cart[:, -1]),
-        cvodes_tof_days=units.time_to_days(float(check.cvodes[4, -1])))
+    return Flight(**{k: v for k, v in misses.items() if k in named}, **flown,
+                  extra={k: v for k, v in misses.items() if k not in named}, error=check.error)
 
 
 def _part(obj):
