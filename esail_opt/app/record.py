@@ -26,15 +26,16 @@ record read back from its file are equal, to the last digit.
 import dataclasses
 import enum
 import functools
+import math
 import typing
 
 import numpy as np
 
-from esail_opt.app.files import json_ready
-
 #: The ``flat`` of a field that takes every key no other field of its record names.
 REST = "*"
 _ABSENT = object()
+#: The JSON values a record keeps as they are (floats are checked to be finite).
+_SCALARS = (str, int, bool, type(None))
 
 
 def key(name=None, *, omit=None, flat=None, default=dataclasses.MISSING):
@@ -62,18 +63,24 @@ def _unwrap(hint):
 
 
 def plain(value):
-    """``value`` as plain JSON values (:func:`~esail_opt.app.files.json_ready`, arrays
-    and tuples as lists); records and enums are kept, other dataclasses made plain."""
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (list, tuple)):
+    """``value`` as plain JSON values: numpy numbers as Python ones, NaN and infinity as
+    None, arrays and tuples as lists; records and enums are kept as they are, other
+    dataclasses made plain field by field."""
+    kind = type(value)
+    if kind is float:
+        return value if math.isfinite(value) else None
+    if kind in _SCALARS or isinstance(value, (Record, enum.Enum)):
+        return value
+    if kind is list or kind is tuple:
         return [plain(v) for v in value]
-    if isinstance(value, dict):
+    if kind is dict:
         return {k: plain(v) for k, v in value.items()}
-    if dataclasses.is_dataclass(value) and not isinstance(value, (type, Record)):
+    if isinstance(value, (np.ndarray, np.generic)):
+        return plain(value.tolist())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return type(value)(**{f.name: plain(getattr(value, f.name))
                               for f in dataclasses.fields(value)})
-    return json_ready(value)
+    return value
 
 
 def _field_value(hint, value):
@@ -103,36 +110,48 @@ class Record:
 
 def encode(value):
     """A field's value as JSON."""
+    kind = type(value)
+    if kind is float or kind in _SCALARS:
+        return value
+    if kind is list or kind is tuple:
+        return [encode(v) for v in value]
+    if kind is dict:
+        return {k: encode(v) for k, v in value.items()}
     if isinstance(value, enum.Enum):
         return value.value
     if hasattr(value, "to_json"):
         return value.to_json()
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return write(value)
-    if isinstance(value, (list, tuple)):
-        return [encode(v) for v in value]
-    if isinstance(value, dict):
-        return {k: encode(v) for k, v in value.items()}
     return value
+
+
+@functools.lru_cache(maxsize=None)
+def _as_is(hint):
+    """Whether JSON is a field annotated ``hint`` as it is: no record, enum or other
+    dataclass is in it (the record's construction makes its containers)."""
+    hint = _unwrap(hint)
+    if typing.get_origin(hint) in (list, tuple):
+        return _as_is(typing.get_args(hint)[0])
+    return not (isinstance(hint, type) and (issubclass(hint, enum.Enum)
+                                            or hasattr(hint, "from_json")
+                                            or dataclasses.is_dataclass(hint)))
 
 
 def decode(hint, value):
     """JSON ``value`` as a field annotated ``hint``."""
+    if value is None or _as_is(hint):
+        return value
     hint = _unwrap(hint)
-    if value is None:
-        return None
     origin = typing.get_origin(hint)
     if origin in (list, tuple):
         item = typing.get_args(hint)[0]
         return origin(decode(item, v) for v in value)
-    if isinstance(hint, type):
-        if issubclass(hint, enum.Enum):
-            return hint(value)
-        if hasattr(hint, "from_json"):
-            return hint.from_json(value)
-        if dataclasses.is_dataclass(hint):
-            return read(hint, value)
-    return value
+    if issubclass(hint, enum.Enum):
+        return hint(value)
+    if hasattr(hint, "from_json"):
+        return hint.from_json(value)
+    return read(hint, value)
 
 
 def _name(f):
