@@ -225,6 +225,7 @@ def _polish_fields(run):
 
 
 def _class_looked(problem, c):
+    """A ClassTried of the run in the file's units (``Solution.classes``)."""
     acc = problem.objective.free_acceleration and c.ac_scale is not None
     return ClassLooked(
         revolutions_k=c.revolutions_k, label=c.label, status=c.status,
@@ -235,6 +236,7 @@ def _class_looked(problem, c):
 
 
 def _nearest_feasible(near):
+    """The shortest feasible flight the walk found, dated as any flight is."""
     if near is None:
         return None
     flown = near.run

@@ -1,26 +1,17 @@
-"""Frozen records that are written to JSON from their fields and read back by the same
-field list.
+"""Frozen records written to JSON from their fields and read back by the same fields.
 
-A record is a frozen dataclass deriving from :class:`Record`.  Each field is one key of
-its JSON object, named as the field unless :func:`key` says otherwise:
+A record is a frozen dataclass deriving from :class:`Record`; each field is one key of
+its JSON object, named as the field unless :func:`key` gives it a ``name`` (a dotted
+name sits in a nested object: ``"refinement.rounds"``).  A key is left out when the
+field's ``omit(record, value)`` holds (:func:`if_none`: absent rather than null).  A
+``flat`` dict field puts its items in the record's own object: the keys it lists, or
+with :data:`REST` every key no other field names.
 
-* ``name``: the key; a dotted name puts it inside a nested object
-  (``"refinement.rounds"``);
-* ``omit``: a predicate ``omit(record, value)``; the key is left out of the object when it
-  holds (:func:`if_none` for a key that is absent rather than null);
-* ``flat``: a dict field whose items sit in the record's own object, beside its other
-  keys: either the tuple of keys it may hold, or :data:`REST` for every key that no other
-  field names.
-
-Values convert by their type: a record by its fields, an ``Enum`` by its value, any
-other dataclass by its fields, lists and tuples item by item; a class with its own
-``to_json`` and ``from_json`` converts itself.  Reading follows the fields' annotations:
-a field without a default must be present, one with a default may be absent (it then
-takes its default).
-
-A record holds plain JSON values only: :meth:`Record.__post_init__` turns numpy numbers
-into Python ones and NaN or infinity into None, so a record built in memory and the same
-record read back from its file are equal, to the last digit.
+Values convert by their annotation: records and other dataclasses by their fields, an
+``Enum`` by its value, lists and tuples item by item.  A field without a default must
+be in the file; one with a default may be absent.  A record holds plain JSON values
+only (:meth:`Record.__post_init__`: numpy numbers as Python ones, NaN and infinity as
+None), so one built in memory equals the same one read back from its file.
 """
 
 import dataclasses

@@ -91,16 +91,9 @@ def _write_oem(sol, path):
     return True
 
 
-def plot(sol, out_dir=None):
-    """Draw the trajectory and timeline figures and return them; given ``out_dir``, write
-    them there as trajectory.png and timeline.png instead and return their paths (raises
-    :class:`~esail_opt.errors.FigureError` if one cannot be drawn, after writing the
-    other)."""
+def plot(sol):
+    """The trajectory and timeline figures of ``sol``, drawn and returned unsaved
+    (:func:`write` saves them)."""
     from esail_opt.app import plots as plotting
 
-    if out_dir is None:
-        return plotting.trajectory_figure(sol), plotting.timeline_figure(sol)
-    written, failures = plotting.write_plots(sol, out_dir)
-    if failures:
-        raise FigureError(failures, written)
-    return written
+    return plotting.trajectory_figure(sol), plotting.timeline_figure(sol)
