@@ -120,3 +120,21 @@ def test_every_shipped_solution_file_reads_back_to_the_same_content(path):
     data = json.loads(path.read_text())
     again = Solution.load(path).to_json()
     assert again == data and list(again) == list(data)
+
+
+def test_a_polished_solution_built_from_its_run_equals_the_one_read_back(tmp_path):
+    """Built from the Run directly, a polished solution holds the values its file gives
+    back, the polish's schedule and flight included; a version-3 file's polish, which
+    has no start of its own, still reads and writes without one."""
+    sol = eo.solve(eo.Problem("tiny", eo.ParkingOrbit(1.0), eo.Sail(1.0), eo.Segments(6, 2),
+                              eo.MinTime(), eo.CircularOrbit(0.723)), polish=True)
+    written = sol.write(tmp_path, plots=False)[0]
+    assert sol.polished and Solution.load(written) == sol
+    rows = (tmp_path / "schedule_polished.csv").read_text().splitlines()
+    assert len(rows) == len(sol.polish.schedule) + 1
+    old = json.loads(written.read_text())
+    old["schema_version"] = 3
+    del old["polish"]["departure_state"]
+    v3 = Solution.from_json(old)
+    assert v3.polish.departure_state is None and v3.polish.schedule == sol.polish.schedule
+    assert "departure_state" not in v3.to_json()["polish"]

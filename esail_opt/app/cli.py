@@ -285,7 +285,7 @@ def _add_solve(sub):
 def _run_solve(args):
     from pathlib import Path
 
-    from esail_opt.app import solution
+    from esail_opt.app import report, solution
     from esail_opt.app.files import check_output_dir
 
     problem = _load(args)
@@ -307,7 +307,7 @@ def _run_solve(args):
     if not sol.verified:
         reason = sol.verification_note if not sol.flight_verified else sol.polish.note
         if sol.nearest_feasible is not None:
-            reason += "; " + solution.nearest_feasible_line(sol.nearest_feasible)
+            reason += "; " + report.nearest_feasible_line(sol.nearest_feasible)
         print(f"esail-opt solve: {reason}", file=sys.stderr)
         return 1
     return 0 if figures is None else EXIT_FIGURE

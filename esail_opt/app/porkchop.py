@@ -214,11 +214,11 @@ def _row(index, grid, cell=None, error=None):
 
 def _flight(cell):
     """A solved cell's :data:`FLIGHT_FIELDS`, in solution.json's units and keys."""
-    from esail_opt.app.solution import _departure_state, _schedule
+    from esail_opt.app.from_run import departure_state, schedule
 
     problem, result = cell.problem, cell.result
-    out = {"departure_state": _departure_state(problem, result),
-           "schedule": _schedule(result, problem.throttled())}
+    out = {"departure_state": departure_state(problem, result).to_json(),
+           "schedule": schedule(result, problem.throttled()).to_json()}
     if problem.objective.free_acceleration:
         out["ac_mm_s2_required"] = _ac_mm_s2(problem, result)
     return out
