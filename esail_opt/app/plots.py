@@ -257,11 +257,11 @@ def _draw_bodies(ax, sol):
 
     start, jd, pairs = _flight_bodies(sol)
     for label, body, colour in pairs:
-        r, th = lookup.polar_states(lookup.resolve(body), jd)[:2]
-        ax.plot(r * np.cos(th), r * np.sin(th), color=colour, lw=0.8, ls="--",
-                label=f"{label} over the flight")
-        ax.plot(r[[0, -1]] * np.cos(th[[0, -1]]), r[[0, -1]] * np.sin(th[[0, -1]]), "o",
-                color=colour, ms=4)
+        # The projection on the ecliptic is the ecliptic x and y, read for all the dates
+        # in one call (the polar states put theta on the track's branch, one by one).
+        x, y = lookup.ecliptic_state(lookup.resolve(body), jd)[:2]
+        ax.plot(x, y, color=colour, lw=0.8, ls="--", label=f"{label} over the flight")
+        ax.plot(x[[0, -1]], y[[0, -1]], "o", color=colour, ms=4)
 
 
 def _draw_orbits(ax, sol):
