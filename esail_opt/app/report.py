@@ -2,6 +2,8 @@
 ``esail-opt solve`` prints after a solve, read from the record alone (a solution loaded
 from its file prints the same lines)."""
 
+from esail_opt.optimisation.ipopt import STOPPED
+
 
 def summary(sol):
     """The summary of ``sol``, one string of lines: the solve, the flight and its
@@ -43,6 +45,9 @@ def _flight_lines(v):
 
 def _class_line(c):
     """One turn count looked at: what it gave, and whether it was flown and chosen."""
+    if c.tof_days is None and c.status == STOPPED:
+        return (f"k = {c.revolutions_k} hopeless, stopped after {c.iterations} iterations "
+                f"(still infeasible by {c.constraint_violation:.2g})")
     if c.tof_days is None:
         return f"k = {c.revolutions_k} no point ({c.status} after {c.iterations} iterations)"
     value = (f"{c.ac_mm_s2_required:.4g} mm/s^2" if c.ac_mm_s2_required is not None
