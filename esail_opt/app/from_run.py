@@ -22,6 +22,7 @@ from esail_opt.optimisation.pipeline import Outcome
 from esail_opt.optimisation.transcription import node_cartesian
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar
+from esail_opt.physics.thrust import canonical_attitude
 
 
 @functools.lru_cache(maxsize=None)
@@ -74,23 +75,39 @@ def _angle_deg(radians):
     return (math.degrees(radians) + 180) % 360 - 180
 
 
-def schedule(result, throttled=False, local_errors=None):
-    """The :class:`Schedule` of an NLP result (boundary units); with ``throttled`` each
-    row carries its throttle kappa, with ``local_errors`` (km, one per segment) its
-    closed form's local error."""
+def _attitudes_deg(problem, result):
+    """Each segment's (pitch, clock) in deg, the clock None in the plane.
+
+    The clock is reported in [-180, 180); where the problem leaves the clock free and
+    bounds the pitch symmetrically, each attitude goes by its canonical name
+    (:func:`~esail_opt.physics.thrust.canonical_attitude`), which both bounds admit."""
+    if result.delta is None:
+        return [(math.degrees(a), None) for a in result.alpha]
+    lo, hi = problem.alpha_bounds()
+    canonical = problem.clock_bounds() == (-np.inf, np.inf) and lo == -hi
+    pairs = zip(result.alpha, result.delta)
+    if canonical:
+        pairs = (canonical_attitude(a, d) for a, d in pairs)
+    return [(math.degrees(a), _angle_deg(d)) for a, d in pairs]
+
+
+def schedule(problem, result, local_errors=None):
+    """The :class:`Schedule` of an NLP result (boundary units) for ``problem``; where the
+    problem has throttles each row carries its kappa, with ``local_errors`` (km, one per
+    segment) its closed form's local error."""
     n = result.alpha.size
+    throttled = problem.throttled()
     starts_t = np.r_[0.0, np.cumsum(result.durations)[:-1]]
     starts_th = np.r_[result.x_start[1], result.nodes[1, :-1]]
-    clock = [None] * n if result.delta is None else [_angle_deg(d) for d in result.delta]
     kappa = result.throttle if throttled else [None] * n
     errors = [None] * n if local_errors is None else local_errors
     rows = tuple(
         Segment(t_days=units.time_to_days(t), theta_deg=math.degrees(th),
-                alpha_deg=math.degrees(al), duration_days=units.time_to_days(dt),
+                alpha_deg=al, duration_days=units.time_to_days(dt),
                 dtheta_deg=math.degrees(ln), clock_deg=c, throttle=k, local_error_km=err)
-        for t, th, al, dt, ln, c, k, err in zip(starts_t, starts_th, result.alpha,
-                                                 result.durations, result.lengths, clock,
-                                                 kappa, errors))
+        for t, th, (al, c), dt, ln, k, err in zip(
+            starts_t, starts_th, _attitudes_deg(problem, result), result.durations,
+            result.lengths, kappa, errors))
     return Schedule(rows=rows, throttled=bool(throttled),
                     local_errors=local_errors is not None)
 
@@ -202,7 +219,7 @@ def _polish(problem, polished):
         within_bounds_vs_nlp=polished.within_nlp,
         within_bounds_vs_target=polished.within_target,
         verified=polished.verified, note=polished.note,
-        schedule=schedule(exact, problem.throttled()),
+        schedule=schedule(problem, exact),
         final_state=state(exact.nodes[:4, -1]), verification=_flight(polished.check),
         # A polish may move the departure (a free date, anomaly or excess-velocity
         # angle) and the a_c: the polished schedule is flown from its own start.
@@ -264,7 +281,7 @@ def _closed_form_fields(run):
         stages=tuple(Stage(status=s, iterations=i) for s, i in result.stages),
         solve_seconds=result.solve_seconds, constraint_violation=result.constraint_violation,
         min_q3=float(np.min(result.q3)),
-        schedule=schedule(result, problem.throttled(),
+        schedule=schedule(problem, result,
                           None if controlled is None else controlled.local_error_km),
         final_state=_final_state(result), verification=_flight(check),
         rounds=() if controlled is None else tuple(controlled.history),

@@ -218,7 +218,7 @@ def _flight(cell):
 
     problem, result = cell.problem, cell.result
     out = {"departure_state": departure_state(problem, result).to_json(),
-           "schedule": schedule(result, problem.throttled()).to_json()}
+           "schedule": schedule(problem, result).to_json()}
     if problem.objective.free_acceleration:
         out["ac_mm_s2_required"] = _ac_mm_s2(problem, result)
     return out
