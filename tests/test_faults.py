@@ -548,7 +548,26 @@ def test_check_output_dir_refuses_what_cannot_be_a_set(tmp_path):
     with pytest.raises(OutputError, match="a file of that name is in the way"):
         files.check_output_dir(tmp_path / "f")
     assert files.check_output_dir(tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"
-    assert sorted(p.name for p in (tmp_path / "new").iterdir()) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]
+
+
+def test_the_output_check_creates_no_parent_folders(tmp_path):
+    """The check passes a folder whose parents do not exist yet, and creates none of
+    them (nor leaves its probe): they are made when the run's files are written."""
+    (tmp_path / "kept").mkdir()
+    for out in (tmp_path / "a" / "b" / "c", tmp_path / "kept" / "x" / "y"):
+        assert files.check_output_dir(out) == out
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["kept"]
+
+
+def test_a_refused_run_leaves_no_parent_folders_of_out(tmp_path, capsys):
+    """A run refused after the output check (here, a bad --tof) leaves the file
+    system as it found it: no parent folder of --out is created."""
+    out = tmp_path / "a" / "b" / "c"
+    assert cli.main(["porkchop", str(WINDOW), "--depart", "2030-01-01:2030-03-01:2",
+                     "--tof", "-100:850:2", "--out", str(out)]) == 2
+    assert "tof START" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists()
 
 
 # ---------------------------------------------------------------- 5. journal

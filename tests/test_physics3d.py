@@ -16,7 +16,7 @@ from esail_opt.physics.constants import accel_from_mm_s2, time_from_years
 from esail_opt.physics.dynamics import rhs_cartesian, rhs_turning
 from esail_opt.physics.elements import (cartesian_from_polar3d, inclination_and_node,
                                         polar3d_from_cartesian, polar_from_classical)
-from esail_opt.physics.thrust import (BEST_FIT, EXACT, radial_transverse,
+from esail_opt.physics.thrust import (BEST_FIT, EXACT, canonical_attitude, radial_transverse,
                                       radial_transverse_normal)
 from test_plane_turn import sail_acceleration
 
@@ -55,6 +55,29 @@ def test_thrust_in_the_plane_is_eqs_3_4(coefficients):
             assert R3 == R
             assert abs(math.hypot(T3, N3) - abs(T)) < 1e-16
             assert abs(N3 - b2 * math.sin(2 * alpha) * math.sin(delta)) < 1e-16
+
+
+
+@settings(max_examples=80, deadline=None)
+@given(alpha=angles, delta=st.floats(-4 * math.pi, 4 * math.pi))
+def test_canonical_attitude_is_the_same_sail(alpha, delta):
+    """The canonical name of an attitude has its clock in (-90, 90] deg and gives the
+    same acceleration, computed from the sail's normal (Huo's geometry), as the NLP's."""
+    a2, d2 = canonical_attitude(alpha, delta)
+    assert -math.pi / 2 < d2 <= math.pi / 2 + 1e-15
+    assert abs(a2) == abs(alpha)
+    pos, vel = np.array([0.8, 0.3, 0.1]), np.array([-0.2, 1.0, 0.05])
+    want = sail_acceleration(pos, vel, 1.0, alpha, delta)
+    got = sail_acceleration(pos, vel, 1.0, a2, d2)
+    assert np.abs(got - want).max() < 1e-14
+
+
+def test_canonical_attitude_keeps_a_planar_braking_pitch():
+    """A planar-like attitude keeps its name: delta = 0 with a negative pitch, and the
+    clock of 180 deg is renamed to delta = 0 with the pitch's sign changed."""
+    assert canonical_attitude(-0.3, 0.0) == (-0.3, 0.0)
+    a, d = canonical_attitude(0.3, math.pi)
+    assert a == -0.3 and abs(d) < 1e-15
 
 
 def _integrator(name, ode, state, params, tol):

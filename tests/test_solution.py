@@ -120,3 +120,57 @@ def test_every_shipped_solution_file_reads_back_to_the_same_content(path):
     data = json.loads(path.read_text())
     again = Solution.load(path).to_json()
     assert again == data and list(again) == list(data)
+
+
+def test_a_polished_solution_built_from_its_run_equals_the_one_read_back(tmp_path):
+    """Built from the Run directly, a polished solution holds the values its file gives
+    back, the polish's schedule and flight included; a version-3 file's polish, which
+    has no start of its own, still reads and writes without one."""
+    sol = eo.solve(eo.Problem("tiny", eo.ParkingOrbit(1.0), eo.Sail(1.0), eo.Segments(6, 2),
+                              eo.MinTime(), eo.CircularOrbit(0.723)), polish=True)
+    written = sol.write(tmp_path, plots=False)[0]
+    assert sol.polished and Solution.load(written) == sol
+    rows = (tmp_path / "schedule_polished.csv").read_text().splitlines()
+    assert len(rows) == len(sol.polish.schedule) + 1
+    old = json.loads(written.read_text())
+    old["schema_version"] = 3
+    del old["polish"]["departure_state"]
+    v3 = Solution.from_json(old)
+    assert v3.polish.departure_state is None and v3.polish.schedule == sol.polish.schedule
+    assert "departure_state" not in v3.to_json()["polish"]
+
+
+def _mars_3d(**sail):
+    return eo.Problem(name="m3", departure=eo.BodyDeparture(body="earth", date="2031-08-11"),
+                      sail=eo.Sail(ac_mm_s2=1.0, **sail), segments=eo.Segments(count=4),
+                      objective=eo.MinAcceleration(tof_days=650.0),
+                      target=eo.BodyRendezvous(body="mars"), planar=False)
+
+
+@pytest.mark.parametrize("sail, renamed", [({}, True),
+                                           ({"clock_min_deg": -170.0}, False),
+                                           ({"alpha_min_deg": -60.0}, False)])
+def test_schedule_names_each_attitude_canonically_where_both_names_are_allowed(sail, renamed):
+    """With the clock free and the pitch bounded symmetrically, a row's clock lies in
+    (-90, 90] deg and its (pitch, clock) gives the NLP's thrust; otherwise the rows keep
+    the NLP's own pitch (its clock only wrapped to [-180, 180))."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from esail_opt.app.from_run import _attitudes_deg
+    from esail_opt.physics.thrust import radial_transverse_normal
+
+    alpha = np.radians([30.0, -20.0, 45.0, 10.0])
+    delta = np.radians([170.0, -120.0, 400.0, 0.0])
+    rows = _attitudes_deg(_mars_3d(**sail), SimpleNamespace(alpha=alpha, delta=delta))
+    for (a_deg, c_deg), a, d in zip(rows, alpha, delta):
+        want = [float(v) for v in radial_transverse_normal(a, d)]
+        got = [float(v) for v in radial_transverse_normal(math.radians(a_deg),
+                                                          math.radians(c_deg))]
+        assert max(abs(g - w) for g, w in zip(got, want)) < 1e-14
+        assert -180 <= c_deg < 180
+        if renamed:
+            assert -90 < c_deg <= 90
+        else:
+            assert a_deg == pytest.approx(math.degrees(a), abs=1e-12)

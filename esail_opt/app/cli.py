@@ -194,8 +194,8 @@ def _figures():
 
 class _FigureNames:
     """The reproduce command's choices, read from ``reproduce.FIGURES`` only when argparse
-    asks: importing that module (scipy, matplotlib, the paper's cases) took 1.7 s, which
-    every other command paid for at start-up."""
+    asks: that module imports scipy, matplotlib and the paper's cases, which no other
+    command needs at start-up."""
 
     def __contains__(self, name):
         return name in _figures()
@@ -285,7 +285,7 @@ def _add_solve(sub):
 def _run_solve(args):
     from pathlib import Path
 
-    from esail_opt.app import solution
+    from esail_opt.app import report, solution
     from esail_opt.app.files import check_output_dir
 
     problem = _load(args)
@@ -307,7 +307,7 @@ def _run_solve(args):
     if not sol.verified:
         reason = sol.verification_note if not sol.flight_verified else sol.polish.note
         if sol.nearest_feasible is not None:
-            reason += "; " + solution.nearest_feasible_line(sol.nearest_feasible)
+            reason += "; " + report.nearest_feasible_line(sol.nearest_feasible)
         print(f"esail-opt solve: {reason}", file=sys.stderr)
         return 1
     return 0 if figures is None else EXIT_FIGURE
@@ -579,7 +579,9 @@ def _run_porkchop(args):
     print(f"{result['verified_cells']}/{result['cells']} cells verified in "
           f"{result['wall_seconds']:.1f} s ({result['executor']})")
     if result["not_verified"]:
-        print(f"esail-opt porkchop: {result['not_verified']} cell(s) not verified",
+        no_sail = result.get("no_sail_cells", 0)
+        of_which = f", {no_sail} of them past the edge of the feasible (no sail)" if no_sail else ""
+        print(f"esail-opt porkchop: {result['not_verified']} cell(s) not verified{of_which}",
               file=sys.stderr)
         return 1
     return 0

@@ -5,7 +5,7 @@ Three mechanisms, used by every command that writes a folder (``solve``, ``searc
 
 * :func:`check_output_dir` runs before any solve: the folder's name must be a safe
   name, and the folder must be creatable and writable.  A run that cannot write its
-  results must not spend minutes solving first.
+  results must not solve first, and the check creates nothing.
 * :func:`publish` writes a run's files into a staging folder beside the target and
   then puts the whole set in place in one step, so a reader sees the old set or the
   new one, never a mix (see its docstring for what a reader can observe).
@@ -72,6 +72,11 @@ def check_name(name, what="output folder name"):
 def check_output_dir(path, name=None):
     """Check, before any solve, that the run's output folder can be published.
 
+    The check creates nothing: a run refused later (by this check or any other) leaves
+    no folder behind, not even the parents of ``--out``, which :func:`publish` creates
+    when the run's files are written.  It removes only the staging folders a killed
+    run left beside the folder (as :func:`publish` would).
+
     Parameters
     ----------
     path : str or Path
@@ -83,7 +88,7 @@ def check_output_dir(path, name=None):
     Returns
     -------
     Path
-        ``path``; its parent folders now exist.
+        ``path``.
 
     Raises
     ------
@@ -98,7 +103,16 @@ def check_output_dir(path, name=None):
     """
     if name is not None:
         check_name(name, "problem name (the output folder's name)")
-    raw, path = path, Path(path)
+    path = _checked_out_path(path)
+    base, first = _nearest_folder(path)
+    _probe(path, base, first)
+    return path
+
+
+def _checked_out_path(raw):
+    """``raw`` as a Path, refused (InputError) if it is no safe folder name or is a
+    symbolic link, or (OutputError) if a file stands in its place."""
+    path = Path(raw)
     if "\0" in str(path):
         raise InputError(f"output folder {str(path)!r} holds a NUL character")
     for part in path.parts:
@@ -119,18 +133,33 @@ def check_output_dir(path, name=None):
     if path.exists() and not path.is_dir():
         raise OutputError(f"cannot write the output folder {str(path)!r}: a file of that "
                           "name is in the way (choose another --out)")
+    return path
+
+
+def _nearest_folder(path):
+    """The nearest existing folder above ``path`` and the name of its entry on the way
+    to ``path`` (``path``'s own name when its parent exists); OutputError if the
+    nearest existing entry above is not a folder."""
+    first = path.name
     for above in path.parents:
         if above.exists() or above.is_symlink():
             if not above.is_dir():
                 raise OutputError(f"cannot create the output folder {str(path)!r}: "
                                   f"{str(above)!r} is a file, not a folder (choose "
                                   "another --out)")
-            break
-    parent = path.parent
+            return above, first
+        first = above.name
+    return Path(path.anchor or "."), first  # pragma: no cover - "/" and "." exist
+
+
+def _probe(path, base, first):
+    """Write one block in a staging folder made in ``base`` for its entry ``first``,
+    then remove it: a folder that cannot be created or written there, or a full disk,
+    is an OutputError before the run, and nothing is left."""
     try:
-        parent.mkdir(parents=True, exist_ok=True)
-        _remove_stale(parent, path.name)
-        probe = _make_staging(parent, path.name)
+        if base == path.parent:
+            _remove_stale(base, first)
+        probe = _make_staging(base, first)
         try:
             with open(probe / "probe", "wb") as handle:
                 handle.write(b"\0" * 4096)  # one block: a full disk fails here
@@ -142,7 +171,6 @@ def check_output_dir(path, name=None):
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
     except OSError as err:
         raise _fail(path, err, "write the output folder") from None
-    return path
 
 
 def _make_staging(parent, name):

@@ -45,8 +45,8 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
     it once its last reference goes.  Without ``margins`` it has constrained
     layout; with them its grid is placed by those margins and the figure is made at
     :data:`DPI`.  Constrained layout measures every label in both directions and
-    then draws the figure a second time when it is saved, which doubled the cost of
-    the two figures that every solve writes: those are placed by margins chosen for
+    then draws the figure a second time when it is saved, a second drawing of the
+    two figures that every solve writes: those are placed by margins chosen for
     their fixed size and panels, with the left ones fitted by :func:`_fit_columns`.
 
     Parameters
@@ -125,7 +125,7 @@ def _fit_columns(fig, axes):
     axes = np.atleast_2d(axes)
     left = room(axes[:, 0])
     grids = {id(g): g for g in (ax.get_subplotspec().get_gridspec() for ax in axes[:, 0])}
-    _fit_right(fig, renderer, grids.values(), pad)
+    _fit_right(fig, renderer, grids.values(), pad, axes[:, -1])
     for grid in grids.values():
         if axes.shape[1] == 1:
             grid.update(left=left)
@@ -141,13 +141,15 @@ def _fit_columns(fig, axes):
             ax.set_position(spec.get_position(fig))
 
 
-def _fit_right(fig, renderer, grids, pad):
-    """Move the right edge of ``grids`` left by as much as an x tick label reaches past
-    the figure's right edge less ``pad`` (a fraction of its width), and not at all when
-    none does: the last label is centred on a panel's right end, and a time axis that
-    ends at 1000 days puts half of its "1000" beyond a margin fixed for shorter ones."""
+def _fit_right(fig, renderer, grids, pad, right):
+    """Move the right edge of ``grids`` left by as much as an x tick label of the Axes
+    ``right`` (the right-hand column, the only ones whose labels can reach the edge)
+    reaches past the figure's right edge less ``pad`` (a fraction of its width), and not
+    at all when none does: the last label is centred on a panel's right end, and a time
+    axis that ends at 1000 days puts half of its "1000" beyond a margin fixed for
+    shorter ones."""
     width = fig.bbox.width
-    boxes = [ax.xaxis.get_tightbbox(renderer) for ax in fig.axes]
+    boxes = [ax.xaxis.get_tightbbox(renderer) for ax in right]
     reach = max((box.x1 for box in boxes if box is not None), default=0.0) / width
     over = reach - (1 - pad)
     if over > 0:
@@ -257,11 +259,11 @@ def _draw_bodies(ax, sol):
 
     start, jd, pairs = _flight_bodies(sol)
     for label, body, colour in pairs:
-        r, th = lookup.polar_states(lookup.resolve(body), jd)[:2]
-        ax.plot(r * np.cos(th), r * np.sin(th), color=colour, lw=0.8, ls="--",
-                label=f"{label} over the flight")
-        ax.plot(r[[0, -1]] * np.cos(th[[0, -1]]), r[[0, -1]] * np.sin(th[[0, -1]]), "o",
-                color=colour, ms=4)
+        # The projection on the ecliptic is the ecliptic x and y, read for all the dates
+        # in one call (the polar states put theta on the track's branch, one by one).
+        x, y = lookup.ecliptic_state(lookup.resolve(body), jd)[:2]
+        ax.plot(x, y, color=colour, lw=0.8, ls="--", label=f"{label} over the flight")
+        ax.plot(x[[0, -1]], y[[0, -1]], "o", color=colour, ms=4)
 
 
 def _draw_orbits(ax, sol):

@@ -9,12 +9,15 @@ characteristic acceleration a transfer needs, per launch date and duration.
 This module describes the cells and the outputs; the scan engine
 (:mod:`esail_opt.app.engine`) runs them: a process pool or Dask, a journal of finished
 cells, ``--resume``, retries of lost workers, Ctrl-C.  A job is a run of neighbouring cells
--- a block of dates, or one departure date's row of flight times -- solved in order by
+-- a block of dates, each with all its flight times -- solved in order by
 :func:`esail_opt.optimisation.scan.scan` on one NLP, each cell warm from its solved
 neighbour; the journal holds each job's cells as the job ends.
 
 Every cell is verified on Eqs. 1-2 against the body's ephemeris at its flown arrival,
 as a lone solve is; the map marks the cells that are not, and the run exits 1 if any.
+A fixed-time cell where no point was found, shorter than the shortest verified flight
+from its date, is marked ``"no_sail": true`` rather than left a failed solve, and the
+chart draws that edge of the feasible per date (:func:`mark_no_sail`).
 """
 
 import csv
@@ -31,17 +34,21 @@ from esail_opt.app.files import check_output_dir, write_table_set
 from esail_opt.app.parallel import first_line
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import MAX_RANGE_COUNT, InputError, check_range, number_range
-from esail_opt.optimisation import scan
+from esail_opt.optimisation import pipeline, scan
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.physics import constants as units
 
-CSV_FIELDS = ("index", "departure_date", "tof_days_grid", "converged", "verified", "status",
-              "departure_jd", "arrival_date", "tof_days", "objective", "objective_unit",
+CSV_FIELDS = ("index", "departure_date", "tof_days_grid", "converged", "verified", "no_sail",
+              "status", "departure_jd", "arrival_date", "tof_days", "objective", "objective_unit",
               "target_miss_r_km", "target_miss_v_m_s", "relative_speed_km_s",
-              "out_of_plane_km", "iterations", "start", "seconds", "error")
+              "out_of_plane_km", "iterations", "start", "seconds", "error", "edge_tof_days",
+              "edge_infeasible_tof_days", "edge_ac_mm_s2")
 #: What each field of a row holds (checked as a journal is read; "?": or null).
 ROW_KINDS = {"index": "int", "departure_date": "str", "tof_days_grid": "num?",
              "converged": "bool", "verified": "bool", "status": "str?",
+             # Null in journals written before the edge was walked: not marked.
+             "no_sail": "bool?", "edge_tof_days": "num?", "edge_infeasible_tof_days": "num?",
+             "edge_ac_mm_s2": "num?",
              "departure_jd": "num", "arrival_date": "str?", "tof_days": "num?",
              "objective": "num?", "objective_unit": "str?", "target_miss_r_km": "num?",
              "target_miss_v_m_s": "num?", "relative_speed_km_s": "num?",
@@ -161,9 +168,14 @@ class Grid:
 
     def jobs(self, workers):
         """The path cut into one run of neighbouring cells per worker: every cell but a
-        run's first starts warm, so fewer, longer runs reuse more."""
+        run's first starts warm, so fewer, longer runs reuse more.  In two dimensions a
+        run holds whole dates (all their times of flight), so that one job judges a
+        date's cells against its edge of the feasible (:func:`mark_no_sail`)."""
         path = self.path()
-        size = math.ceil(len(path) / max(1, min(workers, len(path))))
+        column = 1 if self.tofs is None else len(self.tofs)
+        dates_per_job = math.ceil(len(self.departures)
+                                  / max(1, min(workers, len(self.departures))))
+        size = dates_per_job * column
         return [path[i:i + size] for i in range(0, len(path), size)]
 
 
@@ -177,7 +189,8 @@ def _row(index, grid, cell=None, error=None):
     jd, tof = grid.cell(index)
     row = dict.fromkeys(CSV_FIELDS + FLIGHT_FIELDS)
     row.update(index=index, departure_date=dates.iso_from_jd(jd), departure_jd=jd,
-               tof_days_grid=tof, converged=False, verified=False, error=error)
+               tof_days_grid=tof, converged=False, verified=False, no_sail=False,
+               error=error)
     if cell is None:
         return row
     result = cell.result
@@ -201,29 +214,40 @@ def _row(index, grid, cell=None, error=None):
 
 def _flight(cell):
     """A solved cell's :data:`FLIGHT_FIELDS`, in solution.json's units and keys."""
-    from esail_opt.app.solution import _departure_state, _schedule
+    from esail_opt.app.from_run import departure_state, schedule
 
     problem, result = cell.problem, cell.result
-    out = {"departure_state": _departure_state(problem, result),
-           "schedule": _schedule(result, problem.throttled())}
+    out = {"departure_state": departure_state(problem, result).to_json(),
+           "schedule": schedule(problem, result).to_json()}
     if problem.objective.free_acceleration:
-        out["ac_mm_s2_required"] = problem.sail.ac_mm_s2 * result.ac_scale
+        out["ac_mm_s2_required"] = _ac_mm_s2(problem, result)
     return out
+
+
+def _ac_mm_s2(problem, result):
+    """The a_c a solved ``problem`` flies at, mm/s^2 (None unless it is free)."""
+    if not problem.objective.free_acceleration:
+        return None
+    return problem.sail.ac_mm_s2 * result.ac_scale
 
 
 def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departures=(),
               tofs=None, cells_out=None):
     """Solve one run of neighbouring cells on one NLP; their rows.  Never raises for a
-    cell: a failure is in its row.  With ``cells_out``, each verified cell's solution
-    folder is written there as its job ends (:func:`write_cell`)."""
+    cell: a failure is in its row.  The cells of a date where no point was found are
+    judged against the edge of the feasible (:func:`mark_no_sail`); a job holds whole
+    dates (:meth:`Grid.jobs`), so each date's edge is walked once.  With ``cells_out``,
+    each verified cell's solution folder is written there as its job ends
+    (:func:`write_cell`)."""
     grid = Grid(tuple(departures), None if tofs is None else tuple(tofs))
     try:
         problem = engine.load_source(source, filename).with_tolerance(tol_km, tol_m_s)
-        cells = scan.scan([cell_problem(problem, grid, i) for i in indices],
-                          neighbours=grid.neighbours(indices))
+        problems = [cell_problem(problem, grid, i) for i in indices]
+        cells = scan.scan(problems, neighbours=grid.neighbours(indices))
         rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
     except Exception as err:  # the job's cells all say why
         return [_row(i, grid, error=first_line(err)) for i in indices]
+    mark_no_sail(problems, cells, rows)
     for cell, row in zip(cells, rows):
         if cells_out is not None and row["verified"]:
             try:
@@ -231,6 +255,91 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
             except Exception as err:  # the cell flies; only its folder is missing
                 row["error"] = f"cell folder not written: {first_line(err)}"
     return rows
+
+
+@dataclasses.dataclass(frozen=True)
+class EdgeFound:
+    """The edge of the feasible at one departure date: the shortest time of flight with
+    a verified flight (days), the a_c it needs (mm/s^2, None unless the objective frees
+    it), and the longest time of flight at which no point was found (days)."""
+
+    tof_days: float
+    ac_mm_s2: object
+    infeasible_tof_days: float
+
+
+def mark_no_sail(problems, cells, rows):
+    """Mark the rows (in place) of the cells where no sail exists, date by date.
+
+    The rule: a cell has no sail when its own solve found no point (Ipopt ended without
+    one, not a flight that missed) and a verified flight from the same departure date
+    needs a longer time of flight than the cell's.  That flight is the edge of the
+    feasible, found by one walk per date in the time of flight
+    (:func:`esail_opt.optimisation.scan.shortest_feasible`), down from the date's
+    shortest verified cell to its longest cell with no point below it, warm: the grid
+    already brackets the edge there, and the walk narrows it.  A date with no verified
+    cell walks up from its longest cell with no point, cold, as a lone solve does.  A
+    walk's flight counts only once verified (error control and CVODES, as any cell);
+    when it is not, the date's shortest verified cell is the edge.  A cell with no point
+    longer than a verified cell of its date is a failed solve, not a cell with no sail.
+
+    Every row of a date walked carries the edge (``edge_tof_days``, ``edge_ac_mm_s2``,
+    ``edge_infeasible_tof_days``), for the chart's line; a walk that fails leaves its
+    date's rows unmarked, with why in the error of its cells with no point.
+    """
+    dates_of = {}
+    for k, problem in enumerate(problems):
+        dates_of.setdefault(problem.departure.date, []).append(k)
+    for members in dates_of.values():
+        lost = [k for k in members if not cells[k].solved]
+        if not lost or not pipeline._walks_tof(problems[lost[0]]):
+            continue
+        try:
+            edge = _edge([problems[k] for k in members], [cells[k] for k in members])
+        except Exception as err:  # the cells stay failed solves, and say why
+            for k in lost:
+                rows[k]["error"] = f"{rows[k]['error']}; no edge: {first_line(err)}"
+            continue
+        if edge is None:
+            continue
+        for k in members:
+            rows[k].update(edge_tof_days=edge.tof_days, edge_ac_mm_s2=edge.ac_mm_s2,
+                           edge_infeasible_tof_days=edge.infeasible_tof_days)
+            if k in lost and _tof(problems[k]) < edge.tof_days:
+                rows[k].update(no_sail=True, error=(
+                    f"no sail: the shortest flight found feasible from this date is "
+                    f"{edge.tof_days:.1f} d (none found at {edge.infeasible_tof_days:.1f} d)"))
+
+
+def _tof(problem):
+    return problem.objective.tof_days
+
+
+def _edge(problems, cells):
+    """The :class:`EdgeFound` of one date's cells (see :func:`mark_no_sail`), or None."""
+    verified = [c for c in cells if c.verified]
+    shortest = min(verified, key=lambda c: _tof(c.problem), default=None)
+    below = [p for p, c in zip(problems, cells) if not c.solved
+             and (shortest is None or _tof(p) < _tof(shortest.problem))]
+    if not below:
+        return None
+    lo = max(below, key=_tof)
+    start = (None if shortest is None
+             else (shortest.problem, shortest.result, shortest.transcription))
+    walk = scan.shortest_feasible(lo, start=start)
+    if walk is None:
+        return None  # no verified cell, and none of the longer flights converged
+    # The walk's flight is flown unless it is the verified cell itself (no step below
+    # it converged).
+    if shortest is None or _tof(walk.problem) < _tof(shortest.problem):
+        run = pipeline.finish(walk.problem, walk.result, walk.transcription, samples=1)
+        if run.verified:
+            return EdgeFound(_tof(run.problem), _ac_mm_s2(run.problem, run.result),
+                             walk.infeasible_tof_days)
+        if shortest is None:
+            return None
+    return EdgeFound(_tof(shortest.problem), _ac_mm_s2(shortest.problem, shortest.result),
+                     walk.infeasible_tof_days)
 
 
 def cell_folder(row):
@@ -362,10 +471,26 @@ def _table(request, outcome):
             "tofs_days": None if grid.tofs is None else list(grid.tofs),
             "shape": list(grid.shape), "cells": len(rows), "verified_cells": len(verified),
             "not_verified": len(rows) - len(verified),
+            "no_sail_cells": sum(bool(r.get("no_sail")) for r in rows),
+            "edge": edge_line(rows),
             "best": min(verified, key=lambda r: r["objective"]) if verified else None,
             "executor": outcome.executor, "wall_seconds": outcome.seconds,
             "resumed": outcome.resumed, "rows": rows,
             "journal": None if outcome.journal is None else str(outcome.journal)}
+
+
+def edge_line(rows):
+    """The edge of the feasible per departure date, from the rows that carry it: one
+    dict per date walked (``departure_date``, ``tof_days``, ``ac_mm_s2_required``,
+    ``infeasible_tof_days``), in date order."""
+    out = {}
+    for row in rows:
+        if row.get("edge_tof_days") is not None:
+            out.setdefault(row["departure_jd"], {
+                "departure_date": row["departure_date"], "tof_days": row["edge_tof_days"],
+                "ac_mm_s2_required": row.get("edge_ac_mm_s2"),
+                "infeasible_tof_days": row.get("edge_infeasible_tof_days")})
+    return [out[jd] for jd in sorted(out)]
 
 
 def _target_name(problem):
@@ -382,9 +507,18 @@ def table_csv(result):
     return buf.getvalue()
 
 
+#: The legend's words for the chart's marks.
+NO_SAIL_LABEL = "no sail (shorter than the edge)"
+EDGE_LABEL = "edge: shortest feasible flight"
+FAILED_LABEL = "not verified"
+
+
 def figure(result):
     """The porkchop: the objective over calendar dates, unverified cells marked with a
-    cross and the best cell starred."""
+    cross, cells with no sail (``no_sail``) with a hollow square apart from them, the
+    best cell starred and, in two dimensions, the edge of the feasible (the shortest
+    feasible flight per date, :func:`edge_line`) drawn as a line.  A record written
+    before the edge was walked draws without it."""
     from datetime import datetime
 
     import matplotlib.dates as mdates
@@ -393,36 +527,18 @@ def figure(result):
     fig = Figure(figsize=(8, 5))
     ax = fig.add_subplot()
     rows = result["rows"]
-    when = np.array([datetime.fromisoformat(r["departure_date"]) for r in rows])
-    value = np.array([np.nan if r["objective"] is None else r["objective"] for r in rows])
-    ok = np.array([bool(r["verified"]) for r in rows])
+    marks = {"when": np.array([datetime.fromisoformat(r["departure_date"]) for r in rows]),
+             "value": np.array([np.nan if r["objective"] is None else r["objective"]
+                                for r in rows]),
+             "ok": np.array([bool(r["verified"]) for r in rows]),
+             "no_sail": np.array([bool(r.get("no_sail")) for r in rows])}
     unit = result["objective_unit"] or ""
     label = ("time of flight [d]" if result["objective"] == "MinTime"
              else f"{result['objective']} [{unit}]")
     if result["tofs_days"] is None:
-        ax.plot(when[ok], value[ok], "o-", ms=4, label="verified")
-        if (~ok).any():
-            ax.plot(when[~ok], np.where(np.isfinite(value[~ok]), value[~ok], np.nanmax(value)),
-                    "x", color="C3", ms=8, label="not verified")
-        ax.set_ylabel(label)
+        _dates_chart(ax, marks, label)
     else:
-        shape = result["shape"]
-        grid_when = when.reshape(shape)[:, 0]
-        tofs = np.array(result["tofs_days"])
-        z = np.where(ok, value, np.nan).reshape(shape).T
-        x = mdates.date2num(grid_when)
-        if np.isfinite(z).sum() >= 4:
-            cs = ax.contourf(x, tofs, z, levels=12, cmap="viridis")
-            lines = ax.contour(x, tofs, z, levels=cs.levels[::2], colors="w", linewidths=0.6)
-            ax.clabel(lines, fmt="%.2g", fontsize=7)
-            fig.colorbar(cs, ax=ax, label=f"required a_c [{unit}]" if
-                         result["objective"] == "MinAcceleration" else label)
-        bad = ~ok.reshape(shape).T
-        xx, yy = np.meshgrid(x, tofs)
-        if bad.any():
-            ax.plot(xx[bad], yy[bad], "x", color="C3", ms=7, label="not verified")
-        ax.plot(xx[~bad], yy[~bad], ".", color="k", ms=2)
-        ax.set_ylabel("time of flight [d]")
+        _dates_tofs_chart(fig, ax, result, marks, label)
     best = result["best"]
     if best is not None:
         bx = datetime.fromisoformat(best["departure_date"])
@@ -433,11 +549,72 @@ def figure(result):
     fig.autofmt_xdate()
     ax.set_xlabel("departure date (TDB)")
     target = result["target"] or "target"
+    no_sail = int(marks["no_sail"].sum())
     ax.set_title(f"{result['problem']}: {result['verified_cells']}/{result['cells']} cells "
-                 f"verified, to {target}", parse_math=False)  # names as written
+                 f"verified{f', {no_sail} with no sail' if no_sail else ''}, to {target}",
+                 parse_math=False)  # names as written
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     return fig
+
+
+def _dates_chart(ax, marks, label):
+    """One dimension: the objective per date; the cells not verified at the top."""
+    when, value, ok, no_sail = marks["when"], marks["value"], marks["ok"], marks["no_sail"]
+    ax.plot(when[ok], value[ok], "o-", ms=4, label="verified")
+    top = np.nanmax(value) if np.isfinite(value).any() else 0.0
+    failed = ~ok & ~no_sail
+    if failed.any():
+        ax.plot(when[failed], np.where(np.isfinite(value[failed]), value[failed], top), "x",
+                color="C3", ms=8, label=FAILED_LABEL)
+    if no_sail.any():
+        ax.plot(when[no_sail], np.full(no_sail.sum(), top), "s", mfc="none", mec="0.3",
+                ms=7, label=NO_SAIL_LABEL)
+    ax.set_ylabel(label)
+
+
+def _dates_tofs_chart(fig, ax, result, marks, label):
+    """Two dimensions: the objective's contours over dates and flight times, the cells
+    not verified and those with no sail marked apart, and the edge of the feasible."""
+    import matplotlib.dates as mdates
+
+    shape = result["shape"]
+    unit = result["objective_unit"] or ""
+    tofs = np.array(result["tofs_days"])
+    z = np.where(marks["ok"], marks["value"], np.nan).reshape(shape).T
+    x = mdates.date2num(marks["when"].reshape(shape)[:, 0])
+    contoured = np.isfinite(z).sum() >= 4
+    if contoured:
+        cs = ax.contourf(x, tofs, z, levels=12, cmap="viridis")
+        lines = ax.contour(x, tofs, z, levels=cs.levels[::2], colors="w", linewidths=0.6)
+        ax.clabel(lines, fmt="%.2g", fontsize=7)
+        fig.colorbar(cs, ax=ax, label=f"required a_c [{unit}]" if
+                     result["objective"] == "MinAcceleration" else label)
+    no_sail = marks["no_sail"].reshape(shape).T
+    bad = ~marks["ok"].reshape(shape).T
+    xx, yy = np.meshgrid(x, tofs)
+    if (bad & ~no_sail).any():
+        ax.plot(xx[bad & ~no_sail], yy[bad & ~no_sail], "x", color="C3", ms=7,
+                label=FAILED_LABEL)
+    if no_sail.any():
+        ax.plot(xx[no_sail], yy[no_sail], "s", mfc="none", mec="0.3", ms=7,
+                label=NO_SAIL_LABEL)
+    # Too few verified cells for contours: each is marked, its value beside it.
+    ax.plot(xx[~bad], yy[~bad], "." if contoured else "o", color="k" if contoured else "C0",
+            ms=2 if contoured else 6, label=None if contoured else "verified")
+    if not contoured:
+        for xv, yv, zv in zip(xx[~bad], yy[~bad], z[~bad]):
+            ax.annotate(f"{zv:.4g}", (xv, yv), xytext=(5, 5), textcoords="offset points",
+                        fontsize=8)
+    edge = {e["departure_date"]: e["tof_days"]
+            for e in result.get("edge") or edge_line(result["rows"])}
+    if edge:
+        # One point per date, NaN where no edge was walked: the line breaks there rather
+        # than join dates it knows nothing between.
+        dates_iso = [r["departure_date"] for r in result["rows"][::shape[1]]]
+        ax.plot(x, [edge.get(d, np.nan) for d in dates_iso], "o-", color="C1", ms=4,
+                lw=1.5, label=EDGE_LABEL)
+    ax.set_ylabel("time of flight [d]")
 
 
 def write(result, out_dir):

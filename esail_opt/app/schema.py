@@ -1,9 +1,9 @@
 """The schema of ``solution.json``: its version, and what each field holds.
 
-This is the one place the file's layout is written down. Only
-:meth:`esail_opt.app.solution.Solution.to_json` and ``Solution.from_json`` use these
-keys; the plot, search and sweep modules read the typed Solution's fields, named as the
-keys are except where ``Solution``'s docstring says otherwise. Units are one per
+This is the one place the file's layout is written down. Only the records of
+:mod:`esail_opt.app.solution` name these keys, each on its field; the plot, search and
+sweep modules read the typed Solution's fields, named as the keys are except where
+``Solution``'s docstring says otherwise. Units are one per
 quantity everywhere in the file, the polish included: lengths and position misses in km
 (au for radii and semimajor axes), speeds and velocity misses in m/s (km/s for state
 velocities), times in days, angles in degrees.

@@ -61,34 +61,9 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
         say(f"{problem.name}: optimum {i}/{len(candidates)} ({c.revolutions:.2f} rev): "
             f"verifying{' and polishing' if polish else ''}")
         sol = Solution.of(pipeline.finish(problem, c.result, polish=polish, progress=progress))
-        p = sol.polish
-        rows.append({
-            "revolutions": c.revolutions,
-            "free_local_optimum": c.free,
-            "window_rev": c.window,
-            "rendezvous_k": c.revolutions_k,
-            "tof_days_closed_form": sol.tof_days,
-            "tof_days_exact": None if p is None else p.tof_days,
-            "verified": sol.verified,
-            "polish_status": None if p is None else p.status,
-            "closed_form_target_miss_km": sol.verification.target_miss_r_km,
-            "polished_target_miss_km": (None if p is None or p.verification is None
-                                        else p.verification.target_miss_r_km),
-            "found_from": c.found_from,
-            "candidate": i - 1,
-        })
+        rows.append(_row(c, sol, i - 1))
         solutions.append(sol)
-    order = sorted(range(len(rows)), key=lambda j: _rank_key(rows[j]))
-    rows = [dict(rows[j], rank=r) for r, j in enumerate(order, 1)]
-    solutions = [solutions[j] for j in order]
-    for record in starts:
-        if record["candidate"] is not None:
-            record["candidate"] = next(r["rank"] for r in rows
-                                       if r["candidate"] == record["candidate"])
-        tof = record.pop("tof")
-        record["tof_days"] = None if tof is None else units.time_to_days(tof)
-    for row in rows:
-        row.pop("candidate")
+    rows, solutions = _ranked(rows, solutions, starts)
     data = {
         "problem": problem.name,
         "extra_revolutions": extra_revolutions,
@@ -105,6 +80,45 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
                 "optimum of the problem as posed)"),
     }
     return json_ready(data), solutions
+
+
+def _row(candidate, sol, index):
+    """The table's row of one optimum: the ``candidate`` of ``multistart.search`` (its
+    position ``index``) and its finished :class:`Solution`."""
+    c, p = candidate, sol.polish
+    return {
+        "revolutions": c.revolutions,
+        "free_local_optimum": c.free,
+        "window_rev": c.window,
+        "rendezvous_k": c.revolutions_k,
+        "tof_days_closed_form": sol.tof_days,
+        "tof_days_exact": None if p is None else p.tof_days,
+        "verified": sol.verified,
+        "polish_status": None if p is None else p.status,
+        "closed_form_target_miss_km": sol.verification.target_miss_r_km,
+        "polished_target_miss_km": (None if p is None or p.verification is None
+                                    else p.verification.target_miss_r_km),
+        "found_from": c.found_from,
+        "candidate": index,
+    }
+
+
+def _ranked(rows, solutions, starts):
+    """The rows and their solutions ranked best first (:func:`_rank_key`), each row
+    given its ``rank``; each start record (changed in place) names the rank of the
+    optimum it found instead of its candidate index, and its time of flight in days."""
+    order = sorted(range(len(rows)), key=lambda j: _rank_key(rows[j]))
+    rows = [dict(rows[j], rank=r) for r, j in enumerate(order, 1)]
+    solutions = [solutions[j] for j in order]
+    for record in starts:
+        if record["candidate"] is not None:
+            record["candidate"] = next(r["rank"] for r in rows
+                                       if r["candidate"] == record["candidate"])
+        tof = record.pop("tof")
+        record["tof_days"] = None if tof is None else units.time_to_days(tof)
+    for row in rows:
+        row.pop("candidate")
+    return rows, solutions
 
 
 def table_csv(data):

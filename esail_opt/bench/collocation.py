@@ -198,6 +198,62 @@ def intervals_for(tf, rf, per_rev, minimum):
 # ----------------------------------------------------------------------------------------
 # The NLP
 # ----------------------------------------------------------------------------------------
+def _interval_defects(N, ac):
+    """One interval's collocation defects as a Function ``(states 4 x 4, controls 1 x 3,
+    tf) -> 4 x 3``, to be mapped over all intervals: the NLP graph stays small and
+    casadi builds the sparse derivatives interval by interval."""
+    blk = ca.SX.sym("blk", 4, DEGREE + 1)
+    ublk = ca.SX.sym("ublk", 1, DEGREE)
+    s = ca.SX.sym("s")  # tf, shared
+    defects = []
+    for j in range(DEGREE):
+        # blk @ D[j] is dx/d(local interval time), i.e. dx/dtau / N; the ODE in tau is
+        # dx/dtau = tf f.  Written as N (blk @ D[j]) - tf f the defect is O(tf), not
+        # O(tf / N), so Ipopt's absolute tolerance means the same on every mesh.
+        slope = ca.mtimes(blk, ca.DM(DIFF[j, :]))
+        defects.append(N * slope - s * F_RHS(blk[:, j + 1], ublk[j], ac))
+    return ca.Function("interval", [blk, ublk, s], [ca.horzcat(*defects)])
+
+
+def _ipopt_options(print_level, max_cpu_seconds):
+    """The collocation's Ipopt options, each solve capped at ``max_cpu_seconds``."""
+    return {
+        "print_time": False,
+        "ipopt.print_level": print_level,
+        "ipopt.sb": "yes",
+        "ipopt.linear_solver": "mumps",
+        "ipopt.tol": 1e-10,
+        "ipopt.acceptable_tol": 1e-8,
+        "ipopt.acceptable_iter": 10,
+        "ipopt.max_iter": 3000,
+        # A few starts far from any optimum (or boxed into an infeasible revolution
+        # window) grind on without end; they are not worth it, other starts cover them.
+        "ipopt.max_cpu_time": max_cpu_seconds,
+    }
+
+
+def _box(N, rf):
+    """The bounds (lbx, ubx) of the decision vector for N intervals to radius rf."""
+    npts = DEGREE * N + 1
+    # States: physically generous boxes that only keep Ipopt out of r <= 0.
+    lbz = np.tile(np.array([[0.2], [-1e4], [-5.0], [0.05]]), (1, npts))
+    ubz = np.tile(np.array([[20.0], [1e4], [5.0], [5.0]]), (1, npts))
+    lbz[:, 0] = ubz[:, 0] = [R0_AU, 0.0, 0.0, 1.0]  # circular 1 au, theta0 = 0
+    tgt = target_state(rf)
+    lbz[[0, 2, 3], -1] = ubz[[0, 2, 3], -1] = tgt  # circular target, theta free
+    # The pitch variable is left (almost) free, not boxed to [-90, 90] deg: Eqs. 3-4
+    # depend on 2 alpha only, so (R, T) runs round a circle of radius 1/4 about
+    # (3/4, 0) and alpha_n = +90 deg and -90 deg are the same thrust vector.  An
+    # optimal thrust direction that passes the inner point (1/2, 0) of that circle is
+    # smooth in the unwrapped angle but jumps from +90 to -90 deg in alpha_n; with a box
+    # the collocation could only follow it with a discontinuity that the polynomial
+    # control cannot represent (it did: chattering, spurious "optima").  The physical
+    # pitch is the unwrapped value wrapped into [-90, 90) deg.
+    span = 2.0 * math.pi
+    return (np.concatenate([lbz.ravel(order="F"), np.full(DEGREE * N, -span), [1e-2]]),
+            np.concatenate([ubz.ravel(order="F"), np.full(DEGREE * N, span), [500.0]]))
+
+
 class Transcription:
     """Radau IIA (3-stage) collocation NLP for one case and one mesh size N.
 
@@ -216,26 +272,9 @@ class Transcription:
         Z = ca.SX.sym("Z", 4, npts)
         A = ca.SX.sym("A", 1, DEGREE * N)
         tf = ca.SX.sym("tf")
-
-        # One interval's defects as a Function, mapped over all intervals: the NLP graph
-        # stays small and casadi builds the sparse derivatives interval by interval.
-        blk = ca.SX.sym("blk", 4, DEGREE + 1)
-        ublk = ca.SX.sym("ublk", 1, DEGREE)
-        s = ca.SX.sym("s")  # tf, shared
-        defects = []
-        for j in range(DEGREE):
-            # blk @ D[j] is dx/d(local interval time), i.e. dx/dtau / N; the ODE in tau is
-            # dx/dtau = tf f.  Written as N (blk @ D[j]) - tf f the defect is O(tf), not
-            # O(tf / N), so Ipopt's absolute tolerance means the same on every mesh.
-            slope = ca.mtimes(blk, ca.DM(DIFF[j, :]))
-            defects.append(N * slope - s * F_RHS(blk[:, j + 1], ublk[j], ac))
-        interval = ca.Function("interval", [blk, ublk, s], [ca.horzcat(*defects)])
-        mapped = interval.map(N)
-
         cols = [DEGREE * k + m for k in range(N) for m in range(DEGREE + 1)]
-        g = mapped(Z[:, cols], A, ca.repmat(tf, 1, N))
+        g = _interval_defects(N, ac).map(N)(Z[:, cols], A, ca.repmat(tf, 1, N))
         self.ng = g.numel()
-
         w = ca.vertcat(ca.vec(Z), ca.vec(A), tf)
         self.nw = w.numel()
         g = ca.vec(g)
@@ -244,39 +283,9 @@ class Transcription:
             # orbit of radius rf (r, v_r and v_theta are already the target's).
             phi0, k = rendezvous
             g = ca.vertcat(g, Z[1, -1] - (phi0 + tf * rf ** -1.5 + 2 * math.pi * k))
-        nlp = {"x": w, "f": tf, "g": g}
-        opts = {
-            "print_time": False,
-            "ipopt.print_level": print_level,
-            "ipopt.sb": "yes",
-            "ipopt.linear_solver": "mumps",
-            "ipopt.tol": 1e-10,
-            "ipopt.acceptable_tol": 1e-8,
-            "ipopt.acceptable_iter": 10,
-            "ipopt.max_iter": 3000,
-            # A few starts far from any optimum (or boxed into an infeasible revolution
-            # window) grind on for minutes; they are not worth it, other starts cover them.
-            "ipopt.max_cpu_time": max_cpu_seconds,
-        }
-        self.solver = ca.nlpsol("radau_min_time", "ipopt", nlp, opts)
-
-        # Bounds.  States: physically generous boxes that only keep Ipopt out of r <= 0.
-        lbz = np.tile(np.array([[0.2], [-1e4], [-5.0], [0.05]]), (1, npts))
-        ubz = np.tile(np.array([[20.0], [1e4], [5.0], [5.0]]), (1, npts))
-        lbz[:, 0] = ubz[:, 0] = [R0_AU, 0.0, 0.0, 1.0]  # circular 1 au, theta0 = 0
-        tgt = target_state(rf)
-        lbz[[0, 2, 3], -1] = ubz[[0, 2, 3], -1] = tgt  # circular target, theta free
-        # The pitch variable is left (almost) free, not boxed to [-90, 90] deg: Eqs. 3-4
-        # depend on 2 alpha only, so (R, T) runs round a circle of radius 1/4 about
-        # (3/4, 0) and alpha_n = +90 deg and -90 deg are the same thrust vector.  An
-        # optimal thrust direction that passes the inner point (1/2, 0) of that circle is
-        # smooth in the unwrapped angle but jumps from +90 to -90 deg in alpha_n; with a box
-        # the collocation could only follow it with a discontinuity that the polynomial
-        # control cannot represent (it did: chattering, spurious "optima").  The physical
-        # pitch is the unwrapped value wrapped into [-90, 90) deg.
-        span = 2.0 * math.pi
-        self.lbx = np.concatenate([lbz.ravel(order="F"), np.full(DEGREE * N, -span), [1e-2]])
-        self.ubx = np.concatenate([ubz.ravel(order="F"), np.full(DEGREE * N, span), [500.0]])
+        self.solver = ca.nlpsol("radau_min_time", "ipopt", {"x": w, "f": tf, "g": g},
+                                _ipopt_options(print_level, max_cpu_seconds))
+        self.lbx, self.ubx = _box(N, rf)
 
     def tau_grid(self):
         k = np.arange(self.N)[:, None]

@@ -167,7 +167,7 @@ def run(out, repeats):
       (:data:`EARTH_MARS_LOW_REFERENCE`).  Its multistart over other starts is not
       timed (it only guards against other basins; ``reference_multistart_seconds`` is
       its stored total).  A single cold solve straight on the fine mesh is no
-      substitute: it took 29.6 s (227 iterations) and stopped at a discrete KKT point
+      substitute: it took 227 iterations and stopped at a discrete KKT point
       whose control misses the target by 11,000 km when flown (3335.53 d), the artefact
       the collocation module's docstring describes.
 

@@ -149,16 +149,28 @@ def race(repeats):
         ``ratio_cvodes_over_call_floor`` (CVODES at 1e-12 over that floor), and the
         reference's final state [r, theta, v_r, v_theta, t] (``reference_final_state``).
     """
-    import casadi as ca
     import numpy as np
 
-    from esail_opt.bench.precision import seconds_at_miss
-    from esail_opt.propagation.arcs import FIRST_ORDER, PANEL_NODES, ArcModel
-    from esail_opt.propagation.rectified import rectified_function
     from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
 
     truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE)(
         *_schedule(ARCS)))[:, -1]
+    points = [_race_point(*entry, truth, repeats) for entry in _race_entries()]
+    floor_seconds = _call_floor_seconds(repeats)
+    cvodes_tight = next(p["seconds"] for p in points
+                        if p["method"] == "cvodes" and p["setting"] == "tol 1e-12")
+    return {"points": points, "at_error_km": _race_at_error(points),
+            "call_floor_seconds": floor_seconds,
+            "ratio_cvodes_over_call_floor": cvodes_tight / floor_seconds,
+            "reference_tolerance": VERIFY_TOLERANCE, "reference_final_state": truth[:5].tolist()}
+
+
+def _race_entries():
+    """The race's (method, setting, Function, arguments), as :func:`race` lists them."""
+    from esail_opt.propagation.arcs import FIRST_ORDER, PANEL_NODES, ArcModel
+    from esail_opt.propagation.rectified import rectified_function
+    from esail_opt.propagation.simulate import schedule_function
+
     # One arc a segment at the 8-point panels, in time (where arcs are never compiled).
     models = {"closed_form": ArcModel(sub_arcs=1, nodes=PANEL_NODES),
               "closed_form_richardson": ArcModel(order=1, extrapolate=True, sub_arcs=1,
@@ -168,13 +180,26 @@ def race(repeats):
                 _schedule(n)) for method, model in models.items() for n in RACE_ARCS]
     entries += [("cvodes", f"tol {tol:g}", schedule_function(ARCS, 1, "time", tol=tol),
                  _schedule(ARCS)) for tol in RACE_TOLERANCES]
-    points = []
-    for method, setting, fun, args in entries:
-        value = fun(*args)
-        final = np.array(value[0] if isinstance(value, (tuple, list)) else value)[:, -1]
-        points.append({"method": method, "setting": setting,
-                       "seconds": median_seconds(lambda f=fun, a=args: f(*a), repeats),
-                       "miss_km": _position_km(final, truth)})
+    return entries
+
+
+def _race_point(method, setting, fun, args, truth, repeats):
+    """One point of the race: ``fun(*args)`` timed, and its final error against
+    ``truth`` (km)."""
+    import numpy as np
+
+    value = fun(*args)
+    final = np.array(value[0] if isinstance(value, (tuple, list)) else value)[:, -1]
+    return {"method": method, "setting": setting,
+            "seconds": median_seconds(lambda: fun(*args), repeats),
+            "miss_km": _position_km(final, truth)}
+
+
+def _race_at_error(points):
+    """Per final error of :data:`RACE_ERRORS_KM`, each method's seconds read on its curve
+    (``precision.seconds_at_miss``) and CVODES's over the closed form's."""
+    from esail_opt.bench.precision import seconds_at_miss
+
     at_error = {}
     for key, error in RACE_ERRORS_KM.items():
         row = {f"{name}_seconds": seconds_at_miss(
@@ -185,16 +210,19 @@ def race(repeats):
         row["ratio_cvodes_over_closed_form"] = (None if base is None or other is None
                                                 else other / base)
         at_error[key] = row
+    return at_error
+
+
+def _call_floor_seconds(repeats):
+    """One call of a Function that only doubles its input, with the case's arguments:
+    the floor no Function called from Python undercuts."""
+    import casadi as ca
+
     args = _schedule(ARCS)
     x, acs = ca.SX.sym("x", 5), ca.SX.sym("ac", 1, ARCS)
     floor = ca.Function("floor", [x, acs, ca.SX.sym("alpha", 1, ARCS),
                                   ca.SX.sym("length", 1, ARCS)], [2 * x])
-    floor_seconds = median_seconds(lambda: floor(*args), max(repeats, 100))
-    cvodes_tight = next(p["seconds"] for p in points
-                        if p["method"] == "cvodes" and p["setting"] == "tol 1e-12")
-    return {"points": points, "at_error_km": at_error, "call_floor_seconds": floor_seconds,
-            "ratio_cvodes_over_call_floor": cvodes_tight / floor_seconds,
-            "reference_tolerance": VERIFY_TOLERANCE, "reference_final_state": truth[:5].tolist()}
+    return median_seconds(lambda: floor(*args), max(repeats, 100))
 
 
 def _batch_cases(grid):
@@ -415,9 +443,6 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     """
     import numpy as np
 
-    from esail_opt.bench.precision import seconds_at_miss
-    from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
-
     grid = BATCH_GRID if grid is None else grid
     alphas, acs = _batch_cases(grid)
     cases = alphas.size
@@ -425,39 +450,63 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     stacked = (np.tile(x0[:, None], (1, cases)), np.repeat(acs, ARCS)[None, :],
                np.repeat(alphas, ARCS)[None, :], np.tile(lengths, (1, cases)))
     closed = _closed_form_batch(repeats, stacked, native)
-    xs, q3 = closed["xs"], closed["q3"]
+    truth, errors = _batch_errors(closed["xs"], stacked)
+    timed = np.unique(np.linspace(0, cases - 1, min(cvodes_cases, cases)).round().astype(int))
+    points = _cvodes_points(repeats, stacked, timed, truth)
+    heyoka = heyoka_batch(repeats, (x0[:4], np.repeat(acs[:, None], ARCS, 1),
+                                    np.repeat(alphas[:, None], ARCS, 1),
+                                    np.tile(lengths, (cases, 1))),
+                          truth, float(np.median(errors)))
+    block = _batch_block(closed, errors, timed, points, heyoka, native, grid)
+    block["per_case"] = per_case_table(block)
+    return block
+
+
+def _batch_errors(xs, stacked):
+    """The batch's reference final states (CVODES at ``simulate.VERIFY_TOLERANCE``, one
+    mapped call, 5 x cases) and each case's final error of the states ``xs`` (km)."""
+    import numpy as np
+
+    from esail_opt.propagation.simulate import VERIFY_TOLERANCE, schedule_function
+
+    cases = stacked[0].shape[1]
     finals = xs[:, ARCS - 1::ARCS]
     truth = np.array(schedule_function(ARCS, 1, "time", tol=VERIFY_TOLERANCE).map(cases)(
         *stacked))[:, ARCS - 1::ARCS]
-    errors = np.array([_position_km(finals[:, m], truth[:, m]) for m in range(cases)])
+    return truth, np.array([_position_km(finals[:, m], truth[:, m]) for m in range(cases)])
 
-    timed = np.unique(np.linspace(0, cases - 1, min(cvodes_cases, cases)).round().astype(int))
-    points = _cvodes_points(repeats, stacked, timed, truth)
+
+def _batch_block(closed, errors, timed, points, heyoka, native, grid):
+    """The ``batch`` block of :func:`batch` but its ``per_case`` table: the closed form's
+    time and errors, CVODES's read at its error (on the ``timed`` cases' ``points``)
+    and at 1e-12, scaled to every case, and heyoka's block."""
+    import numpy as np
+
+    from esail_opt.bench.precision import seconds_at_miss
+
+    cases = errors.size
     target = float(np.median(errors[timed]))
     equal = seconds_at_miss([(p["seconds_per_case"], p["median_final_error_km"])
                              for p in points], target)
-    tight = next(p["seconds_per_case"] for p in points if p["tolerance"] == 1e-12)
+    tight = next(p for p in points if p["tolerance"] == 1e-12)
     equal_total = None if equal is None else equal * cases
-    block = {
+    return {
         "cases": int(cases), "arcs": ARCS, "closed_form_seconds": closed["seconds"],
-        "cvodes_seconds_equal_error": equal_total, "cvodes_seconds_tight": tight * cases,
+        "cvodes_seconds_equal_error": equal_total,
+        "cvodes_seconds_tight": tight["seconds_per_case"] * cases,
         "ratio_equal_error": None if equal is None else equal_total / closed["seconds"],
-        "ratio_tight": tight * cases / closed["seconds"],
+        "ratio_tight": tight["seconds_per_case"] * cases / closed["seconds"],
         "median_final_error_km": float(np.median(errors)),
         "max_final_error_km": float(np.max(errors)),
         "median_final_error_km_timed_cases": target,
-        "cvodes_median_final_error_km_tight": next(
-            p["median_final_error_km"] for p in points if p["tolerance"] == 1e-12),
-        "smallest_q3": float(np.min(q3)),
+        "cvodes_median_final_error_km_tight": tight["median_final_error_km"],
+        "smallest_q3": float(np.min(closed["q3"])),
         "cvodes_cases_timed": int(timed.size),
         "cvodes_points": points,
         "compile_seconds": closed["compile_seconds"], "compiled": native,
         "closed_form_one_case_at_a_time": closed["one_case_at_a_time"],
         "grid": {key: list(value) for key, value in grid.items()},
-        "heyoka": heyoka_batch(repeats, (x0[:4], np.repeat(acs[:, None], ARCS, 1),
-                                         np.repeat(alphas[:, None], ARCS, 1),
-                                         np.tile(lengths, (cases, 1))),
-                               truth, float(np.median(errors))),
+        "heyoka": heyoka,
         "note": "times are median CPU seconds of this process, each method on one thread; "
                 "closed form: every case in one compiled mapped call; CVODES: seconds per "
                 "case on cvodes_cases_timed evenly spread cases, the faster of per-case "
@@ -465,8 +514,6 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
                 "arc by arc; final error: distance of the final position from CVODES at "
                 "the reference tolerance",
     }
-    block["per_case"] = per_case_table(block)
-    return block
 
 
 def per_case_table(block):

@@ -96,9 +96,10 @@ class Track:
         # CasADi's B-spline is zero outside its knots; holding t at the sampled range
         # keeps a stray NLP iterate on a finite, physical (if frozen) state instead.
         held = ca.fmin(ca.fmax(t, t_grid[0]), t_grid[-1])
-        parts = [ca.interpolant(f"{self._tag()}_{label}", "bspline", [t_grid], polar[k])(held)
-                 for k, label in enumerate(("r", "theta", "v_r", "v_theta"))]
-        self.function = ca.Function("track", [t], [ca.vertcat(*parts)], ["t"], ["polar"])
+        # One spline of four outputs (the sample index slowest): the same fit of each
+        # component as four splines would make, at a fraction of the cost to build.
+        spline = ca.interpolant(self._tag(), "bspline", [t_grid], polar.T.ravel())
+        self.function = ca.Function("track", [t], [spline(held)], ["t"], ["polar"])
         self.sampled_t_range = (float(t_grid[0]), float(t_grid[-1]))
         self.sampled_jd = jd
         self._measure(source, jd)

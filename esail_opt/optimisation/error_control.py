@@ -219,7 +219,7 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
         Rounds of correction at most.
     solver : tuple, optional
         ``ipopt.build_solver(tr, warm=True)``'s pair, already built for ``tr``: a scan
-        error-controls many cells on one NLP, and building its solver costs seconds.
+        error-controls many cells on one NLP and builds its solver once.
     defects : numpy.ndarray, optional
         The 5 x N defects ``result`` was solved with (a scan carries a neighbour's), so
         that :attr:`ErrorControl.defects` says what the final result was solved with.
@@ -232,57 +232,95 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
     -------
     ErrorControl
     """
-    say = progress or (lambda text: None)
-    fresh = tr is None
-    if fresh:
+    say, fresh = progress or (lambda text: None), tr is None
+    if fresh:  # a new NLP scales its variables anew: the first correction starts cold
         tr, solver = transcribe(problem, guess=result.as_guess()), None
     history, last_miss, applied = [], None, defects
-    local_km = np.full(result.alpha.size, np.nan)
+    local_km = np.full(result.alpha.size, np.nan)  # until a round flies every segment
     started = time.perf_counter()
     for rnd in range(max_rounds + 1):
-        check = verify(problem, result, samples=samples, defects=applied)
-        verified = check.judge(problem)[0] and result.converged
-        try:
-            exact, plain = segment_ends(problem, result)
-            local_km = np.array([_node_miss_km(a, b) for a, b in zip(exact.T, plain.T)])
-        except SimulationError as err:
-            exact = None
-            say(f"error control: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")
+        check, exact, plain, local_km = _judge(problem, result, samples, applied, local_km,
+                                               say)
         history.append(_row(rnd, problem, result, check, local_km,
                             time.perf_counter() - started))
-        miss = _flown_miss(problem, check)
-        say(f"error-control round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
-            f"{miss:.4g} km (tolerance {problem.tolerance.position_km:g} km)")
-        if (verified or rnd == max_rounds or exact is None
-                or not result.outcome.found):
+        miss = _said_miss(rnd, problem, check, say)
+        if (rnd == max_rounds or exact is None or not result.outcome.found
+                or (check.judge(problem)[0] and result.converged)):
             break
-        sub = problem.segments.sub_arcs
-        worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,
-                                    result.accelerations(problem) / problem.sail.ac)))
-        strained = worst > 1
-        stalled = last_miss is not None and miss > STALL * last_miss
+        grown = _grown(problem, result, miss, last_miss)
         last_miss = miss
-        grow = (strained or stalled) and sub < MAX_SUB_ARCS
-        if fresh or grow:
-            # A fresh start is no reason to keep a strained mesh: a defect correction on
-            # arcs far past the cap moved the 2-3 revolution Earth-Mars optimum (one
-            # 3.2 rad segment from 0.58 au, 3.6e6 km local error) out to escape.
-            if grow:
-                grown = math.ceil(sub * worst) if strained else 2 * sub
-                problem = dataclasses.replace(problem, segments=dataclasses.replace(
-                    problem.segments, sub_arcs=min(grown, MAX_SUB_ARCS)))
-                tr = transcribe(problem, guess=result.as_guess())
-                plain = segment_ends(problem, result)[1]
-                say(f"error control: {'strained' if strained else 'slow'} closed form; "
-                    f"{problem.segments.sub_arcs} sub-arcs per segment")
-            applied = exact - plain
-            result = solve_transcription(tr, defects=applied, progress=progress)
-            solver, last_miss, fresh = None, None, False
-        else:
-            applied = exact - plain
-            if solver is None:
-                solver = build_solver(tr, warm=True, progress=progress)
-            result = solve_transcription(tr, defects=applied, warm=result, solver=solver,
-                                         progress=progress)
+        if grown is not None:
+            problem, tr, plain = _remeshed(problem, result, grown, say)
+        applied = exact - plain
+        cold = fresh or grown is not None
+        result, solver = _correct(tr, applied, result, None if cold else solver, cold, progress)
+        if cold:
+            last_miss, fresh = None, False
     # Every way out of the loop is a break after flying the final result.
     return ErrorControl(problem, result, tr, history, local_km, check, applied)
+
+
+def _said_miss(rnd, problem, check, say):
+    """The flown miss of round ``rnd`` (:func:`_flown_miss`), said in its line."""
+    miss = _flown_miss(problem, check)
+    say(f"error-control round {rnd}: {problem.segments.sub_arcs} sub-arcs, flown miss "
+        f"{miss:.4g} km (tolerance {problem.tolerance.position_km:g} km)")
+    return miss
+
+
+def _judge(problem, result, samples, applied, local_km, say):
+    """One round's flights of ``result``: its verification (``verify``, with the
+    defects ``applied``) and every segment flown from its own start node.  Returns
+    (check, exact ends, model ends, local errors in km); the ends are None, and the
+    local errors those of the last round, when a segment cannot be flown on Eqs. 1-2."""
+    check = verify(problem, result, samples=samples, defects=applied)
+    try:
+        exact, plain = segment_ends(problem, result)
+    except SimulationError as err:
+        say(f"error control: a segment cannot be flown on Eqs. 1-2 ({err}); stopping")
+        return check, None, None, local_km
+    local_km = np.array([_node_miss_km(a, b) for a, b in zip(exact.T, plain.T)])
+    return check, exact, plain, local_km
+
+
+def _grown(problem, result, miss, last_miss):
+    """The sub-arcs the next round needs, or None to keep the mesh: more where a
+    segment breaks the strain cap (enough to keep it), double where the last round did
+    not cut the flown miss by :data:`STALL`, never past :data:`MAX_SUB_ARCS`.
+
+    A fresh start (no NLP given) is no reason to keep a strained mesh either: a defect
+    correction on arcs far past the cap moved the 2-3 revolution Earth-Mars optimum
+    (one 3.2 rad segment from 0.58 au, 3.6e6 km local error) out to escape."""
+    sub = problem.segments.sub_arcs
+    worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,
+                                result.accelerations(problem) / problem.sail.ac)))
+    strained = worst > 1
+    stalled = last_miss is not None and miss > STALL * last_miss
+    if not (strained or stalled) or sub >= MAX_SUB_ARCS:
+        return None
+    return min(math.ceil(sub * worst) if strained else 2 * sub, MAX_SUB_ARCS), strained
+
+
+def _correct(tr, defects, result, solver, cold, progress):
+    """The optimum of ``tr`` with ``defects``: cold (a new NLP, or a new mesh, scales
+    its variables anew), or warm from ``result`` on ``solver`` (built here if None).
+    Returns it and the solver to warm the next round on (None after a cold solve)."""
+    if cold:
+        return solve_transcription(tr, defects=defects, progress=progress), None
+    if solver is None:
+        solver = build_solver(tr, warm=True, progress=progress)
+    return solve_transcription(tr, defects=defects, warm=result, solver=solver,
+                               progress=progress), solver
+
+
+def _remeshed(problem, result, grown, say):
+    """``problem`` on the grown mesh (``grown``: sub-arcs and whether the strain cap
+    asked for them), its NLP at ``result``, and the model's segment ends on it."""
+    sub_arcs, strained = grown
+    problem = dataclasses.replace(problem, segments=dataclasses.replace(
+        problem.segments, sub_arcs=sub_arcs))
+    tr = transcribe(problem, guess=result.as_guess())
+    plain = segment_ends(problem, result)[1]
+    say(f"error control: {'strained' if strained else 'slow'} closed form; "
+        f"{problem.segments.sub_arcs} sub-arcs per segment")
+    return problem, tr, plain

@@ -107,6 +107,9 @@ def wrap_pitch(alpha):
     return (np.asarray(alpha, float) + np.pi / 2) % np.pi - np.pi / 2
 
 
+#: Ipopt's status when a checkpoint (:func:`build_solver`) stopped it.
+STOPPED = "User_Requested_Stop"
+
 #: Seconds between two progress lines of one Ipopt solve.
 PROGRESS_SECONDS = 2.0
 
@@ -121,12 +124,13 @@ class _Monitor(ca.Callback):
     raises KeyboardInterrupt (or Terminated) once Ipopt has returned.
     """
 
-    def __init__(self, tr, progress):
+    def __init__(self, tr, progress, checkpoint=None):
         ca.Callback.__init__(self)
         self.ng = tr.lbg.size
         self.lbg, self.ubg = tr.lbg, tr.ubg
         self.scale, self.unit = tr.objective_unit
         self.progress = progress
+        self.checkpoint = checkpoint
         self.iteration = 0
         self.last = time.monotonic()
         self.held = SignalsHeld()
@@ -152,17 +156,22 @@ class _Monitor(ca.Callback):
             return ca.Sparsity.dense(self.ng)
         return ca.Sparsity(0, 0)
 
+    def _violation(self, args):
+        g = np.array(args[2]).ravel()
+        return float(np.max(np.r_[0.0, self.lbg - g, g - self.ubg]))
+
     def eval(self, args):
         self.iteration += 1
         now = time.monotonic()
         if self.progress is not None and now - self.last >= PROGRESS_SECONDS:
             self.last = now
-            g = np.array(args[2]).ravel()
-            violation = float(np.max(np.r_[0.0, self.lbg - g, g - self.ubg]))
             self.progress(f"Ipopt iteration {self.iteration}: objective "
                           f"{float(args[1]) * self.scale:.6g}{self.unit}, "
-                          f"constraint violation {violation:.2g}")
-        return [1 if self.held.interrupted else 0]
+                          f"constraint violation {self._violation(args):.2g}")
+        give_up = False
+        if self.checkpoint is not None and self.iteration == self.checkpoint[0]:
+            give_up = bool(self.checkpoint[1](float(args[1]), self._violation(args)))
+        return [1 if self.held.interrupted or give_up else 0]
 
     def __enter__(self):
         self.held.__enter__()
@@ -194,24 +203,26 @@ def primal_warm_options(options):
     return opts
 
 
-def build_solver(tr, options=None, warm=False, progress=None):
+def build_solver(tr, options=None, warm=False, progress=None, checkpoint=None):
     """An Ipopt solver for ``tr`` with its :class:`_Monitor` (``solver.monitor``).
 
     ``warm`` chooses :func:`warm_options`; ``progress(text)`` receives the iteration
-    lines.  Building takes seconds for the closed form, so the error control builds once
-    and re-solves.
+    lines.  Building is the costly part of a warm re-solve of the closed form, so the
+    error control builds once and re-solves.  ``checkpoint``, a pair (iteration, test), stops Ipopt
+    ("User_Requested_Stop") at that iteration when ``test(objective, violation)`` (the
+    NLP's own objective and the largest constraint violation there) is true.
     """
     opts = dict(ipopt_options() if options is None else options)
     if warm:
         opts = warm_options(opts)
-    monitor = _Monitor(tr, progress)
+    monitor = _Monitor(tr, progress, checkpoint)
     opts["iteration_callback"] = monitor
     solver = ca.nlpsol("esail", "ipopt", tr.nlp, opts)
     return solver, monitor
 
 
 def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
-                        progress=None):
+                        progress=None, checkpoint=None):
     """Run Ipopt on a transcription and unpack the result.
 
     Parameters
@@ -226,9 +237,11 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         :func:`warm_options`, instead of from ``tr.x0``.
     solver : (casadi.Function, _Monitor), optional
         :func:`build_solver`'s pair, already built for ``tr`` (the error control
-        re-solves one NLP several times; building it again costs seconds).
+        re-solves one NLP several times, and need not build it again).
     progress : callable, optional
         ``progress(text)`` gets a line on Ipopt's iterations every few seconds.
+    checkpoint : (int, callable), optional
+        As for :func:`build_solver` (without ``solver``).
 
     Raises
     ------
@@ -238,7 +251,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
         the command line's handler.
     """
     if solver is None:
-        solver = build_solver(tr, options, warm is not None, progress)
+        solver = build_solver(tr, options, warm is not None, progress, checkpoint)
     solver, monitor = solver
     monitor.progress = progress
     p = tr.parameters(defects)
@@ -273,7 +286,7 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
 
 
 def solve_problem(problem, segment=None, options=None, guess=None, progress=None,
-                  staged=True):
+                  staged=True, checkpoint=None):
     """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
 
     ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, with its
@@ -289,6 +302,8 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
 
     The equal-length stage is evaluated on one thread, being small; the free-length
     stage takes ``transcription.segment_threads``.  The optimum depends on neither.
+    ``checkpoint`` (:func:`build_solver`) applies to each stage, and a stage it stopped
+    ends the solve (with that stage's result and transcription).
     """
     seg = problem.segments
     first = None
@@ -297,12 +312,15 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     guess = initial_guess(problem) if guess is None else guess
     if staged and not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
-        first = solve_transcription(transcribe(equal, segment, guess, threads=1), options,
-                                    progress=progress)
+        equal_tr = transcribe(equal, segment, guess, threads=1)
+        first = solve_transcription(equal_tr, options, progress=progress,
+                                    checkpoint=checkpoint)
+        if first.status == STOPPED:
+            return first, equal_tr
         if first.outcome.found:
             guess = first.as_guess()
     tr = transcribe(problem, segment, guess)
-    result = solve_transcription(tr, options, progress=progress)
+    result = solve_transcription(tr, options, progress=progress, checkpoint=checkpoint)
     if first is not None:
         result.iterations += first.iterations
         result.solve_seconds += first.solve_seconds

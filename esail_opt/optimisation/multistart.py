@@ -190,15 +190,16 @@ def window_starts(problem, classes):
     return starts
 
 
-def rendezvous_starts(problem, classes):
+def rendezvous_starts(problem, classes, seeds=None):
     """Starts of a rendezvous's turn counts k in ``classes``.
 
     Each constant-pitch seed of :func:`seed_pitches` arrives with its own turn count on
     the body (``Guess.revolutions_k``: pitches nearer +-90 deg wind more turns before
     they reach the body's orbit); class k takes the first seed whose count is k, else
-    the seed whose count is nearest, with k imposed.
+    the seed whose count is nearest, with k imposed.  ``seeds`` are
+    :func:`constant_pitch_seeds` of ``problem`` when the caller already has them.
     """
-    seeds = constant_pitch_seeds(problem)
+    seeds = constant_pitch_seeds(problem) if seeds is None else seeds
     starts = []
     for k in classes:
         alpha, guess = min(seeds.items(), key=lambda ag: abs(ag[1].revolutions_k - k))
@@ -264,13 +265,45 @@ def probe_cap(iterations, least=PROBE_MIN):
     return max(least, int(math.ceil(PROBE_FACTOR * iterations)))
 
 
-def probe(problem, guess, cap, progress=None):
+#: A planar class probe is stopped as hopeless at the iteration where the answer's own
+#: solve converged (at least :data:`PROBE_MIN`) when its point there is still this far
+#: from feasible (the largest constraint violation, canonical units) and its objective
+#: more than :data:`HOPELESS_RATIO` times the best class's.  On the fixed-date
+#: Earth-Mars minimum a_c (problems/earth_mars_min_ac.py) the answer's class took 77
+#: iterations and both classes beside it, which end infeasible after 215 and 200, stood
+#: there at violations of 0.32 and 0.049 with 47 and 5.8 times the answer's a_c; a
+#: planar class with a transfer converges in about the seed's own iterations.  In three
+#: dimensions no class is stopped so: on the Earth-Venus 3-D minimum a_c
+#: (problems/earth_venus_min_ac_3d.py) the solve's descent reaches the best class
+#: (k = -21) only through k = -20, which has a transfer; solved from its class seed,
+#: k = -20 stood at violation 1.3 and 28 times the best objective so far at the
+#: iteration where the seed's class had converged, and converged 220 iterations later.
+HOPELESS_VIOLATION = 1e-3
+HOPELESS_RATIO = 2.0
+
+
+def hopeless_checkpoint(problem, iterations, best):
+    """The (iteration, test) checkpoint (``ipopt.build_solver``) that stops a class
+    probe as hopeless (:data:`HOPELESS_VIOLATION`, :data:`HOPELESS_RATIO`), after an
+    answer whose solve took ``iterations`` and whose objective is ``best``; None in
+    three dimensions or for an objective that is not positive."""
+    if problem.three_d() or not best > 0:
+        return None
+
+    def hopeless(objective, violation):
+        return violation > HOPELESS_VIOLATION and objective > HOPELESS_RATIO * best
+
+    return max(PROBE_MIN, int(iterations)), hopeless
+
+
+def probe(problem, guess, cap, progress=None, checkpoint=None):
     """A solve of ``problem`` from ``guess`` with Ipopt stopped after ``cap`` iterations,
     solved on without a cap only when that point is within :data:`PROBE_FEASIBLE` of
-    feasible.  Returns (NLPResult, Transcription); the result's iterations and seconds
-    cover the probe and what followed it."""
+    feasible.  ``checkpoint`` (:func:`hopeless_checkpoint`) may stop it earlier, with
+    the status ``ipopt.STOPPED``.  Returns (NLPResult, Transcription); the result's
+    iterations and seconds cover the probe and what followed it."""
     result, tr = solve_problem(problem, guess=guess, progress=progress,
-                               options=ipopt_options(max_iter=cap))
+                               options=ipopt_options(max_iter=cap), checkpoint=checkpoint)
     if not result.outcome.found and result.constraint_violation <= PROBE_FEASIBLE:
         # A nearly feasible point is a start Ipopt should keep to, as a free date's is.
         more, tr = solve_problem(problem, guess=result.as_guess(), progress=progress,
@@ -283,11 +316,12 @@ def probe(problem, guess, cap, progress=None):
     return result, tr
 
 
-def probe_rendezvous_class(problem, k, cap, progress=None):
+def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seeds=None):
     """:func:`probe` of the rendezvous turn count ``k`` from its seed
-    (:func:`rendezvous_starts`); returns (NLPResult, Transcription, label of the start)."""
-    start = rendezvous_starts(problem, [k])[0]
-    return probe(problem, start.guess, cap, progress) + (start.label,)
+    (:func:`rendezvous_starts`, from ``seeds`` when given); returns (NLPResult,
+    Transcription, label of the start)."""
+    start = rendezvous_starts(problem, [k], seeds)[0]
+    return probe(problem, start.guess, cap, progress, checkpoint) + (start.label,)
 
 
 def fallback_starts(problem, guess):

@@ -60,7 +60,9 @@ class ClassTried:
         The class: whole turns between the sail and the body at arrival.
     status : str
         Ipopt's return status of its last solve ("Maximum_Iterations_Exceeded" for a
-        probe stopped at :data:`multistart.PROBE_FACTOR` times the seed's iterations).
+        probe stopped at :data:`multistart.PROBE_FACTOR` times the seed's iterations,
+        "User_Requested_Stop" for one stopped as hopeless,
+        :func:`multistart.hopeless_checkpoint`).
     iterations : int
         Ipopt iterations spent on it.
     objective : float or None
@@ -381,6 +383,8 @@ def _classes(problem, result, tr, say):
     cap = multistart.probe_cap(own.iterations)
     tried = [(_class_record(f"the seed's class (k = {result.revolutions_k})", own),
               result, tr)]
+    # Every class's seed comes from the same constant-pitch flights.
+    seeds = multistart.constant_pitch_seeds(problem)
 
     # A real body's k counts from the turns both bodies made since 2000, so it may be
     # negative; an idealised body's counts from its phase at departure.
@@ -389,9 +393,14 @@ def _classes(problem, result, tr, say):
     def solve_class(k):
         if k < 0 and not real:
             return None
+        best = min(r.objective for _, r, _ in tried if r.outcome.found)
+        checkpoint = multistart.hopeless_checkpoint(problem, own.iterations, best)
         say(f"{problem.name}: probing the turn count k = {k} ({cap} Ipopt iterations "
-            "at most unless nearly feasible)")
-        other, other_tr, label = multistart.probe_rendezvous_class(problem, k, cap, say)
+            "at most unless nearly feasible"
+            + ("" if checkpoint is None else
+               f", stopped at {checkpoint[0]} if hopeless by then") + ")")
+        other, other_tr, label = multistart.probe_rendezvous_class(
+            problem, k, cap, say, checkpoint, seeds)
         tried.append((_class_record(label, other), other, other_tr))
         return (other, other_tr) if other.outcome.found else None
 

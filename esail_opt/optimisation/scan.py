@@ -36,7 +36,9 @@ from esail_opt.optimisation import multistart
 from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
                                           solve_transcription)
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
-from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
+from esail_opt.optimisation.problem import Problem
+from esail_opt.optimisation.transcription import (Transcription, initial_guess,
+                                                  sub_arcs_within_cap)
 from esail_opt.optimisation.verify import verify
 
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
@@ -72,13 +74,13 @@ def _objective_at(problem, tof_days):
     return dataclasses.replace(problem.objective, tof_days=tof_days)
 
 
-@dataclass
+@dataclass(frozen=True)
 class Cell:
     """One solved cell: its problem, the closed-form optimum and its judged flight."""
 
-    problem: object
+    problem: Problem
     result: Optional[NLPResult]
-    transcription: object
+    transcription: Optional[Transcription]
     verified: bool
     note: str
     misses: dict
@@ -237,6 +239,16 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
     n = len(cells)
     if neighbours is None:
         neighbours = [[j for j in (i - 1, i + 1) if 0 <= j < n] for i in range(n)]
+    out, classes = _forward(solver, cells, say, explore)
+    _repair(solver, cells, out, classes, neighbours, say)
+    return out
+
+
+def _forward(solver, cells, say, explore):
+    """The forward pass: each cell solved warm from the one before it (and from its own
+    classes, :func:`_first_solves`), then settled (:func:`_settle`).  Returns the cells
+    and, per cell, the set of revolution classes its solves tried."""
+    n = len(cells)
     out = []
     classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
@@ -255,12 +267,20 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
         out.append(_settle(solver, tried))
         classes.append({c.result.revolutions_k for c in tried if c.result is not None})
         say(_line(i, n, out[-1]))
-    # Repair, back along the path and forward again: a cell is solved again from a
-    # neighbour that holds a class it has not tried, or, where the cell is worse than
-    # every neighbour with the same objective (a spike: the same time of flight, for a
-    # fixed-time scan), from each of them that did better.  Smooth slopes are left
-    # alone: a neighbour's start there only finds the optimum the cell already has.
-    # A start already taken for a cell gives the same solve again: each is taken once.
+    return out, classes
+
+
+def _repair(solver, cells, out, classes, neighbours, say):
+    """The repair pass, back along the path and forward again, replacing cells of
+    ``out`` in place (and adding to ``classes`` the classes tried).
+
+    A cell is solved again from a neighbour that holds a class it has not tried, or,
+    where the cell is worse than every neighbour with the same objective (a spike: the
+    same time of flight, for a fixed-time scan), from each of them that did better.
+    Smooth slopes are left alone: a neighbour's start there only finds the optimum the
+    cell already has.  A start already taken for a cell gives the same solve again:
+    each is taken once."""
+    n = len(cells)
     taken = {}  # (cell, neighbour) -> the neighbour's start last taken for the cell
     for order in (range(n - 1, -1, -1), range(n)):
         for i in order:
@@ -274,14 +294,23 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
                     continue
                 classes[i].add(k)
                 taken[(i, j)] = other.on_scan_nlp
-                again = solver.warm(cells[i], other, f"from {j}")
-                # Only a better closed-form optimum is worth its error control.
-                if again is not None and again.solved and (again.objective < out[i].objective or not out[i].verified):
-                    again = solver.finish(again)
-                    if _rank(again) < _rank(out[i]):
-                        out[i] = again
-                        say(_line(i, n, again) + f" (again, from cell {j + 1})")
-    return out
+                again = _again(solver, cells[i], other, j, out[i])
+                if again is not None:
+                    out[i] = again
+                    say(_line(i, n, again) + f" (again, from cell {j + 1})")
+
+
+def _again(solver, problem, other, j, cell):
+    """``problem`` solved again warm from the neighbour ``other`` (cell ``j``), finished,
+    if that ranks better than ``cell``; else None.  Only a better closed-form optimum
+    (or any, for a cell that did not verify) is worth its error control."""
+    again = solver.warm(problem, other, f"from {j}")
+    if again is None or not again.solved:
+        return None
+    if not (again.objective < cell.objective or not cell.verified):
+        return None
+    again = solver.finish(again)
+    return again if _rank(again) < _rank(cell) else None
 
 
 def _settle(solver, tried):
@@ -453,16 +482,28 @@ def _at_tof(problem, tof_days):
     return dataclasses.replace(problem, objective=_objective_at(problem, tof_days))
 
 
-def shortest_feasible(problem, progress=None):
+def shortest_feasible(problem, progress=None, start=None):
     """The shortest time of flight from ``problem``'s departure at which its closed-form
     NLP converges, at least ``problem``'s own: a continuation in the time of flight.
 
-    The problem is solved cold at :data:`LONGER` multiples of its time of flight until
-    one converges; then the time of flight is halved towards the longest one found
-    infeasible, each step warm from the last converged one on the same NLP (its time of
-    flight is a parameter, ``Transcription.at``), to within :data:`EDGE_DAYS`.  A step
-    that does not converge within :data:`WALK_ITERATIONS` counts as infeasible, so the
-    edge may lie a little shorter than reported, never longer.
+    Without ``start``, the problem is solved cold at :data:`LONGER` multiples of its time
+    of flight until one converges.  Then the time of flight is halved towards the longest
+    one found infeasible (``problem``'s own when ``start`` is given), each step warm from
+    the last converged one on the same NLP (its time of flight is a parameter,
+    ``Transcription.at``), to within :data:`EDGE_DAYS`.  A step that does not converge
+    within :data:`WALK_ITERATIONS` counts as infeasible, so the edge may lie a little
+    shorter than reported, never longer.
+
+    Parameters
+    ----------
+    problem : Problem
+        A fixed-time problem that found no point at its time of flight.
+    progress : callable, optional
+        ``progress(text)``: one line per solve.
+    start : (Problem, NLPResult, Transcription), optional
+        A converged optimum from the same departure at a longer time of flight, with its
+        problem and NLP (a porkchop's solved cell of the same date): the walk starts
+        from it, warm, and skips the cold solves.
 
     Returns
     -------
@@ -470,22 +511,13 @@ def shortest_feasible(problem, progress=None):
         None when no time of flight of :data:`LONGER` converged.
     """
     say = progress or (lambda text: None)
-    asked = problem.objective.tof_days
-    lo, iterations, found = asked, 0, None
-    for factor in LONGER:
-        cell = _at_tof(problem, asked * factor)
-        guess = initial_guess(cell)
-        cell = sub_arcs_within_cap(cell, guess, MAX_SUB_ARCS)
-        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
-        result, tr = solve_problem(cell, guess=guess, progress=say)
-        iterations += result.iterations
-        if result.outcome.converged:
-            found = cell, result, tr
-            break
-        lo = asked * factor
+    lo, iterations = problem.objective.tof_days, 0
+    found = start if start is not None else _ladder(problem, say)
     if found is None:
         return None
-    cell, result, tr = found
+    cell, result, tr, *spent = found
+    if spent:
+        iterations, lo = spent
     solver = build_solver(tr, ipopt_options(max_iter=WALK_ITERATIONS), warm=True)
     while cell.objective.tof_days - lo > EDGE_DAYS:
         step = _at_tof(cell, 0.5 * (lo + cell.objective.tof_days))
@@ -497,3 +529,22 @@ def shortest_feasible(problem, progress=None):
         else:
             lo = step.objective.tof_days
     return Edge(cell, result, tr.at(cell), lo, iterations)
+
+
+def _ladder(problem, say):
+    """The cold solves at :data:`LONGER` multiples of ``problem``'s time of flight, up to
+    the first that converges: (its problem, optimum, NLP, the iterations spent, the
+    longest time of flight found infeasible), or None."""
+    asked = problem.objective.tof_days
+    lo, iterations = asked, 0
+    for factor in LONGER:
+        cell = _at_tof(problem, asked * factor)
+        guess = initial_guess(cell)
+        cell = sub_arcs_within_cap(cell, guess, MAX_SUB_ARCS)
+        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
+        result, tr = solve_problem(cell, guess=guess, progress=say)
+        iterations += result.iterations
+        if result.outcome.converged:
+            return cell, result, tr, iterations, lo
+        lo = asked * factor
+    return None

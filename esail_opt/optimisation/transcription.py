@@ -351,8 +351,8 @@ def flown_segments(problem, alpha, lengths, x_start, throttle=None, delta=None):
     controls = [np.asarray(alpha, float)[None, :]]
     if problem.three_d():
         controls.append((np.zeros(n) if delta is None else np.asarray(delta, float))[None, :])
-    # One call of the accumulated segment, not one Python call per segment (3.8 against
-    # 0.8 ms for 60 segments, the same numbers).
+    # One call of the accumulated segment rather than one Python call per segment: the
+    # same numbers, without a call's overhead per segment.
     ends = problem_segment(problem).mapaccum(n)(
         x, problem.sail.ac * kappa[None, :], *controls,
         np.asarray(lengths, float)[None, :])[0]
@@ -659,12 +659,12 @@ def _variables(problem, guess, scales, in_time):
     the free departure anomaly and the throttle.
 
     MX: the segment Function is mapped over them, so the NLP holds one copy of the arc's
-    graph (inlining the SX arcs solves a little faster but takes ~30 s to build the
-    derivatives for 60 segments).  Every variable couples only neighbouring segments --
-    the node carries the elapsed time, and equal lengths are chained equalities rather
-    than one shared variable -- so the constraint Jacobian is banded and colours in a
-    handful of directions; a shared length column plus a sum-of-durations row made it
-    dense and cost 0.75 s per Jacobian on the 60-segment orbit raising, against 0.03 s.
+    graph (inlining the SX arcs would copy it into every segment, and building their
+    derivatives then costs far more than the little the solve gains).  Every variable
+    couples only neighbouring segments -- the node carries the elapsed time, and equal
+    lengths are chained equalities rather than one shared variable -- so the constraint
+    Jacobian is banded and colours in a handful of directions; a shared length column
+    plus a sum-of-durations row would make it dense, and every Jacobian far dearer.
     """
     n = guess.alpha.size
     free_nu = bool(getattr(problem.departure, "free_anomaly", False))
@@ -819,12 +819,7 @@ def transcribe(problem, segment=None, guess=None, length_in="theta", threads=Non
     if length_in not in ("theta", "time"):
         raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
     in_time = length_in == "time"
-    if segment is None:
-        segment = problem_segment(problem)
-    elif segment.n_in() != (5 if problem.three_d() else 4):
-        raise ValueError(f"segment {segment.name()!r} has {segment.n_in()} inputs; a "
-                         f"{'3-D' if problem.three_d() else 'planar'} problem's segment takes "
-                         f"{5 if problem.three_d() else 4} (planar=True flies the planar ones)")
+    segment = _checked_segment(problem, segment)
     guess = initial_guess(problem) if guess is None else guess
     scales = _Scales.of(guess)
     v, variables = _variables(problem, guess, scales, in_time)
@@ -842,21 +837,40 @@ def transcribe(problem, segment=None, guess=None, length_in="theta", threads=Non
         f = problem.sail.ac * flight["ac_scale"]
     else:
         f = problem.objective.cost(flight["xf"], flight["tf"])
+    tof = problem.fixed_tof()
+    return Transcription({"x": w, "p": p, "f": f, "g": g_expr},
+                         ca.Function("g", [w, p], [g_expr], ["w", "p"], ["g"]),
+                         np.clip(w0, lbx, ubx), lbx, ubx, lbg, ubg,
+                         _unpack_function(problem, guess, v, flight, w, p), guess, g.sizes,
+                         problem.objective.shown_as(), problem.epoch(),
+                         0.0 if tof is None else tof, np.zeros(n_corr))
+
+
+def _checked_segment(problem, segment):
+    """``segment``, or the problem's closed-form one by default; ValueError if its
+    inputs are not those of the problem's segments (planar or 3-D)."""
+    if segment is None:
+        return problem_segment(problem)
+    if segment.n_in() != (5 if problem.three_d() else 4):
+        raise ValueError(f"segment {segment.name()!r} has {segment.n_in()} inputs; a "
+                         f"{'3-D' if problem.three_d() else 'planar'} problem's segment takes "
+                         f"{5 if problem.three_d() else 4} (planar=True flies the planar ones)")
+    return segment
+
+
+def _unpack_function(problem, guess, v, flight, w, p):
+    """The Function ``(w, p) ->`` the solution's parts (``Transcription.unpack``):
+    a part the NLP does not vary (no free nu0, throttle, launch angle) is the guess's
+    or the problem's constant."""
     nu0 = v["nu0"][0] if v["nu0"].numel() else ca.MX(guess.nu0)
     throttle = v["kappa"] if v["kappa"].numel() else ca.MX.ones(guess.alpha.size, 1)
     angle = (v["vinf_angle"][0] if v["vinf_angle"].numel()
              else ca.MX(problem.departure.seed_angle() if problem.dated() else 0.0))
     # Without a free epoch the parameter is an input of unpack too, so that it reports it.
-    unpack = ca.Function("unpack", [w, p], [v["alpha"], flight["lengths"], flight["nodes"],
-                                            flight["durations"], flight["x_start"],
-                                            flight["q3"], nu0, throttle, flight["epoch"],
-                                            flight["ac_scale"], angle, v["delta"]],
-                         ["w", "p"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
-                                      "nu0", "throttle", "epoch", "ac_scale", "vinf_angle",
-                                      "delta"])
-    tof = problem.fixed_tof()
-    return Transcription({"x": w, "p": p, "f": f, "g": g_expr},
-                         ca.Function("g", [w, p], [g_expr], ["w", "p"], ["g"]),
-                         np.clip(w0, lbx, ubx), lbx, ubx, lbg, ubg, unpack, guess, g.sizes,
-                         problem.objective.shown_as(), problem.epoch(),
-                         0.0 if tof is None else tof, np.zeros(n_corr))
+    return ca.Function("unpack", [w, p], [v["alpha"], flight["lengths"], flight["nodes"],
+                                          flight["durations"], flight["x_start"],
+                                          flight["q3"], nu0, throttle, flight["epoch"],
+                                          flight["ac_scale"], angle, v["delta"]],
+                       ["w", "p"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
+                                    "nu0", "throttle", "epoch", "ac_scale", "vinf_angle",
+                                    "delta"])

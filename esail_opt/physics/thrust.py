@@ -4,6 +4,8 @@ R and T are the radial and transverse components of the dimensionless propulsive
 acceleration; the dimensional acceleration is ``a_c (r_E / r) (R, T)``.
 """
 
+import math
+
 import casadi as ca
 
 #: Huo et al.'s geometric model: Eqs. 3-4 are exact with these coefficients.
@@ -62,3 +64,19 @@ def radial_transverse_normal(alpha, delta, coefficients=EXACT):
     """
     R, T = radial_transverse(alpha, coefficients)
     return R, T * ca.cos(delta), T * ca.sin(delta)
+
+
+def canonical_attitude(alpha, delta):
+    """The one of the two names of a sail attitude that a reader expects, radians.
+
+    The sail's normal at (alpha, delta) and at (-alpha, delta + pi) is the same line (the
+    normal is turned half a circle about r_hat and its pitch changes sign), so both give
+    the same thrust.  The NLP may land on either name, and its clock is unbounded.  The
+    canonical name has delta in (-pi/2, pi/2]: the normal leans toward the side of the
+    motion's half of the orbital plane, and a thrust that brakes shows as a negative
+    pitch, as in the planar problem.
+    """
+    delta = math.remainder(delta, 2 * math.pi)  # in [-pi, pi]
+    if delta <= -math.pi / 2 or delta > math.pi / 2:
+        return -alpha, math.remainder(delta + math.pi, 2 * math.pi)
+    return alpha, delta

@@ -27,16 +27,14 @@ multiply-adds are kept off); only libmvec's sin, cos, log, atan and atan2, withi
 4 ulp where the scalar ones are within 1, differ, which moves the ten-year states
 by a few 1e-13 of their size.  Where it does not apply, or its compile fails, the
 mapped Function is compiled by CasADi's own just-in-time compiler.  How that
-compares with integrators is measured by ``esail-opt-bench propagate``.  Per case it
-costs far less than CVODES, and about what heyoka's Taylor integrator in batch mode
-costs at the same error.  heyoka at 1e-12 is orders of magnitude more accurate, for a
-small multiple of that time.
+compares with integrators (CVODES, heyoka's Taylor integrator) is measured by
+``esail-opt-bench propagate``; results/bench/README.md holds the figures.
 
 Why not ``propagation.compiled``'s disk cache: it compiles a
 Function together with its Jacobian and Hessian blocks, which the NLP needs; a timed
 second-order arc (its clock guess and Taylor series inside) has a Hessian far too large
 to compile for a call that is never differentiated, while its forward evaluation alone
-compiles in seconds.  Without a compiler, or with ``ESAIL_OPT_COMPILE=0``, the
+is small enough to compile in the process that flies it.  Without a compiler, or with ``ESAIL_OPT_COMPILE=0``, the
 Function stays on CasADi's virtual machine.
 """
 

@@ -1,9 +1,10 @@
 """CasADi Functions compiled to C once, cached on disk, and loaded by name.
 
 Why: on the closed-form NLP nearly all of Ipopt's time is spent evaluating the
-constraint Jacobian and the Hessian of the Lagrangian, and CasADi's virtual machine
-runs about 8 ns per SX instruction.  The same instructions compiled by gcc -O1 ran
-10 to 20 times faster on a segment's derivatives.
+constraint Jacobian and the Hessian of the Lagrangian, which CasADi's virtual machine
+interprets one SX instruction at a time; the same instructions compiled by gcc run
+natively, with the same numbers (``ESAIL_OPT_COMPILE=0`` keeps the virtual machine, for
+a comparison).
 
 What is compiled is one small SX Function, the closed form's arc (the NLP's second-order
 ``rectified.end_function``, about 1,200 instructions), with the three derivatives
@@ -12,12 +13,12 @@ reverse derivative (gradient of the Lagrangian) and that one's Jacobian (Hessian
 the Lagrangian).  CasADi's ``external`` finds them in the library by the names CasADi
 gives them (``jac_<name>``, ``adj1_<name>``, ``jac_adj1_<name>``), and the segments
 are chained from it in MX as before.  Compiling whole segments instead was rejected:
-a segment's Hessian block is hundreds of thousands of instructions, which gcc takes
-minutes over, where the arc's library is compiled once and serves every segment
-count, sub-arc count and extrapolation setting.
+a segment's Hessian block is hundreds of thousands of instructions, far longer for gcc
+to compile, and one per segment layout, where the arc's library is compiled once and
+serves every segment count, sub-arc count and extrapolation setting.
 
 The segment's own MX graph -- the arc calls and the chain rule between them, which on
-the virtual machine was still about 40 % of a Hessian of the Lagrangian and 65 % of a
+the virtual machine is still a large part of a Hessian of the Lagrangian and of a
 constraint Jacobian -- is compiled as well, with the arcs left as calls into their
 library (``compiled(segment, calls=(panel,))``): the segment's library is linked
 against the arc's, so gcc sees a few thousand small matrix operations, not the arcs'

@@ -1,0 +1,133 @@
+"""The terminal summary of a :class:`~esail_opt.app.solution.Solution`: the lines
+``esail-opt solve`` prints after a solve, read from the record alone (a solution loaded
+from its file prints the same lines)."""
+
+from esail_opt.optimisation.ipopt import STOPPED
+
+
+def summary(sol):
+    """The summary of ``sol``, one string of lines: the solve, the flight and its
+    verdict, then the turn counts looked at and the polish where there are any."""
+    lines = _solve_lines(sol) + _mission_lines(sol) + _flight_lines(sol.verification)
+    lines.append(f"  {sol.verification_note}")
+    return "\n".join(lines + _class_lines(sol) + _polish_lines(sol))
+
+
+def _solve_lines(sol):
+    """Ipopt's record, the time of flight and the closed form's final state."""
+    end = sol.final_state
+    # A dated problem's theta counts turns since 2000: the angle reads better.
+    return [
+        f"{sol.problem.name}: {sol.status} "
+        f"({'converged' if sol.converged else 'NOT converged'}), "
+        f"{sol.iterations} iterations, {sol.solve_seconds:.2f} s, "
+        f"{max(len(sol.rounds) - 1, 0)} error-control round(s)",
+        f"  tof {sol.tof_days:.3f} d (closed form), {len(sol.schedule)} segments x "
+        f"{sol.problem.sub_arcs} sub-arcs",
+        f"  final (closed form): r {end.r_au:.6f} au, theta {end.theta_deg % 360.0:.3f} deg, "
+        f"a {end.a_au:.6f} au, e {end.e:.5f}",
+    ]
+
+
+def _flight_lines(v):
+    """The CVODES flight: its final state and misses, or why it failed."""
+    if v.error:
+        return [f"  verification: {v.error}"]
+    cv = v.cvodes_final_state
+    lines = [f"  CVODES: r {cv.r_au:.6f} au, a {cv.a_au:.6f} au, e {cv.e:.5f}; "
+             f"miss vs NLP {v.miss_r_km:.4g} km, {v.miss_v_m_s:.4g} m/s, "
+             f"{v.miss_theta_deg:.4g} deg"]
+    if v.target_miss_r_km is not None:
+        extra = f", {v.target_miss_v_m_s:.4g} m/s" if v.target_miss_v_m_s is not None else ""
+        lines.append(f"  CVODES miss vs target: {v.target_miss_r_km:.4g} km{extra}")
+    return lines
+
+
+def _class_line(c):
+    """One turn count looked at: what it gave, and whether it was flown and chosen."""
+    if c.tof_days is None and c.status == STOPPED:
+        return (f"k = {c.revolutions_k} hopeless, stopped after {c.iterations} iterations "
+                f"(still infeasible by {c.constraint_violation:.2g})")
+    if c.tof_days is None:
+        return f"k = {c.revolutions_k} no point ({c.status} after {c.iterations} iterations)"
+    value = (f"{c.ac_mm_s2_required:.4g} mm/s^2" if c.ac_mm_s2_required is not None
+             else f"{c.tof_days:.1f} d")
+    verdict = {True: ", verified", False: ", NOT verified", None: ""}[c.verified]
+    return f"k = {c.revolutions_k} {value}{verdict}" + (" (chosen)" if c.chosen else "")
+
+
+def _class_lines(sol):
+    """The turn counts looked at, and the nearest feasible flight, if any."""
+    lines = []
+    if sol.classes:
+        shown = [_class_line(c) for c in sorted(sol.classes, key=lambda c: c.revolutions_k)]
+        lines.append(f"  turn counts on the body: {'; '.join(shown)}")
+        lines.append(f"  not looked at: {sol.classes_skipped}")
+    if sol.nearest_feasible is not None:
+        lines.append(f"  nearest feasible: {nearest_feasible_line(sol.nearest_feasible)}")
+    return lines
+
+
+def nearest_feasible_line(n):
+    """One line on a :class:`~esail_opt.app.solution.NearestFeasible`: its date, time of
+    flight and a_c."""
+    date = "" if n.departure_date is None else f" departing {n.departure_date}"
+    return (f"the shortest flight found feasible{date} takes {n.tof_days:.1f} d at a_c "
+            f"{n.ac_mm_s2_required:.4g} mm/s^2 ({'verified' if n.verified else 'NOT verified'}"
+            f"; none found at {n.infeasible_tof_days:.1f} d)")
+
+
+def _mission_lines(sol):
+    """The dates, the a_c a MinAcceleration found and what the plane hides at a body:
+    the answers a dated or sail-sizing problem was asked for."""
+    lines = []
+    if sol.departure_date is not None:
+        lines.append(f"  departs {sol.departure_date}, arrives {sol.arrival_date} (TDB)")
+    if sol.ac_mm_s2_required is not None and sol.converged:
+        lines.append(f"  a_c needed: {sol.ac_mm_s2_required:.6g} mm/s^2 (the schedule's "
+                     "throttles are fractions of it)")
+    elif sol.ac_mm_s2_required is not None:
+        lines.append(f"  a_c of Ipopt's last iterate: {sol.ac_mm_s2_required:.6g} mm/s^2 "
+                     "(not converged: no answer)")
+    body = sol.target_body
+    if body is not None and body.out_of_plane_km is not None:
+        # A rendezvous's relative speed is its velocity miss, printed below.
+        speed = ("" if body.relative_speed_km_s is None or body.kind != "BodyIntercept"
+                 else f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
+        if sol.final_state.cartesian is not None:
+            lines.append(f"  {body.name}: flown in 3-D against its unprojected state, "
+                         f"{body.out_of_plane_km:.4g} km from it along the ecliptic's "
+                         f"normal at arrival{speed}")
+        else:
+            lines.append(f"  {body.name}: {body.out_of_plane_km:.4g} km from the ecliptic "
+                         f"at arrival, which the planar model ignores{speed}")
+    return lines
+
+
+def _polish_misses(v):
+    """The polished flight's misses, in metres and mm/s (a km reads badly at its scale)."""
+    line = (f"  polished CVODES miss vs NLP {1e3 * v.miss_r_km:.3g} m, "
+            f"{1e3 * v.miss_v_m_s:.3g} mm/s")
+    if v.target_miss_r_km is not None:
+        line += f"; vs target {1e3 * v.target_miss_r_km:.3g} m"
+        if v.target_miss_v_m_s is not None:
+            line += f", {1e3 * v.target_miss_v_m_s:.3g} mm/s"
+    # Misses this small are only as good as the verifier that measured them.
+    if v.verifier_error_r_km is not None:
+        line += f" (verifier's own error {1e3 * v.verifier_error_r_km:.2g} m)"
+    return line
+
+
+def _polish_lines(sol):
+    """The polish, if there was one."""
+    p = sol.polish
+    if p is None:
+        return []
+    if not p.ran:
+        return [f"  polish: {p.note}"]
+    lines = [f"  polish: {p.status} ({'converged' if p.converged else 'NOT converged'}), "
+             f"{p.iterations} iterations, {p.seconds:.2f} s; exact tof "
+             f"{p.tof_days:.3f} d (closed form {sol.tof_days:.3f} d)"]
+    if p.verification.error is None:
+        lines.append(_polish_misses(p.verification))
+    return lines + [f"  polish: {p.note}"]

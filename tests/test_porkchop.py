@@ -1,0 +1,304 @@
+"""Porkchop cells where no sail exists, and the edge of the feasible.
+
+The fast tests judge hand-made cells (a date's cells, solved or not, with a walk to the
+edge stubbed out) and hand-made rows: the ``no_sail`` rule, the rows it marks, the
+journal round trip and the chart's marks.  The slow ones run the 3 x 2 Earth-Mars
+porkchop of 2035 at 500 and 650 days: its two cells where a sail exists verify, the
+other four have no sail, against an independent walk's edge (between 635 and 640 days
+from 2035-06-01, between 560 and 580 days from 2035-08-01, a_c held at 5 mm/s^2), and a
+verified cell's a_c is no worse than a lone solve of the same cell.
+"""
+
+import json
+import math
+from types import SimpleNamespace
+
+import pytest
+
+from esail_opt.app import engine, porkchop
+from esail_opt.errors import InputError
+from esail_opt.optimisation import scan
+from esail_opt.optimisation.problem_file import load_problem
+
+from conftest import USER_PROBLEMS
+
+PROBLEM = USER_PROBLEMS / "earth_mars_porkchop_2035.py"
+DEPART = "2035-04-01:2035-08-01:3"
+TOF = "500:650:2"
+
+
+def _grid():
+    return porkchop.Grid(tuple(porkchop.parse_dates(DEPART)), tuple(porkchop.parse_tofs(TOF)))
+
+
+def _cell(problem, solved, verified, ac_scale=1.0):
+    """A cell as the scan returns it: found a point (or not), verified (or not)."""
+    outcome = SimpleNamespace(found=solved, converged=solved)
+    result = SimpleNamespace(outcome=outcome, ac_scale=ac_scale)
+    return scan.Cell(problem, result, object(), verified, "", {}, 0.0, "seed")
+
+
+def _rows(grid, indices):
+    return [porkchop._row(i, grid) for i in indices]
+
+
+@pytest.fixture()
+def walks(monkeypatch):
+    """The walk to the edge and the flight of its answer, stubbed: down from a solved
+    cell the walk ends at 640 d with nothing found at 636 d, up from a cell with no
+    point at 700 d with nothing found at 690 d, and its flight verifies at 1.5 times
+    the sail's a_c.  Each call is recorded."""
+    calls = []
+
+    def walk(problem, progress=None, start=None):
+        calls.append((problem, start))
+        edge, infeasible = (700.0, 690.0) if start is None else (640.0, 636.0)
+        at = scan._at_tof(problem if start is None else start[0], edge)
+        return scan.Edge(at, SimpleNamespace(ac_scale=1.5), None, infeasible, 0)
+
+    def finish(problem, result, tr=None, samples=16, **kwargs):
+        return SimpleNamespace(verified=walks.verifies, problem=problem, result=result)
+
+    walks = SimpleNamespace(calls=calls, verifies=True)
+    monkeypatch.setattr(porkchop.scan, "shortest_feasible", walk)
+    monkeypatch.setattr(porkchop.pipeline, "finish", finish)
+    return walks
+
+
+def test_a_cell_shorter_than_a_verified_flight_of_its_date_has_no_sail(walks):
+    grid, problem = _grid(), load_problem(PROBLEM)
+    indices = [0, 1, 3, 2, 5, 4]  # the path: dates 0, 1, 2, flight times in turn
+    problems = [porkchop.cell_problem(problem, grid, i) for i in indices]
+    # Date 0: nothing found at either time; date 1: 650 d verified, 500 d nothing;
+    # date 2: 650 d nothing (a failed solve) but 500 d verified.
+    state = {0: (False, False), 1: (False, False), 2: (False, False), 3: (True, True),
+             4: (True, True), 5: (False, False)}
+    cells = [_cell(p, *state[i]) for p, i in zip(problems, indices)]
+    rows = _rows(grid, indices)
+    porkchop.mark_no_sail(problems, cells, rows)
+    by_index = {row["index"]: row for row in rows}
+    assert [by_index[i]["no_sail"] for i in range(6)] == [True, True, True, False, False,
+                                                          False]
+    # One walk per date with a cell that found nothing below its shortest verified one:
+    # date 0 up from its longest cell (cold), date 1 down from its verified cell.
+    assert len(walks.calls) == 2
+    (lone, cold), (short, warm) = walks.calls
+    assert cold is None and lone.objective.tof_days == 650.0
+    assert short.objective.tof_days == 500.0 and warm[0].objective.tof_days == 650.0
+    for i, edge, infeasible in ((0, 700.0, 690.0), (1, 700.0, 690.0), (2, 640.0, 636.0),
+                                (3, 640.0, 636.0)):
+        assert by_index[i]["edge_tof_days"] == edge
+        assert by_index[i]["edge_infeasible_tof_days"] == infeasible
+        assert by_index[i]["edge_ac_mm_s2"] == pytest.approx(1.5 * problem.sail.ac_mm_s2)
+    assert "640.0 d" in by_index[2]["error"] and by_index[2]["error"].startswith("no sail")
+    # Date 2's failed cell is longer than its verified one: a failed solve, no walk.
+    assert by_index[5]["edge_tof_days"] is None and by_index[5]["error"] is None
+
+
+def test_a_walk_that_does_not_verify_leaves_the_verified_cell_as_the_edge(walks):
+    walks.verifies = False
+    grid, problem = _grid(), load_problem(PROBLEM)
+    indices = [2, 3]
+    problems = [porkchop.cell_problem(problem, grid, i) for i in indices]
+    cells = [_cell(problems[0], False, False), _cell(problems[1], True, True, ac_scale=2.0)]
+    rows = _rows(grid, indices)
+    porkchop.mark_no_sail(problems, cells, rows)
+    assert [row["no_sail"] for row in rows] == [True, False]
+    assert rows[0]["edge_tof_days"] == 650.0
+    assert rows[0]["edge_ac_mm_s2"] == pytest.approx(2.0 * problem.sail.ac_mm_s2)
+    # A date whose walk found nothing verified and had no verified cell stays failed.
+    rows = _rows(grid, [0, 1])
+    lone = [porkchop.cell_problem(problem, grid, i) for i in (0, 1)]
+    porkchop.mark_no_sail(lone, [_cell(p, False, False) for p in lone], rows)
+    assert [row["no_sail"] for row in rows] == [False, False]
+    assert all(row["edge_tof_days"] is None for row in rows)
+
+
+def test_a_cell_that_converged_but_missed_is_not_a_cell_with_no_sail(walks):
+    grid, problem = _grid(), load_problem(PROBLEM)
+    problems = [porkchop.cell_problem(problem, grid, i) for i in (2, 3)]
+    cells = [_cell(problems[0], True, False), _cell(problems[1], True, True)]
+    rows = _rows(grid, [2, 3])
+    porkchop.mark_no_sail(problems, cells, rows)
+    assert [row["no_sail"] for row in rows] == [False, False] and not walks.calls
+
+
+def test_jobs_hold_whole_dates():
+    grid = porkchop.Grid((1.0, 2.0, 3.0, 4.0, 5.0), (500.0, 600.0, 700.0))
+    for workers in (1, 2, 3, 4, 8):
+        jobs = grid.jobs(workers)
+        assert sorted(i for job in jobs for i in job) == list(range(15))
+        assert len(jobs) <= workers
+        for job in jobs:
+            for date in {i // 3 for i in job}:
+                assert {3 * date, 3 * date + 1, 3 * date + 2} <= set(job)
+
+
+def _marked_rows():
+    """The six rows of the 3 x 2 chart as hand-made rows: the 650 d cells of the last
+    two dates verified, the other four with no sail, and one walked edge per date."""
+    grid = _grid()
+    rows = _rows(grid, range(6))
+    edges = {0: 700.0, 1: 640.0, 2: 570.0}
+    for row in rows:
+        date, long_flight = divmod(row["index"], 2)
+        row.update(edge_tof_days=edges[date], edge_infeasible_tof_days=edges[date] - 4.0,
+                   edge_ac_mm_s2=3.0)
+        if long_flight and date > 0:
+            row.update(verified=True, converged=True, objective=1.0 + date,
+                       objective_unit="mm/s^2", tof_days=650.0, status="Solve_Succeeded",
+                       arrival_date="2037-01-01T00:00:00", ac_mm_s2_required=1.0 + date)
+        else:
+            row.update(no_sail=True, error="no sail")
+    return rows
+
+
+def test_the_journal_keeps_no_sail_and_the_edge_and_reads_old_rows(tmp_path):
+    grid, rows = _grid(), _marked_rows()
+    header = {"journal": "esail-opt porkchop", "problem": "p", "source_sha256": "x",
+              "param": "p", "values": [1.0], "polish": False, "tolerance": {}}
+    journal = engine.Journal(tmp_path / porkchop.JOURNAL, header, porkchop.ROW_KINDS, 6)
+    journal.start({})
+    old = dict(rows[5])
+    for field in ("no_sail", "edge_tof_days", "edge_infeasible_tof_days", "edge_ac_mm_s2"):
+        del old[field]  # a row as a journal of the release before wrote it
+    for row in rows[:5] + [old]:
+        journal.append(row)
+    kept = journal.read(resume=True)
+    assert [kept[i] for i in range(5)] == rows[:5]
+    assert kept[5]["no_sail"] is None and kept[5]["verified"] and kept[5]["objective"] == 3.0
+    journal.append(dict(rows[0], no_sail="yes"))
+    with pytest.raises(InputError, match="no_sail"):
+        journal.read(resume=True)
+    # And the table made from them: the counts, the edge per date, the CSV's column.
+    request = SimpleNamespace(problem=load_problem(PROBLEM), grid=grid, problem_file="p.py")
+    outcome = SimpleNamespace(rows=[kept[i] for i in range(6)], executor="", seconds=0.0,
+                              resumed=list(range(6)), journal=None)
+    table = porkchop._table(request, outcome)
+    assert table["no_sail_cells"] == 4 and table["verified_cells"] == 2
+    assert [e["tof_days"] for e in table["edge"]] == [700.0, 640.0, 570.0]
+    csv_rows = porkchop.table_csv(table).splitlines()
+    column = csv_rows[0].split(",").index("no_sail")
+    assert [line.split(",")[column] for line in csv_rows[1:]] == \
+        ["True", "True", "True", "False", "True", ""]
+
+
+def _lines(ax):
+    return {line.get_label(): line for line in ax.get_lines()}
+
+
+def _marks(line):
+    """A chart line's points as (departure date, time of flight)."""
+    import matplotlib.dates as mdates
+
+    return [(mdates.num2date(x).date().isoformat(), float(y))
+            for x, y in zip(line.get_xdata(), line.get_ydata())]
+
+
+def test_the_chart_draws_the_edge_and_the_cells_with_no_sail_apart():
+    grid, rows = _grid(), _marked_rows()
+    rows[0].update(no_sail=False, error="Infeasible_Problem_Detected")  # a failed solve
+    request = SimpleNamespace(problem=load_problem(PROBLEM), grid=grid, problem_file="p.py")
+    outcome = SimpleNamespace(rows=rows, executor="", seconds=0.0, resumed=[], journal=None)
+    table = porkchop._table(request, outcome)
+    (ax, *_) = porkchop.figure(table).axes
+    lines = _lines(ax)
+    edge = lines[porkchop.EDGE_LABEL]
+    assert list(edge.get_ydata()) == [700.0, 640.0, 570.0]
+    assert _marks(edge) == [("2035-04-01", 700.0), ("2035-06-01", 640.0),
+                            ("2035-08-01", 570.0)]
+    assert sorted(_marks(lines[porkchop.NO_SAIL_LABEL])) == [
+        ("2035-04-01", 650.0), ("2035-06-01", 500.0), ("2035-08-01", 500.0)]
+    assert _marks(lines[porkchop.FAILED_LABEL]) == [("2035-04-01", 500.0)]
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert {porkchop.EDGE_LABEL, porkchop.NO_SAIL_LABEL, porkchop.FAILED_LABEL} <= set(legend)
+    # A date with no walked edge breaks the line: nothing is drawn between dates there.
+    for row in rows[2:4]:
+        row["edge_tof_days"] = None
+    table = porkchop._table(request, outcome)
+    edge = _lines(porkchop.figure(table).axes[0])[porkchop.EDGE_LABEL]
+    assert math.isnan(edge.get_ydata()[1]) and edge.get_ydata()[2] == 570.0
+
+
+def test_a_chart_of_a_record_without_the_edge_still_draws():
+    """porkchop.json written before no_sail and the edge: no edge, no no-sail mark."""
+    grid, rows = _grid(), _marked_rows()
+    for row in rows:
+        for field in ("no_sail", "edge_tof_days", "edge_infeasible_tof_days",
+                      "edge_ac_mm_s2"):
+            del row[field]
+    request = SimpleNamespace(problem=load_problem(PROBLEM), grid=grid, problem_file="p.py")
+    outcome = SimpleNamespace(rows=rows, executor="", seconds=0.0, resumed=[], journal=None)
+    table = porkchop._table(request, outcome)
+    del table["edge"], table["no_sail_cells"]
+    lines = _lines(porkchop.figure(table).axes[0])
+    assert porkchop.EDGE_LABEL not in lines and porkchop.NO_SAIL_LABEL not in lines
+    assert len(lines[porkchop.FAILED_LABEL].get_xdata()) == 4
+
+
+#: The edge of the feasible from two departure dates by the walk of the issue, independent
+#: of this package (a solved transfer stepped towards each cell, a_c held at 5 mm/s^2):
+#: no flight found at the shorter time of flight, one found at the longer (days).
+INDEPENDENT_EDGE = {"2035-06-01": (635.0, 640.0), "2035-08-01": (560.0, 580.0)}
+
+
+@pytest.fixture(scope="module")
+def chart(tmp_path_factory):
+    """The 3 x 2 porkchop, run as the command line runs it, with its journal."""
+    out = tmp_path_factory.mktemp("porkchop")
+    return out, porkchop.run(PROBLEM, DEPART, TOF, workers=2, out_dir=out)
+
+
+def _by_cell(table):
+    return {(row["departure_date"][:10], row["tof_days_grid"]): row for row in table["rows"]}
+
+
+@pytest.mark.slow
+def test_the_2035_porkchop_verifies_the_cells_with_a_sail_and_marks_the_others(chart):
+    out, table = chart
+    rows = _by_cell(table)
+    with_sail = {("2035-06-01", 650.0), ("2035-08-01", 650.0)}
+    assert {cell for cell, row in rows.items() if row["verified"]} == with_sail
+    assert {cell for cell, row in rows.items() if row["no_sail"]} == set(rows) - with_sail
+    assert table["verified_cells"] == 2 and table["no_sail_cells"] == 4
+    for (date, tof), row in rows.items():
+        edge, infeasible = row["edge_tof_days"], row["edge_infeasible_tof_days"]
+        assert infeasible < edge and edge - infeasible <= scan.EDGE_DAYS
+        assert row["edge_ac_mm_s2"] > 0
+        if date in INDEPENDENT_EDGE:
+            none_at, one_at = INDEPENDENT_EDGE[date]
+            # The verdicts agree with the independent walk: the cells with no sail lie
+            # below its edge and those that fly above it, and the edge this walk found
+            # lies where that one put it.
+            assert (tof < none_at) if row["no_sail"] else (tof >= one_at)
+            assert none_at < edge <= 650.0 and infeasible < one_at
+        else:  # 2035-04-01: no cell flies, the edge is longer than both
+            assert edge > 650.0 and infeasible >= 650.0
+    # The chart's line is that edge, one point per date.
+    (ax, *_) = porkchop.figure(table).axes
+    edge = _lines(ax)[porkchop.EDGE_LABEL]
+    assert list(edge.get_ydata()) == [rows[(d, 500.0)]["edge_tof_days"]
+                                      for d in ("2035-04-01", "2035-06-01", "2035-08-01")]
+    # Resumed from its journal, nothing is solved again and the marks are kept.
+    again = porkchop.run(PROBLEM, DEPART, TOF, workers=1, out_dir=out, resume=True)
+    assert again["resumed"] == list(range(6))
+    assert [r["no_sail"] for r in again["rows"]] == [r["no_sail"] for r in table["rows"]]
+    assert again["edge"] == table["edge"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("date", ["2035-06-01", "2035-08-01"])
+def test_a_porkchop_cell_needs_no_more_a_c_than_a_lone_solve(chart, date, tmp_path):
+    """``esail-opt solve`` of the cell's own problem file (the date and the time of
+    flight written in): the porkchop's a_c is within 0.5 % of it, or below."""
+    from esail_opt.app import cli
+
+    _, table = chart
+    row = _by_cell(table)[(date, 650.0)]
+    lone = tmp_path / "cell.py"
+    lone.write_text(PROBLEM.read_text().replace('date="2035-06-01"', f'date="{date}"'))
+    assert cli.main(["solve", str(lone), "--out", str(tmp_path / "out"), "--no-plots"]) == 0
+    solved = json.loads((tmp_path / "out" / "solution.json").read_text())
+    assert solved["verified"] and solved["departure_date"].startswith(date)
+    assert row["verified"]
+    assert row["ac_mm_s2_required"] <= 1.005 * solved["ac_mm_s2_required"]
