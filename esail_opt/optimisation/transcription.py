@@ -702,16 +702,14 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     if problem.fixed_tof() is not None:
         g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
     if hasattr(problem.target, "constraints3d") and "yf" in flight:
-        # In three dimensions a body target's rows are Cartesian, on its 3-D track.
+        # In three dimensions a body target's rows are on its 3-D track, in the
+        # ecliptic's cylindrical coordinates: the longitude row holds the turn count k
+        # as the planar theta row does, so the revolution classes are the planar model's
+        # (scans, other starts) and Ipopt is pulled towards the class's turn.
         yf = flight["yf"] - (p["corrections"][6:] if problem.target.tracks_body else 0)
-        target = problem.target.constraints3d(yf, flight["tf"], flight["epoch"])
+        target = problem.target.cylindrical_constraints(yf, flight["xf"][1], flight["tf"],
+                                                        guess.revolutions_k, flight["epoch"])
         g.add("target", ca.vertcat(*target), 0, 0)
-        # Cartesian rows hold on every turn: the turn count k is kept by holding the final
-        # theta within half a turn of the body's planar track plus k turns, which keeps
-        # the revolution classes of the planar model (scans, other starts).
-        lag = problem.target.turns_lag(flight["xf"], flight["tf"], guess.revolutions_k,
-                                       flight["epoch"])
-        g.add("turns", lag, -math.pi, math.pi)
     elif problem.target is not None:
         # A body target's rows compare the final state with the body's track; its
         # correction moves the track onto the ephemeris (zero for other targets).
