@@ -53,6 +53,7 @@ from esail_opt.propagation.rectified3d import arc_function3d
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError
+from esail_opt.physics import rotation
 from esail_opt.physics.elements import cartesian_from_polar3d
 from esail_opt.physics.thrust import EXACT
 
@@ -185,29 +186,42 @@ def closed_form_segment3d(*, coefficients=EXACT, model=ArcModel()):
     q3[sub_arcs])``, x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] (the planar arc's
     state inside the plane of the unit quaternion, ``propagation.rectified3d``).
 
-    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX.  With
-    ``model.native`` it is compiled with its derivatives and the segment's chain of arc
-    calls compiled over it (``propagation.compiled``), as :func:`closed_form_segment`
-    does in the plane; otherwise, or where nothing compiles, the segment is the
-    expanded SX chain.
+    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX, flown from
+    the identity quaternion: an arc's polar rows never depend on its plane, and its
+    plane ends as the start's times the turn that the identity ends at
+    (``plane_turn.turned_plane``).  So the arcs chain the polar state and the product
+    of their turns, and the segment's start quaternion enters once, in one product at
+    its end -- the same quaternion products, grouped the other way (equal to rounding).
+    The expensive part, whose Hessian Ipopt asks for, then takes the planar arc's inputs
+    and the clock (10 in all, not 14).  With ``model.native`` the arc is compiled with
+    its derivatives and the segment's chain compiled over it
+    (``propagation.compiled``), as :func:`closed_form_segment` does in the plane;
+    otherwise, or where nothing compiles, the segment is the expanded SX chain.
     """
     if model.extrapolate:
         raise InputError("segments.extrapolate = True is not available in three "
                          "dimensions; use False")
     one = dataclasses.replace(model.one_arc(), native=False)
-    arc = arc_function3d(1, coefficients=coefficients, model=one).expand()
+    full = arc_function3d(1, coefficients=coefficients, model=one).expand()
+    polar = ca.SX.sym("x0", 5)
+    ac, alpha, delta, dtheta = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
+    xs, q3 = full(ca.vertcat(polar, *rotation.IDENTITY), ac, alpha, delta, dtheta)
+    arc = ca.Function("arc_turn3d", [polar, ac, alpha, delta, dtheta],
+                      [xs[:5, -1], xs[5:, -1], q3], ["x0", "ac", "alpha", "delta", "dtheta"],
+                      ["x1", "turn", "q3"], {"cse": True})
     fast = compiled.compiled(arc) if model.native else arc
     native = fast is not arc
     sym = ca.MX if native else ca.SX
     x0 = sym.sym("x0", 9)
     ac, alpha, delta, dtheta = (sym.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
-    x, margins = x0, []
+    x, turn, margins = x0[:5], None, []
     for _ in range(model.sub_arcs):
-        xs, q3 = (fast if native else arc)(x, ac, alpha, delta, dtheta / model.sub_arcs)
-        x = xs[:, -1]
+        x, step, q3 = fast(x, ac, alpha, delta, dtheta / model.sub_arcs)
+        turn = step if turn is None else rotation.multiply(turn, step)
         margins.append(q3)
     segment = ca.Function("segment3d", [x0, ac, alpha, delta, dtheta],
-                          [x, ca.vertcat(*margins)],
+                          [ca.vertcat(x, rotation.multiply(x0[5:], turn)),
+                           ca.vertcat(*margins)],
                           ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"],
                           {"cse": True})
     return compiled.compiled(segment, (arc,)) if native else segment
