@@ -244,12 +244,19 @@ def start_node(x_start):
     return np.r_[x[:4], 0.0, x[4:]]
 
 
+@functools.lru_cache(maxsize=None)
+def _node_cartesian():
+    """``node[9] -> [x, y, z, vx, vy, vz]``, the quaternion normalised: SX, so that the
+    NLP's final state costs its derivatives a small block, not an MX graph."""
+    node = ca.SX.sym("node", 9)
+    quat = node[5:9] / ca.norm_2(node[5:9])
+    return ca.Function("node_cartesian", [node], [cartesian_from_polar3d(node[:4], quat)])
+
+
 def node_cartesian(node):
     """The Cartesian ecliptic state [x, y, z, vx, vy, vz] of a 3-D node (9 rows; its
     quaternion normalised) as numbers."""
-    node = np.asarray(node, float).ravel()
-    quat = node[5:9] / np.linalg.norm(node[5:9])
-    return np.array(cartesian_from_polar3d(node[:4], quat), float).ravel()
+    return np.array(_node_cartesian()(np.asarray(node, float).ravel()), float).ravel()
 
 
 @functools.lru_cache(maxsize=None)
@@ -696,8 +703,7 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
            "durations": length if in_time else elapsed,
            "xf": nodes[:4, -1], "tf": nodes[4, -1], "epoch": epoch, "ac_scale": ac_scale}
     if three_d:
-        quat = nodes[5:, -1]
-        out["yf"] = cartesian_from_polar3d(nodes[:4, -1], quat / ca.norm_2(quat))
+        out["yf"] = _node_cartesian()(nodes[:, -1])
     return out
 
 
@@ -801,7 +807,8 @@ def transcribe(problem, segment=None, guess=None, length_in="theta", threads=Non
     unpack = ca.Function("unpack", [w, p], [v["alpha"], flight["lengths"], flight["nodes"],
                                             flight["durations"], flight["x_start"],
                                             flight["q3"], nu0, throttle, flight["epoch"],
-                                            flight["ac_scale"], angle, v["delta"]],
+                                            flight["ac_scale"], angle,
+                                            v["delta"]],
                          ["w", "p"], ["alpha", "lengths", "nodes", "durations", "x_start", "q3",
                                       "nu0", "throttle", "epoch", "ac_scale", "vinf_angle",
                                       "delta"])
