@@ -27,9 +27,11 @@ qx, qy, qz] with theta inside that plane, each segment adds a clock angle ``delt
 (after every planar variable, within ``Problem.clock_bounds``), and the segment is
 :func:`closed_form_segment3d`, the planar arc in a plane that turns
 (``propagation.rectified3d``).  The departure is the body's smooth 3-D track
-(``bodies.track.Track3``) at the epoch, and a body target's rows are Cartesian, the
-final node against the target's 3-D track at the arrival date: no turn count enters
-them.  Orbit targets keep their rows on the polar state, which hold in any plane.
+(``bodies.track.Track3``) at the epoch, and a body target's rows hold the final node to
+the target's 3-D track at the arrival date in the ecliptic's cylindrical coordinates
+(``goals._BodyTarget.cylindrical_constraints``), the turn count in the longitude row as
+in the planar theta row.  Orbit targets keep their rows on the polar state, which hold
+in any plane.
 
 Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
 end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
