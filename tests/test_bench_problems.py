@@ -12,7 +12,8 @@ import json
 import pytest
 
 from conftest import PROBLEMS, REPO
-from esail_opt.bench import lowthrust, polish, porkchop, precision, solve_speed, sweep
+from esail_opt.bench import (lowthrust, polish, porkchop, porkchop3d, precision, solve_speed,
+                             sweep)
 from esail_opt.errors import InputError
 from esail_opt.optimisation.problem import Problem
 from esail_opt.optimisation.problem_file import (
@@ -45,7 +46,7 @@ def test_unknown_shipped_problem_is_one_line_naming_the_choices(name):
 
 def test_every_problem_a_bench_asks_for_is_shipped():
     names = {*solve_speed.PROBLEMS, *polish.PROBLEMS, *precision.PROBLEMS, lowthrust.PROBLEM,
-             porkchop.PROBLEM}
+             porkchop.PROBLEM, porkchop3d.PROBLEM}
     assert "earth_venus_min_ac" in names and "earth_mars_low_thrust" in names
     assert names <= set(shipped_problem_names())
 

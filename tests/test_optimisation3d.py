@@ -281,3 +281,42 @@ def test_a_polished_3d_mars_rendezvous_meets_de421s_mars_to_a_metre():
     node = node_cartesian(exact.nodes[:, -1])
     assert np.linalg.norm(y[:3] - node[:3]) * AU_KM < 1e-3
     assert np.linalg.norm(y[3:] - node[3:]) * to_m_s < 1e-3
+
+
+@pytest.mark.parametrize("turns", [-21, 3])
+def test_cylindrical_target_rows_are_the_cartesian_miss(turns):
+    """The 3-D rendezvous rows (``cylindrical_constraints``) at a state 2,000 km and
+    1 m/s off Venus's track: rebuilding the sail's Cartesian state from the body's
+    track plus the rows (numpy's cos and sin, here) gives that state back, and at the
+    body's own state on the row's turn they vanish."""
+    import casadi as ca
+
+    from esail_opt.bodies import lookup
+    from esail_opt.physics.constants import length_to_km
+
+    target, t0, tf = eo.BodyRendezvous(body="venus"), 11.0, 10.0
+    body = np.array(lookup.track3("venus").function(t0 + tf)).ravel()
+    lam_b = float(lookup.track("venus").polar(t0 + tf)[1])
+    off = np.r_[np.array([1200.0, -1500.0, 400.0]) / AU_KM, np.array([0.6, 0.3, -0.74]) * 1e-3
+                * TU_DAYS * 86400 / (AU_KM * 1e3)]
+
+    def rows(y, theta):
+        return np.array(ca.vertcat(*target.cylindrical_constraints(
+            ca.DM(y), theta + 2 * math.pi * turns, tf, turns, t0))).ravel()
+
+    assert np.abs(rows(body, lam_b)).max() < 1e-13
+    y = body + off
+    got = rows(y, lam_b + 0.01)  # the sail's own plane angle is off the longitude a little
+    rho_b, z_b = math.hypot(body[0], body[1]), body[2]
+    lam = lam_b + got[1]
+    rho = rho_b + got[0]
+    pos = np.array([rho * math.cos(lam), rho * math.sin(lam), z_b + got[2]])
+    # A longitude of 21 turns carries 3e-14 rad of rounding: 3e-6 km at 0.7 au, and
+    # 4e-14 of the speed (about 1 au/TU).
+    assert length_to_km(np.linalg.norm(pos - y[:3])) < 1e-5
+    v_rho_b = (body[0] * body[3] + body[1] * body[4]) / rho_b
+    v_lam_b = (body[0] * body[4] - body[1] * body[3]) / rho_b
+    v_rho, v_lam = v_rho_b + got[3], v_lam_b + got[4]
+    vel = np.array([v_rho * math.cos(lam) - v_lam * math.sin(lam),
+                    v_rho * math.sin(lam) + v_lam * math.cos(lam), body[5] + got[5]])
+    assert np.abs(vel - y[3:]).max() < 1e-13

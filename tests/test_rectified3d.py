@@ -18,7 +18,7 @@ from esail_opt.propagation.rectified import propagate
 from esail_opt.propagation.rectified3d import (cartesian_states, end_function3d,
                                               panel_function3d, propagate3d,
                                               rectified3d_function)
-from esail_opt.propagation.rk4 import rk4_segment3d
+from esail_opt.propagation.rk4 import rk4_segment3d, rk4_segment_turning
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, fly_segments3d, simulate,
                                             simulate3d)
 from test_plane_turn import fly_cartesian_theta
@@ -141,6 +141,24 @@ def test_rk4_3d_is_fourth_order_against_cvodes(length_in):
                      tol=VERIFY_TOLERANCE)[:, -1]
     errs = [np.abs(np.array(rk4_segment3d(n, length_in=length_in)(
         y0, AC, alpha, delta, length)[0]).ravel() - ref).max() for n in (10, 20, 40)]
+    assert errs[-1] < 1e-6
+    for coarse, fine in zip(errs, errs[1:]):
+        assert 12 < coarse / fine < 20
+
+
+def test_rk4_on_the_turning_plane_is_fourth_order_against_cartesian_cvodes():
+    """RK4 on the polar state and the plane's quaternion ends, in Cartesian terms, where
+    CVODES on the Cartesian equations does, its error falling as the steps' fourth power."""
+    alpha, delta, length = math.radians(40), math.radians(50), 2.0
+    y0 = np.array(cartesian_from_polar3d(X0, PLANE)).ravel()
+    ref = simulate3d(y0, [alpha], [delta], [length], AC, length_in="theta",
+                     tol=VERIFY_TOLERANCE)[:, -1]
+    start = np.r_[X0, 0.0, PLANE]
+    errs = []
+    for n in (10, 20, 40):
+        end = np.array(rk4_segment_turning(n)(start, AC, alpha, delta, length)[0]).ravel()
+        flown = np.r_[cartesian(end[:, None]), end[4]]
+        errs.append(np.abs(flown - ref).max())
     assert errs[-1] < 1e-6
     for coarse, fine in zip(errs, errs[1:]):
         assert 12 < coarse / fine < 20

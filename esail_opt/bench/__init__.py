@@ -12,7 +12,8 @@ Each is the ``run`` of its own module:
   ``sweep``: each timed against a baseline measured in the same run (:mod:`.timing`
   holds what they share);
 * ``porkchop``: a launch-window scan as shipped (one NLP, warm starts) against RK4
-  segments with the same reuse and against every cell solved cold;
+  segments with the same reuse and against every cell solved cold; ``porkchop3d``
+  the same in three dimensions;
 * ``precision``: solve time against verified accuracy for the closed form, RK4
   (``propagation.rk4``) and CVODES segments.
 
@@ -25,7 +26,7 @@ heyoka's Taylor integrator, when the ``bench`` extra is installed.  The benches 
 application modules, none of which imports them.
 """
 
-from esail_opt.bench import (lowthrust, polish, porkchop, precision, propagate,
+from esail_opt.bench import (lowthrust, polish, porkchop, porkchop3d, precision, propagate,
                              rockit_baseline, solve_speed, sweep)
 
 BENCHES = {
@@ -37,6 +38,7 @@ BENCHES = {
     "rockit": rockit_baseline.run,
     "precision": precision.run,
     "porkchop": porkchop.run,
+    "porkchop3d": porkchop3d.run,
 }
 
 __all__ = ["BENCHES"]

@@ -44,11 +44,9 @@ def _grid():
     return Grid(tuple(np.linspace(lo, hi, DEPARTURES[2])), tuple(np.linspace(*TOFS_DAYS)))
 
 
-def _rows(grid):
+def _rows(grid, problem):
     """The scan's runs as ``esail-opt porkchop`` makes them on one worker: one path
     through the grid, with each cell's grid neighbours."""
-    # The planar porkchop: its RK4 segments are the planar ones.
-    problem = dataclasses.replace(shipped_problem(PROBLEM), planar=True)
     return [([cell_problem(problem, grid, i) for i in job], grid.neighbours(job))
             for job in grid.jobs(1)]
 
@@ -67,30 +65,39 @@ def _rebuild(rows):
     return time.perf_counter() - started, solutions
 
 
-def _rk4_steps(problem, coeff):
-    """The fewest of :data:`RK4_STEPS` whose solve of ``problem`` verifies (the last
-    otherwise); these trial solves are not timed."""
+def _rk4_steps(problem, make):
+    """The fewest of :data:`RK4_STEPS` whose solve of ``problem`` on ``make(steps)``'s
+    segments verifies (the last otherwise); these trial solves are not timed."""
     for steps in RK4_STEPS:
-        solver = scan.CellSolver(rk4_segment(steps, coeff, "theta"))
+        solver = scan.CellSolver(make(steps))
         if solver.finish(solver.cold(problem)).verified:
             return steps
     return RK4_STEPS[-1]
 
 
 def run(out, repeats=1):
-    """Time the scan three ways; writes ``porkchop.json`` and returns its path."""
+    """Time the planar scan three ways; writes ``porkchop.json`` and returns its path."""
+    # The planar porkchop: its RK4 segments are the planar ones.
+    problem = dataclasses.replace(shipped_problem(PROBLEM), planar=True)
+    coeff = problem.sail.coefficients
+    return timed_scans(out, "porkchop", PROBLEM, problem,
+                       lambda steps: rk4_segment(steps, coeff, "theta"))
+
+
+def timed_scans(out, label, name, problem, make_rk4):
+    """Time the scan of ``problem`` over the bench's grid three ways (the closed form,
+    ``make_rk4(steps)``'s segments, every cell rebuilt); writes ``LABEL.json`` under
+    ``out`` and returns its path."""
     from pathlib import Path
 
-    grid = _grid()
-    rows = _rows(grid)
+    rows = _rows(_grid(), problem)
     n = sum(len(r) for r, _ in rows)
-    print(f"bench porkchop: {n} cells, closed form ...", flush=True)
+    print(f"bench {label}: {n} cells, closed form ...", flush=True)
     cf_seconds, cf_cells = _scan(rows)
-    coeff = rows[0][0][0].sail.coefficients
-    steps = _rk4_steps(rows[0][0][0], coeff)
-    print(f"bench porkchop: RK4 segments, {steps} steps a segment ...", flush=True)
-    rk_seconds, rk_cells = _scan(rows, rk4_segment(steps, coeff, "theta"))
-    print("bench porkchop: each cell solved alone ...", flush=True)
+    steps = _rk4_steps(rows[0][0][0], make_rk4)
+    print(f"bench {label}: RK4 segments, {steps} steps a segment ...", flush=True)
+    rk_seconds, rk_cells = _scan(rows, make_rk4(steps))
+    print(f"bench {label}: each cell solved alone ...", flush=True)
     rb_seconds, rb_solutions = _rebuild(rows)
     counts = {"closed_form": sum(c.verified for c in cf_cells),
               "rk4": sum(c.verified for c in rk_cells),
@@ -102,7 +109,7 @@ def run(out, repeats=1):
         return None if per_cell[a] is None or per_cell[b] is None else per_cell[a] / per_cell[b]
 
     data = {
-        "case": {"problem": "earth_venus_min_ac", "departures": list(DEPARTURES),
+        "case": {"problem": name, "planar": problem.planar, "departures": list(DEPARTURES),
                  "tofs_days": list(TOFS_DAYS), "rk4_steps": steps},
         "cells": n,
         "verified_cells": counts,
@@ -117,10 +124,10 @@ def run(out, repeats=1):
         "ac_mm_s2_rebuild": [s.ac_mm_s2_required if s.verified else None
                              for s in rb_solutions],
     }
-    print_table("bench porkchop (seconds per verified cell)",
+    print_table(f"bench {label} (seconds per verified cell)",
                 [(k, v if v is not None else "none verified", "s") for k, v in per_cell.items()]
                 + [("rebuild / closed form", data["ratio_rebuild_over_closed_form"] or "n/a", ""),
                    ("rk4 / closed form", data["ratio_rk4_over_closed_form"] or "n/a", "")])
-    path = Path(out) / "porkchop.json"
+    path = Path(out) / f"{label}.json"
     write_json(path, data)
     return path

@@ -15,6 +15,7 @@ All fields are in the boundary's units (au, deg, days) and range-checked on crea
 states handed to the methods are canonical (au, rad, au/TU with mu = 1; time in TU).
 """
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Callable
@@ -396,6 +397,28 @@ class _BodyTarget:
         rows = yf[:3] - body[:3]
         return [ca.vertcat(rows, yf[3:6] - body[3:6]) if self.matches_velocity else rows]
 
+    def cylindrical_constraints(self, yf, theta_f, tf, turns, t0=0.0):
+        """The rows of :meth:`constraints3d` in the ecliptic's cylindrical coordinates,
+        with the turn count in them: [rho, lambda - 2 pi turns, z] and, for a
+        rendezvous, [v_rho, v_lambda, v_z] of the sail's final Cartesian state ``yf``
+        less the body's on its smooth 3-D track at t0 + tf (``Track3.cylindrical``,
+        whose longitude is unwrapped).  The sail's longitude is unwrapped near its polar
+        angle ``theta_f`` in its own plane, which is on the track's branch, so the
+        longitude row is the planar model's theta row plus terms of the order of the
+        inclination.
+
+        Zero exactly where :meth:`constraints3d` is, on the turn count that
+        :meth:`turns_lag` bounds; but, as the planar row, it pulls the final angle
+        straight towards its turn, where Cartesian rows, periodic in it, gave a class
+        probe started half a turn off local optima of several times the a_c."""
+        body = lookup.track3(self.body).cylindrical(t0 + tf)
+        sail = _cylindrical()(yf, theta_f)
+        rows = [sail[0] - body[0], sail[1] - body[1] - 2 * math.pi * turns,
+                sail[2] - body[4]]
+        if self.matches_velocity:
+            rows += [sail[3] - body[2], sail[4] - body[3], sail[5] - body[5]]
+        return [ca.vertcat(*rows)]
+
     def turns_lag(self, xf, tf, turns, t0=0.0):
         """theta_f less the body's planar track angle and ``turns`` whole turns: the
         sail's polar angle (in its own plane, on the track's branch) against the body's
@@ -412,6 +435,20 @@ class _BodyTarget:
         return _miss(dr, dv if self.matches_velocity else None,
                      relative_speed_km_s=dv / 1e3,
                      out_of_plane_km=units.length_to_km(abs(float(np.ravel(y)[2] - body[2]))))
+
+
+@functools.lru_cache(maxsize=None)
+def _cylindrical():
+    """``(y[6], near) -> [rho, lambda, z, v_rho, v_lambda, v_z]`` of the ecliptic
+    Cartesian state y, the longitude on the branch of the angle ``near`` (within half a
+    turn of it); SX, as one small block of the NLP's derivatives."""
+    y, near = ca.SX.sym("y", 6), ca.SX.sym("near")
+    c, s = ca.cos(near), ca.sin(near)
+    lon = near + ca.atan2(c * y[1] - s * y[0], c * y[0] + s * y[1])
+    rho = ca.sqrt(y[0] ** 2 + y[1] ** 2)
+    return ca.Function("cylindrical", [y, near],
+                       [ca.vertcat(rho, lon, y[2], (y[0] * y[3] + y[1] * y[4]) / rho,
+                                   (y[0] * y[4] - y[1] * y[3]) / rho, y[5])])
 
 
 @dataclass(frozen=True)

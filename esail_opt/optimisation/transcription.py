@@ -27,9 +27,11 @@ qx, qy, qz] with theta inside that plane, each segment adds a clock angle ``delt
 (after every planar variable, within ``Problem.clock_bounds``), and the segment is
 :func:`closed_form_segment3d`, the planar arc in a plane that turns
 (``propagation.rectified3d``).  The departure is the body's smooth 3-D track
-(``bodies.track.Track3``) at the epoch, and a body target's rows are Cartesian, the
-final node against the target's 3-D track at the arrival date: no turn count enters
-them.  Orbit targets keep their rows on the polar state, which hold in any plane.
+(``bodies.track.Track3``) at the epoch, and a body target's rows hold the final node to
+the target's 3-D track at the arrival date in the ecliptic's cylindrical coordinates
+(``goals._BodyTarget.cylindrical_constraints``), the turn count in the longitude row as
+in the planar theta row.  Orbit targets keep their rows on the polar state, which hold
+in any plane.
 
 Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
 end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
@@ -187,29 +189,42 @@ def closed_form_segment3d(*, coefficients=EXACT, model=ArcModel()):
     q3[sub_arcs])``, x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] (the planar arc's
     state inside the plane of the unit quaternion, ``propagation.rectified3d``).
 
-    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX.  With
-    ``model.native`` it is compiled with its derivatives and the segment's chain of arc
-    calls compiled over it (``propagation.compiled``), as :func:`closed_form_segment`
-    does in the plane; otherwise, or where nothing compiles, the segment is the
-    expanded SX chain.
+    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX, flown from
+    the identity quaternion: an arc's polar rows never depend on its plane, and its
+    plane ends as the start's times the turn that the identity ends at
+    (``plane_turn.turned_plane``).  So the arcs chain the polar state and the product
+    of their turns, and the segment's start quaternion enters once, in one product at
+    its end -- the same quaternion products, grouped the other way (equal to rounding).
+    The expensive part, whose Hessian Ipopt asks for, then takes the planar arc's inputs
+    and the clock (10 in all, not 14).  With ``model.native`` the arc is compiled with
+    its derivatives and the segment's chain compiled over it
+    (``propagation.compiled``), as :func:`closed_form_segment` does in the plane;
+    otherwise, or where nothing compiles, the segment is the expanded SX chain.
     """
     if model.extrapolate:
         raise InputError("segments.extrapolate = True is not available in three "
                          "dimensions; use False")
     one = dataclasses.replace(model.one_arc(), native=False)
-    arc = arc_function3d(1, coefficients=coefficients, model=one).expand()
+    full = arc_function3d(1, coefficients=coefficients, model=one).expand()
+    polar = ca.SX.sym("x0", 5)
+    ac, alpha, delta, dtheta = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
+    xs, q3 = full(ca.vertcat(polar, *rotation.IDENTITY), ac, alpha, delta, dtheta)
+    arc = ca.Function("arc_turn3d", [polar, ac, alpha, delta, dtheta],
+                      [xs[:5, -1], xs[5:, -1], q3], ["x0", "ac", "alpha", "delta", "dtheta"],
+                      ["x1", "turn", "q3"], {"cse": True})
     fast = compiled.compiled(arc) if model.native else arc
     native = fast is not arc
     sym = ca.MX if native else ca.SX
     x0 = sym.sym("x0", 9)
     ac, alpha, delta, dtheta = (sym.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
-    x, margins = x0, []
+    x, turn, margins = x0[:5], None, []
     for _ in range(model.sub_arcs):
-        xs, q3 = (fast if native else arc)(x, ac, alpha, delta, dtheta / model.sub_arcs)
-        x = xs[:, -1]
+        x, step, q3 = fast(x, ac, alpha, delta, dtheta / model.sub_arcs)
+        turn = step if turn is None else rotation.multiply(turn, step)
         margins.append(q3)
     segment = ca.Function("segment3d", [x0, ac, alpha, delta, dtheta],
-                          [x, ca.vertcat(*margins)],
+                          [ca.vertcat(x, rotation.multiply(x0[5:], turn)),
+                           ca.vertcat(*margins)],
                           ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"],
                           {"cse": True})
     return compiled.compiled(segment, (arc,)) if native else segment
@@ -232,12 +247,19 @@ def start_node(x_start):
     return np.r_[x[:4], 0.0, x[4:]]
 
 
+@functools.lru_cache(maxsize=None)
+def _node_cartesian():
+    """``node[9] -> [x, y, z, vx, vy, vz]``, the quaternion normalised: SX, so that the
+    NLP's final state costs its derivatives a small block, not an MX graph."""
+    node = ca.SX.sym("node", 9)
+    quat = node[5:9] / ca.norm_2(node[5:9])
+    return ca.Function("node_cartesian", [node], [cartesian_from_polar3d(node[:4], quat)])
+
+
 def node_cartesian(node):
     """The Cartesian ecliptic state [x, y, z, vx, vy, vz] of a 3-D node (9 rows; its
     quaternion normalised) as numbers."""
-    node = np.asarray(node, float).ravel()
-    quat = node[5:9] / np.linalg.norm(node[5:9])
-    return np.array(cartesian_from_polar3d(node[:4], quat), float).ravel()
+    return np.array(_node_cartesian()(np.asarray(node, float).ravel()), float).ravel()
 
 
 def node_from_swept(y, theta, quat_start):
@@ -743,8 +765,7 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
            "durations": length if in_time else elapsed,
            "xf": nodes[:4, -1], "tf": nodes[4, -1], "epoch": epoch, "ac_scale": ac_scale}
     if three_d:
-        quat = nodes[5:, -1]
-        out["yf"] = cartesian_from_polar3d(nodes[:4, -1], quat / ca.norm_2(quat))
+        out["yf"] = _node_cartesian()(nodes[:, -1])
     return out
 
 
@@ -763,16 +784,14 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     if problem.fixed_tof() is not None:
         g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
     if hasattr(problem.target, "constraints3d") and "yf" in flight:
-        # In three dimensions a body target's rows are Cartesian, on its 3-D track.
+        # In three dimensions a body target's rows are on its 3-D track, in the
+        # ecliptic's cylindrical coordinates: the longitude row holds the turn count k
+        # as the planar theta row does, so the revolution classes are the planar model's
+        # (scans, other starts) and Ipopt is pulled towards the class's turn.
         yf = flight["yf"] - (p["corrections"][6:] if problem.target.tracks_body else 0)
-        target = problem.target.constraints3d(yf, flight["tf"], flight["epoch"])
+        target = problem.target.cylindrical_constraints(yf, flight["xf"][1], flight["tf"],
+                                                        guess.revolutions_k, flight["epoch"])
         g.add("target", ca.vertcat(*target), 0, 0)
-        # Cartesian rows hold on every turn: the turn count k is kept by holding the final
-        # theta within half a turn of the body's planar track plus k turns, which keeps
-        # the revolution classes of the planar model (scans, other starts).
-        lag = problem.target.turns_lag(flight["xf"], flight["tf"], guess.revolutions_k,
-                                       flight["epoch"])
-        g.add("turns", lag, -math.pi, math.pi)
     elif problem.target is not None:
         # A body target's rows compare the final state with the body's track; its
         # correction moves the track onto the ephemeris (zero for other targets).

@@ -12,7 +12,7 @@ NLP takes it.
 import casadi as ca
 
 from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_cartesian_in_theta,
-                                        rhs_in_theta, swept_angle_rate)
+                                        rhs_in_theta, rhs_turning, swept_angle_rate)
 from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse_normal
 
 
@@ -111,3 +111,34 @@ def rk4_segment3d(steps, coefficients=EXACT, length_in="theta", swept=False):
         y1 = step(y1, ac, alpha, delta, length / int(steps))
     return ca.Function("segment_rk4_3d", [y0, ac, alpha, delta, length], [y1, ca.SX(0, 1)],
                        ["y0", "ac", "alpha", "delta", "length"], ["y1", "q3"]).expand()
+
+
+def rk4_segment_turning(steps, coefficients=EXACT):
+    """One segment of constant pitch and clock on the turning-plane equations
+    (``dynamics.rhs_turning``: Eqs. 1-2 inside a plane whose quaternion turns) in theta,
+    by ``steps`` equal classic RK4 steps: the node layout of the 3-D NLP.
+
+    Returns ``(x0[9], ac, alpha, delta, dtheta) -> (x1[9], q3[0])``, SX and expanded,
+    x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] as ``transcription.closed_form_segment3d``
+    takes it.  What a generic transcription of the same state would fly; the quaternion's
+    norm drifts by the method's error, as any component does.
+    """
+    if int(steps) != steps or steps < 1:
+        raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
+    x = ca.SX.sym("x", 9)
+    ac, alpha, delta, h = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "h"))
+    R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+
+    def f(z):
+        dt_dtheta = z[0] / z[3]
+        return ca.vertcat(rhs_in_theta(z[:4], ac, R, T),
+                          rhs_turning(z[:4], z[5:], ac, R, T, N)[4:] * dt_dtheta)
+
+    step = ca.Function("rk4_step_turning", [x, ac, alpha, delta, h], [_classic_step(f, x, h)])
+    x0 = ca.SX.sym("x0", 9)
+    ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
+    x1 = x0
+    for _ in range(int(steps)):
+        x1 = step(x1, ac, alpha, delta, length / int(steps))
+    return ca.Function("segment_rk4_turning", [x0, ac, alpha, delta, length], [x1, ca.SX(0, 1)],
+                       ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"]).expand()
