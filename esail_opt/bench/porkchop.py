@@ -27,7 +27,7 @@ from esail_opt.optimisation.problem_file import shipped_problem
 from esail_opt.propagation.rk4 import rk4_segment
 
 #: The shipped problem whose porkchop this bench scans.
-PROBLEM = "earth_venus_min_ac"
+PROBLEM = "earth_venus_min_ac_planar"
 #: A patch of the shipped porkchop at 20-day spacing in both dates and flight times, as
 #: fine as an analyst's chart would be.
 DEPARTURES = ("2031-01-01", "2031-04-11", 6)

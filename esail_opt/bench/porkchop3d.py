@@ -21,7 +21,7 @@ from esail_opt.optimisation.problem_file import shipped_problem
 from esail_opt.propagation.rk4 import rk4_segment_turning
 
 #: The shipped 3-D problem whose porkchop this bench scans.
-PROBLEM = "earth_venus_min_ac_3d"
+PROBLEM = "earth_venus_min_ac"
 
 
 def run(out, repeats=1):

@@ -274,7 +274,7 @@ def probe_cap(iterations, least=PROBE_MIN):
 #: there at violations of 0.32 and 0.049 with 47 and 5.8 times the answer's a_c; a
 #: planar class with a transfer converges in about the seed's own iterations.  In three
 #: dimensions no class is stopped so: on the Earth-Venus 3-D minimum a_c
-#: (problems/earth_venus_min_ac_3d.py) the solve's descent reaches the best class
+#: (problems/earth_venus_min_ac.py, in 3-D) the solve's descent reaches the best class
 #: (k = -21) only through k = -20, which has a transfer; solved from its class seed,
 #: k = -20 stood at violation 1.3 and 28 times the best objective so far at the
 #: iteration where the seed's class had converged, and converged 220 iterations later.
