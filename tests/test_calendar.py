@@ -276,7 +276,7 @@ def _scan(problem, depart, tmp_path):
                     f"departure=eo.BodyDeparture(body='earth', window=({start!r}, {stop!r})), "
                     "sail=eo.Sail(ac_mm_s2=1.0), segments=eo.Segments(count=40, sub_arcs=3, "
                     "equal=False), objective=eo.MinTime(), target=eo.BodyRendezvous("
-                    "body='mars'))\n")
+                    "body='mars'), planar=True)\n")
     return porkchop.run(path, depart, workers=2)
 
 

@@ -244,8 +244,16 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
     assert abs(dep["z_au"] - earth[2]) < 1e-12 and abs(dep["x_au"] - earth[0]) < 1e-12
     rows = list(csv.DictReader((tmp_path / "schedule.csv").open()))
     assert len(rows) == result.alpha.size
-    clock = np.radians([float(r["clock_deg"]) for r in rows])
-    assert np.abs(np.angle(np.exp(1j * (clock - result.delta)))).max() < 1e-12
+    # Each row names the NLP's sail: its normal, in (r_hat, t_hat, h_hat), is the same
+    # line (the row may give the other of the attitude's two names).
+    def normal(alpha, delta):
+        return np.array([np.cos(alpha), np.sin(alpha) * np.cos(delta),
+                         np.sin(alpha) * np.sin(delta)])
+
+    for r, alpha, delta in zip(rows, result.alpha, result.delta):
+        row_normal = normal(math.radians(float(r["alpha_deg"])),
+                            math.radians(float(r["clock_deg"])))
+        assert np.linalg.norm(np.cross(row_normal, normal(alpha, delta))) < 1e-12
     incl = data["trajectory"]["cvodes"]["inclination_deg"]
     assert incl[0] < 0.01 and abs(incl[-1] - 1.85) < 0.05  # Earth's plane to Mars's
     epochs, states = read_oem_states((tmp_path / "trajectory.oem").read_text())
@@ -258,12 +266,16 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
 
 @pytest.mark.slow
 def test_a_polished_3d_mars_rendezvous_meets_de421s_mars_to_a_metre():
-    """The 3-D polish: the polished schedule (pitch, clock and duration per segment),
-    flown here by DOP853 at rtol 1e-13 on the Cartesian equations from DE421's Earth at
-    the departure epoch, meets DE421's unprojected Mars at the arrival within the
-    polish's 1 m and 1 mm/s, and the polished NLP's final node agrees with that flight
-    to the same bounds."""
-    problem = mars_problem()
+    """The 3-D polish, on the fixed-date Earth-Mars minimum a_c (657 d, throttle free):
+    the polished schedule (pitch, clock, throttle and duration per segment), flown here
+    by DOP853 at rtol 1e-13 on the Cartesian equations from DE421's Earth at the
+    departure epoch, meets DE421's unprojected Mars at the arrival within the polish's
+    1 m and 1 mm/s, and the polished NLP's final node agrees with that flight to the
+    same bounds."""
+    problem = mars_problem(departure=eo.BodyDeparture(body="earth",
+                                                      date="2031-08-11T12:18:59.938"),
+                           segments=eo.Segments(count=40),
+                           objective=eo.MinAcceleration(tof_days=657.0191))
     run = pipeline.solve(problem, polish=True)
     assert run.polish.verified, run.polish.note
     exact = run.polish.result
@@ -271,8 +283,9 @@ def test_a_polished_3d_mars_rendezvous_meets_de421s_mars_to_a_metre():
     jd0 = 2451545.0 + exact.epoch * TU_DAYS
     y = de421_ecliptic("earthmoon", jd0)
     ac = problem.sail.ac * exact.ac_scale
-    for alpha, delta, dt in zip(exact.alpha, exact.delta, exact.durations):
-        y = solve_ivp(esail_rhs(ac, alpha, delta), (0, dt), y, method="DOP853",
+    for alpha, delta, kappa, dt in zip(exact.alpha, exact.delta, exact.throttle,
+                                       exact.durations):
+        y = solve_ivp(esail_rhs(ac * kappa, alpha, delta), (0, dt), y, method="DOP853",
                       rtol=1e-13, atol=1e-15).y[:, -1]
     mars = de421_ecliptic("mars", jd0 + float(np.sum(exact.durations)) * TU_DAYS)
     to_m_s = AU_KM * 1e3 / (TU_DAYS * 86400)

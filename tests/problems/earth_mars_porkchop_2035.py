@@ -1,6 +1,9 @@
 """The least a_c to meet Mars (DE421) after leaving Earth in 2035, the kind of
 problems/earth_mars_2035.py at a fixed time of flight, seeded at 1 mm/s^2: a porkchop over
-departure dates and times of flight replaces the date and the time of flight."""
+departure dates and times of flight replaces the date and the time of flight.
+
+It flies in the ecliptic projection (``planar=True``): the independent walk that the
+porkchop's edge is checked against was made on that model."""
 
 import esail_opt as eo
 
@@ -11,4 +14,5 @@ problem = eo.Problem(
     sail=eo.Sail(ac_mm_s2=1.0),
     objective=eo.MinAcceleration(tof_days=650.0),
     target=eo.BodyRendezvous(body="mars"),
+    planar=True,
 )
