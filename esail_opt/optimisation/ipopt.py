@@ -263,7 +263,11 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
             sol = solver(x0=warm.w, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=tr.lbx,
                          ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
     seconds = time.perf_counter() - start
-    stats = solver.stats()
+    return _result(tr, sol, solver.stats(), p, seconds)
+
+
+def _result(tr, sol, stats, p, seconds):
+    """The :class:`NLPResult` of Ipopt's ``sol`` on ``tr`` with parameters ``p``."""
     status = stats.get("return_status", "unknown")
     # Ipopt may leave a variable past its bound by its bound_relax_factor (1e-8): clip,
     # so that a pitch bound of 90 deg is never reported as 90.0000001.

@@ -379,15 +379,27 @@ def search(problem, extra_revolutions=2, progress=None):
             or not 0 <= extra_revolutions <= 20:
         raise InputError(f"extra_revolutions = {extra_revolutions!r} is outside [0, 20]")
     say = progress or (lambda text: None)
-    rendezvous = problem.tracks_body()
     say(f"{problem.name}: start 1, the problem's own seed (free)")
     first, tr = solve_problem(problem, progress=progress)
+    centre, starts = _class_starts(problem, first, tr, extra_revolutions)
+    outcomes = [(Start("the problem's own seed (free)", centre, tr.guess), first)]
+    for i, start in enumerate(starts, 2):
+        say(f"{problem.name}: start {i}/{len(starts) + 1}, {start.label}")
+        outcomes.append((start, solve_problem(problem, guess=start.guess, progress=progress)[0]))
+    return _distinct(outcomes)
+
+
+def _class_starts(problem, first, tr, extra_revolutions):
+    """The free start's class and the other starts of :func:`search`: one per class
+    from one below it to ``extra_revolutions`` above."""
+    rendezvous = problem.tracks_body()
     base_k = tr.guess.revolutions_k
-    if first.converged:
-        centre = base_k if rendezvous else int(swept_angle(first) // (2 * math.pi))
+    if rendezvous:
+        centre = base_k
+    elif first.converged:
+        centre = int(swept_angle(first) // (2 * math.pi))
     else:
-        centre = base_k if rendezvous else int(float(tr.guess.nodes[1, -1]
-                                                      - problem.x0()[1]) // (2 * math.pi))
+        centre = int(float(tr.guess.nodes[1, -1] - problem.x0()[1]) // (2 * math.pi))
     # The free start's own window gets a start of its own as well: on Earth-Mars at 30
     # segments the two reach the same transfer with the pitch passing +-90 deg in
     # different segments, and only one of the two polished to a verified schedule.
@@ -395,40 +407,40 @@ def search(problem, extra_revolutions=2, progress=None):
                if k >= 0 and not (rendezvous and k == base_k)]
     starts = (rendezvous_starts(problem, classes) if rendezvous
               else window_starts(problem, classes))
+    return centre, starts
 
-    outcomes = [(Start("the problem's own seed (free)", centre, tr.guess), first)]
-    for i, start in enumerate(starts, 2):
-        say(f"{problem.name}: start {i}/{len(starts) + 1}, {start.label}")
-        outcomes.append((start, solve_problem(problem, guess=start.guess, progress=progress)[0]))
 
+def _distinct(outcomes):
+    """:func:`search`'s return from its (Start, NLPResult) pairs: the distinct converged
+    optima, sorted, and one record per start naming the optimum it reached."""
     candidates, records = [], []
     for start, result in outcomes:
-        record = {"label": start.label, "revolutions": start.revolutions,
-                  "status": result.status, "iterations": result.iterations,
-                  "seconds": result.solve_seconds, "candidate": None,
-                  "tof": float(np.sum(result.durations)) if result.converged else None}
-        records.append(record)
-        if not result.converged:
-            continue
-        window = (None if start.window is None
-                  else [start.revolutions, start.revolutions + 1])
-        free = not _on_edge(result, start.window)
-        if free:
-            result = dataclasses.replace(result, theta_window=None)
-        found = Candidate(result, swept_angle(result) / (2 * math.pi), free, window,
-                          [start.label])
-        for other in candidates:
-            if _same(found, other):
-                other.found_from.append(start.label)
-                if found.tof < other.tof:
-                    other.result = found.result
-                found = None
-                break
-        if found is not None:
-            candidates.append(found)
+        records.append({"label": start.label, "revolutions": start.revolutions,
+                        "status": result.status, "iterations": result.iterations,
+                        "seconds": result.solve_seconds, "candidate": None,
+                        "tof": float(np.sum(result.durations)) if result.converged else None})
+        if result.converged:
+            _merge(candidates, start, result)
     candidates.sort(key=lambda c: (not c.free, c.tof))
     for record in records:
         for index, c in enumerate(candidates):
             if record["label"] in c.found_from:
                 record["candidate"] = index
     return candidates, records
+
+
+def _merge(candidates, start, result):
+    """Add ``result`` to ``candidates``, or to the one it equals (keeping the faster)."""
+    window = None if start.window is None else [start.revolutions, start.revolutions + 1]
+    free = not _on_edge(result, start.window)
+    if free:
+        result = dataclasses.replace(result, theta_window=None)
+    found = Candidate(result, swept_angle(result) / (2 * math.pi), free, window,
+                      [start.label])
+    for other in candidates:
+        if _same(found, other):
+            other.found_from.append(start.label)
+            if found.tof < other.tof:
+                other.result = found.result
+            return
+    candidates.append(found)

@@ -255,6 +255,26 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
             raise InputError(f"segments = {segments!r} is outside [1, inf)")
         problem = problem.with_segments(segments)
     say = progress or _quiet
+    sub_arcs = problem.segments.sub_arcs
+    problem, result, tr, starts = _first_solve(problem, say)
+    if result.outcome.found and _searches_classes(problem):
+        tried, skipped = _classes(problem, result, tr, say)
+        run = _best_verified(problem, tried, samples, say, starts, sub_arcs)
+        run = dataclasses.replace(run, classes_skipped=skipped)
+    else:
+        run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
+                     sub_arcs_requested=sub_arcs)
+        run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
+    if not result.outcome.found and _walks_tof(problem):
+        run = dataclasses.replace(run, nearest_feasible=_nearest_feasible(
+            problem, samples, say))
+    return _polished(run, polish, samples, say)
+
+
+def _first_solve(problem, say):
+    """The seed's solve (a free date's from the scan that chose it), and the other
+    starts when it found no point: (problem as solved, NLPResult, Transcription,
+    starts tried)."""
     seg = problem.segments
     count = (f"{seg.count} segments" if seg.per_revolution is None
              else f"{seg.per_revolution} segments per revolution")
@@ -281,18 +301,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     say(f"{problem.name}: {result.status} after {result.iterations} iterations; "
         + ("error control until the flight meets the tolerance" if result.outcome.found
            else "no start found a point; flying the last iterate to report its miss"))
-    if result.outcome.found and _searches_classes(problem):
-        tried, skipped = _classes(problem, result, tr, say)
-        run = _best_verified(problem, tried, samples, say, starts, seg.sub_arcs)
-        run = dataclasses.replace(run, classes_skipped=skipped)
-    else:
-        run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
-                     sub_arcs_requested=seg.sub_arcs)
-        run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
-    if not result.outcome.found and _walks_tof(problem):
-        run = dataclasses.replace(run, nearest_feasible=_nearest_feasible(
-            problem, samples, say))
-    return _polished(run, polish, samples, say)
+    return problem, result, tr, starts
 
 
 def _searches_classes(problem):
