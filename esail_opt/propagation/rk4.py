@@ -104,13 +104,7 @@ def rk4_segment3d(steps, coefficients=EXACT, length_in="theta", swept=False):
         return ca.vertcat(rhs_cartesian(z[:6], ac, R, T, N), 1, *rate)
 
     step = ca.Function("rk4_step3d", [y, ac, alpha, delta, h], [_classic_step(f, y, h)])
-    y0 = ca.SX.sym("y0", rows)
-    ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "length"))
-    y1 = y0
-    for _ in range(int(steps)):
-        y1 = step(y1, ac, alpha, delta, length / int(steps))
-    return ca.Function("segment_rk4_3d", [y0, ac, alpha, delta, length], [y1, ca.SX(0, 1)],
-                       ["y0", "ac", "alpha", "delta", "length"], ["y1", "q3"]).expand()
+    return _stepped3d("segment_rk4_3d", step, rows, steps, ("y0", "y1"), "length")
 
 
 def rk4_segment_turning(steps, coefficients=EXACT):
@@ -135,10 +129,18 @@ def rk4_segment_turning(steps, coefficients=EXACT):
                           rhs_turning(z[:4], z[5:], ac, R, T, N)[4:] * dt_dtheta)
 
     step = ca.Function("rk4_step_turning", [x, ac, alpha, delta, h], [_classic_step(f, x, h)])
-    x0 = ca.SX.sym("x0", 9)
-    ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
-    x1 = x0
+    return _stepped3d("segment_rk4_turning", step, 9, steps, ("x0", "x1"), "dtheta")
+
+
+def _stepped3d(name, step, rows, steps, ends, length_name):
+    """A segment of ``steps`` equal calls of the 3-D RK4 ``step`` ``(y, ac, alpha,
+    delta, h) -> y``: ``(start, ac, alpha, delta, length) -> (end, q3[0])``, SX and
+    expanded, its inputs and outputs named ``ends`` and ``length_name``."""
+    y0 = ca.SX.sym(ends[0], rows)
+    ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", length_name))
+    y1 = y0
     for _ in range(int(steps)):
-        x1 = step(x1, ac, alpha, delta, length / int(steps))
-    return ca.Function("segment_rk4_turning", [x0, ac, alpha, delta, length], [x1, ca.SX(0, 1)],
-                       ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"]).expand()
+        y1 = step(y1, ac, alpha, delta, length / int(steps))
+    return ca.Function(name, [y0, ac, alpha, delta, length], [y1, ca.SX(0, 1)],
+                       [ends[0], "ac", "alpha", "delta", length_name],
+                       [ends[1], "q3"]).expand()
