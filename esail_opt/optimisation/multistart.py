@@ -268,16 +268,14 @@ def probe_cap(iterations, least=PROBE_MIN):
 #: A planar class probe is stopped as hopeless at the iteration where the answer's own
 #: solve converged (at least :data:`PROBE_MIN`) when its point there is still this far
 #: from feasible (the largest constraint violation, canonical units) and its objective
-#: more than :data:`HOPELESS_RATIO` times the best class's.  On the fixed-date
-#: Earth-Mars minimum a_c (problems/earth_mars_min_ac.py) the answer's class took 77
-#: iterations and both classes beside it, which end infeasible after 215 and 200, stood
-#: there at violations of 0.32 and 0.049 with 47 and 5.8 times the answer's a_c; a
-#: planar class with a transfer converges in about the seed's own iterations.  In three
-#: dimensions no class is stopped so: on the Earth-Venus 3-D minimum a_c
-#: (problems/earth_venus_min_ac.py, in 3-D) the solve's descent reaches the best class
-#: (k = -21) only through k = -20, which has a transfer; solved from its class seed,
-#: k = -20 stood at violation 1.3 and 28 times the best objective so far at the
-#: iteration where the seed's class had converged, and converged 220 iterations later.
+#: more than :data:`HOPELESS_RATIO` times the best class's: a planar class with a
+#: transfer converges in about the seed's own iterations, and one that is still far
+#: from feasible and far worse by then has ended infeasible in every case looked at
+#: (results/bench/README.md, "Pace"; tests/test_hopeless_class.py solves such classes
+#: without the stop).  In three dimensions no class is stopped so: a class on the way to
+#: the best one can look as hopeless at that iteration and still hold a transfer (the
+#: Earth-Venus minimum a_c, whose descent reaches its best class only through such a
+#: neighbour).
 HOPELESS_VIOLATION = 1e-3
 HOPELESS_RATIO = 2.0
 
