@@ -37,15 +37,17 @@ problem = eo.Problem(
 '''
 
 
-def fly_dop853(problem, schedule, rtol=1e-13):
+def fly_dop853(problem, schedule, rtol=1e-13, x0=None, ac=None):
     """Fly a schedule (solution.json rows: ``alpha_deg``, ``duration_days`` and maybe
-    ``throttle``) on Eqs. 1-2 from the problem's departure with DOP853.
+    ``throttle``) on Eqs. 1-2 with DOP853, from ``x0`` (polar, canonical; default the
+    problem's departure) at the characteristic acceleration ``ac`` (canonical; default
+    the sail's).
 
     Returns the final polar state [r, theta, v_r, v_theta] and the elapsed time, TU.
     """
     b1, b2 = problem.sail.coefficients
-    ac = problem.sail.ac
-    x = np.asarray(problem.x0(), float)
+    ac = problem.sail.ac if ac is None else ac
+    x = np.asarray(problem.x0() if x0 is None else x0, float)
     elapsed = 0.0
     for row in schedule:
         alpha = math.radians(row["alpha_deg"])
