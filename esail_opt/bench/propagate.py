@@ -245,16 +245,9 @@ def cpu_seconds(fn, repeats):
     one's own work: unlike the wall clock, it does not count the time this process
     waits for a core that other jobs hold on a shared machine.
     """
-    import statistics
     import time
 
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.process_time()
-        fn()
-        times.append(time.process_time() - start)
-    return statistics.median(times)
+    return median_seconds(fn, repeats, clock=time.process_time)
 
 
 def _heyoka_point(tol, sizes, schedule, truth, repeats):
