@@ -389,17 +389,10 @@ class _BodyTarget:
                      out_of_plane_km=units.length_to_km(abs(z_au)))
 
 
-    def constraints3d(self, yf, tf, t0=0.0):
-        """The final Cartesian state ``yf`` (ecliptic, canonical) on the body's smooth
-        3-D track (``bodies.track.Track3``) at t0 + tf: position, and velocity for a
-        rendezvous.  No turn count: Cartesian rows are the same on every revolution."""
-        body = lookup.track3(self.body).function(t0 + tf)
-        rows = yf[:3] - body[:3]
-        return [ca.vertcat(rows, yf[3:6] - body[3:6]) if self.matches_velocity else rows]
-
     def cylindrical_constraints(self, yf, theta_f, tf, turns, t0=0.0):
-        """The rows of :meth:`constraints3d` in the ecliptic's cylindrical coordinates,
-        with the turn count in them: [rho, lambda - 2 pi turns, z] and, for a
+        """A 3-D body target's rows, the final position (and, for a rendezvous, velocity)
+        on the body's smooth 3-D track in the ecliptic's cylindrical coordinates, with
+        the turn count in them: [rho, lambda - 2 pi turns, z] and, for a
         rendezvous, [v_rho, v_lambda, v_z] of the sail's final Cartesian state ``yf``
         less the body's on its smooth 3-D track at t0 + tf (``Track3.cylindrical``,
         whose longitude is unwrapped).  The sail's longitude is unwrapped near its polar
@@ -407,10 +400,10 @@ class _BodyTarget:
         longitude row is the planar model's theta row plus terms of the order of the
         inclination.
 
-        Zero exactly where :meth:`constraints3d` is, on the turn count that
-        :meth:`turns_lag` bounds; but, as the planar row, it pulls the final angle
-        straight towards its turn, where Cartesian rows, periodic in it, gave a class
-        probe started half a turn off local optima of several times the a_c."""
+        Zero exactly where the Cartesian miss is, on the row's turn count; as the
+        planar row, it pulls the final angle straight towards its turn, where Cartesian
+        rows, periodic in it, gave a class probe started half a turn off local optima of
+        several times the a_c."""
         body = lookup.track3(self.body).cylindrical(t0 + tf)
         sail = _cylindrical()(yf, theta_f)
         rows = [sail[0] - body[0], sail[1] - body[1] - 2 * math.pi * turns,
@@ -418,12 +411,6 @@ class _BodyTarget:
         if self.matches_velocity:
             rows += [sail[3] - body[2], sail[4] - body[3], sail[5] - body[5]]
         return [ca.vertcat(*rows)]
-
-    def turns_lag(self, xf, tf, turns, t0=0.0):
-        """theta_f less the body's planar track angle and ``turns`` whole turns: the
-        sail's polar angle (in its own plane, on the track's branch) against the body's
-        in the ecliptic, rad; within half a turn it fixes a 3-D rendezvous's turn count."""
-        return xf[1] - self.body_state(t0, tf)[1] - 2 * math.pi * turns
 
     def miss3d(self, y, t, t0=0.0):
         """Distance (and, for a rendezvous, relative speed) of the Cartesian state ``y``

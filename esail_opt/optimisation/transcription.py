@@ -783,7 +783,7 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     g.add("durations", flight["durations"] / scales.time, 0, np.inf)
     if problem.fixed_tof() is not None:
         g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
-    if hasattr(problem.target, "constraints3d") and "yf" in flight:
+    if hasattr(problem.target, "cylindrical_constraints") and "yf" in flight:
         # In three dimensions a body target's rows are on its 3-D track, in the
         # ecliptic's cylindrical coordinates: the longitude row holds the turn count k
         # as the planar theta row does, so the revolution classes are the planar model's
