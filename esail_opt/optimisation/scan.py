@@ -37,7 +37,7 @@ from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options
                                           solve_transcription)
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
 from esail_opt.optimisation.problem import Problem
-from esail_opt.optimisation.transcription import (Transcription, initial_guess,
+from esail_opt.optimisation.transcription import (Transcription, initial_guess, lifted_guess,
                                                   sub_arcs_within_cap)
 from esail_opt.optimisation.verify import verify
 
@@ -433,23 +433,80 @@ class Seed:
 
 def seed_free_date(problem, progress=None):
     """A start for a problem whose departure date is free in a window: the best cell of
-    a coarse scan of the window at fixed dates (a :class:`Seed`)."""
-    started = time.perf_counter()
+    a coarse scan of the window at fixed dates (a :class:`Seed`).
+
+    In three dimensions the dates are ranked on the projected model first
+    (:func:`_lifted_seed`), and the 3-D model scans them itself only when the projected
+    best does not converge in 3-D."""
+    if problem.three_d():
+        seed = _lifted_seed(problem, progress)
+        if seed.guess is not None:
+            return seed
+        (progress or (lambda text: None))(
+            f"{problem.name}: the projected model's best date did not converge in three "
+            "dimensions; scanning the window in three dimensions")
+        scanned = _scanned_seed(problem, progress)
+        return dataclasses.replace(scanned, iterations=scanned.iterations + seed.iterations,
+                                   seconds=scanned.seconds + seed.seconds)
+    return _scanned_seed(problem, progress)
+
+
+def _best_date(problem, progress):
+    """The coarse scan of ``problem``'s window: (its best solved cell or None, the
+    Ipopt iterations of the cells it kept)."""
     lo, hi = problem.departure.window_jd
     count = int(np.clip(math.ceil((hi - lo) / SEED_SPACING_DAYS) + 1, *SEED_CELLS))
-    say = progress or (lambda text: None)
-    say(f"{problem.name}: seeding the free departure date by a scan of {count} dates")
+    (progress or (lambda text: None))(
+        f"{problem.name}: seeding the free departure date by a scan of {count} dates"
+        + ("" if problem.three_d() else " in the projected model"))
     cells = scan([at_date(problem, jd) for jd in np.linspace(lo, hi, count)], progress,
                  explore=True)
     iterations = sum(c.result.iterations for c in cells if c.result is not None)
     solved = [c for c in cells if c.solved]
-    if not solved:
-        return Seed(problem, None, iterations, time.perf_counter() - started)
-    best = min(solved, key=_rank)
-    start = best.on_scan_nlp or best.result
+    return (min(solved, key=_rank) if solved else None), iterations
+
+
+def _free_seed(problem, cell_problem, start, iterations, started):
+    """The :class:`Seed` of the free-date ``problem`` at ``start``, an optimum of the
+    fixed-date ``cell_problem``, on that cell's mesh."""
     meshed = dataclasses.replace(problem, segments=dataclasses.replace(
-        best.problem.segments, count=start.alpha.size, per_revolution=None))
+        cell_problem.segments, count=start.alpha.size, per_revolution=None))
     return Seed(meshed, start.as_guess(), iterations, time.perf_counter() - started)
+
+
+def _scanned_seed(problem, progress):
+    started = time.perf_counter()
+    best, iterations = _best_date(problem, progress)
+    if best is None:
+        return Seed(problem, None, iterations, time.perf_counter() - started)
+    return _free_seed(problem, best.problem, best.on_scan_nlp or best.result, iterations,
+                      started)
+
+
+def _lifted_seed(problem, progress):
+    """A 3-D free date seeded from the projected model: its best date's optimum
+    (``planar=True``, the same problem with the bodies' states in the ecliptic) flown in
+    3-D with the clock at 0 (``transcription.lifted_guess``) and solved as a 3-D cell.
+
+    Why: the scan is there to rank dates and turn counts, and the plane change of a
+    transfer between bodies a few degrees apart moves each date's optimum by little,
+    while a scan in 3-D costs several times the projected one, most of it in cold
+    class solves whose clock angles Ipopt first swings far (Earth-Mars 2030-2033: the
+    same best date within two days and the same turn count either way, and the 3-D
+    solve the same optimum to 1e-12).  The seed's guess is None when the projected scan
+    found nothing or the 3-D cell did not converge from it."""
+    started = time.perf_counter()
+    best, iterations = _best_date(dataclasses.replace(problem, planar=True), progress)
+    if best is None:
+        return Seed(problem, None, iterations, time.perf_counter() - started)
+    cell = dataclasses.replace(best.problem, planar=problem.planar)
+    start = best.on_scan_nlp or best.result
+    result, _ = solve_problem(cell, guess=lifted_guess(cell, start.as_guess()),
+                              staged=False, progress=progress)
+    iterations += result.iterations
+    if not result.outcome.found:
+        return Seed(problem, None, iterations, time.perf_counter() - started)
+    return _free_seed(problem, cell, result, iterations, started)
 
 
 #: Times of flight at which a fixed-time problem that found no point is solved cold, as

@@ -507,6 +507,19 @@ def initial_guess(problem):
                  delta=np.zeros(n) if problem.three_d() else None)
 
 
+def lifted_guess(problem, guess):
+    """A planar start (``guess``, of the same problem with ``planar=True``) as a start of
+    the 3-D ``problem``: the same pitches, lengths, throttles and a_c scale, the clock at
+    0, and the nodes the 3-D segments reach from the departure's own plane, so that
+    continuity holds exactly and only the target's rows are off (by the body's height
+    over the ecliptic, and what the unprojected departure changes)."""
+    kappa = np.ones(guess.alpha.size) if guess.throttle is None else np.asarray(guess.throttle)
+    xs = flown_segments(problem, guess.alpha, guess.lengths,
+                        problem.departure.plane_state_at(guess.epoch, guess.vinf_angle),
+                        throttle=guess.ac_scale * kappa)
+    return dataclasses.replace(guess, nodes=xs[:, 1:], delta=np.zeros(guess.alpha.size))
+
+
 @dataclass
 class Transcription:
     """The NLP and the maps from its flat variable vector back to the schedule."""
