@@ -393,7 +393,7 @@ def _classes(problem, result, tr, say):
     tried = [(_class_record(f"the seed's class (k = {result.revolutions_k})", own),
               result, tr)]
     # Every class's seed comes from the same constant-pitch flights.
-    seeds = multistart.constant_pitch_seeds(problem)
+    seeds = multistart.constant_pitch_seeds(multistart.probe_model(problem))
 
     # A real body's k counts from the turns both bodies made since 2000, so it may be
     # negative; an idealised body's counts from its phase at departure.
