@@ -306,12 +306,12 @@ def probe(problem, guess, cap, progress=None, checkpoint=None, staged=True):
         more, tr = solve_problem(problem, guess=result.as_guess(), progress=progress,
                                  staged=False,
                                  options=primal_warm_options(ipopt_options()))
-        _add_cost(more, result)
+        add_cost(more, result)
         result = more
     return result, tr
 
 
-def _add_cost(result, before):
+def add_cost(result, before):
     """``result``'s Ipopt record made to cover the solve ``before`` it as well."""
     result.iterations += before.iterations
     result.solve_seconds += before.solve_seconds
@@ -349,7 +349,7 @@ def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seed
         return result, tr, f"{start.label}, on the projected model (not solved in 3-D)"
     lifted, tr = probe(problem, lifted_guess(problem, result.as_guess()), cap, progress,
                        staged=False)
-    _add_cost(lifted, result)
+    add_cost(lifted, result)
     return lifted, tr, f"{start.label}, solved on the projected model and lifted into 3-D"
 
 

@@ -172,20 +172,47 @@ class CellSolver:
         # sub-arcs the cap asked for there.
         return dataclasses.replace(problem, segments=self.segments), guess
 
-    def cold(self, problem, guess=None, label="seed"):
-        """Solve a cell from its own constant-pitch seed (or ``guess``, a class's seed);
-        the first cell of a class builds the class's NLP."""
+    def cold(self, problem, k=None):
+        """Solve a cell from its own constant-pitch seed, or from turn count ``k``'s seed
+        (``multistart.rendezvous_starts``); the first cell of a class builds the class's
+        NLP.  A 3-D cell on the closed form is solved on the projected model first and
+        lifted, as a lone solve probes its classes (``multistart.probe_rendezvous_class``),
+        and from its 3-D seed only when the projection finds no point."""
         started = time.perf_counter()
-        problem, guess = self._meshed(problem, initial_guess(problem) if guess is None else guess)
+        label = "seed" if k is None else f"class {k}"
         # A class's seed is a look at another basin, not worth a full iteration budget.
-        options = None if label == "seed" else ipopt_options(max_iter=CLASS_ITERATIONS)
-        result, tr = solve_problem(problem, segment=self.segment, options=options, guess=guess)
+        options = None if k is None else ipopt_options(max_iter=CLASS_ITERATIONS)
+        lifts = problem.three_d() and self.segment is None
+        result = None
+        if lifts:
+            problem, result, tr = self._lifted(problem, k, options)
+        if result is None:
+            seed = initial_guess(problem) if k is None else _class_seed(problem, k)
+            problem, seed = self._meshed(problem, seed)
+            result, tr = solve_problem(problem, segment=self.segment, options=options,
+                                       guess=seed)
         k = result.revolutions_k
         on_scan = None
         if k not in self.nlps and result.outcome.found:
             self.nlps[k] = (tr, build_solver(tr, warm=True), problem.segments)
             on_scan = result
         return self._candidate(problem, result, tr, started, label, on_scan)
+
+    def _lifted(self, problem, k, options):
+        """The 3-D cell ``problem`` solved from its projected optimum (:meth:`cold`):
+        (the cell on the scan's mesh, NLPResult costing both solves, Transcription), the
+        last two None when the projected model finds no point."""
+        model = multistart.probe_model(problem)
+        seed = initial_guess(model) if k is None else _class_seed(model, k)
+        model, seed = self._meshed(model, seed)
+        projected, _ = solve_problem(model, options=options, guess=seed)
+        problem = dataclasses.replace(problem, segments=model.segments)
+        if not projected.outcome.found:
+            return problem, None, None
+        result, tr = solve_problem(problem, options=options, staged=False,
+                                   guess=lifted_guess(problem, projected.as_guess()))
+        multistart.add_cost(result, projected)
+        return problem, result, tr
 
     def warm(self, problem, neighbour, label):
         """Solve a cell warm from a neighbour's optimum, on its class's NLP."""
@@ -355,7 +382,7 @@ def _own_classes(solver, problem, previous, chains, tried, explore):
     for k in wanted:
         if k not in {c.result.revolutions_k for c in tried if c.result is not None}:
             tried.append(solver.warm(problem, chains.get(k), f"class {k}")
-                         or solver.cold(problem, _class_seed(problem, k), f"class {k}"))
+                         or solver.cold(problem, k))
 
 
 def _descend(solver, problem, chains, tried, far=()):
@@ -374,7 +401,7 @@ def _descend(solver, problem, chains, tried, far=()):
         if k in far:
             return None
         cell = (solver.warm(problem, chains.get(k), f"class {k}")
-                or solver.cold(problem, _class_seed(problem, k), f"class {k}"))
+                or solver.cold(problem, k))
         tried.append(cell)
         return cell if cell.solved else None
 
