@@ -324,6 +324,16 @@ def probe_model(problem):
     return dataclasses.replace(problem, planar=True) if problem.three_d() else problem
 
 
+def solve_lifted(problem, projected, options=None, progress=None):
+    """The 3-D ``problem`` solved from ``projected``, an optimum of its projected model
+    (:func:`probe_model`), lifted into 3-D (``transcription.lifted_guess``), without
+    staging: (NLPResult whose Ipopt record covers both solves, Transcription)."""
+    result, tr = solve_problem(problem, guess=lifted_guess(problem, projected.as_guess()),
+                               progress=progress, staged=False, options=options)
+    add_cost(result, projected)
+    return result, tr
+
+
 def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seeds=None):
     """:func:`probe` of the rendezvous turn count ``k`` from its seed
     (:func:`rendezvous_starts`, from ``seeds``, the :func:`constant_pitch_seeds` of

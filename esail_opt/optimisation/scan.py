@@ -209,10 +209,7 @@ class CellSolver:
         problem = dataclasses.replace(problem, segments=model.segments)
         if not projected.outcome.found:
             return problem, None, None
-        result, tr = solve_problem(problem, options=options, staged=False,
-                                   guess=lifted_guess(problem, projected.as_guess()))
-        multistart.add_cost(result, projected)
-        return problem, result, tr
+        return (problem,) + multistart.solve_lifted(problem, projected, options)
 
     def warm(self, problem, neighbour, label):
         """Solve a cell warm from a neighbour's optimum, on its class's NLP."""
