@@ -9,6 +9,7 @@ optimum's sits on its lower bound -- and the structure of the rendezvous constra
 turn counts k are disjoint pieces of the feasible set.
 """
 
+import dataclasses
 import json
 import math
 
@@ -66,6 +67,26 @@ def test_rendezvous_starts_carry_their_turn_count():
     starts = multistart.rendezvous_starts(problem, [1, 2])
     assert [s.guess.revolutions_k for s in starts] == [1, 2]
     assert all(s.window is None for s in starts)
+
+
+def test_a_count_no_seed_winds_gets_a_start_that_winds_it():
+    """Earth-Venus leaving 2031-01-21 in 720 d (planar): the -45 and -67.5 deg seeds wind
+    -17 and -19 turns; the start of k = -18 is a pitch between them whose own
+    constant-pitch flight, flown again here, winds -18."""
+    from esail_opt.bodies import dates
+    from esail_opt.optimisation import scan
+    from esail_opt.optimisation.transcription import initial_guess
+
+    problem = scan.at_date(_load("earth_venus_min_ac_planar"),
+                           dates.jd_from_iso("2031-01-21"), 720.0)
+    seeds = multistart.constant_pitch_seeds(problem)
+    counts = {round(math.degrees(a), 2): g.revolutions_k for a, g in seeds.items()}
+    assert counts[-45.0] == -17 and counts[-67.5] == -19 and -18 not in counts.values()
+    start = multistart.rendezvous_starts(problem, [-18], seeds)[0]
+    pitch = float(start.guess.alpha[0])
+    assert math.radians(-67.5) < pitch < math.radians(-45.0)
+    again = initial_guess(dataclasses.replace(problem, guess_alpha_deg=math.degrees(pitch)))
+    assert again.revolutions_k == -18 and "its own k" not in start.label
 
 
 def test_search_refuses_problems_it_cannot_count():
