@@ -12,10 +12,10 @@ between cells (a rendezvous that gains one more turn on the body, say).  So afte
 forward pass every cell that ended worse than a neighbour -- not converged, not
 verified, or a larger objective -- is solved again from that neighbour, the other way
 along the scan, and keeps the better of the two.  A cell no neighbour can start is
-solved cold from its own seed, as a lone solve would.  A MinAcceleration cell also steps
-through the turn counts on the body beside its best while the a_c falls, as a lone
-solve does (``multistart.descend_turns``): the best count drifts across a chart, and a
-warm chain would keep its own.
+solved cold from its own seed, as a lone solve would.  A MinAcceleration or MinTime cell
+also steps through the turn counts on the body beside its best while its objective
+falls, as a lone solve does (``multistart.descend_turns``): the best count drifts
+across a chart, and a warm chain would keep its own.
 
 Every cell goes through the error control and the CVODES verification of a lone solve
 (``optimisation.error_control``, ``optimisation.verify``): a scan's cell is verified exactly
@@ -43,11 +43,12 @@ from esail_opt.optimisation.verify import verify
 
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
 CLASS_ITERATIONS = 300
-#: A MinAcceleration scan looks at the turn counts beside a cell's best at every cell,
-#: but a count that needed at least LOOK_MARGIN times the best a_c where it was last
-#: solved is not looked at again within LOOK_CELLS cells of that one: between
-#: neighbouring cells of a chart (weeks apart) a count's a_c changes by a few per cent,
-#: so a count that needed twice the best's does not become the best two cells on.
+#: A MinAcceleration or MinTime scan looks at the turn counts beside a cell's best at
+#: every cell, but a count whose objective was at least LOOK_MARGIN times the best where
+#: it was last solved is not looked at again within LOOK_CELLS cells of that one:
+#: between neighbouring cells of a chart (weeks apart) a count's objective changes by a
+#: few per cent, so a count that needed twice the best's does not become the best two
+#: cells on.
 LOOK_MARGIN = 2.0
 LOOK_CELLS = 3
 
@@ -351,17 +352,21 @@ def _settle(solver, tried):
 def _first_solves(solver, problem, previous, chains, explore=False, far=()):
     """A cell's solves in the forward pass: warm from the previous cell, and for a body
     target the classes its own seed favours (for a MinAcceleration cell that the warm
-    start solved, the classes beside the best instead, but those of ``far``)."""
+    start solved, not those), then, for a MinAcceleration or MinTime cell, the classes
+    beside the best while they do better, but those of ``far``."""
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
     if problem.tracks_body():
         sizing = problem.objective.free_acceleration
         if explore or not (sizing and any(c.solved for c in tried)):
             _own_classes(solver, problem, previous, chains, tried, explore)
-        if sizing:
+        if sizing or not problem.objective.fixed_time:
             # The best count drifts across a chart (by whole turns over a few months of
-            # departure dates), and a warm chain keeps its own: every cell looks on.
-            # That look replaces the own seed's count, which a lone solve too only
-            # starts from (on Venus it needed three to four times the chain's a_c).
+            # departure dates), and a warm chain keeps its own: every cell looks on, as
+            # a lone solve does.  For a MinAcceleration cell that look replaces the own
+            # seed's count, which a lone solve too only starts from (on Venus it needed
+            # three to four times the chain's a_c).  A minimum-time chain that lost its
+            # count kept the seed's: Earth-Mars leaving 2033-08-11 in 3-D took 1,008 d
+            # (k = 17) where the count beside it, as a lone solve finds, takes 715 d.
             _descend(solver, problem, chains, tried, far)
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
@@ -383,8 +388,9 @@ def _own_classes(solver, problem, previous, chains, tried, explore):
 
 
 def _descend(solver, problem, chains, tried, far=()):
-    """For a MinAcceleration rendezvous, the turn counts beyond the best one ``tried``
-    while the a_c keeps falling (``multistart.descend_turns``, as a lone solve does), so
+    """For a MinAcceleration or MinTime rendezvous, the turn counts beyond the best one
+    ``tried`` while the objective keeps falling (``multistart.descend_turns``, as a lone
+    solve does), so
     that a cell ends in the class a lone solve of it would.  Classes the scan has solved
     before start warm from their last cell; those of ``far`` are taken as no better
     (see :data:`LOOK_MARGIN`).  The solves made are added to ``tried``."""
