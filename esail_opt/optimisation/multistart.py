@@ -346,12 +346,12 @@ def probe(problem, guess, cap, progress=None, checkpoint=None, staged=True):
         more, tr = solve_problem(problem, guess=result.as_guess(), progress=progress,
                                  staged=False,
                                  options=primal_warm_options(ipopt_options()))
-        add_cost(more, result)
+        _add_cost(more, result)
         result = more
     return result, tr
 
 
-def add_cost(result, before):
+def _add_cost(result, before):
     """``result``'s Ipopt record made to cover the solve ``before`` it as well."""
     result.iterations += before.iterations
     result.solve_seconds += before.solve_seconds
@@ -362,16 +362,6 @@ def probe_model(problem):
     """The model :func:`probe_rendezvous_class` probes ``problem``'s classes on: the
     projected one (``planar=True``) for a 3-D problem, else the problem itself."""
     return dataclasses.replace(problem, planar=True) if problem.three_d() else problem
-
-
-def solve_lifted(problem, projected, options=None, progress=None):
-    """The 3-D ``problem`` solved from ``projected``, an optimum of its projected model
-    (:func:`probe_model`), lifted into 3-D (``transcription.lifted_guess``), without
-    staging: (NLPResult whose Ipopt record covers both solves, Transcription)."""
-    result, tr = solve_problem(problem, guess=lifted_guess(problem, projected.as_guess()),
-                               progress=progress, staged=False, options=options)
-    add_cost(result, projected)
-    return result, tr
 
 
 def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seeds=None):
@@ -399,7 +389,7 @@ def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seed
         return result, tr, f"{start.label}, on the projected model (not solved in 3-D)"
     lifted, tr = probe(problem, lifted_guess(problem, result.as_guess()), cap, progress,
                        staged=False)
-    add_cost(lifted, result)
+    _add_cost(lifted, result)
     return lifted, tr, f"{start.label}, solved on the projected model and lifted into 3-D"
 
 
