@@ -69,6 +69,20 @@ def de421_ecliptic(segment, jd):
     return np.r_[turn @ pos / AU_KM, turn @ vel * TU_DAYS / AU_KM]
 
 
+def fly_schedule(problem, result, rtol=1e-12, atol=1e-13):
+    """``result``'s schedule (pitch, clock, throttle and duration per segment) flown here
+    by DOP853 on the Cartesian equations from DE421's Earth at its departure epoch: the
+    final state and the arrival's Julian date."""
+    jd0 = 2451545.0 + result.epoch * TU_DAYS
+    y = de421_ecliptic("earthmoon", jd0)
+    ac = problem.sail.ac * result.ac_scale
+    kappa = np.ones(result.alpha.size) if result.throttle is None else result.throttle
+    for alpha, delta, k, dt in zip(result.alpha, result.delta, kappa, result.durations):
+        y = solve_ivp(esail_rhs(ac * k, alpha, delta), (0, dt), y, method="DOP853",
+                      rtol=rtol, atol=atol).y[:, -1]
+    return y, jd0 + float(np.sum(result.durations)) * TU_DAYS
+
+
 def test_problem_switches():
     assert mars_problem().three_d()
     assert mars_problem(planar=None).three_d()  # a real body flies in 3-D unless asked
@@ -242,12 +256,8 @@ def test_a_3d_free_date_ranked_on_the_projection_does_no_worse_than_a_3d_scan(
     run = pipeline.solve(problem)
     assert run.verified, run.note
     result = run.result
-    jd0 = 2451545.0 + result.epoch * TU_DAYS
-    y = de421_ecliptic("earthmoon", jd0)
-    for alpha, delta, dt in zip(result.alpha, result.delta, result.durations):
-        y = solve_ivp(esail_rhs(problem.sail.ac, alpha, delta), (0, dt), y, method="DOP853",
-                      rtol=1e-12, atol=1e-13).y[:, -1]
-    mars = de421_ecliptic("mars", jd0 + float(np.sum(result.durations)) * TU_DAYS)
+    y, arrival = fly_schedule(problem, result)
+    mars = de421_ecliptic("mars", arrival)
     assert np.linalg.norm(y[:3] - mars[:3]) * AU_KM < problem.tolerance.position_km
 
     monkeypatch.setattr(scan, "_lifted_seed",
@@ -285,19 +295,9 @@ def test_a_lone_min_ac_solve_reaches_the_class_a_scan_of_its_date_finds(name):
     beside = {c.revolutions_k: c.ac_scale for c in run.classes if c.ac_scale is not None}
     assert {chosen - 1, chosen + 1} <= set(beside) and min(beside.values()) == lone
     if problem.three_d():
-        _flies_onto_venus(problem, run.result)
-
-
-def _flies_onto_venus(problem, result):
-    jd0 = 2451545.0 + result.epoch * TU_DAYS
-    y = de421_ecliptic("earthmoon", jd0)
-    ac = problem.sail.ac * result.ac_scale
-    for alpha, delta, kappa, dt in zip(result.alpha, result.delta, result.throttle,
-                                       result.durations):
-        y = solve_ivp(esail_rhs(ac * kappa, alpha, delta), (0, dt), y, method="DOP853",
-                      rtol=1e-12, atol=1e-13).y[:, -1]
-    venus = de421_ecliptic("venus", jd0 + float(np.sum(result.durations)) * TU_DAYS)
-    assert np.linalg.norm(y[:3] - venus[:3]) * AU_KM < problem.tolerance.position_km
+        y, arrival = fly_schedule(problem, run.result)
+        venus = de421_ecliptic("venus", arrival)
+        assert np.linalg.norm(y[:3] - venus[:3]) * AU_KM < problem.tolerance.position_km
 
 
 def read_oem_states(text):
@@ -319,11 +319,8 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
     result = run.result
     assert result.delta is not None
     jd0 = 2451545.0 + result.epoch * TU_DAYS
-    y = de421_ecliptic("earthmoon", jd0)
-    for alpha, delta, dt in zip(result.alpha, result.delta, result.durations):
-        y = solve_ivp(esail_rhs(problem.sail.ac, alpha, delta), (0, dt), y, method="DOP853",
-                      rtol=1e-12, atol=1e-13).y[:, -1]
-    mars = de421_ecliptic("mars", jd0 + float(np.sum(result.durations)) * TU_DAYS)
+    y, arrival = fly_schedule(problem, result)
+    mars = de421_ecliptic("mars", arrival)
     miss_km = np.linalg.norm(y[:3] - mars[:3]) * AU_KM
     miss_m_s = np.linalg.norm(y[3:] - mars[3:]) * AU_KM * 1e3 / (TU_DAYS * 86400)
     assert miss_km < problem.tolerance.position_km
@@ -381,14 +378,8 @@ def test_a_polished_3d_mars_rendezvous_meets_de421s_mars_to_a_metre():
     assert run.polish.verified, run.polish.note
     exact = run.polish.result
     assert exact.delta is not None and np.ptp(exact.delta) > 0.1  # the clock is used
-    jd0 = 2451545.0 + exact.epoch * TU_DAYS
-    y = de421_ecliptic("earthmoon", jd0)
-    ac = problem.sail.ac * exact.ac_scale
-    for alpha, delta, kappa, dt in zip(exact.alpha, exact.delta, exact.throttle,
-                                       exact.durations):
-        y = solve_ivp(esail_rhs(ac * kappa, alpha, delta), (0, dt), y, method="DOP853",
-                      rtol=1e-13, atol=1e-15).y[:, -1]
-    mars = de421_ecliptic("mars", jd0 + float(np.sum(exact.durations)) * TU_DAYS)
+    y, arrival = fly_schedule(problem, exact, rtol=1e-13, atol=1e-15)
+    mars = de421_ecliptic("mars", arrival)
     to_m_s = AU_KM * 1e3 / (TU_DAYS * 86400)
     assert np.linalg.norm(y[:3] - mars[:3]) * AU_KM < 1e-3
     assert np.linalg.norm(y[3:] - mars[3:]) * to_m_s < 1e-3
