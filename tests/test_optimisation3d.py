@@ -300,6 +300,35 @@ def test_a_lone_min_ac_solve_reaches_the_class_a_scan_of_its_date_finds(name):
         assert np.linalg.norm(y[:3] - venus[:3]) * AU_KM < problem.tolerance.position_km
 
 
+@pytest.mark.slow
+def test_a_count_with_no_point_does_not_end_the_turn_count_search():
+    """Earth-Venus minimum time in 3-D on 10 segments, leaving 2033-05-20 at 0.8 mm/s^2:
+    the count beside the first one found ends infeasible, and the one beyond it is the
+    fastest.  A lone solve steps over the count with no point (it used to stop there,
+    at 1,098 d against 455 d): its answer is no slower than a probe of any count from
+    k = -23 to -19 made here, and its schedule, flown here by DOP853 from DE421's Earth,
+    meets DE421's unprojected Venus."""
+    from esail_opt.optimisation import multistart
+
+    problem = eo.Problem(name="venus10", departure=eo.BodyDeparture(body="earth",
+                                                                    date="2033-05-20"),
+                         sail=eo.Sail(ac_mm_s2=0.8), segments=eo.Segments(count=10, sub_arcs=2),
+                         objective=eo.MinTime(), target=eo.BodyRendezvous(body="venus"))
+    run = pipeline.solve(problem)
+    assert run.verified, run.note
+    tof = float(np.sum(run.result.durations))
+    probed = []
+    for k in range(-23, -18):
+        other, _, _ = multistart.probe_rendezvous_class(problem, k, 3000)
+        if other.outcome.found:
+            probed.append(float(np.sum(other.durations)))
+    assert probed and tof <= min(probed) * (1 + 1e-4), (tof, probed)
+    assert any(c.constraint_violation > 1e-6 and c.tof is None for c in run.classes)
+    y, arrival = fly_schedule(problem, run.result)
+    venus = de421_ecliptic("venus", arrival)
+    assert np.linalg.norm(y[:3] - venus[:3]) * AU_KM < problem.tolerance.position_km
+
+
 def read_oem_states(text):
     """The data lines of a KVN OEM: epochs (str) and states (6, N) in km and km/s."""
     rows = [line.split() for line in text.splitlines()

@@ -23,8 +23,8 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart, scan
 from esail_opt.optimisation import polish as polishing
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, ErrorControl, Round, control_error
-from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
-                                          solve_problem)
+from esail_opt.optimisation.ipopt import (STOPPED, NLPResult, ipopt_options,
+                                          primal_warm_options, solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
 from esail_opt.optimisation.transcription import (Transcription, initial_guess,
@@ -401,7 +401,7 @@ def _classes(problem, result, tr, say):
 
     def solve_class(k):
         if k < 0 and not real:
-            return None
+            return multistart.NO_BETTER
         best = min(r.objective for _, r, _ in tried if r.outcome.found)
         checkpoint = multistart.hopeless_checkpoint(problem, own.iterations, best)
         say(f"{problem.name}: probing the turn count k = {k} ({cap} Ipopt iterations "
@@ -411,13 +411,16 @@ def _classes(problem, result, tr, say):
         other, other_tr, label = multistart.probe_rendezvous_class(
             problem, k, cap, say, checkpoint, seeds)
         tried.append((_class_record(label, other), other, other_tr))
-        return (other, other_tr) if other.outcome.found else None
+        if other.outcome.found:
+            return other, other_tr
+        return multistart.NO_BETTER if other.status == STOPPED else None
 
     multistart.descend_turns(result.revolutions_k, (result, tr), solve_class,
-                             lambda a, b: a[0].objective < b[0].objective)
+                             lambda a, b: a[0].objective < b[0].objective, gaps=1)
     ks = [c.revolutions_k for c, _, _ in tried]
     skipped = (f"turn counts k < {min(ks)} and k > {max(ks)}: not solved (each way, the "
-               "search stops at the first count that does no better than the best)")
+               "search stops at the first count that does no better than the best, or "
+               "at the second in a row with no point)")
     return tried, skipped
 
 
