@@ -378,10 +378,9 @@ def _own_classes(solver, problem, previous, chains, tried, explore):
 def _descend(solver, problem, chains, tried, far=()):
     """For a MinAcceleration or MinTime rendezvous, the turn counts beyond the best one
     ``tried`` while the objective keeps falling (``multistart.descend_turns``, as a lone
-    solve does), so
-    that a cell ends in the class a lone solve of it would.  Classes the scan has solved
-    before start warm from their last cell; those of ``far`` are taken as no better
-    (see :data:`LOOK_MARGIN`).  The solves made are added to ``tried``."""
+    solve does), so that a cell ends in the class a lone solve of it would.  Classes the
+    scan has solved before start warm from their last cell; those of ``far`` are taken
+    as no better (see :data:`LOOK_MARGIN`).  The solves made are added to ``tried``."""
     solved = {c.result.revolutions_k: c for c in tried if c.solved}
     if not solved:
         return
