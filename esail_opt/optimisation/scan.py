@@ -513,7 +513,7 @@ def _lifted_seed(problem, progress):
     solve the same optimum to 1e-12).  The seed's guess is None when the projected scan
     found nothing or the 3-D cell did not converge from it."""
     started = time.perf_counter()
-    best, iterations = _best_date(dataclasses.replace(problem, planar=True), progress)
+    best, iterations = _best_date(multistart.probe_model(problem), progress)
     if best is None:
         return Seed(problem, None, iterations, time.perf_counter() - started)
     cell = dataclasses.replace(best.problem, planar=problem.planar)
