@@ -329,6 +329,52 @@ def test_a_count_with_no_point_does_not_end_the_turn_count_search():
     assert np.linalg.norm(y[:3] - venus[:3]) * AU_KM < problem.tolerance.position_km
 
 
+@pytest.mark.slow
+def test_turn_counts_searched_on_the_projection_choose_what_the_3d_search_chooses():
+    """Earth-Venus minimum a_c in 3-D: the turn counts searched on the projected model,
+    only the best of them lifted into 3-D, give the class and the a_c of the search that
+    solves every count it looks at in 3-D (``pipeline._solved``, the route a 3-D run
+    takes when the projection cannot rank its classes).  Each class left on the
+    projection says so and needed more than LIFT_RATIO times the answer's objective
+    there, and the answer's schedule, flown here by DOP853 from DE421's Earth, meets
+    DE421's unprojected Venus."""
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    problem = shipped_problem("earth_venus_min_ac")
+    run = pipeline.solve(problem)
+    in_3d = pipeline._solved(problem, 16, lambda text: None)
+    assert run.verified and in_3d.verified, (run.note, in_3d.note)
+    assert run.result.revolutions_k == in_3d.result.revolutions_k
+    assert run.result.ac_scale <= in_3d.result.ac_scale * (1 + 1e-6), (
+        run.result.ac_scale, in_3d.result.ac_scale)
+    left = [c for c in run.classes if c.projected and c.objective is not None]
+    assert left and all("projected model" in c.label for c in left)
+    assert all(c.objective > pipeline.LIFT_RATIO * run.result.objective for c in left)
+    assert not any(c.projected for c in in_3d.classes if c.objective is not None)
+    y, arrival = fly_schedule(problem, run.result)
+    venus = de421_ecliptic("venus", arrival)
+    assert np.linalg.norm(y[:3] - venus[:3]) * AU_KM < problem.tolerance.position_km
+
+
+@pytest.mark.slow
+def test_a_class_the_projection_leaves_undecided_sends_the_search_into_3d():
+    """Earth-Bennu minimum time (6 deg of plane change): on the projected model the
+    count k = 5 ends undecided at its cap, so the projection cannot rank the classes,
+    and the search runs in 3-D, where k = 5 is the fastest by far.  Ranked on the
+    projection alone, the answer would be its best class, k = 6 (about 865 d); the 3-D
+    run, with every class it found solved in 3-D, takes less than 0.6 of that."""
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    problem = shipped_problem("earth_bennu_rendezvous")
+    run = pipeline.solve(problem)
+    projected = pipeline.solve(dataclasses.replace(problem, planar=True))
+    assert run.verified and projected.verified, (run.note, projected.note)
+    assert not any(c.projected for c in run.classes if c.objective is not None)
+    assert any(c.revolutions_k == 5 and c.tof is None for c in projected.classes)
+    tof, projected_tof = (float(np.sum(r.result.durations)) for r in (run, projected))
+    assert tof < 0.6 * projected_tof, (tof, projected_tof)
+
+
 def read_oem_states(text):
     """The data lines of a KVN OEM: epochs (str) and states (6, N) in km and km/s."""
     rows = [line.split() for line in text.splitlines()

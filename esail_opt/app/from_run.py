@@ -250,7 +250,8 @@ def _class_looked(problem, c):
         iterations=c.iterations, objective=c.objective,
         tof_days=None if c.tof is None else units.time_to_days(c.tof),
         ac_mm_s2_required=problem.sail.ac_mm_s2 * c.ac_scale if acc else None,
-        constraint_violation=c.constraint_violation, verified=c.verified, chosen=c.chosen)
+        constraint_violation=c.constraint_violation, verified=c.verified, chosen=c.chosen,
+        projected=c.projected)
 
 
 def _nearest_feasible(near):

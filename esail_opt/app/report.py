@@ -44,16 +44,18 @@ def _flight_lines(v):
 
 
 def _class_line(c):
-    """One turn count looked at: what it gave, and whether it was flown and chosen."""
+    """One turn count looked at: what it gave (and on which model, when that was the
+    projection of a 3-D run), and whether it was flown and chosen."""
+    k = f"k = {c.revolutions_k}" + (" (projected model)" if c.projected else "")
     if c.tof_days is None and c.status == STOPPED:
-        return (f"k = {c.revolutions_k} hopeless, stopped after {c.iterations} iterations "
+        return (f"{k} hopeless, stopped after {c.iterations} iterations "
                 f"(still infeasible by {c.constraint_violation:.2g})")
     if c.tof_days is None:
-        return f"k = {c.revolutions_k} no point ({c.status} after {c.iterations} iterations)"
+        return f"{k} no point ({c.status} after {c.iterations} iterations)"
     value = (f"{c.ac_mm_s2_required:.4g} mm/s^2" if c.ac_mm_s2_required is not None
              else f"{c.tof_days:.1f} d")
     verdict = {True: ", verified", False: ", NOT verified", None: ""}[c.verified]
-    return f"k = {c.revolutions_k} {value}{verdict}" + (" (chosen)" if c.chosen else "")
+    return f"{k} {value}{verdict}" + (" (chosen)" if c.chosen else "")
 
 
 def _class_lines(sol):

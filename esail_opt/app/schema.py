@@ -99,7 +99,9 @@ classes : object
     MinTime or MinAcceleration rendezvous; empty otherwise): ``revolutions_k``,
     ``label``, ``status``, ``iterations``, ``objective`` (canonical, as the top-level
     one), ``tof_days``, ``ac_mm_s2_required`` (MinAcceleration), ``constraint_violation``
-    (of its last point), ``verified`` (null when not flown) and ``chosen``; and
+    (of its last point), ``verified`` (null when not flown), ``chosen`` and
+    ``projected`` (true when its values are the projected model's: a 3-D run's class
+    that was not solved in 3-D; absent otherwise); and
     ``not_looked_at``, one line on the classes not solved.
 nearest_feasible : object
     Only for a fixed-time solve that found no point: ``departure_date`` (null off the

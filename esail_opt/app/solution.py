@@ -234,7 +234,9 @@ class ClassLooked(Record):
     """One turn count k on the target body that the solve looked at (an entry of
     ``classes.looked_at``): what its closed form gave, and whether it was flown.
     ``tof_days``, ``objective`` and ``ac_mm_s2_required`` (MinAcceleration) are None
-    where Ipopt found no point; ``verified`` is None where the class was not flown."""
+    where Ipopt found no point; ``verified`` is None where the class was not flown;
+    ``projected``: its values are the projected model's (a 3-D run's class that was not
+    lifted into 3-D; the key is written only when true)."""
 
     revolutions_k: int
     label: str
@@ -246,6 +248,7 @@ class ClassLooked(Record):
     constraint_violation: float
     verified: Optional[bool]
     chosen: bool
+    projected: bool = key(omit=lambda record, value: not value, default=False)
 
 
 @dataclass(frozen=True)

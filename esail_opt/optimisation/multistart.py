@@ -401,10 +401,18 @@ def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seed
         return result, tr, start.label
     if not result.outcome.found:
         return result, tr, f"{start.label}, on the projected model (not solved in 3-D)"
+    lifted, tr = lift(problem, result, cap, progress)
+    return lifted, tr, f"{start.label}, solved on the projected model and lifted into 3-D"
+
+
+def lift(problem, result, cap, progress=None):
+    """:func:`probe` of the 3-D ``problem`` from the optimum ``result`` of its projected
+    model, lifted (``transcription.lifted_guess``) and capped at ``cap`` iterations;
+    (NLPResult, Transcription), the result's Ipopt record covering ``result`` too."""
     lifted, tr = probe(problem, lifted_guess(problem, result.as_guess()), cap, progress,
                        staged=False)
     _add_cost(lifted, result)
-    return lifted, tr, f"{start.label}, solved on the projected model and lifted into 3-D"
+    return lifted, tr
 
 
 def fallback_starts(problem, guess):
