@@ -379,23 +379,29 @@ def probe_model(problem):
 
 
 def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seeds=None):
-    """:func:`probe` of the rendezvous turn count ``k`` from its seed
+    """:func:`probe_start` of the rendezvous turn count ``k`` from its seed
     (:func:`rendezvous_starts`, from ``seeds``, the :func:`constant_pitch_seeds` of
     :func:`probe_model`, when given); returns (NLPResult, Transcription, label of the
-    start).
+    start)."""
+    start = rendezvous_starts(probe_model(problem), [k], seeds)[0]
+    return probe_start(problem, start, cap, progress, checkpoint)
 
-    A 3-D problem's class is probed on the projected model, ``checkpoint`` included,
-    and the projected optimum is lifted into 3-D (``transcription.lifted_guess``) and
-    solved on from there within ``cap``.  Why: from a constant-pitch seed in 3-D, Ipopt
-    first swings the clock angles far, and a class with a transfer could still be short
-    of feasible at its cap.  On the Earth-Venus minimum a_c leaving 2031-01-21 in 720 d,
-    the count beside the seed's was 4.9e-5 from feasible at its cap of 354 iterations,
-    so the descent stopped at the seed's count with 2.356 mm/s^2; probed so, that count
+
+def probe_start(problem, start, cap, progress=None, checkpoint=None):
+    """:func:`probe` of ``problem`` from ``start`` (a :class:`Start` of
+    :func:`probe_model`); returns (NLPResult, Transcription, label of the start).
+
+    A 3-D problem's start is probed on the projected model, ``checkpoint`` included,
+    and the projected optimum is lifted into 3-D (:func:`lift`) and solved on from
+    there within ``cap``.  Why: from a constant-pitch seed in 3-D, Ipopt first swings
+    the clock angles far, and a class with a transfer could still be short of feasible
+    at its cap.  On the Earth-Venus minimum a_c leaving 2031-01-21 in 720 d, the count
+    beside the seed's was 4.9e-5 from feasible at its cap of 354 iterations, so the
+    descent stopped at the seed's count with 2.356 mm/s^2; probed so, that count
     converges in 244 projected and 20 3-D iterations and the descent goes on to
-    0.601 mm/s^2 four counts on.  A class whose projection finds no point is not solved
+    0.601 mm/s^2 four counts on.  A start whose projection finds no point is not solved
     in 3-D: the result is the projection's, and the label says so."""
     model = probe_model(problem)
-    start = rendezvous_starts(model, [k], seeds)[0]
     result, tr = probe(model, start.guess, cap, progress, checkpoint)
     if model is problem:
         return result, tr, start.label
@@ -403,6 +409,31 @@ def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seed
         return result, tr, f"{start.label}, on the projected model (not solved in 3-D)"
     lifted, tr = lift(problem, result, cap, progress)
     return lifted, tr, f"{start.label}, solved on the projected model and lifted into 3-D"
+
+
+def second_start(problem, k, seeds, seed_k):
+    """Another start of the rendezvous turn count ``k`` than the one it was solved
+    from: the last of ``seeds`` (:func:`constant_pitch_seeds` of :func:`probe_model`,
+    in :func:`seed_pitches`'s order) whose own count is k, leaving out the pitch that
+    solved it (the problem's own for ``seed_k``, the seed's class; else the first seed
+    that winds k, which :func:`rendezvous_starts` takes); None when no other winds k.
+
+    Why: one class holds several local optima, and a constant pitch can start in a poor
+    one.  Earth-Mars leaving 2035-06-01 in 650 d (projected): from the 45 deg seed the
+    seed's class k = 17 ends at 2.332 mm/s^2; from 67.5 deg, which winds 17 too, at
+    2.024, as from 30 to 75 deg in steps of 5 to 10 degrees but 45.  The last seed is
+    the flight furthest from the first in pitch, so the likeliest to start in another
+    basin."""
+    winding = [(a, g) for a, g in seeds.items() if g.revolutions_k == k]
+    if not winding:
+        return None
+    used = guess_alpha(probe_model(problem)) if k == seed_k else winding[0][0]
+    others = [(a, g) for a, g in winding if not math.isclose(a, used)]
+    if not others:
+        return None
+    alpha, guess = others[-1]
+    return Start(f"rendezvous k = {k}, a second start: constant pitch "
+                 f"{math.degrees(alpha):.4g} deg", k, guess)
 
 
 def lift(problem, result, cap, progress=None):

@@ -445,19 +445,22 @@ def _projected_classes(problem, samples, say, spent):
 def _lifted(problem, tried, cap, say):
     """``tried`` (:func:`_classes` on the projected model) with its found classes
     lifted into 3-D (``multistart.lift``, ``cap`` iterations), best projected objective
-    first, while each is within :data:`LIFT_RATIO` of the best lifted so far.  A class
-    not lifted keeps its projected record and result with no transcription: it is not
-    a 3-D candidate."""
+    first, while each is within :data:`LIFT_RATIO` of the best lifted so far, one start
+    per class (the best projected).  A class not lifted keeps its projected record and
+    result with no transcription: it is not a 3-D candidate."""
     out = [(dataclasses.replace(c, label=f"{c.label}, on the projected model (not "
                                           "solved in 3-D)", projected=True), r, None)
            for c, r, _ in tried]
     order = sorted((i for i, (_, r, _) in enumerate(tried) if r.outcome.found),
                    key=lambda i: tried[i][1].objective)
-    best = math.inf
+    best, done = math.inf, set()
     for i in order:
         record, result, _ = tried[i]
         if result.objective > LIFT_RATIO * best:
             break
+        if result.revolutions_k in done:
+            continue  # a class's second start: its best projected optimum is lifted
+        done.add(result.revolutions_k)
         say(f"{problem.name}: lifting the turn count k = {result.revolutions_k} into 3-D")
         lifted, tr = multistart.lift(problem, result, cap, say)
         out[i] = (_class_record(f"{record.label}, solved on the projected model and "
@@ -479,7 +482,8 @@ def _class_record(label, result, projected=False):
 def _classes(problem, result, tr, say, spent=None):
     """The turn counts k on the target body beside the one ``result`` found, probed
     (``multistart.probe_rendezvous_class``) one turn at a time each way while each
-    does better (``multistart.descend_turns``).
+    does better (``multistart.descend_turns``), and the best of them probed from a
+    second start (``multistart.second_start``) where another seed winds its count.
 
     The a_c a MinAcceleration rendezvous needs, or a MinTime one's time of flight, can
     change by whole factors from one k to the next, and the seed's k is only what a
@@ -504,30 +508,46 @@ def _classes(problem, result, tr, say, spent=None):
     # negative; an idealised body's counts from its phase at departure.
     real = getattr(problem.target, "body", None) is not None
 
-    def solve_class(k):
-        if k < 0 and not real:
-            return multistart.NO_BETTER
+    def probed(k, start=None):
         best = min(r.objective for _, r, _ in tried if r.outcome.found)
         checkpoint = multistart.hopeless_checkpoint(problem, own.iterations, best)
-        say(f"{problem.name}: probing the turn count k = {k} ({cap} Ipopt iterations "
-            "at most unless nearly feasible"
+        say(f"{problem.name}: probing the turn count k = {k}"
+            + ("" if start is None else " again from a second start")
+            + f" ({cap} Ipopt iterations at most unless nearly feasible"
             + ("" if checkpoint is None else
                f", stopped at {checkpoint[0]} if hopeless by then") + ")")
-        other, other_tr, label = multistart.probe_rendezvous_class(
-            problem, k, cap, say, checkpoint, seeds)
+        if start is None:
+            other, other_tr, label = multistart.probe_rendezvous_class(
+                problem, k, cap, say, checkpoint, seeds)
+        else:
+            other, other_tr, label = multistart.probe_start(problem, start, cap, say,
+                                                            checkpoint)
         # A 3-D class whose projection found no point was not solved in 3-D.
         record = _class_record(label, other, problem.three_d() and not other.outcome.found)
         tried.append((record, other, other_tr))
         if spent is not None:
             spent.append(other)
-            if other.status == AT_CAP:
-                raise _Inconclusive(f"k = {k} ended {other.status} on the projected model")
+        return other, other_tr
+
+    def solve_class(k):
+        if k < 0 and not real:
+            return multistart.NO_BETTER
+        other, other_tr = probed(k)
+        if spent is not None and other.status == AT_CAP:
+            raise _Inconclusive(f"k = {k} ended {other.status} on the projected model")
         if other.outcome.found:
             return other, other_tr
         return multistart.NO_BETTER if other.status == STOPPED else None
 
-    multistart.descend_turns(result.revolutions_k, (result, tr), solve_class,
-                             lambda a, b: a[0].objective < b[0].objective, gaps=1)
+    best, _ = multistart.descend_turns(result.revolutions_k, (result, tr), solve_class,
+                                       lambda a, b: a[0].objective < b[0].objective,
+                                       gaps=1)
+    # One class holds several local optima: the best one is solved from a second start
+    # as well, where another constant pitch winds its count (multistart.second_start).
+    k = best[0].revolutions_k
+    start = multistart.second_start(problem, k, seeds, result.revolutions_k)
+    if start is not None:
+        probed(k, start)
     ks = [c.revolutions_k for c, _, _ in tried]
     skipped = (f"turn counts k < {min(ks)} and k > {max(ks)}: not solved (each way, the "
                "search stops at the first count that does no better than the best, or "
