@@ -7,6 +7,16 @@ from the names below (see :mod:`esail_opt.optimisation.problem`); ``eo.solve(pro
 runs it and returns a :class:`Solution`.
 """
 
+import os
+
+# One BLAS thread for the Ipopt that CasADi bundles, unless the user's environment says
+# otherwise.  Its OpenBLAS reads this when it loads, at the first solve, so setting it
+# here holds for scripts as for ``esail-opt``: with a second thread the rounding of
+# MUMPS's factorisations differs, enough for a warm-started chart to settle in other
+# close local optima (a script's Earth-Venus chart differed from the command's by up to
+# 3 % a cell), and the factorisations of these NLPs are too small to gain from it.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 from esail_opt.bodies.keplerian import BENNU, CERES, SmallBody  # noqa: F401
 from esail_opt.optimisation.goals import (  # noqa: F401
     BodyIntercept, BodyRendezvous, CircularOrbit, FinalStateExpression, MaxEnergy, MaxRadius,

@@ -8,7 +8,6 @@ for every exit status.
 import argparse
 import errno
 import logging
-import os
 import re
 import signal
 import sys
@@ -652,14 +651,9 @@ def main(argv=None):
 
 
 def console():
-    """The ``esail-opt`` command: :func:`main` on ``sys.argv``.
-
-    One BLAS thread, unless the user's environment says otherwise (and before CasADi,
-    whose bundled OpenBLAS reads it when it loads, is imported): MUMPS's factorisations
-    of these NLPs are small, and OpenBLAS's second thread spun on the other core, the
-    one a sweep's or porkchop's other workers run on.
-    """
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    """The ``esail-opt`` command: :func:`main` on ``sys.argv`` (with one BLAS thread
+    unless the environment says otherwise, as every use of the package: see
+    ``esail_opt/__init__.py``)."""
     return main()
 
 
