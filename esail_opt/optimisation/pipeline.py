@@ -479,6 +479,43 @@ def _class_record(label, result, projected=False):
                       projected=projected)
 
 
+class _Probes:
+    """The probes of :func:`_classes`, each capped at :data:`multistart.PROBE_FACTOR`
+    times the seed's class's own iterations (``own``) and stopped when hopeless, and
+    appended to ``tried`` (and to ``spent``, when given)."""
+
+    def __init__(self, problem, own, say, spent, tried):
+        self.problem, self.own, self.say, self.spent, self.tried = (problem, own, say,
+                                                                    spent, tried)
+        self.cap = multistart.probe_cap(own.iterations)
+        # Every class's seed comes from the same constant-pitch flights.
+        self.seeds = multistart.constant_pitch_seeds(multistart.probe_model(problem))
+
+    def probe(self, k, start=None):
+        """Turn count ``k`` probed from its seed, or from ``start``: (NLPResult,
+        Transcription)."""
+        problem, cap = self.problem, self.cap
+        best = min(r.objective for _, r, _ in self.tried if r.outcome.found)
+        checkpoint = multistart.hopeless_checkpoint(problem, self.own.iterations, best)
+        self.say(f"{problem.name}: probing the turn count k = {k}"
+                 + ("" if start is None else " again from a second start")
+                 + f" ({cap} Ipopt iterations at most unless nearly feasible"
+                 + ("" if checkpoint is None else
+                    f", stopped at {checkpoint[0]} if hopeless by then") + ")")
+        if start is None:
+            other, other_tr, label = multistart.probe_rendezvous_class(
+                problem, k, cap, self.say, checkpoint, self.seeds)
+        else:
+            other, other_tr, label = multistart.probe_start(problem, start, cap, self.say,
+                                                            checkpoint)
+        # A 3-D class whose projection found no point was not solved in 3-D.
+        record = _class_record(label, other, problem.three_d() and not other.outcome.found)
+        self.tried.append((record, other, other_tr))
+        if self.spent is not None:
+            self.spent.append(other)
+        return other, other_tr
+
+
 def _classes(problem, result, tr, say, spent=None):
     """The turn counts k on the target body beside the one ``result`` found, probed
     (``multistart.probe_rendezvous_class``) one turn at a time each way while each
@@ -498,41 +535,16 @@ def _classes(problem, result, tr, say, spent=None):
     """
     # The found solve's own iterations, not the run's (other starts before it included).
     own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
-    cap = multistart.probe_cap(own.iterations)
-    tried = [(_class_record(f"the seed's class (k = {result.revolutions_k})", own),
-              result, tr)]
-    # Every class's seed comes from the same constant-pitch flights.
-    seeds = multistart.constant_pitch_seeds(multistart.probe_model(problem))
-
+    probes = _Probes(problem, own, say, spent, [(_class_record(
+        f"the seed's class (k = {result.revolutions_k})", own), result, tr)])
     # A real body's k counts from the turns both bodies made since 2000, so it may be
     # negative; an idealised body's counts from its phase at departure.
     real = getattr(problem.target, "body", None) is not None
 
-    def probed(k, start=None):
-        best = min(r.objective for _, r, _ in tried if r.outcome.found)
-        checkpoint = multistart.hopeless_checkpoint(problem, own.iterations, best)
-        say(f"{problem.name}: probing the turn count k = {k}"
-            + ("" if start is None else " again from a second start")
-            + f" ({cap} Ipopt iterations at most unless nearly feasible"
-            + ("" if checkpoint is None else
-               f", stopped at {checkpoint[0]} if hopeless by then") + ")")
-        if start is None:
-            other, other_tr, label = multistart.probe_rendezvous_class(
-                problem, k, cap, say, checkpoint, seeds)
-        else:
-            other, other_tr, label = multistart.probe_start(problem, start, cap, say,
-                                                            checkpoint)
-        # A 3-D class whose projection found no point was not solved in 3-D.
-        record = _class_record(label, other, problem.three_d() and not other.outcome.found)
-        tried.append((record, other, other_tr))
-        if spent is not None:
-            spent.append(other)
-        return other, other_tr
-
     def solve_class(k):
         if k < 0 and not real:
             return multistart.NO_BETTER
-        other, other_tr = probed(k)
+        other, other_tr = probes.probe(k)
         if spent is not None and other.status == AT_CAP:
             raise _Inconclusive(f"k = {k} ended {other.status} on the projected model")
         if other.outcome.found:
@@ -545,9 +557,10 @@ def _classes(problem, result, tr, say, spent=None):
     # One class holds several local optima: the best one is solved from a second start
     # as well, where another constant pitch winds its count (multistart.second_start).
     k = best[0].revolutions_k
-    start = multistart.second_start(problem, k, seeds, result.revolutions_k)
+    start = multistart.second_start(problem, k, probes.seeds, result.revolutions_k)
     if start is not None:
-        probed(k, start)
+        probes.probe(k, start)
+    tried = probes.tried
     ks = [c.revolutions_k for c, _, _ in tried]
     skipped = (f"turn counts k < {min(ks)} and k > {max(ks)}: not solved (each way, the "
                "search stops at the first count that does no better than the best, or "
