@@ -184,8 +184,9 @@ class CellSolver:
         chart the chain from a lifted first cell needed 0.549 to 0.454 mm/s^2 on
         2032-02-18 where the one from the 3-D seed needed 0.495 to 0.406 (a lone solve of
         the 550 d cell: 0.496).  Those optima lie close enough that the rounding of the
-        linear algebra chooses among them: with one BLAS thread, as ``esail-opt`` runs,
-        the same chain from the 3-D seed needs 0.510 there."""
+        linear algebra chooses among them: with one BLAS thread (what the package sets,
+        ``esail_opt/__init__.py``) the same chain from the 3-D seed needs 0.510 there, 3 %
+        more than the lone solve (with two, 0.495)."""
         started = time.perf_counter()
         label = "seed" if k is None else f"class {k}"
         # A class's seed is a look at another basin, not worth a full iteration budget.
