@@ -421,7 +421,7 @@ def second_start(problem, k, seeds, seed_k):
     Why: one class holds several local optima, and a constant pitch can start in a poor
     one.  Earth-Mars leaving 2035-06-01 in 650 d (projected): from the 45 deg seed the
     seed's class k = 17 ends at 2.332 mm/s^2; from 67.5 deg, which winds 17 too, at
-    2.024, as from 30 to 75 deg in steps of 5 to 10 degrees but 45.  The last seed is
+    2.024, as from most pitches between 20 and 77 deg that wind 17.  The last seed is
     the flight furthest from the first in pitch, so the likeliest to start in another
     basin."""
     winding = [(a, g) for a, g in seeds.items() if g.revolutions_k == k]
