@@ -109,6 +109,9 @@ def wrap_pitch(alpha):
 
 #: Ipopt's status when a checkpoint (:func:`build_solver`) stopped it.
 STOPPED = "User_Requested_Stop"
+#: Ipopt's status at its iteration cap (``max_iter``): a probe that ends so has not
+#: decided its class.
+AT_CAP = "Maximum_Iterations_Exceeded"
 
 #: Seconds between two progress lines of one Ipopt solve.
 PROGRESS_SECONDS = 2.0

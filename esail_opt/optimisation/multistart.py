@@ -332,7 +332,7 @@ HOPELESS_VIOLATION = 1e-3
 HOPELESS_RATIO = 2.0
 
 
-def hopeless_checkpoint(problem, iterations, best):
+def hopeless_checkpoint(iterations, best):
     """The (iteration, test) checkpoint (``ipopt.build_solver``) that stops a class
     probe as hopeless (:data:`HOPELESS_VIOLATION`, :data:`HOPELESS_RATIO`), after an
     answer whose solve took ``iterations`` and whose objective is ``best``; None for an

@@ -24,7 +24,7 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart, scan
 from esail_opt.optimisation import polish as polishing
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, ErrorControl, Round, control_error
-from esail_opt.optimisation.ipopt import (STOPPED, NLPResult, ipopt_options,
+from esail_opt.optimisation.ipopt import (AT_CAP, STOPPED, NLPResult, ipopt_options,
                                           primal_warm_options, solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
@@ -394,10 +394,6 @@ def _other_starts(problem, result, tr, say):
 LIFT_RATIO = 1.1
 
 
-#: Ipopt's status at its iteration cap: a probe that ends so has not decided its class.
-AT_CAP = "Maximum_Iterations_Exceeded"
-
-
 class _Inconclusive(Exception):
     """A projected class probe that neither converged nor was judged (its iteration
     cap): the projection cannot rank the classes, so the search runs in 3-D."""
@@ -496,7 +492,7 @@ class _Probes:
         Transcription)."""
         problem, cap = self.problem, self.cap
         best = min(r.objective for _, r, _ in self.tried if r.outcome.found)
-        checkpoint = multistart.hopeless_checkpoint(problem, self.own.iterations, best)
+        checkpoint = multistart.hopeless_checkpoint(self.own.iterations, best)
         self.say(f"{problem.name}: probing the turn count k = {k}"
                  + ("" if start is None else " again from a second start")
                  + f" ({cap} Ipopt iterations at most unless nearly feasible"
