@@ -396,6 +396,33 @@ def test_a_min_acceleration_scan_needs_what_lone_solves_of_its_cells_need():
         assert needed <= lone.ac_mm_s2_required * 1.005, (needed, lone.ac_mm_s2_required)
 
 
+def test_a_scan_estimates_a_class_optimum_to_first_order_in_the_date():
+    """The estimate that lets a scan pass over a turn count (``CellSolver.estimate``) is
+    the optimum's first-order change with the cell's date: against the optimum solved
+    at each date, its error is zero at the cell it comes from and falls as the square
+    of the step (a wrong derivative would leave an error linear in the step)."""
+    from esail_opt.app.porkchop import Grid, cell_problem
+    from esail_opt.optimisation import scan
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    problem = shipped_problem("earth_venus_min_ac_planar")
+    steps = (0.0, 2.0, 4.0, 8.0)
+    grid = Grid(tuple(jd_of("2031-01-01") + h for h in steps), (700.0,))
+    cells = [cell_problem(problem, grid, i) for i in range(len(steps))]
+    solver = scan.CellSolver()
+    base = solver.cold(cells[0])
+    assert base.solved
+    errors = []
+    for cell in cells:
+        solved = solver.warm(cell, base, "test")
+        assert solved.solved and solved.result.revolutions_k == base.result.revolutions_k
+        errors.append(abs(solver.estimate(cell, base) - solved.objective) / solved.objective)
+    assert errors[0] < 1e-9, errors
+    assert errors[3] < 1e-3, errors
+    for short, long in zip(errors[1:], errors[2:]):
+        assert 3.0 < long / short < 5.0, errors
+
+
 def test_a_real_body_has_other_starts_at_negative_turn_counts():
     """A real body's turn count k counts from both bodies' turns since 2000, so it is
     often negative; the fallback starts of a failed solve are the counts around it all

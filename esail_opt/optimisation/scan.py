@@ -44,12 +44,13 @@ from esail_opt.optimisation.verify import verify
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
 CLASS_ITERATIONS = 300
 #: A MinAcceleration or MinTime scan looks at the turn counts beside a cell's best at
-#: every cell, but a count whose objective was at least LOOK_MARGIN times the best where
-#: it was last solved is not looked at again within LOOK_CELLS cells of that one:
-#: between neighbouring cells of a chart (weeks apart) a count's objective changes by a
-#: few per cent, so a count that needed twice the best's does not become the best two
-#: cells on.
-LOOK_MARGIN = 2.0
+#: every cell, but not at a count whose estimated optimum there
+#: (:meth:`CellSolver.estimate`, from the count's last cell on its chain, at most
+#: LOOK_CELLS cells back) is at least LOOK_MARGIN times the best the cell has found.
+#: Why 1.1: the estimate's error is second order in the step, about a per cent from one
+#: cell of a chart to the next, and where it errs most (a count last solved cells back)
+#: it has erred low, which costs only a look (results/bench/README.md, the 3-D porkchop).
+LOOK_MARGIN = 1.1
 LOOK_CELLS = 3
 
 
@@ -217,6 +218,24 @@ class CellSolver:
         cell = self._candidate(problem, result, tr, started, label, result)
         return dataclasses.replace(cell, defects=neighbour.defects)
 
+    def estimate(self, problem, neighbour):
+        """The objective of ``problem`` in ``neighbour``'s class, to first order: the
+        neighbour's optimum plus its constraint multipliers times the change of its
+        constraints at its own point when the NLP's parameters (date, time of flight)
+        move to ``problem``'s.  This is the envelope theorem: the bounds and the
+        constraints' limits are the same in every cell of a class's NLP, so only the
+        parameters move the optimum.  None where the neighbour cannot start the cell
+        (:meth:`warm`)."""
+        if neighbour is None or neighbour.on_scan_nlp is None:
+            return None
+        tr = self.nlps[neighbour.on_scan_nlp.revolutions_k][0]
+        start = neighbour.on_scan_nlp
+        if start.w.size != tr.x0.size or start.lam_g.size != tr.lbg.size:
+            return None
+        here = tr.at(problem).constraints(start.w, neighbour.defects)
+        there = tr.at(neighbour.problem).constraints(start.w, neighbour.defects)
+        return start.objective + float(np.dot(np.ravel(start.lam_g), here - there))
+
 
 def _class_seed(problem, k):
     """The rendezvous seed of turn count k (``multistart.rendezvous_starts``)."""
@@ -266,18 +285,15 @@ def _forward(solver, cells, say, explore):
     out = []
     classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
-    looks = {}  # revolution class -> (the last cell that solved it, its objective / best)
+    ages = {}  # revolution class -> the position of that cell
     for i, problem in enumerate(cells):
-        far = {k for k, (j, ratio) in looks.items()
-               if ratio >= LOOK_MARGIN and i - j < LOOK_CELLS}
+        recent = {k for k, j in ages.items() if i - j <= LOOK_CELLS}
         tried = _first_solves(solver, problem, out[-1] if out else None, chains, explore,
-                              far)
+                              recent)
         for c in tried:
             if c.on_scan_nlp is not None:
                 chains[c.on_scan_nlp.revolutions_k] = c
-        best = min((c.objective for c in tried if c.solved), default=math.inf)
-        looks.update({c.result.revolutions_k: (i, c.objective / best)
-                      for c in tried if c.solved and best > 0})
+                ages[c.on_scan_nlp.revolutions_k] = i
         out.append(_settle(solver, tried))
         classes.append({c.result.revolutions_k for c in tried if c.result is not None})
         say(_line(i, n, out[-1]))
@@ -338,11 +354,12 @@ def _settle(solver, tried):
     return min(done, key=_rank)
 
 
-def _first_solves(solver, problem, previous, chains, explore=False, far=()):
+def _first_solves(solver, problem, previous, chains, explore=False, recent=()):
     """A cell's solves in the forward pass: warm from the previous cell, and for a body
     target the classes its own seed favours (for a MinAcceleration cell that the warm
     start solved, not those), then, for a MinAcceleration or MinTime cell, the classes
-    beside the best while they do better, but those of ``far``."""
+    beside the best while they do better (:func:`_descend`; ``recent``: the classes
+    whose chain is recent enough for an estimate)."""
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
     if problem.tracks_body():
         sizing = problem.objective.free_acceleration
@@ -356,7 +373,7 @@ def _first_solves(solver, problem, previous, chains, explore=False, far=()):
             # three to four times the chain's a_c).  A minimum-time chain that lost its
             # count kept the seed's: Earth-Mars leaving 2033-08-11 in 3-D took 1,008 d
             # (k = 17) where the count beside it, as a lone solve finds, takes 715 d.
-            _descend(solver, problem, chains, tried, far)
+            _descend(solver, problem, chains, tried, recent)
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
     return tried
@@ -376,12 +393,14 @@ def _own_classes(solver, problem, previous, chains, tried, explore):
                          or solver.cold(problem, k))
 
 
-def _descend(solver, problem, chains, tried, far=()):
+def _descend(solver, problem, chains, tried, recent=()):
     """For a MinAcceleration or MinTime rendezvous, the turn counts beyond the best one
     ``tried`` while the objective keeps falling (``multistart.descend_turns``, as a lone
     solve does), so that a cell ends in the class a lone solve of it would.  Classes the
-    scan has solved before start warm from their last cell; those of ``far`` are taken
-    as no better (see :data:`LOOK_MARGIN`).  The solves made are added to ``tried``."""
+    scan has solved before start warm from their last cell; those of ``recent`` whose
+    estimated optimum (:meth:`CellSolver.estimate`) is at least :data:`LOOK_MARGIN`
+    times the best found here are taken as no better, unsolved.  The solves made are
+    added to ``tried``."""
     solved = {c.result.revolutions_k: c for c in tried if c.solved}
     if not solved:
         return
@@ -389,8 +408,11 @@ def _descend(solver, problem, chains, tried, far=()):
     def solve_class(k):
         if k in solved:
             return solved[k]
-        if k in far:
-            return None
+        if k in recent:
+            estimate = solver.estimate(problem, chains[k])
+            best = min(c.objective for c in tried if c.solved)
+            if estimate is not None and estimate >= LOOK_MARGIN * best:
+                return multistart.NO_BETTER
         cell = (solver.warm(problem, chains.get(k), f"class {k}")
                 or solver.cold(problem, k))
         tried.append(cell)
