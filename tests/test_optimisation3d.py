@@ -16,7 +16,7 @@ from scipy.integrate import solve_ivp
 import esail_opt as eo
 from esail_opt.errors import InputError
 from esail_opt.propagation.arcs import ArcModel
-from esail_opt.optimisation import pipeline
+from esail_opt.optimisation import multistart, pipeline
 from esail_opt.optimisation.error_control import node_near
 from esail_opt.optimisation.transcription import (closed_form_segment3d, flown_segments,
                                                   initial_guess, lifted_guess,
@@ -355,7 +355,7 @@ def test_turn_counts_searched_on_the_projection_choose_what_the_3d_search_choose
     lifted = {c.revolutions_k for c in run.classes if not c.projected}
     # Not lifted: far worse on the projection, or a count already lifted from its best
     # projected start.
-    assert all(c.objective > pipeline.LIFT_RATIO * run.result.objective
+    assert all(c.objective > multistart.LIFT_RATIO * run.result.objective
                or c.revolutions_k in lifted for c in left)
     assert not any(c.projected for c in in_3d.classes if c.objective is not None)
     y, arrival = fly_schedule(problem, run.result)

@@ -24,8 +24,8 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart, scan
 from esail_opt.optimisation import polish as polishing
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, ErrorControl, Round, control_error
-from esail_opt.optimisation.ipopt import (AT_CAP, STOPPED, NLPResult, ipopt_options,
-                                          primal_warm_options, solve_problem)
+from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
+                                          solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
 from esail_opt.optimisation.transcription import (Transcription, initial_guess,
@@ -261,7 +261,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         problem = problem.with_segments(segments)
     say = progress or _quiet
     run, spent = None, []
-    if problem.three_d() and _searches_classes(problem):
+    if problem.three_d() and multistart.searches_classes(problem):
         run = _projected_classes(problem, samples, say, spent)
     if run is None:
         run = _solved(problem, samples, say)
@@ -275,7 +275,7 @@ def _solved(problem, samples, say):
     """The run of :func:`solve` before the polish, on ``problem``'s own model."""
     sub_arcs = problem.segments.sub_arcs
     problem, result, tr, starts = _first_solve(problem, say)
-    if result.outcome.found and _searches_classes(problem):
+    if result.outcome.found and multistart.searches_classes(problem):
         tried, skipped = _classes(problem, result, tr, say)
         run = _best_verified(problem, tried, samples, say, starts, sub_arcs)
         run = dataclasses.replace(run, classes_skipped=skipped)
@@ -322,21 +322,12 @@ def _first_solve(problem, say):
     return problem, result, tr, starts
 
 
-def _searches_classes(problem):
-    """Whether :func:`solve` looks at the turn counts on the body beside the seed's: a
-    MinTime or MinAcceleration rendezvous departing at a fixed date and angle."""
-    objective = problem.objective
-    return (problem.tracks_body() and not problem.free_date()
-            and not getattr(problem.departure, "free_anomaly", False)
-            and (objective.free_acceleration or not objective.fixed_time))
-
-
 def _unsearched(problem):
     """Why a run looked at no class beside its seed's (``Run.classes_skipped``)."""
     if not problem.tracks_body():
         return ("revolution windows: not searched by a lone solve (esail-opt search "
                 "solves one per window)")
-    if _searches_classes(problem):
+    if multistart.searches_classes(problem):
         return "none: no start found a point to compare the other turn counts with"
     return ("turn counts on the body other than the seed's: not searched for this "
             "objective or departure (esail-opt search solves one per turn count)")
@@ -383,26 +374,10 @@ def _other_starts(problem, result, tr, say):
     return result, tr, tuple(records)
 
 
-#: A 3-D rendezvous's turn counts are first searched on its projected model
-#: (:func:`_projected_classes`), and a class is lifted into 3-D only while its projected
-#: objective is within LIFT_RATIO of the best 3-D objective lifted so far, best
-#: projected first.  Why 1.1: a lifted class's 3-D objective has not come out below its
-#: projected one by more than 0.5 % in any case looked at (the plane change costs; the
-#: unprojected geometry moves it little), so a class 10 % short in projection is not
-#: expected to win in 3-D; a 3-D objective well above the projected one lifts more
-#: classes by itself.
-LIFT_RATIO = 1.1
-
-
-class _Inconclusive(Exception):
-    """A projected class probe that neither converged nor was judged (its iteration
-    cap): the projection cannot rank the classes, so the search runs in 3-D."""
-
-
 def _projected_classes(problem, samples, say, spent):
     """The run of a 3-D class-searching ``problem`` whose turn counts are searched on
     its projected model (the seed's solve and :func:`_classes`, hopeless stops
-    included) and lifted into 3-D best first (:data:`LIFT_RATIO`); None, for the 3-D
+    included) and lifted into 3-D best first (``multistart.lift_best``); None, for the 3-D
     search to run instead, when the projection found no point, left a class
     undecided at its cap, or no lifted class converged in 3-D.  Each solve it made is
     appended to ``spent``.
@@ -425,7 +400,7 @@ def _projected_classes(problem, samples, say, spent):
         return None
     try:
         tried, skipped = _classes(model, result, tr, say, spent)
-    except _Inconclusive as why:
+    except multistart.Undecided as why:
         say(f"{problem.name}: {why}; searching the turn counts in 3-D instead")
         return None
     problem = dataclasses.replace(problem, segments=model.segments)
@@ -440,29 +415,22 @@ def _projected_classes(problem, samples, say, spent):
 
 def _lifted(problem, tried, cap, say):
     """``tried`` (:func:`_classes` on the projected model) with its found classes
-    lifted into 3-D (``multistart.lift``, ``cap`` iterations), best projected objective
-    first, while each is within :data:`LIFT_RATIO` of the best lifted so far, one start
-    per class (the best projected).  A class not lifted keeps its projected record and
-    result with no transcription: it is not a 3-D candidate."""
+    lifted into 3-D (``multistart.lift``, ``cap`` iterations) as
+    ``multistart.lift_best`` chooses them.  A class not lifted keeps its projected
+    record and result with no transcription: it is not a 3-D candidate."""
     out = [(dataclasses.replace(c, label=f"{c.label}, on the projected model (not "
                                           "solved in 3-D)", projected=True), r, None)
            for c, r, _ in tried]
-    order = sorted((i for i, (_, r, _) in enumerate(tried) if r.outcome.found),
-                   key=lambda i: tried[i][1].objective)
-    best, done = math.inf, set()
-    for i in order:
+
+    def lift(i):
         record, result, _ = tried[i]
-        if result.objective > LIFT_RATIO * best:
-            break
-        if result.revolutions_k in done:
-            continue  # a class's second start: its best projected optimum is lifted
-        done.add(result.revolutions_k)
         say(f"{problem.name}: lifting the turn count k = {result.revolutions_k} into 3-D")
         lifted, tr = multistart.lift(problem, result, cap, say)
         out[i] = (_class_record(f"{record.label}, solved on the projected model and "
                                 "lifted into 3-D", lifted), lifted, tr)
-        if lifted.outcome.found:
-            best = min(best, lifted.objective)
+        return lifted.objective if lifted.outcome.found else math.inf
+
+    multistart.lift_best([r for _, r, _ in tried], lift)
     return out
 
 
@@ -475,93 +443,20 @@ def _class_record(label, result, projected=False):
                       projected=projected)
 
 
-class _Probes:
-    """The probes of :func:`_classes`, each capped at :data:`multistart.PROBE_FACTOR`
-    times the seed's class's own iterations (``own``) and stopped when hopeless, and
-    appended to ``tried`` (and to ``spent``, when given)."""
-
-    def __init__(self, problem, own, say, spent, tried):
-        self.problem, self.own, self.say, self.spent, self.tried = (problem, own, say,
-                                                                    spent, tried)
-        self.cap = multistart.probe_cap(own.iterations)
-        # Every class's seed comes from the same constant-pitch flights.
-        self.seeds = multistart.constant_pitch_seeds(multistart.probe_model(problem))
-
-    def probe(self, k, start=None):
-        """Turn count ``k`` probed from its seed, or from ``start``: (NLPResult,
-        Transcription)."""
-        problem, cap = self.problem, self.cap
-        best = min(r.objective for _, r, _ in self.tried if r.outcome.found)
-        checkpoint = multistart.hopeless_checkpoint(self.own.iterations, best)
-        self.say(f"{problem.name}: probing the turn count k = {k}"
-                 + ("" if start is None else " again from a second start")
-                 + f" ({cap} Ipopt iterations at most unless nearly feasible"
-                 + ("" if checkpoint is None else
-                    f", stopped at {checkpoint[0]} if hopeless by then") + ")")
-        if start is None:
-            other, other_tr, label = multistart.probe_rendezvous_class(
-                problem, k, cap, self.say, checkpoint, self.seeds)
-        else:
-            other, other_tr, label = multistart.probe_start(problem, start, cap, self.say,
-                                                            checkpoint)
-        # A 3-D class whose projection found no point was not solved in 3-D.
-        record = _class_record(label, other, problem.three_d() and not other.outcome.found)
-        self.tried.append((record, other, other_tr))
-        if self.spent is not None:
-            self.spent.append(other)
-        return other, other_tr
-
-
 def _classes(problem, result, tr, say, spent=None):
-    """The turn counts k on the target body beside the one ``result`` found, probed
-    (``multistart.probe_rendezvous_class``) one turn at a time each way while each
-    does better (``multistart.descend_turns``), and the best of them probed from a
-    second start (``multistart.second_start``) where another seed winds its count.
+    """``multistart.search_classes`` from ``result``, each class recorded
+    (:class:`ClassTried`): [(ClassTried, NLPResult, Transcription)] in the order solved,
+    and the line of ``Run.classes_skipped``.  Given ``spent``, each probe is appended to
+    it, and one that ends undecided at its cap raises ``multistart.Undecided``.
 
-    The a_c a MinAcceleration rendezvous needs, or a MinTime one's time of flight, can
-    change by whole factors from one k to the next, and the seed's k is only what a
-    constant pitch happens to wind.  (A warm-started scan drifts to the better k where
-    a lone solve would stay, and the two would then disagree on what the same cell
-    needs: ``test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it``.)
-
-    Returns [(ClassTried, NLPResult, Transcription)] in the order solved, the first
-    ``result``'s own, and the line of ``Run.classes_skipped``.  Given ``spent``, each
-    probe is appended to it, and one that ends undecided at its cap raises
-    :class:`_Inconclusive`.
-    """
-    # The found solve's own iterations, not the run's (other starts before it included).
-    own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
-    probes = _Probes(problem, own, say, spent, [(_class_record(
-        f"the seed's class (k = {result.revolutions_k})", own), result, tr)])
-    # A real body's k counts from the turns both bodies made since 2000, so it may be
-    # negative; an idealised body's counts from its phase at departure.
-    real = getattr(problem.target, "body", None) is not None
-
-    def solve_class(k):
-        if k < 0 and not real:
-            return multistart.NO_BETTER
-        other, other_tr = probes.probe(k)
-        if spent is not None and other.status == AT_CAP:
-            raise _Inconclusive(f"k = {k} ended {other.status} on the projected model")
-        if other.outcome.found:
-            return other, other_tr
-        return multistart.NO_BETTER if other.status == STOPPED else None
-
-    best, _ = multistart.descend_turns(result.revolutions_k, (result, tr), solve_class,
-                                       lambda a, b: a[0].objective < b[0].objective,
-                                       gaps=1)
-    # One class holds several local optima: the best one is solved from a second start
-    # as well, where another constant pitch winds its count (multistart.second_start).
-    k = best[0].revolutions_k
-    start = multistart.second_start(problem, k, probes.seeds, result.revolutions_k)
-    if start is not None:
-        probes.probe(k, start)
-    tried = probes.tried
-    ks = [c.revolutions_k for c, _, _ in tried]
-    skipped = (f"turn counts k < {min(ks)} and k > {max(ks)}: not solved (each way, the "
-               "search stops at the first count that does no better than the best, or "
-               "at the second in a row with no point)")
-    return tried, skipped
+    (A warm-started scan drifts to the better k where a lone solve would stay, and the
+    two would then disagree on what the same cell needs:
+    ``test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it``.)"""
+    tried, skipped = multistart.search_classes(problem, result, tr, say, spent)
+    # A 3-D class whose projection found no point was not solved in 3-D.
+    records = [(_class_record(label, r, i > 0 and problem.three_d() and not r.outcome.found),
+                r, t) for i, (label, r, t) in enumerate(tried)]
+    return records, skipped
 
 
 def _best_verified(problem, tried, samples, say, starts, requested):
