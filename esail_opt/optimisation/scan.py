@@ -304,14 +304,16 @@ def _repair(solver, cells, out, classes, neighbours, say):
     """The repair pass, back along the path and forward again, replacing cells of
     ``out`` in place (and adding to ``classes`` the classes tried).
 
-    A cell is solved again from a neighbour that holds a class it has not tried, or,
-    where the cell is worse than every neighbour with the same objective (a spike: the
-    same time of flight, for a fixed-time scan), from each of them that did better.
-    Smooth slopes are left alone: a neighbour's start there only finds the optimum the
-    cell already has.  A start already taken for a cell gives the same solve again:
-    each is taken once."""
+    A cell is solved again from a neighbour that holds a class it has not tried, from a
+    neighbour that this pass solved again (its optimum may lie in another basin of the
+    same class than the one the forward pass chained), or, where the cell is worse than
+    every neighbour with the same objective (a spike: the same time of flight, for a
+    fixed-time scan), from each of them that did better.  Smooth slopes are left alone:
+    a neighbour's start there only finds the optimum the cell already has.  A start
+    already taken for a cell gives the same solve again: each is taken once."""
     n = len(cells)
     taken = {}  # (cell, neighbour) -> the neighbour's start last taken for the cell
+    renewed = set()  # the cells this pass solved again
     for order in (range(n - 1, -1, -1), range(n)):
         for i in order:
             for j in neighbours[i]:
@@ -319,14 +321,15 @@ def _repair(solver, cells, out, classes, neighbours, say):
                 if other.on_scan_nlp is None or taken.get((i, j)) is other.on_scan_nlp:
                     continue
                 k = other.on_scan_nlp.revolutions_k
-                if k in classes[i] and not (_spike(i, out, cells, neighbours)
-                                            and _rank(other) < _rank(out[i])):
+                if k in classes[i] and j not in renewed and not (
+                        _spike(i, out, cells, neighbours) and _rank(other) < _rank(out[i])):
                     continue
                 classes[i].add(k)
                 taken[(i, j)] = other.on_scan_nlp
                 again = _again(solver, cells[i], other, j, out[i])
                 if again is not None:
                     out[i] = again
+                    renewed.add(i)
                     say(_line(i, n, again) + f" (again, from cell {j + 1})")
 
 
