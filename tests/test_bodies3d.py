@@ -27,7 +27,6 @@ from esail_opt.bodies.ephemeris import (
     ecliptic_state,
     icrf_from_ecliptic,
     polar_from_ecliptic,
-    polar_state,
 )
 from esail_opt.bodies.keplerian import BENNU, CERES, SmallBody
 from esail_opt.bodies.track import TARGET_ERROR_KM, TARGET_ERROR_M_S, track3_of, track_of

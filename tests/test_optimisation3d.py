@@ -311,7 +311,6 @@ def test_a_count_with_no_point_does_not_end_the_turn_count_search():
     at 1,098 d against 455 d): its answer is no slower than a probe of any count from
     k = -23 to -19 made here, and its schedule, flown here by DOP853 from DE421's Earth,
     meets DE421's unprojected Venus."""
-    from esail_opt.optimisation import multistart
 
     problem = eo.Problem(name="venus10", departure=eo.BodyDeparture(body="earth",
                                                                     date="2033-05-20"),

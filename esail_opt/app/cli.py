@@ -502,8 +502,6 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _run_sweep(args):
-    from pathlib import Path
-
     from esail_opt.app import sweep
 
     name = args.param.partition("=")[0].strip()
