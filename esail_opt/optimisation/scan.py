@@ -11,11 +11,14 @@ A warm start stays in its neighbour's basin, and a scan's optimum can change bas
 between cells (a rendezvous that gains one more turn on the body, say).  So after the
 forward pass every cell that ended worse than a neighbour -- not converged, not
 verified, or a larger objective -- is solved again from that neighbour, the other way
-along the scan, and keeps the better of the two.  A cell no neighbour can start is
-solved cold from its own seed, as a lone solve would.  A MinAcceleration or MinTime cell
-also steps through the turn counts on the body beside its best while its objective
-falls, as a lone solve does (``multistart.descend_turns``): the best count drifts
-across a chart, and a warm chain would keep its own.
+along the scan, and keeps the better of the two; a cell solved again so passes its new
+optimum on to its neighbours.  A cell no neighbour can start is solved cold from its own
+seed, as a lone solve would; in three dimensions a run's first cell searches its turn
+counts on the projected model and lifts the best, as a lone solve does.  A
+MinAcceleration or MinTime cell also steps through the turn counts on the body beside
+its best while its objective falls, as a lone solve does
+(``multistart.descend_turns``): the best count drifts across a chart, and a warm chain
+would keep its own.
 
 Every cell goes through the error control and the CVODES verification of a lone solve
 (``optimisation.error_control``, ``optimisation.verify``): a scan's cell is verified exactly
@@ -174,27 +177,25 @@ class CellSolver:
         # sub-arcs the cap asked for there.
         return dataclasses.replace(problem, segments=self.segments), guess
 
-    def cold(self, problem, k=None):
-        """Solve a cell from its own constant-pitch seed, or from turn count ``k``'s seed
-        (``multistart.rendezvous_starts``); the first cell of a class builds the class's
-        NLP.
-
-        A 3-D cell is solved from its 3-D seed, not lifted from the projected model as a
-        lone solve's class probes are: a scan's first cell sets the local optimum of its
-        turn count that the chain keeps, and on the later half of the shipped Earth-Venus
-        chart the chain from a lifted first cell needed 0.549 to 0.454 mm/s^2 on
-        2032-02-18 where the one from the 3-D seed needed 0.495 to 0.406 (a lone solve of
-        the 550 d cell: 0.496).  Those optima lie close enough that the rounding of the
-        linear algebra chooses among them: with one BLAS thread (what the package sets,
-        ``esail_opt/__init__.py``) the same chain from the 3-D seed needs 0.510 there, 3 %
-        more than the lone solve (with two, 0.495)."""
+    def cold(self, problem, k=None, start=None):
+        """Solve a cell from its own constant-pitch seed, from turn count ``k``'s seed
+        (``multistart.rendezvous_starts``), or from ``start``, an optimum of the 3-D
+        cell's projected model on the scan's mesh in class ``k``, lifted
+        (``transcription.lifted_guess``; :func:`_projected_first`).  The first cell of
+        a class builds the class's NLP."""
         started = time.perf_counter()
         label = "seed" if k is None else f"class {k}"
         # A class's seed is a look at another basin, not worth a full iteration budget.
         options = None if k is None else ipopt_options(max_iter=CLASS_ITERATIONS)
-        seed = initial_guess(problem) if k is None else _class_seed(problem, k)
+        if start is not None:
+            label += ", lifted from the projected model"
+            seed = lifted_guess(problem, start.as_guess())
+        else:
+            seed = initial_guess(problem) if k is None else _class_seed(problem, k)
         problem, seed = self._meshed(problem, seed)
-        result, tr = solve_problem(problem, segment=self.segment, options=options, guess=seed)
+        # A lifted optimum is a start Ipopt keeps to: no staging from it.
+        result, tr = solve_problem(problem, segment=self.segment, options=options,
+                                   guess=seed, staged=start is None)
         k = result.revolutions_k
         on_scan = None
         if k not in self.nlps and result.outcome.found:
@@ -366,7 +367,11 @@ def _first_solves(solver, problem, previous, chains, explore=False, recent=()):
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
     if problem.tracks_body():
         sizing = problem.objective.free_acceleration
-        if explore or not (sizing and any(c.solved for c in tried)):
+        searched = (previous is None and not explore and problem.three_d()
+                    and multistart.searches_classes(problem))
+        if searched:
+            tried += _projected_first(solver, problem)
+        if explore or not ((sizing or searched) and any(c.solved for c in tried)):
             _own_classes(solver, problem, previous, chains, tried, explore)
         if sizing or not problem.objective.fixed_time:
             # The best count drifts across a chart (by whole turns over a few months of
@@ -380,6 +385,37 @@ def _first_solves(solver, problem, previous, chains, explore=False, recent=()):
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
     return tried
+
+
+def _projected_first(solver, problem):
+    """A 3-D scan's first cell, which has no neighbour to start from: its turn counts
+    searched on the projected model as a lone solve searches them
+    (``multistart.search_classes``), and the best of them lifted onto their classes'
+    NLPs (``multistart.lift_best``).  Returns the lifted cells; none when the
+    projection cannot rank the classes (no point, or a class undecided at its cap), and
+    the cell's counts are then solved in 3-D from their seeds.
+
+    Why: cold from constant pitch in 3-D, a first cell can stall in a count far from
+    its best, and the chain then carries that count on; the projection ranks the counts
+    as a lone solve does, so the run starts where a lone solve would end."""
+    problem, _ = solver._meshed(problem, initial_guess(problem))
+    model = multistart.probe_model(problem)
+    result, tr = solve_problem(model, guess=initial_guess(model))
+    if not result.outcome.found:
+        return []
+    try:
+        found, _ = multistart.search_classes(model, result, tr, lambda text: None, [])
+    except multistart.Undecided:
+        return []
+    projected = [r for _, r, _ in found]
+    cells = []
+
+    def lift(i):
+        cells.append(solver.cold(problem, projected[i].revolutions_k, start=projected[i]))
+        return cells[-1].objective
+
+    multistart.lift_best(projected, lift)
+    return cells
 
 
 def _own_classes(solver, problem, previous, chains, tried, explore):
