@@ -33,11 +33,13 @@ slowly or not at all.
 """
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass
 from typing import Optional
 
+import casadi as ca
 import numpy as np
 
 from esail_opt.optimisation.ipopt import build_solver, solve_transcription
@@ -120,20 +122,33 @@ def start_nodes(result):
     return np.column_stack([start_node(result.x_start), result.nodes[:, :-1]])
 
 
+@functools.lru_cache(maxsize=None)
+def _node_near():
+    """``(y[7], ref[9]) -> node[9]``, :func:`node_near`'s map, as one SX function."""
+    y, ref = ca.SX.sym("y", 7), ca.SX.sym("ref", 9)
+    quat_ref = ref[5:9] / ca.norm_2(ref[5:9])
+    turn = rotation.matrix(quat_ref)
+    x, quat = polar3d_from_cartesian(ca.vertcat(ca.mtimes(turn.T, y[:3]),
+                                                ca.mtimes(turn.T, y[3:6])))
+    # The turn of theta nearest ref's: x - ref wrapped into [-pi, pi).
+    off = x[1] - ref[1] + ca.pi
+    theta = ref[1] + off - 2 * ca.pi * ca.floor(off / (2 * ca.pi)) - ca.pi
+    return ca.Function("node_near", [y, ref], [ca.vertcat(
+        x[0], theta, x[2], x[3], y[6], rotation.multiply(quat_ref, quat))])
+
+
 def node_near(y, ref):
     """The Cartesian state ``y`` (7 rows, with t) as a 3-D node (9 rows) in the gauge of
     the node ``ref``: its plane's frame is ref's turned by the smallest rotation that
     takes ref's normal to y's, and its theta is on ref's branch.  A node's plane frame
     is free up to a turn about the normal (traded against theta); this picks the one
-    next to ``ref``, so that ``node_near(y, ref) - ref`` is a small defect."""
-    ref = np.asarray(ref, float)
-    quat_ref = ref[5:9] / np.linalg.norm(ref[5:9])
-    turn = np.array(rotation.matrix(quat_ref), float)
-    local = np.r_[turn.T @ y[:3], turn.T @ y[3:6]]
-    x, quat = (np.array(v, float).ravel() for v in polar3d_from_cartesian(local))
-    theta = ref[1] + (x[1] - ref[1] + np.pi) % (2 * np.pi) - np.pi
-    return np.r_[x[0], theta, x[2], x[3], y[6],
-                 np.array(rotation.multiply(quat_ref, quat), float).ravel()]
+    next to ``ref``, so that ``node_near(y, ref) - ref`` is a small defect.  ``y`` and
+    ``ref`` may also be [7 x N] and [9 x N], column by column (one call for a whole
+    schedule: the verification converts every segment's end)."""
+    y, ref = np.asarray(y, float), np.asarray(ref, float)
+    if y.ndim == 1:
+        return np.array(_node_near()(y, ref), float).ravel()
+    return np.array(_node_near().map(y.shape[1])(y, ref), float)
 
 
 def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
@@ -143,8 +158,7 @@ def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
     y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
     ends = fly_segments3d(y0, ac, alpha, delta, lengths, "theta", problem.sail.coefficients,
                           tol)
-    return np.column_stack([node_near(ends[:, k], model_ends[:, k])
-                            for k in range(starts.shape[1])])
+    return node_near(ends[:, :starts.shape[1]], model_ends)
 
 
 def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TOLERANCE):

@@ -125,8 +125,8 @@ def _flown_nodes3d(problem, x_start, guess):
                        guess.lengths, problem.sail.ac * guess.ac_scale,
                        throttles=guess.throttle, length_in="time",
                        coefficients=problem.sail.coefficients)
-    return np.column_stack([node_near(flown[:, k + 1], guess.nodes[:, k])
-                            for k in range(guess.alpha.size)])
+    n = guess.alpha.size
+    return node_near(flown[:, 1:n + 1], guess.nodes[:, :n])
 
 
 def exact_guess(problem, x_start, guess):
@@ -258,8 +258,7 @@ def _defects(problem, result, segment):
     model = np.array(segment.map(result.alpha.size)(starts, *args)[0])
     y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
     ends = fly_segments3d(y0, *args, "time", problem.sail.coefficients, VERIFY_TOLERANCE)
-    flown = np.column_stack([node_near(ends[:, k], model[:, k]) for k in range(ends.shape[1])])
-    return flown - model
+    return node_near(ends, model) - model
 
 
 def _corrected(problem, tr, segment, exact, opts, max_rounds):
