@@ -48,13 +48,12 @@ from esail_opt.optimisation.verify import verify
 CLASS_ITERATIONS = 300
 #: A MinAcceleration or MinTime scan looks at the turn counts beside a cell's best at
 #: every cell, but not at a count whose estimated optimum there
-#: (:meth:`CellSolver.estimate`, from the count's last cell on its chain, at most
-#: LOOK_CELLS cells back) is at least LOOK_MARGIN times the best the cell has found.
-#: Why 1.1: the estimate's error is second order in the step, about a per cent from one
-#: cell of a chart to the next, and where it errs most (a count last solved cells back)
-#: it has erred low, which costs only a look (results/bench/README.md, the 3-D porkchop).
+#: (:meth:`CellSolver.estimate`, from the count's last cell on its chain) is at least
+#: LOOK_MARGIN times the best the cell has found.  Why 1.1: the estimate is the tangent
+#: of the count's optimum as a function of the dates, and on the 3-D porkchop bench it
+#: has erred low, which costs only a look (by up to 66 % from a cell five back), and high
+#: by 0.7 % at most, from one to eight cells back (results/bench/README.md).
 LOOK_MARGIN = 1.1
-LOOK_CELLS = 3
 
 
 def at_date(problem, jd, tof_days=None):
@@ -286,15 +285,11 @@ def _forward(solver, cells, say, explore):
     out = []
     classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
-    ages = {}  # revolution class -> the position of that cell
     for i, problem in enumerate(cells):
-        recent = {k for k, j in ages.items() if i - j <= LOOK_CELLS}
-        tried = _first_solves(solver, problem, out[-1] if out else None, chains, explore,
-                              recent)
+        tried = _first_solves(solver, problem, out[-1] if out else None, chains, explore)
         for c in tried:
             if c.on_scan_nlp is not None:
                 chains[c.on_scan_nlp.revolutions_k] = c
-                ages[c.on_scan_nlp.revolutions_k] = i
         out.append(_settle(solver, tried))
         classes.append({c.result.revolutions_k for c in tried if c.result is not None})
         say(_line(i, n, out[-1]))
@@ -358,12 +353,11 @@ def _settle(solver, tried):
     return min(done, key=_rank)
 
 
-def _first_solves(solver, problem, previous, chains, explore=False, recent=()):
+def _first_solves(solver, problem, previous, chains, explore=False):
     """A cell's solves in the forward pass: warm from the previous cell, and for a body
     target the classes its own seed favours (for a MinAcceleration cell that the warm
     start solved, not those), then, for a MinAcceleration or MinTime cell, the classes
-    beside the best while they do better (:func:`_descend`; ``recent``: the classes
-    whose chain is recent enough for an estimate)."""
+    beside the best while they do better (:func:`_descend`)."""
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
     if problem.tracks_body():
         sizing = problem.objective.free_acceleration
@@ -381,7 +375,7 @@ def _first_solves(solver, problem, previous, chains, explore=False, recent=()):
             # three to four times the chain's a_c).  A minimum-time chain that lost its
             # count kept the seed's: Earth-Mars leaving 2033-08-11 in 3-D took 1,008 d
             # (k = 17) where the count beside it, as a lone solve finds, takes 715 d.
-            _descend(solver, problem, chains, tried, recent)
+            _descend(solver, problem, chains, tried)
     if not any(c.solved for c in tried):
         tried.append(solver.cold(problem))
     return tried
@@ -432,13 +426,13 @@ def _own_classes(solver, problem, previous, chains, tried, explore):
                          or solver.cold(problem, k))
 
 
-def _descend(solver, problem, chains, tried, recent=()):
+def _descend(solver, problem, chains, tried):
     """For a MinAcceleration or MinTime rendezvous, the turn counts beyond the best one
     ``tried`` while the objective keeps falling (``multistart.descend_turns``, as a lone
     solve does), so that a cell ends in the class a lone solve of it would.  Classes the
-    scan has solved before start warm from their last cell; those of ``recent`` whose
-    estimated optimum (:meth:`CellSolver.estimate`) is at least :data:`LOOK_MARGIN`
-    times the best found here are taken as no better, unsolved.  The solves made are
+    scan has solved before start warm from their last cell, unless their estimated
+    optimum (:meth:`CellSolver.estimate`) is at least :data:`LOOK_MARGIN` times the
+    best found here: they are then taken as no better, unsolved.  The solves made are
     added to ``tried``."""
     solved = {c.result.revolutions_k: c for c in tried if c.solved}
     if not solved:
@@ -447,7 +441,7 @@ def _descend(solver, problem, chains, tried, recent=()):
     def solve_class(k):
         if k in solved:
             return solved[k]
-        if k in recent:
+        if k in chains:
             estimate = solver.estimate(problem, chains[k])
             best = min(c.objective for c in tried if c.solved)
             if estimate is not None and estimate >= LOOK_MARGIN * best:
