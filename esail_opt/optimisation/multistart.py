@@ -27,6 +27,7 @@ optimum become one candidate that remembers every start that found it.
 """
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -472,6 +473,29 @@ class Undecided(Exception):
     cap (:func:`search_classes` given ``spent``)."""
 
 
+def _probe_class(problem, own, seeds, tried, say, spent, k, start=None):
+    """:func:`search_classes`'s probe of class k, from ``start`` (a second start) if
+    given, else from the class's own seed (of ``seeds``); appended to ``tried`` (and to
+    ``spent``, when given).  Returns (NLPResult, Transcription)."""
+    cap = probe_cap(own.iterations)
+    best = min(r.objective for _, r, _ in tried if r.outcome.found)
+    checkpoint = hopeless_checkpoint(own.iterations, best)
+    say(f"{problem.name}: probing the turn count k = {k}"
+        + ("" if start is None else " again from a second start")
+        + f" ({cap} Ipopt iterations at most unless nearly feasible"
+        + ("" if checkpoint is None else
+           f", stopped at {checkpoint[0]} if hopeless by then") + ")")
+    if start is None:
+        other, other_tr, label = probe_rendezvous_class(problem, k, cap, say, checkpoint,
+                                                        seeds)
+    else:
+        other, other_tr, label = probe_start(problem, start, cap, say, checkpoint)
+    tried.append((label, other, other_tr))
+    if spent is not None:
+        spent.append(other)
+    return other, other_tr
+
+
 def search_classes(problem, result, tr, say, spent=None):
     """The turn counts k on the target body beside the one ``result`` found, probed
     (:func:`probe_rendezvous_class`) one turn at a time each way while each does better
@@ -493,30 +517,13 @@ def search_classes(problem, result, tr, say, spent=None):
     # The found solve's own iterations, not the run's (other starts before it included).
     own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
     tried = [(f"the seed's class (k = {result.revolutions_k})", own, tr)]
-    cap = probe_cap(own.iterations)
     # Every class's seed comes from the same constant-pitch flights.
     seeds = constant_pitch_seeds(probe_model(problem))
     # A real body's k counts from the turns both bodies made since 2000, so it may be
     # negative; an idealised body's counts from its phase at departure.
     real = getattr(problem.target, "body", None) is not None
 
-    def probe_class(k, start=None):
-        best = min(r.objective for _, r, _ in tried if r.outcome.found)
-        checkpoint = hopeless_checkpoint(own.iterations, best)
-        say(f"{problem.name}: probing the turn count k = {k}"
-            + ("" if start is None else " again from a second start")
-            + f" ({cap} Ipopt iterations at most unless nearly feasible"
-            + ("" if checkpoint is None else
-               f", stopped at {checkpoint[0]} if hopeless by then") + ")")
-        if start is None:
-            other, other_tr, label = probe_rendezvous_class(problem, k, cap, say, checkpoint,
-                                                            seeds)
-        else:
-            other, other_tr, label = probe_start(problem, start, cap, say, checkpoint)
-        tried.append((label, other, other_tr))
-        if spent is not None:
-            spent.append(other)
-        return other, other_tr
+    probe_class = functools.partial(_probe_class, problem, own, seeds, tried, say, spent)
 
     def solve_class(k):
         if k < 0 and not real:
