@@ -106,7 +106,6 @@ class Cell:
         return self.result.objective if self.solved else math.inf
 
 
-
 class CellSolver:
     """One NLP and one warm Ipopt solver per revolution class, for every cell of a scan.
 
