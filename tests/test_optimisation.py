@@ -294,6 +294,20 @@ def test_a_seed_that_cannot_reach_the_target_is_a_clear_input_error():
         tr.initial_guess(small_problem(guess_alpha_deg=25.0))
 
 
+def test_a_min_acceleration_seed_that_escapes_names_the_seed_a_c():
+    """A MinAcceleration's a_c only seeds the search: when its seed escapes (10 mm/s^2
+    outward at 45 deg for 600 d), the error says that a smaller one would do, and a
+    minimum-time problem's does not (its a_c is the sail's own)."""
+    outward = dict(sail=eo.Sail(10.0), target=eo.CircularOrbit(1.5))
+    with pytest.raises(InputError, match=r"guess_alpha_deg = 45 deg: .*"
+                                         r"or a smaller sail\.ac_mm_s2 .*10 mm/s\^2 only seeds"):
+        tr.initial_guess(small_problem(objective=eo.MinAcceleration(tof_days=600), **outward))
+    with pytest.raises(InputError, match="leaves the closed form.s validity") as raised:
+        tr.initial_guess(small_problem(objective=eo.MinTime(), guess_alpha_deg=45.0,
+                                       sail=eo.Sail(10.0), target=eo.CircularOrbit(30.0)))
+    assert "sail.ac_mm_s2" not in str(raised.value)
+
+
 def test_segment_threads_do_not_change_the_optimum(monkeypatch):
     """The segments evaluated on one thread and on two: the same optimum, in the same
     iterations (each segment depends only on its own inputs)."""

@@ -434,11 +434,22 @@ def _fly_until(problem, x0, alpha, stop, what):
             raise InputError(
                 f"guess_alpha_deg = {deg:g} deg: the seeding propagation at constant pitch "
                 f"leaves the closed form's validity (escape or q3 <= 0) after {left:.3g} rad "
-                f"without reaching {what}; choose another guess_alpha_deg")
+                f"without reaching {what}; choose another guess_alpha_deg"
+                + _seed_ac_hint(problem))
         flown += GUESS_STEP * GUESS_CHUNK
         state, t0 = xs[:4, -1], xs[4, -1]
     raise InputError(f"max_revolutions = {problem.max_revolutions:g}: the seeding propagation "
                      f"at {deg:g} deg does not reach {what} within it")
+
+
+def _seed_ac_hint(problem):
+    """What else a MinAcceleration user can change when its seed escapes: the sail's
+    a_c there only seeds the search (and scales it), and a smaller one flies a seed that
+    stays bound, while the optimum's a_c is the same."""
+    if not problem.objective.free_acceleration:
+        return ""
+    return (f", or a smaller sail.ac_mm_s2 (a MinAcceleration sizes a_c itself: "
+            f"{problem.sail.ac_mm_s2:g} mm/s^2 only seeds it)")
 
 
 def _crossing(values, level):
