@@ -200,3 +200,26 @@ def test_state_fields_are_au_and_km_s_in_the_ecliptic():
         state_from_fields(dict(one, y_au="a"), "s")
     with pytest.raises(InputError, match=r"^s: x_au, .* differ in length"):
         state_from_fields(dict(fields, x_au=[1.0]), "s")
+
+
+def test_a_flight_that_goes_back_in_time_is_published_without_an_oem(tmp_path):
+    """The last iterate of a solve that found no point can hold a segment of negative
+    duration (Earth-Mars leaving 2029-11-03 at 3 mm/s^2, minimum time on 20 segments,
+    did): its flight is no ephemeris, so the set is published without trajectory.oem
+    instead of the write failing.  The same solution flown forward writes its OEM."""
+    import dataclasses
+    from pathlib import Path
+
+    from esail_opt.app.solution import Solution
+
+    sol = Solution.load(Path(__file__).parents[1] / "results" / "earth_mars_2035"
+                        / "solution.json")
+    days = list(sol.trajectory_cvodes.t_days)
+    days[5], days[6] = days[6], days[5]
+    backwards = dataclasses.replace(sol, trajectory_cvodes=dataclasses.replace(
+        sol.trajectory_cvodes, t_days=days))
+    written = backwards.write(tmp_path / "back", plots=False)
+    assert [p.name for p in written] == ["solution.json", "schedule.csv"]
+    assert sorted(p.name for p in (tmp_path / "back").iterdir()) == sorted(
+        p.name for p in written)
+    assert "trajectory.oem" in {p.name for p in sol.write(tmp_path / "ahead", plots=False)}

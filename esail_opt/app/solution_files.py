@@ -79,13 +79,17 @@ def write(sol, out_dir, plots=True):
 
 def _write_oem(sol, path):
     """The CVODES flight of a 3-D solution as ``trajectory.oem`` (``app.oem``); False,
-    and nothing written, for a planar one or a failed flight."""
+    and nothing written, for a planar one, a failed flight, or one whose time does not
+    advance: the last iterate of a solve that found no point can hold a segment of
+    negative duration, and such a flight is no ephemeris."""
     flight = sol.trajectory_cvodes
     if flight is None or flight.three_d is None or not sol.dated:
         return False
+    days = np.asarray(flight.t_days, float)
+    if not np.all(np.diff(days) > 0):
+        return False
     states = schema.state_from_fields(
         {k: flight.three_d[k] for k in schema.STATE_KEYS}, "trajectory.cvodes")
-    days = np.asarray(flight.t_days, float)
     write_oem(path, sol.problem.name, np.full(days.size, dates.jd_from_iso(
         sol.departure_date)), states_km_km_s(states), jd2=days)
     return True
