@@ -243,10 +243,30 @@ def test_unreachable_target_fails_without_claiming_infeasibility(tmp_path, capsy
     assert code == 1
     assert len(lines) == 1 and "NOT verified" in lines[0]
     assert "does not prove the target unreachable" in lines[0]
+    assert "throttle" not in lines[0]  # a fixed flight time too short is not the sail's push
     data = json.loads((out / "solution.json").read_text())
     assert data["verified"] is False and data["outcome"] == "infeasible"
     assert len(data["refinement"]["starts"]) > 1
 
+
+
+@pytest.mark.slow
+def test_a_minimum_time_rendezvous_with_the_sail_always_on_is_told_of_the_throttle():
+    # At 3 mm/s^2 an always-on E-sail pushes outward with at least 1 mm/s^2 at Mars,
+    # and no start finds a rendezvous; a throttle is what the note advises, and the
+    # same problem with one is solved and verified.
+    def mars(throttle):
+        return eo.Problem(name="mars_at_3", departure=eo.BodyDeparture("earth", "2029-11-03"),
+                          sail=eo.Sail(ac_mm_s2=3.0, throttle=throttle),
+                          segments=eo.Segments(count=7), objective=eo.MinTime(),
+                          target=eo.BodyRendezvous("mars"))
+
+    always_on = eo.solve(mars(False))
+    assert not always_on.verified and always_on.outcome is Outcome.INFEASIBLE
+    assert "Sail(throttle=True)" in always_on.verification_note
+    throttled = eo.solve(mars(True))
+    assert throttled.verified, throttled.verification_note
+    assert "throttle" not in throttled.verification_note
 
 # ------------------------------------------------ other targets and objectives
 

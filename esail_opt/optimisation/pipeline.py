@@ -552,11 +552,29 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         note = f"NOT verified: Ipopt ended {result.status}" + (
             "" if result.outcome is not Outcome.INFEASIBLE else
             f" from {len(starts) or 1} start(s); no start found a feasible point, which "
-            "does not prove the target unreachable")
+            "does not prove the target unreachable" + _always_on_hint(problem))
     run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
               error_control=controlled, check=check, verified=verified, note=note,
               sub_arcs_requested=requested)
     return _polished(run, polish, samples, say)
+
+
+def _always_on_hint(problem):
+    """The failure note's advice for a minimum-time arrival on an orbit (a rendezvous
+    or an orbit target) with a sail always on: a throttle.
+
+    Why: an E-sail's radial thrust never falls below about half of its full value at that
+    distance, so a sail always on always pushes outward, and at a few mm/s^2 that push
+    is a large part of the Sun's pull beyond 1 au.  Such arrivals can find no point
+    from any start and be solved with a throttle (results/bench/README.md, section
+    "Minimum time with the sail always on").  A fixed time of flight fails for other
+    reasons (too short a flight), and an intercept does not match a velocity."""
+    if (problem.throttled() or problem.objective.fixed_time
+            or not getattr(problem.target, "matches_velocity", True)):
+        return ""
+    return ("; the sail was always on, and an E-sail always pushes outward: "
+            "Sail(throttle=True) lets it lower its tether voltage, which an arrival on "
+            "an orbit at a high a_c may need")
 
 
 def _polished(run, polish, samples, say):
