@@ -15,7 +15,7 @@ import pytest
 import esail_opt as eo
 from esail_opt.app import cli, search
 from esail_opt.app.solution import Solution
-from esail_opt.optimisation import multistart, pipeline
+from esail_opt.optimisation import multistart, pipeline, scan
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.problem_file import load_problem
 
@@ -119,6 +119,26 @@ def test_a_min_acceleration_solve_with_no_sail_reports_the_shortest_feasible_fli
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith("esail-opt solve: ") and f"{near['tof_days']:.1f} d" in err
 
+
+@pytest.mark.slow
+def test_the_shortest_feasible_flight_is_no_longer_than_one_a_minimum_time_solve_flies():
+    """Earth-Mars leaving 2029-11-03 in 480 d has no sail found.  A minimum-time solve
+    with a throttled 3 mm/s^2 sail reaches Mars from that date in some T days, so a
+    sail of at most 3 mm/s^2 makes the flight of T days, and the edge of the feasible
+    flights lies at T at the latest (the walk's resolution, scan.EDGE_DAYS, added).
+    When the walk started from single solves at longer flights it reported 603.8 d."""
+    def mars(objective, sail):
+        return eo.Problem("mars_2029", eo.BodyDeparture("earth", "2029-11-03"), sail,
+                          eo.Segments(count=7), objective, eo.BodyRendezvous("mars"))
+
+    fastest = eo.solve(mars(eo.MinTime(), eo.Sail(3.0, throttle=True)))
+    assert fastest.verified, fastest.verification_note
+    sizing = eo.solve(mars(eo.MinAcceleration(480), eo.Sail(1.0)))
+    assert not sizing.verified
+    near = sizing.nearest_feasible
+    assert near is not None and near.verified, near
+    assert 480 < near.tof_days <= fastest.tof_days + scan.EDGE_DAYS
+    assert near.infeasible_tof_days < near.tof_days
 
 @pytest.mark.slow
 def test_a_lone_solve_is_no_worse_than_its_class_solved_from_other_pitches():

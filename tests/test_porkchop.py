@@ -55,14 +55,14 @@ def walks(monkeypatch):
     def walk(problem, progress=None, start=None):
         calls.append((problem, start))
         edge, infeasible = (700.0, 690.0) if start is None else (640.0, 636.0)
-        at = scan._at_tof(problem if start is None else start[0], edge)
+        at = scan.at_tof(problem if start is None else start[0], edge)
         return scan.Edge(at, SimpleNamespace(ac_scale=1.5), None, infeasible, 0)
 
     def finish(problem, result, tr=None, samples=16, **kwargs):
         return SimpleNamespace(verified=walks.verifies, problem=problem, result=result)
 
     walks = SimpleNamespace(calls=calls, verifies=True)
-    monkeypatch.setattr(porkchop.scan, "shortest_feasible", walk)
+    monkeypatch.setattr(porkchop.pipeline, "shortest_feasible", walk)
     monkeypatch.setattr(porkchop.pipeline, "finish", finish)
     return walks
 

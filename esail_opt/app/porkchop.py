@@ -275,7 +275,7 @@ def mark_no_sail(problems, cells, rows):
     one, not a flight that missed) and a verified flight from the same departure date
     needs a longer time of flight than the cell's.  That flight is the edge of the
     feasible, found by one walk per date in the time of flight
-    (:func:`esail_opt.optimisation.scan.shortest_feasible`), down from the date's
+    (:func:`esail_opt.optimisation.pipeline.shortest_feasible`), down from the date's
     shortest verified cell to its longest cell with no point below it, warm: the grid
     already brackets the edge there, and the walk narrows it.  A date with no verified
     cell walks up from its longest cell with no point, cold, as a lone solve does.  A
@@ -326,7 +326,7 @@ def _edge(problems, cells):
     lo = max(below, key=_tof)
     start = (None if shortest is None
              else (shortest.problem, shortest.result, shortest.transcription))
-    walk = scan.shortest_feasible(lo, start=start)
+    walk = pipeline.shortest_feasible(lo, start=start)
     if walk is None:
         return None  # no verified cell, and none of the longer flights converged
     # The walk's flight is flown unless it is the verified cell itself (no step below

@@ -260,19 +260,26 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
             raise InputError(f"segments = {segments!r} is outside [1, inf)")
         problem = problem.with_segments(segments)
     say = progress or _quiet
+    return _polished(_lone(problem, samples, say), polish, samples, say)
+
+
+def _lone(problem, samples, say, walk=True):
+    """The run of :func:`solve` before the polish; ``walk`` False leaves out the walk to
+    the shortest feasible flight (:func:`_nearest_feasible`, whose rungs are such
+    runs)."""
     run, spent = None, []
     if problem.three_d() and multistart.searches_classes(problem):
         run = _projected_classes(problem, samples, say, spent)
     if run is None:
-        run = _solved(problem, samples, say)
+        run = _solved(problem, samples, say, walk)
         # The run's Ipopt record covers the projected search it gave up, too.
         run.result.iterations += sum(r.iterations for r in spent)
         run.result.solve_seconds += sum(r.solve_seconds for r in spent)
-    return _polished(run, polish, samples, say)
+    return run
 
 
-def _solved(problem, samples, say):
-    """The run of :func:`solve` before the polish, on ``problem``'s own model."""
+def _solved(problem, samples, say, walk=True):
+    """The run of :func:`_lone` on ``problem``'s own model."""
     sub_arcs = problem.segments.sub_arcs
     problem, result, tr, starts = _first_solve(problem, say)
     if result.outcome.found and multistart.searches_classes(problem):
@@ -283,7 +290,7 @@ def _solved(problem, samples, say):
         run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
                      sub_arcs_requested=sub_arcs)
         run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
-    if not result.outcome.found and _walks_tof(problem):
+    if walk and not result.outcome.found and _walks_tof(problem):
         run = dataclasses.replace(run, nearest_feasible=_nearest_feasible(
             problem, samples, say))
     return run
@@ -491,8 +498,8 @@ def _best_verified(problem, tried, samples, say, starts, requested):
 
 def _nearest_feasible(problem, samples, say):
     """The shortest flight found feasible from ``problem``'s departure
-    (``scan.shortest_feasible``), flown as a run; None when the walk found none."""
-    edge = scan.shortest_feasible(problem, say)
+    (:func:`shortest_feasible`), flown as a run; None when the walk found none."""
+    edge = shortest_feasible(problem, say)
     if edge is None:
         return None
     say(f"{problem.name}: the shortest flight found feasible is "
@@ -500,6 +507,59 @@ def _nearest_feasible(problem, samples, say):
     run = finish(edge.problem, edge.result, edge.transcription, samples=samples,
                  progress=say)
     return NearestFeasible(run, edge.infeasible_tof_days, edge.iterations)
+
+
+#: Times of flight at which a fixed-time problem that found no point is solved again, as
+#: multiples of the asked one, until one converges: the walk to the edge starts there.
+LONGER = (1.1, 1.25, 1.5, 2.0)
+
+
+def shortest_feasible(problem, progress=None, start=None):
+    """``scan.shortest_feasible`` of ``problem`` (a fixed-time problem that found no
+    point), from ``start`` or, without one, from the first of :data:`LONGER` multiples
+    of its time of flight at which a solve converges (:func:`_rung`); None when none
+    does."""
+    say = progress or _quiet
+    if start is None:
+        start = _ladder(problem, say)
+        if start is None:
+            return None
+    return scan.shortest_feasible(problem, start, say)
+
+
+def _ladder(problem, say):
+    """The solves (:func:`_rung`) at :data:`LONGER` multiples of ``problem``'s time of
+    flight, up to the first that converges: the ``start`` of
+    ``scan.shortest_feasible``, or None."""
+    asked = problem.objective.tof_days
+    lo, iterations = asked, 0
+    for factor in LONGER:
+        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
+        cell, result, tr, spent = _rung(scan.at_tof(problem, asked * factor), say)
+        iterations += spent
+        if result.outcome.converged:
+            return cell, result, tr, iterations, lo
+        lo = asked * factor
+    return None
+
+
+def _rung(problem, say):
+    """One rung of :func:`_ladder`: a single solve from ``problem``'s seed and, when
+    that finds no point, a lone solve (:func:`_lone`, without a walk of its own):
+    (problem, NLPResult, Transcription, Ipopt iterations of both).
+
+    Why both: the single solve is cheap, and where it converges the walk has always
+    started from it; where it does not, the lone solve's turn-count search can still
+    find a point, and the walk from a longer rung may stop weeks above the edge."""
+    guess = initial_guess(problem)
+    problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
+    result, tr = solve_problem(problem, guess=guess, progress=say)
+    if result.outcome.converged:
+        return problem, result, tr, result.iterations
+    say(f"{problem.name}: no point from the seed at {problem.objective.tof_days:.6g} d; "
+        "solving it as a lone solve")
+    run = _lone(problem, 1, say, walk=False)
+    return run.problem, run.result, run.transcription, result.iterations + run.result.iterations
 
 
 def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),

@@ -581,9 +581,6 @@ def _lifted_seed(problem, progress):
     return _free_seed(problem, cell, result, iterations, started)
 
 
-#: Times of flight at which a fixed-time problem that found no point is solved cold, as
-#: multiples of the asked one, until one finds a point: the walk to the edge starts there.
-LONGER = (1.1, 1.25, 1.5, 2.0)
 #: The walk halves the interval between the longest time found infeasible and the
 #: shortest found feasible until it is this short, days.
 EDGE_DAYS = 4.0
@@ -607,49 +604,44 @@ class Edge:
     iterations: int
 
 
-def _at_tof(problem, tof_days):
+def at_tof(problem, tof_days):
+    """``problem`` with its fixed time of flight set to ``tof_days``."""
     return dataclasses.replace(problem, objective=_objective_at(problem, tof_days))
 
 
-def shortest_feasible(problem, progress=None, start=None):
+def shortest_feasible(problem, start, progress=None):
     """The shortest time of flight from ``problem``'s departure at which its closed-form
     NLP converges, at least ``problem``'s own: a continuation in the time of flight.
 
-    Without ``start``, the problem is solved cold at :data:`LONGER` multiples of its time
-    of flight until one converges.  Then the time of flight is halved towards the longest
-    one found infeasible (``problem``'s own when ``start`` is given), each step warm from
-    the last converged one on the same NLP (its time of flight is a parameter,
-    ``Transcription.at``), to within :data:`EDGE_DAYS`.  A step that does not converge
-    within :data:`WALK_ITERATIONS` counts as infeasible, so the edge may lie a little
-    shorter than reported, never longer.
+    The time of flight is halved from ``start``'s towards the longest one found
+    infeasible, each step warm from the last converged one on the same NLP (its time
+    of flight is a parameter, ``Transcription.at``), to within :data:`EDGE_DAYS`.  A
+    step that does not converge within :data:`WALK_ITERATIONS` counts as infeasible,
+    so the edge may lie a little shorter than reported, never longer.
 
     Parameters
     ----------
     problem : Problem
         A fixed-time problem that found no point at its time of flight.
+    start : tuple
+        ``(Problem, NLPResult, Transcription)``: a converged optimum from the same
+        departure at a longer time of flight, with its problem and NLP (a porkchop's
+        solved cell of the same date); ``problem``'s time of flight is then the
+        longest found infeasible.  Two more items, the Ipopt iterations already spent
+        and the longest time of flight found infeasible, count them in.
     progress : callable, optional
         ``progress(text)``: one line per solve.
-    start : (Problem, NLPResult, Transcription), optional
-        A converged optimum from the same departure at a longer time of flight, with its
-        problem and NLP (a porkchop's solved cell of the same date): the walk starts
-        from it, warm, and skips the cold solves.
 
     Returns
     -------
-    Edge or None
-        None when no time of flight of :data:`LONGER` converged.
+    Edge
     """
     say = progress or (lambda text: None)
-    lo, iterations = problem.objective.tof_days, 0
-    found = start if start is not None else _ladder(problem, say)
-    if found is None:
-        return None
-    cell, result, tr, *spent = found
-    if spent:
-        iterations, lo = spent
+    cell, result, tr, *spent = start
+    iterations, lo = spent or (0, problem.objective.tof_days)
     solver = build_solver(tr, ipopt_options(max_iter=WALK_ITERATIONS), warm=True)
     while cell.objective.tof_days - lo > EDGE_DAYS:
-        step = _at_tof(cell, 0.5 * (lo + cell.objective.tof_days))
+        step = at_tof(cell, 0.5 * (lo + cell.objective.tof_days))
         say(f"{problem.name}: walking the time of flight to {step.objective.tof_days:.6g} d")
         other = solve_transcription(tr.at(step), warm=result, solver=solver, progress=say)
         iterations += other.iterations
@@ -660,20 +652,3 @@ def shortest_feasible(problem, progress=None, start=None):
     return Edge(cell, result, tr.at(cell), lo, iterations)
 
 
-def _ladder(problem, say):
-    """The cold solves at :data:`LONGER` multiples of ``problem``'s time of flight, up to
-    the first that converges: (its problem, optimum, NLP, the iterations spent, the
-    longest time of flight found infeasible), or None."""
-    asked = problem.objective.tof_days
-    lo, iterations = asked, 0
-    for factor in LONGER:
-        cell = _at_tof(problem, asked * factor)
-        guess = initial_guess(cell)
-        cell = sub_arcs_within_cap(cell, guess, MAX_SUB_ARCS)
-        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
-        result, tr = solve_problem(cell, guess=guess, progress=say)
-        iterations += result.iterations
-        if result.outcome.converged:
-            return cell, result, tr, iterations, lo
-        lo = asked * factor
-    return None
