@@ -442,11 +442,6 @@ def minimum_principle_alignment(sol):
     return float(np.min(cosine)), float(np.max(cosine))
 
 
-def physical_pitch(alpha):
-    """The pitch alpha_n in [-pi/2, pi/2) that gives the same thrust as ``alpha``."""
-    return (np.asarray(alpha) + math.pi / 2) % math.pi - math.pi / 2
-
-
 def verify(sol, ac, rf, rendezvous=None):
     """Re-integrate Eqs. 1-2 with the continuous piecewise-cubic control.
 

@@ -51,11 +51,6 @@ def resolve(description):
     return check_body(description, "body")
 
 
-def polar_states(body, jd):
-    """Exact polar states (4 x M) at Julian dates ``jd``, theta on the track's branch."""
-    return np.column_stack([polar_state(body, j)[0] for j in np.atleast_1d(jd)])
-
-
 def _key(body):
     return body.strip().lower() if isinstance(body, str) else body
 
@@ -72,8 +67,6 @@ def source(body):
     return "JPL DE421 (jplephem), heliocentric, ecliptic of J2000"
 
 
-
-
 @functools.lru_cache(maxsize=None)
 def _track(key):
     return track_of(key, *(jd_from_iso(d) for d in TRACK_SPAN))
@@ -82,11 +75,6 @@ def _track(key):
 def track(body):
     """The body's smooth track over the ephemeris's span (``bodies.track.Track``)."""
     return _track(_key(body))
-
-
-def span_tu():
-    """(first, last) canonical time since J2000 that every track covers."""
-    return tuple(tu_from_jd(jd_from_iso(d)) for d in TRACK_SPAN)
 
 
 def polar_state(body, jd, field="body", jd2=0.0):

@@ -25,10 +25,6 @@ def accel_from_mm_s2(a_mm_s2):
     return a_mm_s2 / ACC_UNIT_MM_S2
 
 
-def accel_to_mm_s2(a):
-    return a * ACC_UNIT_MM_S2
-
-
 def time_from_days(t_days):
     return t_days / TU_DAYS
 

@@ -30,11 +30,6 @@ def multiply(p, q):
     )
 
 
-def conjugate(q):
-    """The inverse rotation of a unit quaternion."""
-    return ca.vertcat(q[0], -q[1], -q[2], -q[3])
-
-
 def matrix(q):
     """The rotation matrix of unit quaternion q: columns are the rotated axes."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -71,18 +66,3 @@ def from_rotation_vector(v):
     smooth in v everywhere."""
     c, s = _half_angle(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
     return ca.vertcat(c, s * v[0], s * v[1], s * v[2])
-
-
-def rotation_vector(q):
-    """The rotation vector of unit quaternion q, angle in [0, pi] (for tests and reports;
-    not smooth where the angle is 0)."""
-    q = ca.if_else(q[0] < 0, -q, q)
-    vec = ca.vertcat(q[1], q[2], q[3])
-    sin_half = ca.norm_2(vec)
-    angle = 2 * ca.atan2(sin_half, q[0])
-    return ca.if_else(sin_half > 0, angle / ca.fmax(sin_half, 1e-300), 2.0) * vec
-
-
-def about_z(angle):
-    """The quaternion of a rotation by ``angle`` about the z axis."""
-    return ca.vertcat(ca.cos(angle / 2), 0, 0, ca.sin(angle / 2))
