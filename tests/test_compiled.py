@@ -156,7 +156,7 @@ def test_compiled_segment_is_the_expanded_segment_with_its_derivatives():
     """The NLP's segment over compiled arcs (its own graph compiled too) against the
     expanded SX one: values, Jacobians and Hessian blocks on an eccentric start,
     Richardson and plain."""
-    from esail_opt.optimisation.transcription import closed_form_segment
+    from esail_opt.optimisation.segment_methods import closed_form_segment
 
     for extrapolate in (True, False):
         fast = closed_form_segment(model=ArcModel(sub_arcs=3, extrapolate=extrapolate))
@@ -169,23 +169,23 @@ def test_compiled_segment_is_the_expanded_segment_with_its_derivatives():
 def _graph_on_the_virtual_machine(monkeypatch):
     """Compile the arcs but leave the segment's graph of arc calls on the virtual
     machine (what a failed compile of the graph leaves), with fresh segment caches."""
-    from esail_opt.optimisation import transcription
+    from esail_opt.optimisation import segment_methods
 
     real = cc.compiled
     monkeypatch.setattr(cc, "compiled", lambda fun, calls=(): fun if calls else real(fun))
-    transcription.closed_form_segment.cache_clear()
-    monkeypatch.setattr(transcription, "closed_form_segment",
-                        transcription.closed_form_segment.__wrapped__)
+    segment_methods.closed_form_segment.cache_clear()
+    monkeypatch.setattr(segment_methods, "closed_form_segment",
+                        segment_methods.closed_form_segment.__wrapped__)
 
 
 def test_compiled_segment_graph_matches_its_virtual_machine_graph(monkeypatch):
     """The segment's library (its graph of arc calls as C, linked against the arcs')
     against the same graph run by CasADi's virtual machine."""
-    from esail_opt.optimisation import transcription
+    from esail_opt.optimisation import segment_methods
 
-    fast = transcription.closed_form_segment(model=ArcModel(sub_arcs=2))
+    fast = segment_methods.closed_form_segment(model=ArcModel(sub_arcs=2))
     _graph_on_the_virtual_machine(monkeypatch)
-    slow = transcription.closed_form_segment(model=ArcModel(sub_arcs=2))
+    slow = segment_methods.closed_form_segment(model=ArcModel(sub_arcs=2))
     assert fast.class_name() == "External" and slow.is_a("MXFunction")
     _agree(fast, slow, 1e-12)
 
@@ -229,7 +229,7 @@ def test_a_failed_compile_of_the_segment_graph_keeps_it_on_compiled_arcs(monkeyp
                                                                          shared_cache, caplog):
     """When the arcs compile but the segment's library does not link, the segment is its
     MX graph over the compiled arcs, with one warning."""
-    from esail_opt.optimisation import transcription
+    from esail_opt.optimisation import segment_methods
 
     _fresh(monkeypatch, shared_cache)
     real = cc._build
@@ -240,10 +240,10 @@ def test_a_failed_compile_of_the_segment_graph_keeps_it_on_compiled_arcs(monkeyp
         return real(fun, compiler, target, links)
 
     monkeypatch.setattr(cc, "_build", build)
-    monkeypatch.setattr(transcription, "closed_form_segment",
-                        transcription.closed_form_segment.__wrapped__)
+    monkeypatch.setattr(segment_methods, "closed_form_segment",
+                        segment_methods.closed_form_segment.__wrapped__)
     with caplog.at_level(logging.WARNING, logger="esail_opt"):
-        segment = transcription.closed_form_segment(model=ArcModel(sub_arcs=1))
+        segment = segment_methods.closed_form_segment(model=ArcModel(sub_arcs=1))
     assert segment.is_a("MXFunction")
     assert [r.getMessage() for r in caplog.records if "out of luck" in r.getMessage()]
     assert not list(shared_cache.glob("segment-*.so"))

@@ -18,10 +18,10 @@ from esail_opt.errors import InputError
 from esail_opt.propagation.arcs import ArcModel
 from esail_opt.optimisation import multistart, pipeline
 from esail_opt.optimisation.error_control import node_near
-from esail_opt.optimisation.transcription import (closed_form_segment3d, flown_segments,
-                                                  initial_guess, lifted_guess,
-                                                  node_cartesian, node_from_swept,
-                                                  problem_segment, rk4_time_segment3d)
+from esail_opt.optimisation.segment_methods import (ClosedForm, closed_form_segment3d,
+                                                    node_from_swept, rk4_time_segment3d)
+from esail_opt.optimisation.transcription import (flown_segments, initial_guess, lifted_guess,
+                                                  node_cartesian)
 
 # Constants written out again here, not taken from the package.
 AU_KM = 149597870.7
@@ -209,7 +209,7 @@ def test_seed_of_a_3d_problem_is_continuous():
     problem = mars_problem()
     guess = initial_guess(problem)
     assert guess.nodes.shape == (9, 20)
-    seg = problem_segment(problem)
+    seg = ClosedForm().function(problem)
     start = np.r_[problem.plane_x0()[:4], 0.0, problem.plane_x0()[4:]]
     end = np.array(seg(start, problem.sail.ac, guess.alpha[0], 0.0, guess.lengths[0])[0]).ravel()
     assert np.abs(end - guess.nodes[:, 0]).max() < 1e-12
@@ -231,7 +231,7 @@ def test_a_lifted_planar_start_is_continuous_in_3d_and_keeps_its_flight():
     lifted = lifted_guess(problem, planar)
     assert lifted.nodes.shape == (9, 20) and not np.any(lifted.delta)
     np.testing.assert_array_equal(lifted.throttle, planar.throttle)
-    seg = problem_segment(problem)
+    seg = ClosedForm().function(problem)
     ac = problem.sail.ac * 0.7 * planar.throttle
     node = np.r_[problem.plane_x0()[:4], 0.0, problem.plane_x0()[4:]]
     for i in range(20):

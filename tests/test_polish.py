@@ -18,7 +18,8 @@ from esail_opt.optimisation import polish
 from esail_opt.optimisation.verify import within
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.ipopt import solve_problem
-from esail_opt.optimisation.transcription import cvodes_time_segment, transcribe
+from esail_opt.optimisation.segment_methods import CVODES
+from esail_opt.optimisation.transcription import transcribe
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE = json.loads((REPO / "tests" / "reference" / "collocation_min_time.json").read_text())
@@ -115,17 +116,18 @@ def test_warm_start_satisfies_continuity_and_drops_q3():
     problem = _problem("earth_venus", segments=4)
     result, tr = solve_problem(problem)
     guess = polish.exact_guess(problem, result.x_start, result.as_guess(durations=True))
-    exact = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), guess,
-                       length_in="time")
+    exact = transcribe(problem, CVODES(in_time=True), guess)
     assert "q3" not in exact.names and "q3" in tr.names
     g = exact.constraints(exact.x0)
     assert np.max(np.abs(g[: exact.names["continuity"]])) < 1e-9
     np.testing.assert_allclose(guess.lengths, result.durations)
 
 
-def test_transcribe_rejects_an_unknown_independent_variable():
-    with pytest.raises(ValueError, match="length_in"):
-        transcribe(_problem("earth_venus", segments=2), length_in="angle")
+def test_cvodes_segments_refuse_a_problem_in_three_dimensions():
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    with pytest.raises(ValueError, match="Eqs. 1-2 only"):
+        transcribe(shipped_problem("earth_mars_2035"), CVODES(in_time=True))
 
 
 @pytest.mark.parametrize("miss, ok", [
@@ -185,7 +187,7 @@ def test_polish_steps_are_the_fewest_whose_defects_are_small():
     from types import SimpleNamespace
 
     from esail_opt.optimisation.error_control import segment_ends
-    from esail_opt.propagation.rk4 import rk4_segment
+    from esail_opt.optimisation.segment_methods import RK4
 
     problem = _problem("earth_venus", segments=4)
     result, _ = solve_problem(problem)
@@ -193,15 +195,13 @@ def test_polish_steps_are_the_fewest_whose_defects_are_small():
                                          result.as_guess(durations=True))
     chain = SimpleNamespace(alpha=start.alpha, throttle=start.throttle, x_start=result.x_start,
                             durations=start.lengths, nodes=start.nodes, ac_scale=1.0)
-    worst, ends = {}, {}
+    worst = {}
     for count in polish.RK4_STEPS:
-        flown, model = segment_ends(problem, chain, rk4_segment(count, length_in="time"),
-                                    "time")
+        flown, model = segment_ends(problem, chain, RK4(count, in_time=True))
         worst[count] = float(np.max(np.abs(flown - model)[:4]))
-        ends[count] = model
-    chosen = polish.rk4_polish_segment(problem, result.x_start, start)
-    _, model = segment_ends(problem, chain, chosen, "time")
-    count = next(k for k, m in ends.items() if np.array_equal(m, model))
+    chosen = polish.rk4_polish_method(problem, result.x_start, start)
+    assert chosen.in_time
+    count = chosen.steps
     steps = list(polish.RK4_STEPS)
     assert worst[steps[0]] > polish.STEP_DEFECT, worst
     assert count > steps[0] and worst[count] < polish.STEP_DEFECT, (count, worst)

@@ -22,7 +22,8 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import polish
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
-from esail_opt.optimisation.transcription import closed_form_segment, transcribe
+from esail_opt.optimisation.segment_methods import closed_form_segment
+from esail_opt.optimisation.transcription import transcribe
 from esail_opt.propagation.arcs import ArcModel
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_from_polar

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from esail_opt.bench.timing import (
-    equal_lengths, print_table, runs_of, shooting_segments, timed_nlps)
+    equal_lengths, print_table, runs_of, shooting_methods, timed_nlps)
 from esail_opt.optimisation.problem_file import shipped_problem
 
 #: The shipped problem this bench solves.
@@ -52,11 +52,11 @@ def _shooting(problem, runs):
     start = time.perf_counter()
     guess = initial_guess(problem)
     data = {"seed_seconds": time.perf_counter() - start, "segments": guess.alpha.size}
-    segments = shooting_segments(problem)
+    methods = shooting_methods()
     for name, label in (("closed_form", "closed-form"), ("cvodes", "CVODES")):
         print(f"bench lowthrust: {problem.name}, N = {guess.alpha.size} x "
               f"{problem.segments.sub_arcs} sub-arcs; solving with {label} arcs ...", flush=True)
-        timed = timed_nlps(problem, guess, {name: segments[name]}, runs)[name]
+        timed = timed_nlps(problem, guess, {name: methods[name]}, runs)[name]
         result = timed["result"]
         check = verify(problem, result)
         data.update({
@@ -159,7 +159,7 @@ def run(out, repeats):
       per-revolution segment count, resolved by the seed), one equal-length NLP;
     * CVODES-arc multiple shooting: the same NLP, N, initial guess and Ipopt options,
       each segment one CVODES integration of Eqs. 1-2 in theta at 1e-12 with CasADi's
-      sensitivities (``transcription.cvodes_segment``);
+      sensitivities (``segment_methods.CVODES``);
     * the collocation reference (:mod:`esail_opt.bench.collocation`) along its own path
       from one start (:func:`_collocation_solve`): the constant-pitch +45 deg flight
       (the shooting seed's pitch) solved on the search mesh, re-solved on the reporting

@@ -44,8 +44,8 @@ def _polish_case(problem):
 
     from esail_opt.optimisation.polish import exact_guess, polish, polish_options
     from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
-    from esail_opt.optimisation.transcription import (
-        cvodes_time_segment, initial_guess, transcribe)
+    from esail_opt.optimisation.segment_methods import CVODES
+    from esail_opt.optimisation.transcription import initial_guess, transcribe
 
     seed = initial_guess(problem)
     case = {"problem": problem.name, "segments": seed.alpha.size,
@@ -64,8 +64,7 @@ def _polish_case(problem):
     start = time.perf_counter()
     durations = np.diff(np.r_[0.0, seed.nodes[4]])
     cold_start = exact_guess(problem, problem.x0(), dataclasses.replace(seed, lengths=durations))
-    cold_tr = transcribe(problem, cvodes_time_segment(problem.sail.coefficients), cold_start,
-                         length_in="time")
+    cold_tr = transcribe(problem, CVODES(in_time=True), cold_start)
     cold = solve_transcription(cold_tr, polish_options(max_iter=COLD_MAX_ITER))
     case["cold_iterations"] = cold.iterations
     _record(case, "cold", problem, cold, time.perf_counter() - start)

@@ -24,7 +24,7 @@ from esail_opt.bench.timing import print_table
 from esail_opt.bodies import dates
 from esail_opt.optimisation import scan
 from esail_opt.optimisation.problem_file import shipped_problem
-from esail_opt.propagation.rk4 import rk4_segment
+from esail_opt.optimisation.segment_methods import RK4
 
 #: The shipped problem whose porkchop this bench scans.
 PROBLEM = "earth_venus_min_ac_planar"
@@ -51,9 +51,9 @@ def _rows(grid, problem):
             for job in grid.jobs(1)]
 
 
-def _scan(rows, segment=None):
+def _scan(rows, method=None):
     started = time.perf_counter()
-    cells = [c for row, near in rows for c in scan.scan(row, segment=segment, neighbours=near)]
+    cells = [c for row, near in rows for c in scan.scan(row, method=method, neighbours=near)]
     return time.perf_counter() - started, cells
 
 
@@ -65,11 +65,11 @@ def _rebuild(rows):
     return time.perf_counter() - started, solutions
 
 
-def _rk4_steps(problem, make):
-    """The fewest of :data:`RK4_STEPS` whose solve of ``problem`` on ``make(steps)``'s
-    segments verifies (the last otherwise); these trial solves are not timed."""
+def _rk4_steps(problem):
+    """The fewest of :data:`RK4_STEPS` whose solve of ``problem`` on RK4 segments
+    verifies (the last otherwise); these trial solves are not timed."""
     for steps in RK4_STEPS:
-        solver = scan.CellSolver(make(steps))
+        solver = scan.CellSolver(RK4(steps))
         if solver.finish(solver.cold(problem)).verified:
             return steps
     return RK4_STEPS[-1]
@@ -79,14 +79,13 @@ def run(out, repeats=1):
     """Time the planar scan three ways; writes ``porkchop.json`` and returns its path."""
     # The planar porkchop: its RK4 segments are the planar ones.
     problem = dataclasses.replace(shipped_problem(PROBLEM), planar=True)
-    coeff = problem.sail.coefficients
-    return timed_scans(out, "porkchop", PROBLEM, problem,
-                       lambda steps: rk4_segment(steps, coeff, "theta"))
+    return timed_scans(out, "porkchop", PROBLEM, problem)
 
 
-def timed_scans(out, label, name, problem, make_rk4):
+def timed_scans(out, label, name, problem):
     """Time the scan of ``problem`` over the bench's grid three ways (the closed form,
-    ``make_rk4(steps)``'s segments, every cell rebuilt); writes ``LABEL.json`` under
+    RK4 segments (``segment_methods.RK4``: of Eqs. 1-2, or of the turning plane's
+    equations in three dimensions), every cell rebuilt); writes ``LABEL.json`` under
     ``out`` and returns its path."""
     from pathlib import Path
 
@@ -94,9 +93,9 @@ def timed_scans(out, label, name, problem, make_rk4):
     n = sum(len(r) for r, _ in rows)
     print(f"bench {label}: {n} cells, closed form ...", flush=True)
     cf_seconds, cf_cells = _scan(rows)
-    steps = _rk4_steps(rows[0][0][0], make_rk4)
+    steps = _rk4_steps(rows[0][0][0])
     print(f"bench {label}: RK4 segments, {steps} steps a segment ...", flush=True)
-    rk_seconds, rk_cells = _scan(rows, make_rk4(steps))
+    rk_seconds, rk_cells = _scan(rows, RK4(steps))
     print(f"bench {label}: each cell solved alone ...", flush=True)
     rb_seconds, rb_solutions = _rebuild(rows)
     counts = {"closed_form": sum(c.verified for c in cf_cells),

@@ -6,7 +6,7 @@ pitch and a clock angle per segment, Venus's unprojected DE421 state at arrival)
 solved the same three ways in one process (``porkchop.timed_scans``):
 
 * the scan as ``esail-opt porkchop`` runs it, on the 3-D closed form
-  (``transcription.closed_form_segment3d``), error control and verification per cell;
+  (``segment_methods.closed_form_segment3d``), error control and verification per cell;
 * the same scan on RK4 segments of the turning-plane equations
   (``rk4.rk4_segment_turning``: Eqs. 1-2 and the plane's quaternion, the 3-D NLP's own
   state), at the fewest steps a segment whose first cell verifies;
@@ -18,7 +18,6 @@ Venus's unprojected state.
 
 from esail_opt.bench.porkchop import timed_scans
 from esail_opt.optimisation.problem_file import shipped_problem
-from esail_opt.propagation.rk4 import rk4_segment_turning
 
 #: The shipped 3-D problem whose porkchop this bench scans.
 PROBLEM = "earth_venus_min_ac"
@@ -26,7 +25,4 @@ PROBLEM = "earth_venus_min_ac"
 
 def run(out, repeats=1):
     """Time the 3-D scan three ways; writes ``porkchop3d.json`` and returns its path."""
-    problem = shipped_problem(PROBLEM)
-    coeff = problem.sail.coefficients
-    return timed_scans(out, "porkchop3d", PROBLEM, problem,
-                       lambda steps: rk4_segment_turning(steps, coeff))
+    return timed_scans(out, "porkchop3d", PROBLEM, shipped_problem(PROBLEM))

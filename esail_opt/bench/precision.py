@@ -17,7 +17,7 @@ The methods (a list of :class:`Method`; another entry is one more line in a case
 * ``rk4``: the same NLP with each segment integrated by classic RK4 in theta
   (``propagation.rk4.rk4_segment``) at several segment counts and steps per segment;
 * ``cvodes``: the same NLP with each segment one CVODES integration at 1e-12
-  (``transcription.cvodes_segment``), at one or two segment counts (it is slow).
+  (``segment_methods.CVODES``), at one or two segment counts (it is slow).
 
 Every NLP has equal segment lengths (one Ipopt solve from the constant-pitch seed, as the
 other benchmarks time it) and the same Ipopt options; only the segment Function and the
@@ -132,12 +132,11 @@ def rk4(segments=None, steps=1, per_revolution=None):
     """The same NLP with RK4 segments of ``steps`` steps each."""
 
     def solve(problem):
-        from esail_opt.propagation.rk4 import rk4_segment
         from esail_opt.optimisation.ipopt import solve_problem
+        from esail_opt.optimisation.segment_methods import RK4
 
         variant = _with_count(problem, segments, per_revolution)
-        segment = rk4_segment(steps, problem.sail.coefficients)
-        return solve_problem(variant, segment=segment)[0]
+        return solve_problem(variant, RK4(steps))[0]
 
     return Method("rk4", {"segments": segments, "steps": steps,
                           "per_revolution": per_revolution}, solve)
@@ -152,10 +151,10 @@ def cvodes(segments=None, per_revolution=None):
 
     def solve(problem):
         from esail_opt.optimisation.ipopt import solve_problem
-        from esail_opt.optimisation.transcription import cvodes_segment
+        from esail_opt.optimisation.segment_methods import CVODES
 
         variant = _with_count(problem, segments, per_revolution)
-        return solve_problem(variant, segment=cvodes_segment(1, problem.sail.coefficients))[0]
+        return solve_problem(variant, CVODES(margins=1))[0]
 
     return Method("cvodes", {"segments": segments, "steps": None,
                              "per_revolution": per_revolution}, solve)

@@ -4,7 +4,7 @@ NLP with CVODES arcs, timed in one run."""
 from pathlib import Path
 
 from esail_opt.bench.timing import (
-    equal_lengths, print_table, runs_of, shooting_segments, timed_nlps)
+    equal_lengths, print_table, runs_of, shooting_methods, timed_nlps)
 from esail_opt.optimisation.problem_file import shipped_problem
 
 #: Shipped problems of the solve benchmark: short arcs at a high acceleration, then the
@@ -22,7 +22,7 @@ def _solve_case(problem, repeats):
     runs = runs_of(repeats)
     case = {"problem": problem.name, "segments": guess.alpha.size, "sub_arcs": seg.sub_arcs,
             "extrapolate": seg.extrapolate, "runs": runs}
-    for name, timed in timed_nlps(problem, guess, shooting_segments(problem), runs).items():
+    for name, timed in timed_nlps(problem, guess, shooting_methods(), runs).items():
         for key in ("seconds", "iterations", "status", "objective"):
             case[f"{name}_{key}"] = timed[key]
     case["ratio"] = case["cvodes_seconds"] / case["closed_form_seconds"]

@@ -43,29 +43,25 @@ def equal_lengths(problem):
         problem, segments=dataclasses.replace(problem.segments, equal=True))
 
 
-def shooting_segments(problem):
-    """The closed-form and the CVODES-arc segment Functions of ``problem``'s NLP."""
-    from esail_opt.optimisation.transcription import cvodes_segment, problem_segment
+def shooting_methods():
+    """The closed-form and the CVODES-arc segment methods (``segment_methods``)."""
+    from esail_opt.optimisation.segment_methods import CVODES, ClosedForm
 
-    return {
-        "closed_form": problem_segment(problem),
-        "cvodes": cvodes_segment(problem.segments.sub_arcs, problem.sail.coefficients),
-    }
+    return {"closed_form": ClosedForm(), "cvodes": CVODES()}
 
 
-def timed_nlps(problem, guess, segments, runs):
-    """Solve the NLP of ``problem`` from ``guess`` once per segment Function, timed.
+def timed_nlps(problem, guess, methods, runs):
+    """Solve the NLP of ``problem`` from ``guess`` once per segment method, timed.
 
     Parameters
     ----------
     problem : Problem
     guess : transcription.Guess
-        Shared by every segment Function, so only the arcs differ.
-    segments : dict
-        Name -> segment Function (``transcription.closed_form_segment`` or
-        ``cvodes_segment``).
+        Shared by every method, so only the arcs differ.
+    methods : dict
+        Name -> segment method (:func:`shooting_methods`).
     runs : int
-        Timed solves per Function; the median counts.
+        Timed solves per method; the median counts.
 
     Returns
     -------
@@ -78,8 +74,8 @@ def timed_nlps(problem, guess, segments, runs):
     from esail_opt.optimisation.transcription import transcribe
 
     out = {}
-    for name, segment in segments.items():
-        tr = transcribe(problem, segment, guess)
+    for name, method in methods.items():
+        tr = transcribe(problem, method, guess)
         times = []
         for _ in range(runs):
             start = time.perf_counter()

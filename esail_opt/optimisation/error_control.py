@@ -44,8 +44,8 @@ import numpy as np
 
 from esail_opt.optimisation.ipopt import build_solver, solve_transcription
 from esail_opt.optimisation.goals import cartesian_miss, state_miss
-from esail_opt.optimisation.transcription import (node_cartesian, problem_segment, start_node,
-                                                  strain, transcribe)
+from esail_opt.optimisation.segment_methods import ClosedForm
+from esail_opt.optimisation.transcription import node_cartesian, start_node, strain, transcribe
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
 from esail_opt.physics import rotation
@@ -161,19 +161,19 @@ def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
     return node_near(ends[:, :starts.shape[1]], model_ends)
 
 
-def segment_ends(problem, result, segment=None, length_in="theta", tol=VERIFY_TOLERANCE):
+def segment_ends(problem, result, method=None, tol=VERIFY_TOLERANCE):
     """(exact, model) ends [5 x N] of every segment flown from its own start node: by
-    CVODES on Eqs. 1-2 at ``tol``, and by the NLP's ``segment`` (default the problem's
-    closed-form segment), whose lengths are angles or, ``length_in="time"``, durations.
-    Their difference is each segment's defect.
+    CVODES on Eqs. 1-2 at ``tol``, and by the NLP's segment ``method`` (default
+    ``segment_methods.ClosedForm``), whose lengths are angles or, for a method in
+    time, durations.  Their difference is each segment's defect.
 
     Raises
     ------
     SimulationError
         If CVODES cannot fly a segment (an escaping arc).
     """
-    if segment is None:
-        segment = problem_segment(problem)
+    method = ClosedForm() if method is None else method
+    segment, length_in = method.function(problem), method.length_in
     lengths = result.lengths if length_in == "theta" else result.durations
     args = (start_nodes(result), problem.sail.ac * result.ac_scale * result.throttle[None, :],
             result.alpha[None, :], lengths[None, :])

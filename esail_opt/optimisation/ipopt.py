@@ -292,9 +292,10 @@ def _result(tr, sol, stats, p, seconds):
     )
 
 
-def solve_problem(problem, segment=None, options=None, guess=None, progress=None,
+def solve_problem(problem, method=None, options=None, guess=None, progress=None,
                   staged=True, checkpoint=None):
-    """Transcribe and solve ``problem``; returns (NLPResult, Transcription).
+    """Transcribe and solve ``problem`` with the segment ``method`` (default the closed
+    form, ``segment_methods``); returns (NLPResult, Transcription).
 
     ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, with its
     revolution class (the global search, ``optimisation.multistart``, sets it).
@@ -319,14 +320,14 @@ def solve_problem(problem, segment=None, options=None, guess=None, progress=None
     guess = initial_guess(problem) if guess is None else guess
     if staged and not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))
-        equal_tr = transcribe(equal, segment, guess, threads=1)
+        equal_tr = transcribe(equal, method, guess, threads=1)
         first = solve_transcription(equal_tr, options, progress=progress,
                                     checkpoint=checkpoint)
         if first.status == STOPPED:
             return first, equal_tr
         if first.outcome.found:
             guess = first.as_guess()
-    tr = transcribe(problem, segment, guess)
+    tr = transcribe(problem, method, guess)
     result = solve_transcription(tr, options, progress=progress, checkpoint=checkpoint)
     if first is not None:
         result.iterations += first.iterations

@@ -260,7 +260,8 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
             raise InputError(f"segments = {segments!r} is outside [1, inf)")
         problem = problem.with_segments(segments)
     say = progress or _quiet
-    return _polished(_lone(problem, samples, say), polish, samples, say)
+    run = _lone(problem, samples, say)
+    return _polished(run, polish, samples, say)
 
 
 def _lone(problem, samples, say, walk=True):

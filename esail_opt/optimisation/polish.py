@@ -11,12 +11,12 @@ The exact arc is an RK4 arc whose truncation error is removed by defect correcti
 against CVODES (:func:`polish`): Ipopt then differentiates a small expanded SX graph
 rather than CVODES's forward and adjoint sensitivities, which made each iteration
 about 40 times cheaper at the same optimum (Earth-Mars at 1 and 0.1 mm/s^2).  CVODES
-arcs with sensitivities (:func:`~esail_opt.optimisation.transcription.cvodes_time_segment`)
+arcs with sensitivities (``segment_methods.CVODES(in_time=True)``)
 remain the fallback when the planar RK4 NLP does not converge, and the benchmark's cold
 exact shooting.
 
 In three dimensions (``Problem.three_d``) the exact arc is an RK4 arc on the Cartesian
-equations between the NLP's 3-D nodes (``transcription.rk4_time_segment3d``), corrected
+equations between the NLP's 3-D nodes (``segment_methods.rk4_time_segment3d``), corrected
 against CVODES on the same Cartesian equations (``simulate.fly_segments3d``), with a
 clock angle per segment beside the pitch (and the throttle where the problem has one).
 No part of it flies the turning-plane decomposition, which only names its nodes.  RK4
@@ -40,10 +40,9 @@ from esail_opt.optimisation.goals import cartesian_miss, state_miss
 from esail_opt.optimisation.ipopt import build_solver, ipopt_options, solve_transcription
 from esail_opt.optimisation.problem import Tolerance
 from esail_opt.optimisation.error_control import node_near, segment_ends, start_nodes
-from esail_opt.optimisation.transcription import (body_corrections, cvodes_time_segment,
-                                                  node_cartesian, rk4_time_segment3d,
-                                                  start_node, transcribe)
-from esail_opt.propagation.rk4 import rk4_segment
+from esail_opt.optimisation.segment_methods import CVODES, RK4
+from esail_opt.optimisation.transcription import (body_corrections, node_cartesian, start_node,
+                                                  transcribe)
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments3d,
                                             simulate, simulate3d)
 
@@ -99,15 +98,6 @@ def polish_options(max_iter=200):
     return opts
 
 
-def exact_segment(problem, steps):
-    """The polish's exact segment in time with ``steps`` RK4 steps: on Eqs. 1-2
-    (``rk4.rk4_segment``), or between 3-D nodes on the Cartesian equations
-    (``transcription.rk4_time_segment3d``)."""
-    if problem.three_d():
-        return rk4_time_segment3d(steps, problem.sail.coefficients)
-    return rk4_segment(steps, problem.sail.coefficients, "time")
-
-
 def _controls(guess):
     """The per-segment controls a segment takes after its a_c: pitch, and the clock in
     three dimensions (rows of one)."""
@@ -158,9 +148,10 @@ def _states(problem, nodes):
     return np.asarray(nodes)[:4]
 
 
-def rk4_polish_segment(problem, x_start, start, steps=RK4_STEPS):
-    """The polish's RK4 segment in time (:func:`exact_segment`): the first of ``steps``
-    steps per segment whose largest position or velocity defect at ``start`` is under
+def rk4_polish_method(problem, x_start, start, steps=RK4_STEPS):
+    """The polish's segment method, RK4 in time (``segment_methods.RK4``: on Eqs. 1-2,
+    or on the Cartesian equations between 3-D nodes) at the first of ``steps`` steps
+    per segment whose largest position or velocity defect at ``start`` is under
     :data:`STEP_DEFECT` (the last one otherwise).
 
     ``start`` is :func:`exact_guess`'s flown start, so its nodes follow the exact
@@ -173,11 +164,11 @@ def rk4_polish_segment(problem, x_start, start, steps=RK4_STEPS):
     args = (nodes_from, problem.sail.ac * start.ac_scale * start.throttle[None, :],
             *_controls(start), start.lengths[None, :])
     for count in steps:
-        segment = exact_segment(problem, count)
-        ends = np.array(segment.map(start.alpha.size)(*args)[0])
+        method = RK4(count, in_time=True)
+        ends = np.array(method.function(problem).map(start.alpha.size)(*args)[0])
         if np.max(np.abs(_states(problem, start.nodes) - _states(problem, ends))) < STEP_DEFECT:
             break
-    return segment
+    return method
 
 
 def _final_miss(problem, result):
@@ -246,22 +237,23 @@ def _on_ephemeris(tr, problem, result):
     return dataclasses.replace(tr, corrections=body_corrections(problem, result))
 
 
-def _defects(problem, result, segment):
+def _defects(problem, result, method):
     """Each segment's end flown by CVODES at the verifier's tolerance from its own start
-    node, less ``segment``'s end from the same node (raises SimulationError)."""
+    node, less the segment ``method``'s end from the same node (raises
+    SimulationError)."""
     if not problem.three_d():
-        flown, model = segment_ends(problem, result, segment, "time", VERIFY_TOLERANCE)
+        flown, model = segment_ends(problem, result, method, VERIFY_TOLERANCE)
         return flown - model
     starts = start_nodes(result)
     ac = result.accelerations(problem)[None, :]
     args = (ac, *_controls(result), result.durations[None, :])
-    model = np.array(segment.map(result.alpha.size)(starts, *args)[0])
+    model = np.array(method.function(problem).map(result.alpha.size)(starts, *args)[0])
     y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
     ends = fly_segments3d(y0, *args, "time", problem.sail.coefficients, VERIFY_TOLERANCE)
     return node_near(ends, model) - model
 
 
-def _corrected(problem, tr, segment, exact, opts, max_rounds):
+def _corrected(problem, tr, method, exact, opts, max_rounds):
     """Rounds of defect correction from the first solve ``exact`` until the flight
     lands on the NLP's final node and the bodies (at most ``max_rounds``).  Returns
     (result, transcription, landed); the result's stages and iterations cover every
@@ -275,7 +267,7 @@ def _corrected(problem, tr, segment, exact, opts, max_rounds):
             landed = _lands(problem, exact) and _on_bodies(problem, exact)
             if landed or round_ == max_rounds:
                 break
-            defects = _defects(problem, exact, segment)
+            defects = _defects(problem, exact, method)
         except SimulationError:
             break  # an arc CVODES cannot fly: the fallback tries other arcs
         tr = _on_ephemeris(tr, problem, exact)
@@ -289,37 +281,34 @@ def _corrected(problem, tr, segment, exact, opts, max_rounds):
 
 def _first_solve(problem, result, start, schedule, steps, opts):
     """The polish's first solve from ``start``, on RK4 arcs of the steps
-    :func:`rk4_polish_segment` picks (the fewest if CVODES could not fly the start):
-    (result, transcription, segment)."""
+    :func:`rk4_polish_method` picks (the fewest if CVODES could not fly the start):
+    (result, transcription, segment method)."""
     if start is schedule:  # CVODES could not fly it: no defects to choose the steps by
-        segment = exact_segment(problem, steps[0])
+        method = RK4(steps[0], in_time=True)
     else:
-        segment = rk4_polish_segment(problem, result.x_start, start, steps)
-    tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time"),
-                       problem, result)
-    return solve_transcription(tr, opts), tr, segment
+        method = rk4_polish_method(problem, result.x_start, start, steps)
+    tr = _on_ephemeris(transcribe(problem, method, start), problem, result)
+    return solve_transcription(tr, opts), tr, method
 
 
 def _fallback(problem, result, start, opts, steps, max_rounds):
     """The polish again when the RK4 NLP did not land: on CVODES arcs in the plane
     (slower but steadier), on RK4 arcs of the most steps in three dimensions."""
     if problem.three_d():
-        segment = exact_segment(problem, steps[-1])
-        tr = _on_ephemeris(transcribe(problem, segment, start, length_in="time"),
-                           problem, result)
-        return _corrected(problem, tr, segment, solve_transcription(tr, opts), opts,
+        method = RK4(steps[-1], in_time=True)
+        tr = _on_ephemeris(transcribe(problem, method, start), problem, result)
+        return _corrected(problem, tr, method, solve_transcription(tr, opts), opts,
                           max_rounds)[:2]
-    tr = _on_ephemeris(transcribe(problem, cvodes_time_segment(problem.sail.coefficients),
-                                  start, length_in="time"), problem, result)
+    tr = _on_ephemeris(transcribe(problem, CVODES(in_time=True), start), problem, result)
     return solve_transcription(tr, opts), tr
 
 
 def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS):
     """Re-solve ``problem`` on the exact equations in time, warm-started from ``result``.
 
-    The NLP's segments are RK4 arcs in time (:func:`exact_segment`: on Eqs. 1-2, or on
+    The NLP's segments are RK4 arcs in time (``segment_methods.RK4``: on Eqs. 1-2, or on
     the Cartesian equations in three dimensions), with as many steps as
-    :func:`rk4_polish_segment` chooses; each round flies every segment from its node
+    :func:`rk4_polish_method` chooses; each round flies every segment from its node
     with CVODES, adds the difference to the segment's end (the defect, a parameter of
     the NLP), and re-solves warm with the same solver, until the schedule flown by
     CVODES lands within :data:`LANDING_KM` and :data:`LANDING_M_S` of the NLP's final
@@ -339,7 +328,7 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         Ipopt options; default :func:`polish_options`, starting from :data:`START_MU`
         unless they set ``ipopt.mu_init``.
     steps : sequence of int
-        RK4 steps per segment to choose from (:func:`rk4_polish_segment`).
+        RK4 steps per segment to choose from (:func:`rk4_polish_method`).
     max_rounds : int
         Defect corrections at most.
 
@@ -355,8 +344,8 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
     schedule = result.as_guess(durations=True)
     start = exact_guess(problem, result.x_start, schedule)
     opts = {"ipopt.mu_init": START_MU, **(polish_options() if options is None else options)}
-    first, tr, segment = _first_solve(problem, result, start, schedule, steps, opts)
-    exact, tr, landed = _corrected(problem, tr, segment, first, opts, max_rounds)
+    first, tr, method = _first_solve(problem, result, start, schedule, steps, opts)
+    exact, tr, landed = _corrected(problem, tr, method, first, opts, max_rounds)
     if not landed:
         # The RK4 NLP can wander off where the exact one would not: the 2-revolution
         # window of the Earth-Mars search ran out of iterations 1.2e8 km from the target,

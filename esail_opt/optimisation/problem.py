@@ -379,7 +379,7 @@ class Segments:
     extrapolate : bool
         Richardson-extrapolate every sub-arc (whole and two halves, combined for a
         second-order error) at three times the arcs.  Off by default: it gains about
-        what more sub-arcs do at the same cost (see ``transcription.closed_form_segment``).
+        what more sub-arcs do at the same cost (see ``segment_methods.closed_form_segment``).
     per_revolution : int or None
         Segments per revolution K, >= 1, instead of a total: N is then
         ceil(K angle / 2 pi), with ``angle`` the one the constant-pitch seeding

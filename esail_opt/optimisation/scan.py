@@ -116,14 +116,14 @@ class CellSolver:
     targets, there is only k = 0).
     """
 
-    def __init__(self, segment=None):
+    def __init__(self, method=None):
         self.nlps = {}  # k -> (Transcription, (solver, monitor), Segments)
         self.segments = None
-        self.segment = segment
+        self.method = method
 
     def finish(self, cell):
         """The cell after the error control and the CVODES verification of a lone solve
-        (other segments than the closed form's are only verified)."""
+        (other segment methods than the closed form are only verified)."""
         if cell.finished:
             return cell
         started = time.perf_counter()
@@ -133,7 +133,7 @@ class CellSolver:
             warm_solver = self.nlps[cell.on_scan_nlp.revolutions_k][1]
         controlled = (control_error(problem, result, tr, solver=warm_solver,
                                     defects=cell.defects)
-                      if result.outcome.found and self.segment is None else None)
+                      if result.outcome.found and self.method is None else None)
         on_scan, defects = cell.on_scan_nlp, None
         if controlled is not None:
             if on_scan is not None:
@@ -192,7 +192,7 @@ class CellSolver:
             seed = initial_guess(problem) if k is None else _class_seed(problem, k)
         problem, seed = self._meshed(problem, seed)
         # A lifted optimum is a start Ipopt keeps to: no staging from it.
-        result, tr = solve_problem(problem, segment=self.segment, options=options,
+        result, tr = solve_problem(problem, self.method, options=options,
                                    guess=seed, staged=start is None)
         k = result.revolutions_k
         on_scan = None
@@ -241,7 +241,7 @@ def _class_seed(problem, k):
     return multistart.rendezvous_starts(problem, [k])[0].guess
 
 
-def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
+def scan(cells, progress=None, method=None, neighbours=None, explore=False):
     """Solve every cell problem of ``cells`` (a list, in scan order) on one NLP per class.
 
     Parameters
@@ -250,10 +250,10 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
         In the order of a path: each cell neighbours the one before it.
     progress : callable, optional
         ``progress(text)``: one line per cell.
-    segment : casadi.Function, optional
-        Replaces the closed-form segment of the NLPs (the benchmark passes RK4 arcs of
-        Eqs. 1-2); their cells are verified without the error control, which corrects
-        the closed form.
+    method : segment method, optional
+        Replaces the closed form as the NLPs' segment method (``segment_methods``; the
+        benchmark passes ``RK4``); its cells are verified without the error control,
+        which corrects the closed form.
     neighbours : list of list of int, optional
         For each cell, the positions of its neighbours in ``cells`` (a grid's cells
         beside it); default the cells before and after it in the path.
@@ -266,7 +266,7 @@ def scan(cells, progress=None, segment=None, neighbours=None, explore=False):
     list of Cell
         In the order of ``cells``.
     """
-    solver = CellSolver(segment)
+    solver = CellSolver(method)
     say = progress or (lambda text: None)
     n = len(cells)
     if neighbours is None:

@@ -12,20 +12,19 @@ Decision variables (each scaled to order one):
 A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q with one Picard sweep that makes
 it second order in a~_c, Eqs. 9-11 for the state, the time by Gauss-Legendre quadrature
 of dt/dtheta) chained with rectification at each sub-arc's start, all at one pitch, and
-optionally Richardson-extrapolated: the problem's :func:`arc_model`
+optionally Richardson-extrapolated: the problem's ``segment_methods.arc_model``
 (``propagation.arcs.ArcModel``), which the verification's closed-form curve flies too.
-The segment Function is SX, expanded once, and ``map``-ped over the N segments inside an MX NLP, so
-the NLP holds one copy of the arc's graph however many segments there are.  The same
-builder accepts any segment Function of the same signature: the benchmarks swap in
-CVODES arcs (:func:`cvodes_segment`, or :func:`cvodes_time_segment` in time), and the
-polish (``optimisation.polish``) RK4 arcs in time (``propagation.rk4``), with
-the segment durations as the length variables: ``transcribe(..., length_in="time")``.
+The segment Function is ``map``-ped over the N segments inside an MX NLP, so the NLP
+holds one copy of the arc's graph however many segments there are.  Which Function is
+the segment method's choice (``optimisation.segment_methods``): the closed form by
+default; the benchmarks pass RK4 or CVODES arcs, and the polish RK4 or CVODES arcs in
+time, whose segment durations are then the length variables.
 
 In three dimensions (``Problem.three_d``: a real body, not ``planar=True``) a node adds
 the unit quaternion of its orbital plane, ``X[9 x N]`` = [r, theta, v_r, v_theta, t, qw,
 qx, qy, qz] with theta inside that plane, each segment adds a clock angle ``delta[N]``
-(after every planar variable, within ``Problem.clock_bounds``), and the segment is
-:func:`closed_form_segment3d`, the planar arc in a plane that turns
+(after every planar variable, within ``Problem.clock_bounds``), and the closed-form
+segment is ``segment_methods.closed_form_segment3d``, the planar arc in a plane that turns
 (``propagation.rectified3d``).  The departure is the body's smooth 3-D track
 (``bodies.track.Track3``) at the epoch, and a body target's rows hold the final node to
 the target's 3-D track at the arrival date in the ecliptic's cylindrical coordinates
@@ -47,18 +46,12 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from esail_opt.propagation import compiled
-from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
-from esail_opt.propagation.rectified import (flies_native, piece_function, propagate,
-                                             rectified_function)
-from esail_opt.propagation.rectified3d import arc_function3d
-from esail_opt.propagation.rk4 import rk4_segment3d
-from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
+from esail_opt.propagation.arcs import FIRST_ORDER
+from esail_opt.propagation.rectified import propagate
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError
-from esail_opt.physics import rotation
+from esail_opt.optimisation.segment_methods import ClosedForm
 from esail_opt.physics.elements import cartesian_from_polar3d
-from esail_opt.physics.thrust import EXACT
 
 #: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
 #: a_c = 1 mm/s^2 (THEORY.md §5.2: sub-arcs of about a tenth of a radian).
@@ -93,14 +86,6 @@ def segment_threads():
     return max(1, min(4, os.cpu_count() or 1))
 
 
-#: Segments that integrate with CVODES (:func:`cvodes_segment`, :func:`cvodes_time_segment`)
-#: are mapped serially.  On two threads the Hessian of a CVODES theta segment differed
-#: from call to call by up to 1e-11 (8 segments, 6 calls at one point; identical
-#: serially), enough for one seed to fail and then succeed; determinism is worth more
-#: than the second core there.
-INTEGRATOR_SEGMENTS = ("segment_cvodes", "segment_exact")
-
-
 def strain(problem, r_starts, lengths, throttle=None):
     """a~_c dtheta of each segment's sub-arcs as a fraction of :data:`STRAIN_CAP`
     (a~_c = kappa ac r0 with r_E = 1 au; numpy arrays of the segments' start radii,
@@ -121,123 +106,6 @@ def sub_arcs_within_cap(problem, guess, most):
     sub = min(most, math.ceil(problem.segments.sub_arcs * worst))
     return dataclasses.replace(problem, segments=dataclasses.replace(problem.segments,
                                                                      sub_arcs=sub))
-
-
-def arc_model(problem):
-    """The arcs ``problem``'s NLP flies: :class:`ArcModel`'s default with the problem's
-    sub-arcs and extrapolation, compiled unless compiling is off (``ESAIL_OPT_COMPILE=0``;
-    ``propagation.compiled``).  The verification's closed-form curve flies the same."""
-    seg = problem.segments
-    return ArcModel(sub_arcs=seg.sub_arcs, extrapolate=seg.extrapolate,
-                    native=compiled.enabled())
-
-
-@functools.lru_cache(maxsize=None)
-def closed_form_segment(*, coefficients=EXACT, model=ArcModel()):
-    """One constant-pitch segment of ``model.sub_arcs`` rectified closed-form arcs.
-
-    It is ``rectified.rectified_function`` of one segment on ``model``'s arcs (by
-    default second order, ending on the exact angular momentum, ``arcs.QUAD_NODES``
-    Gauss-Legendre points, not extrapolated: ``propagation.arcs.ArcModel`` says why);
-    the NLP restarts every segment from its node.
-
-    Parameters
-    ----------
-    coefficients : tuple
-        (b1, b2) of Eqs. 3-4.
-    model : ArcModel
-        The arcs.  With ``model.native`` they are compiled (``propagation.compiled``):
-        the same arithmetic, with the derivatives Ipopt asks for run as C, and the
-        segment's own graph of arc calls and its derivatives compiled too (a library
-        linked against the arcs').  Where nothing can be compiled the segment is the
-        expanded SX one, as with ``native=False``; where only the segment's graph fails
-        to compile, it is that MX graph over the compiled arcs.
-
-    Returns
-    -------
-    casadi.Function
-        ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``: x = [r, theta, v_r,
-        v_theta, t] canonical, and q3 is each sub-arc's validity margin at its end (the
-        smallest over its whole and half arcs).  SX and expanded, or an ``External``
-        (or MX) over the compiled arcs.
-    """
-    native = flies_native(coefficients=coefficients, model=model)
-    chain = rectified_function(1, coefficients=coefficients, model=model)
-    sym = ca.MX if native else ca.SX
-    if not native:
-        chain = chain.expand()
-    x0 = sym.sym("x0", 5)
-    ac, alpha, dtheta = sym.sym("ac"), sym.sym("alpha"), sym.sym("dtheta")
-    xs, q3 = chain(x0, ac, alpha, dtheta)
-    # Inlined compiled arcs each recompute the pitch's thrust factors; shared once,
-    # the derivatives of the graph are cheaper.
-    segment = ca.Function("segment", [x0, ac, alpha, dtheta], [xs[:, -1], q3.T],
-                          ["x0", "ac", "alpha", "dtheta"], ["x1", "q3"], {"cse": native})
-    if native:
-        # The chain rule between the arcs compiled as well, calling the arcs' library:
-        # on CasADi's virtual machine it was a large part of every Hessian and
-        # constraint Jacobian.  One library per sub-arc count and extrapolation setting.
-        segment = compiled.compiled(segment, (piece_function(coefficients=coefficients,
-                                                             model=model),))
-    return segment
-
-
-@functools.lru_cache(maxsize=None)
-def closed_form_segment3d(*, coefficients=EXACT, model=ArcModel()):
-    """One segment of constant pitch and clock in three dimensions, ``model.sub_arcs``
-    rectified closed-form arcs: ``(x0[9], ac, alpha, delta, dtheta) -> (x1[9],
-    q3[sub_arcs])``, x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] (the planar arc's
-    state inside the plane of the unit quaternion, ``propagation.rectified3d``).
-
-    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX, flown from
-    the identity quaternion: an arc's polar rows never depend on its plane, and its
-    plane ends as the start's times the turn that the identity ends at
-    (``plane_turn.turned_plane``).  So the arcs chain the polar state and the product
-    of their turns, and the segment's start quaternion enters once, in one product at
-    its end -- the same quaternion products, grouped the other way (equal to rounding).
-    The expensive part, whose Hessian Ipopt asks for, then takes the planar arc's inputs
-    and the clock (10 in all, not 14).  With ``model.native`` the arc is compiled with
-    its derivatives and the segment's chain compiled over it
-    (``propagation.compiled``), as :func:`closed_form_segment` does in the plane;
-    otherwise, or where nothing compiles, the segment is the expanded SX chain.
-    """
-    if model.extrapolate:
-        raise InputError("segments.extrapolate = True is not available in three "
-                         "dimensions; use False")
-    one = dataclasses.replace(model.one_arc(), native=False)
-    full = arc_function3d(1, coefficients=coefficients, model=one).expand()
-    polar = ca.SX.sym("x0", 5)
-    ac, alpha, delta, dtheta = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
-    xs, q3 = full(ca.vertcat(polar, *rotation.IDENTITY), ac, alpha, delta, dtheta)
-    arc = ca.Function("arc_turn3d", [polar, ac, alpha, delta, dtheta],
-                      [xs[:5, -1], xs[5:, -1], q3], ["x0", "ac", "alpha", "delta", "dtheta"],
-                      ["x1", "turn", "q3"], {"cse": True})
-    fast = compiled.compiled(arc) if model.native else arc
-    native = fast is not arc
-    sym = ca.MX if native else ca.SX
-    x0 = sym.sym("x0", 9)
-    ac, alpha, delta, dtheta = (sym.sym(n) for n in ("ac", "alpha", "delta", "dtheta"))
-    x, turn, margins = x0[:5], None, []
-    for _ in range(model.sub_arcs):
-        x, step, q3 = fast(x, ac, alpha, delta, dtheta / model.sub_arcs)
-        turn = step if turn is None else rotation.multiply(turn, step)
-        margins.append(q3)
-    segment = ca.Function("segment3d", [x0, ac, alpha, delta, dtheta],
-                          [ca.vertcat(x, rotation.multiply(x0[5:], turn)),
-                           ca.vertcat(*margins)],
-                          ["x0", "ac", "alpha", "delta", "dtheta"], ["x1", "q3"],
-                          {"cse": True})
-    return compiled.compiled(segment, (arc,)) if native else segment
-
-
-def problem_segment(problem):
-    """The closed-form segment of ``problem``'s NLP, on its :func:`arc_model`: planar, or
-    :func:`closed_form_segment3d` for a problem that flies in three dimensions."""
-    if problem.three_d():
-        return closed_form_segment3d(coefficients=problem.sail.coefficients,
-                                     model=arc_model(problem))
-    return closed_form_segment(coefficients=problem.sail.coefficients,
-                               model=arc_model(problem))
 
 
 def start_node(x_start):
@@ -262,106 +130,6 @@ def node_cartesian(node):
     return np.array(_node_cartesian()(np.asarray(node, float).ravel()), float).ravel()
 
 
-def node_from_swept(y, theta, quat_start):
-    """The 3-D node [r, theta, v_r, v_theta, qw, qx, qy, qz] (no time row) of the
-    Cartesian state ``y`` whose Sun-sail line has swept to the angle ``theta``, in the
-    gauge of the turning plane (THEORY.md §9.3) that starts at ``quat_start``.
-
-    The plane's frame never spins about its normal, so its x axis is where theta = 0:
-    x = cos(theta) r_hat - sin(theta) t_hat, y = sin(theta) r_hat + cos(theta) t_hat,
-    z = h_hat.  The quaternion is ``quat_start`` times the turn from its frame to that
-    one, read off the rotation matrix by its scalar-first branch, smooth while the
-    plane turns by less than a half turn over the arc.  CasADi operations: numbers or
-    symbols.
-    """
-    pos, vel = y[:3], y[3:6]
-    r = ca.norm_2(pos)
-    r_hat = pos / r
-    h_vec = ca.vertcat(pos[1] * vel[2] - pos[2] * vel[1], pos[2] * vel[0] - pos[0] * vel[2],
-                       pos[0] * vel[1] - pos[1] * vel[0])
-    h = ca.norm_2(h_vec)
-    h_hat = h_vec / h
-    t_hat = ca.vertcat(h_hat[1] * r_hat[2] - h_hat[2] * r_hat[1],
-                       h_hat[2] * r_hat[0] - h_hat[0] * r_hat[2],
-                       h_hat[0] * r_hat[1] - h_hat[1] * r_hat[0])
-    c, s = ca.cos(theta), ca.sin(theta)
-    frame = ca.horzcat(c * r_hat - s * t_hat, s * r_hat + c * t_hat, h_hat)
-    quat_start = quat_start / ca.norm_2(quat_start)
-    m = ca.mtimes(rotation.matrix(quat_start).T, frame)
-    w = 0.5 * ca.sqrt(1 + m[0, 0] + m[1, 1] + m[2, 2])
-    turn = ca.vertcat(w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w),
-                      (m[1, 0] - m[0, 1]) / (4 * w))
-    return ca.vertcat(r, theta, ca.dot(pos, vel) / r, h / r,
-                      rotation.multiply(quat_start, turn))
-
-
-@functools.lru_cache(maxsize=None)
-def rk4_time_segment3d(steps, coefficients=EXACT):
-    """The 3-D polish's segment: ``steps`` RK4 steps in time on the Cartesian equations
-    (``rk4.rk4_segment3d`` with the angle swept), between 3-D nodes.
-
-    ``(x0[9], ac, alpha, delta, duration) -> (x1[9], q3[0])``, x = [r, theta, v_r,
-    v_theta, t, qw, qx, qy, qz]: the node is turned into its Cartesian state
-    (``elements.cartesian_from_polar3d``), flown, and named again by
-    :func:`node_from_swept` with theta advanced by the angle swept, so that its ends
-    are in the same gauge as the closed form's (:func:`closed_form_segment3d`) and the
-    NLP's continuity rows mean the same thing for both.  SX, expanded; q3 is empty, as
-    for every exact arc.
-    """
-    x0 = ca.SX.sym("x0", 9)
-    ac, alpha, delta, duration = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "duration"))
-    quat = x0[5:] / ca.norm_2(x0[5:])
-    y0 = ca.vertcat(cartesian_from_polar3d(x0[:4], quat), x0[4], x0[1])
-    y1 = rk4_segment3d(steps, coefficients, "time", swept=True)(y0, ac, alpha, delta,
-                                                                  duration)[0]
-    node = node_from_swept(y1[:6], y1[7], quat)
-    x1 = ca.vertcat(node[:4], y1[6], node[4:])
-    return ca.Function("segment_rk4_time3d", [x0, ac, alpha, delta, duration],
-                       [x1, ca.SX(0, 1)],
-                       ["x0", "ac", "alpha", "delta", "duration"], ["x1", "q3"]).expand()
-
-
-@functools.lru_cache(maxsize=None)
-def cvodes_segment(sub_arcs, coefficients=EXACT):
-    """The same segment as :func:`closed_form_segment` with CVODES arcs on Eqs. 1-2.
-
-    ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``: one CVODES integration in
-    theta over the segment at tolerances 1e-12 (``simulate.segment_integrator``); CasADi
-    differentiates it through forward and adjoint sensitivities.  There is no first-order
-    arc, so its q3 outputs are a constant 1, which keeps the NLP's constraint count and
-    structure identical to the closed form's (for the benchmark).
-    """
-    seg = segment_integrator(1, "theta", coefficients)
-    x0 = ca.MX.sym("x0", 5)
-    ac, alpha, dtheta = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("dtheta")
-    x1 = seg(x0, ac, alpha, dtheta)[:, -1]
-    return ca.Function("segment_cvodes", [x0, ac, alpha, dtheta],
-                       [x1, ca.MX.ones(sub_arcs, 1)],
-                       ["x0", "ac", "alpha", "dtheta"], ["x1", "q3"])
-
-
-@functools.lru_cache(maxsize=None)
-def cvodes_time_segment(coefficients=EXACT):
-    """One constant-pitch segment of Eqs. 1-2 integrated by CVODES in time: the exact arc.
-
-    ``(x0[5], ac, alpha, duration) -> (x1[5], q3[0])``: one CVODES integration over the
-    segment's duration (TU) at tolerances 1e-15 (``simulate.segment_integrator``), which
-    CasADi differentiates through forward and adjoint sensitivities.  The state's t row
-    advances by the duration itself.  An exact arc has no first-order validity margin, so
-    q3 is empty and :func:`transcribe` (``length_in="time"``) adds no q3 rows.  Time,
-    not theta, is the independent variable: the verification flies the schedule in time,
-    so the polished NLP and its check integrate the same equations the same way.
-    """
-    # As tight as the verifier's check: at 1e-12 the polished optimum itself was 2-10 m
-    # off where an independent DOP853 flight ended, so it could not meet a 1 m bound.
-    seg = segment_integrator(1, "time", coefficients, CHECK_TOLERANCE)
-    x0 = ca.MX.sym("x0", 5)
-    ac, alpha, duration = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("duration")
-    x1 = seg(x0, ac, alpha, duration)[:, -1]
-    return ca.Function("segment_exact", [x0, ac, alpha, duration], [x1, ca.MX(0, 1)],
-                       ["x0", "ac", "alpha", "duration"], ["x1", "q3"])
-
-
 def flown_segments(problem, alpha, lengths, x_start, throttle=None, delta=None):
     """The NLP's own chain of segments flown forward from ``x_start`` (no continuity
     defects): node states [5 x N+1] with time (9 rows in three dimensions, from an
@@ -375,7 +143,7 @@ def flown_segments(problem, alpha, lengths, x_start, throttle=None, delta=None):
         controls.append((np.zeros(n) if delta is None else np.asarray(delta, float))[None, :])
     # One call of the accumulated segment rather than one Python call per segment: the
     # same numbers, without a call's overhead per segment.
-    ends = problem_segment(problem).mapaccum(n)(
+    ends = ClosedForm().function(problem).mapaccum(n)(
         x, problem.sail.ac * kappa[None, :], *controls,
         np.asarray(lengths, float)[None, :])[0]
     return np.column_stack([x, np.array(ends)])
@@ -774,7 +542,7 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
     ac_scale = v["ac_scale"][0] if v["ac_scale"].numel() else 1
     ac = problem.sail.ac * ac_scale * (v["kappa"].T if v["kappa"].numel() else 1)
     length = v["length"] * scales.length
-    threads = min(threads, n) if segment.name() not in INTEGRATOR_SEGMENTS else 1
+    threads = min(threads, n)
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
     controls = [v["alpha"].T] + ([v["delta"].T] if three_d else [])
     ends, q3 = mapped(starts, ac, *controls, length.T)
@@ -832,45 +600,43 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     return g
 
 
-def transcribe(problem, segment=None, guess=None, length_in="theta", threads=None):
+def transcribe(problem, method=None, guess=None, threads=None):
     """Build the multiple-shooting NLP of ``problem``.
 
     Parameters
     ----------
     problem : Problem
-    segment : casadi.Function, optional
-        ``(x0[5], ac, alpha, length) -> (x1[5], q3[m])``; default the closed form's
-        :func:`closed_form_segment`.  The benchmark passes CVODES arcs here, and the
-        polish RK4 arcs in time (with ``length_in="time"``).
+    method : segment method, optional
+        How the segments are flown (``segment_methods``: :class:`ClosedForm`, the
+        default, ``RK4`` or ``CVODES``).  Its ``length_in`` says what the length
+        variables measure: each segment's arc angle (rad), or its duration (TU).  In
+        time, equal segments mean equal angles (a constraint on the nodes' theta), the
+        segment lengths returned by ``unpack`` are still the angles swept, and a
+        segment with an empty q3 output adds no q3 rows.
     guess : Guess, optional
         Default :func:`initial_guess`.  Its size sets the number of segments N and its
-        revolution class (turns, final-angle window) is kept.  With
-        ``length_in="time"`` its ``lengths`` are the segment durations (TU).
-    length_in : {"theta", "time"}
-        What the length variables measure: each segment's arc angle (rad), or its
-        duration (TU).  In time, equal segments mean equal angles (a constraint on the
-        nodes' theta), the segment lengths returned by ``unpack`` are still the angles
-        swept, and a segment with an empty q3 output adds no q3 rows.
+        revolution class (turns, final-angle window) is kept.  With a method in time
+        its ``lengths`` are the segment durations (TU).
     threads : int, optional
-        Threads the segments are evaluated on, at most; default
+        Threads the segments are evaluated on, at most (one for a ``serial`` method);
+        default
         :func:`segment_threads`.  The optimum and its iterations do not depend on it.
 
     Returns
     -------
     Transcription
     """
-    if length_in not in ("theta", "time"):
-        raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
-    in_time = length_in == "time"
-    segment = _checked_segment(problem, segment)
+    method = ClosedForm() if method is None else method
+    in_time = method.length_in == "time"
+    segment = _checked_segment(problem, method.function(problem))
     guess = initial_guess(problem) if guess is None else guess
     scales = _Scales.of(guess)
     v, variables = _variables(problem, guess, scales, in_time)
     n_corr = 12 if problem.three_d() else 8
     params = {"epoch": ca.MX.sym("epoch"), "tof": ca.MX.sym("tof"),
               "corrections": ca.MX.sym("corrections", n_corr)}
-    flight = _flight(problem, segment, v, params, scales, in_time,
-                     segment_threads() if threads is None else threads)
+    threads = 1 if method.serial else segment_threads() if threads is None else threads
+    flight = _flight(problem, segment, v, params, scales, in_time, threads)
     g = _constraints(problem, guess, v, params, flight, scales, in_time)
     w, lbx, ubx, w0 = variables.stacked()
     g_expr, lbg, ubg, _ = g.stacked()
@@ -890,10 +656,8 @@ def transcribe(problem, segment=None, guess=None, length_in="theta", threads=Non
 
 
 def _checked_segment(problem, segment):
-    """``segment``, or the problem's closed-form one by default; ValueError if its
-    inputs are not those of the problem's segments (planar or 3-D)."""
-    if segment is None:
-        return problem_segment(problem)
+    """``segment``; ValueError if its inputs are not those of the problem's segments
+    (planar or 3-D)."""
     if segment.n_in() != (5 if problem.three_d() else 4):
         raise ValueError(f"segment {segment.name()!r} has {segment.n_in()} inputs; a "
                          f"{'3-D' if problem.three_d() else 'planar'} problem's segment takes "

@@ -13,7 +13,7 @@ at CVODES tolerances of 3e-16 and 1e-15 (``simulate.VERIFY_TOLERANCE`` and
 error.  :func:`judge` counts a bound as met only when the miss plus that error is below it.
 
 Beside the flight, :func:`verify` draws the closed form the NLP solved: every segment
-flown from its own node on the NLP's own arcs (``transcription.arc_model``: order,
+flown from its own node on the NLP's own arcs (``segment_methods.arc_model``: order,
 invariant, sub-arcs, extrapolation and quadrature), so that the curve's segment ends are
 the NLP's nodes and the gap between the two curves is the closed form's error alone.
 """
@@ -24,7 +24,8 @@ from typing import Optional
 import numpy as np
 
 from esail_opt.optimisation.goals import cartesian_miss, state_miss
-from esail_opt.optimisation.transcription import arc_model, node_cartesian, start_node
+from esail_opt.optimisation.segment_methods import arc_model
+from esail_opt.optimisation.transcription import node_cartesian, start_node
 from esail_opt.propagation.rectified import propagate
 from esail_opt.propagation.rectified3d import propagate3d
 from esail_opt.propagation.simulate import (CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate,

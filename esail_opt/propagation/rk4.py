@@ -5,9 +5,11 @@ it and removes its truncation error by defect correction against CVODES, which i
 cheaper per Ipopt iteration than differentiating CVODES itself.  The precision benchmark
 (``esail_opt.bench.precision``) uses it as the baseline a generic optimal-control tool
 gives: the classic RK4 at a fixed number of steps per shooting segment.  Either way it
-has the signature of ``transcription.closed_form_segment``, so the same multiple-shooting
+has the signature of ``segment_methods.closed_form_segment``, so the same multiple-shooting
 NLP takes it.
 """
+
+import functools
 
 import casadi as ca
 
@@ -16,6 +18,7 @@ from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_cartesian_in_the
 from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse_normal
 
 
+@functools.lru_cache(maxsize=None)
 def rk4_segment(steps, coefficients=EXACT, length_in="theta"):
     """One constant-pitch segment of Eqs. 1-2 by ``steps`` equal classic RK4 steps.
 
@@ -75,6 +78,7 @@ def _classic_step(f, x, h):
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
+@functools.lru_cache(maxsize=None)
 def rk4_segment3d(steps, coefficients=EXACT, length_in="theta", swept=False):
     """One segment of constant pitch and clock on the Cartesian equations
     (``dynamics.rhs_cartesian``) by ``steps`` equal classic RK4 steps.
@@ -107,13 +111,14 @@ def rk4_segment3d(steps, coefficients=EXACT, length_in="theta", swept=False):
     return _stepped3d("segment_rk4_3d", step, rows, steps, ("y0", "y1"), "length")
 
 
+@functools.lru_cache(maxsize=None)
 def rk4_segment_turning(steps, coefficients=EXACT):
     """One segment of constant pitch and clock on the turning-plane equations
     (``dynamics.rhs_turning``: Eqs. 1-2 inside a plane whose quaternion turns) in theta,
     by ``steps`` equal classic RK4 steps: the node layout of the 3-D NLP.
 
     Returns ``(x0[9], ac, alpha, delta, dtheta) -> (x1[9], q3[0])``, SX and expanded,
-    x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] as ``transcription.closed_form_segment3d``
+    x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] as ``segment_methods.closed_form_segment3d``
     takes it.  What a generic transcription of the same state would fly; the quaternion's
     norm drifts by the method's error, as any component does.
     """
