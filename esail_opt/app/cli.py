@@ -258,11 +258,13 @@ def _add_solve(sub):
         "solve", help="optimise a problem file and verify the result on CVODES",
         description="Solve the problem defined in PROBLEM.py (a file that builds "
         "`problem = esail_opt.Problem(...)`) by closed-form multiple shooting and Ipopt, "
-        "control the closed form's error (defect correction against Eqs. 1-2, more "
-        "sub-arcs where it is strained) until the schedule, flown on Eqs. 1-2 with "
-        "CVODES, meets the tolerance, and write solution.json, schedule.csv, trajectory.png and "
-        "timeline.png.  With --polish, then re-solve the same schedule on exact CVODES "
-        "arcs of Eqs. 1-2 in time and verify that it flies to within 1 m and 1 mm/s.  "
+        "control the closed form's error (defect correction against the equations of "
+        "motion, more sub-arcs where it is strained) until the schedule, flown on them "
+        "with CVODES, meets the tolerance, and write solution.json, schedule.csv, "
+        "trajectory.png and timeline.png.  The equations are Eqs. 1-2 in the plane, and "
+        "the Cartesian ones for a real body's problem, which flies in three dimensions "
+        "unless it sets planar=True.  With --polish, then re-solve the same schedule on "
+        "the exact equations in time and verify that it flies to within 1 m and 1 mm/s.  "
         "Exit status 0 only for a converged and verified solve (and polish); 1 with one "
         "line saying which bound was missed and by how much; 2 for bad input; 3 when the "
         "output folder cannot be written (checked before the solve); 4 when a verified "
@@ -275,7 +277,8 @@ def _add_solve(sub):
     _add_tolerance(p)
     p.add_argument("--out", default=None, help="output directory (default results/<problem name>)")
     p.add_argument("--polish", action="store_true",
-                   help="polish the optimum on the exact Eqs. 1-2 (in time), held to 1 m and 1 mm/s")
+                   help="polish the optimum on the exact equations of motion (in time), held "
+                   "to 1 m and 1 mm/s")
     p.add_argument("--no-plots", action="store_true",
                    help="write everything but the figures (`esail-opt plot` draws them later)")
     p.set_defaults(run=_run_solve)
@@ -378,8 +381,9 @@ def _add_search(sub):
         description="Solve the minimum-time problem in PROBLEM.py once per revolution class "
         "(the free start; then final-angle windows of whole revolutions for an orbit "
         "transfer, or the sail's whole turns on the body for a rendezvous), polish every "
-        "distinct optimum on the exact Eqs. 1-2, rank them on the verified exact time of "
-        "flight, and write search.json, search.csv, search.png and best/.  Exit status 0 "
+        "distinct optimum on the exact equations of motion, rank them on the verified "
+        "exact time of flight, and write search.json, search.csv, search.png and best/.  "
+        "Exit status 0 "
         "when the best optimum's polish is verified to 1 m and 1 mm/s, 1 otherwise.",
     )
     p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
@@ -527,7 +531,8 @@ def _add_porkchop(sub):
         "--tof, at every (date, time of flight) cell, the objective's time of flight "
         "replaced (a fixed-time objective such as MinAcceleration: the a_c a transfer "
         "needs).  Neighbouring cells share one NLP and warm-start from each other; every "
-        "cell is verified on Eqs. 1-2 against the ephemeris.  Writes porkchop.json, "
+        "cell is verified by CVODES on the equations of motion (in three dimensions "
+        "unless the problem sets planar=True) against the ephemeris.  Writes porkchop.json, "
         "porkchop.csv and porkchop.png; exit status 1 if any cell is not verified.  Runs "
         "on the scan engine: journal (porkchop.jsonl), --resume, retries, Dask.",
     )
