@@ -15,6 +15,7 @@ import pytest
 import esail_opt as eo
 from esail_opt.app import cli, search
 from esail_opt.app.solution import Solution
+from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart, pipeline, scan
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.problem_file import load_problem
@@ -119,6 +120,22 @@ def test_a_min_acceleration_solve_with_no_sail_reports_the_shortest_feasible_fli
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith("esail-opt solve: ") and f"{near['tof_days']:.1f} d" in err
 
+
+def test_a_longer_flight_whose_seed_escapes_ends_the_walk_without_an_error(monkeypatch):
+    """Earth-Ceres in 1,500 d at a seed a_c of 1 mm/s^2 found no point, and its seed at
+    1,650 d escaped before its time of flight: the InputError of that seed ended the
+    whole run with exit 2 and nothing written.  A rung with no seed has no point."""
+    problem = load_problem(TESTS / "earth_mars_no_sail_600d.py")
+    escaped = InputError("the seeding propagation at constant pitch leaves the closed "
+                         "form's validity")
+
+    def seed(cell):
+        raise escaped
+
+    monkeypatch.setattr(pipeline, "initial_guess", seed)
+    lines = []
+    assert pipeline.shortest_feasible(problem, lines.append) is None
+    assert any("no seed at 660 d" in line for line in lines), lines
 
 @pytest.mark.slow
 def test_the_shortest_feasible_flight_is_no_longer_than_one_a_minimum_time_solve_flies():

@@ -536,7 +536,13 @@ def _ladder(problem, say):
     lo, iterations = asked, 0
     for factor in LONGER:
         say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
-        cell, result, tr, spent = _rung(scan.at_tof(problem, asked * factor), say)
+        try:
+            cell, result, tr, spent = _rung(scan.at_tof(problem, asked * factor), say)
+        except InputError as why:
+            # The rung's seed cannot be flown (it escapes before the time of flight):
+            # no point there, and a longer rung's seed flies longer still.
+            say(f"{problem.name}: no seed at {asked * factor:.6g} d: {why}")
+            return None
         iterations += spent
         if result.outcome.converged:
             return cell, result, tr, iterations, lo
@@ -547,7 +553,8 @@ def _ladder(problem, say):
 def _rung(problem, say):
     """One rung of :func:`_ladder`: a single solve from ``problem``'s seed and, when
     that finds no point, a lone solve (:func:`_lone`, without a walk of its own):
-    (problem, NLPResult, Transcription, Ipopt iterations of both).
+    (problem, NLPResult, Transcription, Ipopt iterations of both).  Raises InputError
+    when the seed cannot be flown.
 
     Why both: the single solve is cheap, and where it converges the walk has always
     started from it; where it does not, the lone solve's turn-count search can still
