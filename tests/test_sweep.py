@@ -198,6 +198,13 @@ def test_polished_member_is_exact_and_cannot_beat_the_continuous_optimum(tiny):
     assert row["exact_verified"] is True
     assert row["exact_target_miss_km"] < 1e-3
     assert reference - 1e-3 <= row["tof_days_exact"] < 1.05 * reference
+    # The figure draws the polished miss in the panel's km, as the row holds it (it was
+    # drawn a thousand times too small, as if the row held metres).
+    misses = sweep.figure({"problem": "tiny", "field": "ac_mm_s2", "param": "ac_mm_s2",
+                           "unit": "mm/s^2", "failed": 0, "polished": True,
+                           "rows": [row]}).axes[2]
+    polished = [line for line in misses.get_lines() if line.get_marker() == "s"][0]
+    assert list(polished.get_ydata()) == [row["exact_target_miss_km"]]
     plain = sweep.solve_member(0, "ac_mm_s2", 1.0, tiny.read_text(), tiny.name)
     assert plain["tof_days_exact"] is None and plain["exact_verified"] is None
     assert plain["tof_days"] == row["tof_days"]

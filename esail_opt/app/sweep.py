@@ -505,10 +505,8 @@ def figure(result, axes=None):
     return fig
 
 
-#: The polished counterpart of a panel's closed-form column, and its scale to the
-#: panel's unit (metres to km for the miss).
-_EXACT = {"tof_days": ("tof_days_exact", 1.0),
-          "target_miss_r_km": ("exact_target_miss_km", 1e-3)}
+#: The polished counterpart of a panel's closed-form column (in the panel's unit).
+_EXACT = {"tof_days": "tof_days_exact", "target_miss_r_km": "exact_target_miss_km"}
 
 
 def _panel(ax, result, key, scale, factor=1.0):
@@ -523,7 +521,7 @@ def _panel(ax, result, key, scale, factor=1.0):
         ax.plot(*zip(*good), "o-", color="C0",
                 label="converged (closed form)" if result.get("polished") else "converged")
     if result.get("polished") and key in _EXACT:
-        _exact_points(ax, rows, *_EXACT[key])
+        _exact_points(ax, rows, _EXACT[key])
     shown = [(v, y) for v, y in bad if y is not None]
     if shown:
         ax.plot(*zip(*shown), "x", color="C3", ms=9, mew=2,
@@ -537,10 +535,10 @@ def _panel(ax, result, key, scale, factor=1.0):
         ax.set_yscale("log")
 
 
-def _exact_points(ax, rows, key, scale_by):
+def _exact_points(ax, rows, key):
     """The polished schedules' numbers beside the closed form's; hollow where the
     polish is not verified."""
-    points = [(r["value"], scale_by * r[key], r["exact_verified"]) for r in rows
+    points = [(r["value"], r[key], r["exact_verified"]) for r in rows
               if r["error"] is None and r[key] is not None]
     if not points:
         return
