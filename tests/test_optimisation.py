@@ -368,3 +368,33 @@ def test_a_run_that_found_nothing_is_neither_error_controlled_nor_polished():
     assert d["outcome"] == "failed" and d["refinement"]["rounds"] == []
     assert "polished" not in d["trajectory"] and "tof_days_exact" not in d
     assert not Solution.of(run).verified
+
+
+def test_a_correction_that_loses_the_point_leaves_the_round_before_it(monkeypatch):
+    """A defect correction that ends with no point (a restoration failure near a
+    degenerate optimum) is no answer: the error control keeps the last round that
+    found one, judged as flown, and its history keeps the failed round."""
+    import dataclasses
+
+    from esail_opt.optimisation import error_control
+
+    problem = small_problem(tolerance=eo.Tolerance(position_km=1e-3, velocity_m_s=1e-6))
+    result, tr = solve_problem(problem)
+    real, calls = error_control._correct, []
+
+    def correct(tr, defects, result, solver, cold, progress):
+        calls.append(cold)
+        fixed, solver = real(tr, defects, result, solver, cold, progress)
+        if len(calls) < 2:
+            return fixed, solver
+        return dataclasses.replace(fixed, status="Restoration_Failed",
+                                   outcome=Outcome.INFEASIBLE), solver
+
+    monkeypatch.setattr(error_control, "_correct", correct)
+    controlled = error_control.control_error(problem, result, tr)
+    assert len(calls) == 2
+    assert [r.status for r in controlled.history][-1] == "Restoration_Failed"
+    assert controlled.result.outcome.found
+    kept = controlled.history[-2]
+    assert controlled.result.objective == kept.objective
+    assert controlled.check.misses["target_miss_r_km"] == kept.target_miss_r_km

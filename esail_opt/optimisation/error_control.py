@@ -93,10 +93,12 @@ class ErrorControl:
     problem : Problem
         The problem as last solved (its ``segments.sub_arcs`` may have grown).
     result : NLPResult
-        The last optimum.
+        The last optimum: the last round's, unless that round's correction found no
+        point after an earlier one had (then that earlier round's, and the rounds after
+        it are in ``history`` only).
     transcription : Transcription
     history : list of Round
-        One per round, the last one ``result``'s.
+        One per round, in order.
     local_error_km : numpy.ndarray
         Per segment, the closed form's position error against Eqs. 1-2 over that
         segment from its own start node, km (NaN where a segment could not be flown).
@@ -252,12 +254,22 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
     history, last_miss, applied = [], None, defects
     local_km = np.full(result.alpha.size, np.nan)  # until a round flies every segment
     started = time.perf_counter()
+    found = None  # the last round that found a point, as the ErrorControl it would end
     for rnd in range(max_rounds + 1):
         check, exact, plain, local_km = _judge(problem, result, samples, applied, local_km,
                                                say)
         history.append(_row(rnd, problem, result, check, local_km,
                             time.perf_counter() - started))
         miss = _said_miss(rnd, problem, check, say)
+        if not result.outcome.found and found is not None:
+            # A correction that lost the point (a restoration failure near a degenerate
+            # optimum, say) makes no answer of the rounds before it: the last that
+            # found a point stands, judged as flown.
+            say(f"error control: round {rnd} found no point ({result.status}); keeping "
+                f"round {rnd - 1}'s")
+            return dataclasses.replace(found, history=history)
+        if result.outcome.found:
+            found = ErrorControl(problem, result, tr, None, local_km, check, applied)
         if (rnd == max_rounds or exact is None or not result.outcome.found
                 or (check.judge(problem)[0] and result.converged)):
             break
