@@ -69,6 +69,24 @@ def test_rendezvous_starts_carry_their_turn_count():
     assert all(s.window is None for s in starts)
 
 
+def test_a_search_for_a_body_with_negative_turn_counts_has_starts_beside_its_own():
+    """Venus's turn counts since 2000 are negative: every class was filtered out as if
+    it were a window index below 0, and search stopped after its own seed ("no start
+    converged (1 starts)", Earth-Venus leaving 2031-03-01)."""
+    from types import SimpleNamespace
+
+    from esail_opt.optimisation.transcription import initial_guess
+
+    problem = eo.Problem("venus_2031", eo.BodyDeparture("earth", "2031-03-01"), eo.Sail(1.0),
+                         eo.Segments(count=12, sub_arcs=3, equal=False), eo.MinTime(),
+                         eo.BodyRendezvous("venus"))
+    guess = initial_guess(problem)
+    assert guess.revolutions_k < 0
+    centre, starts = multistart._class_starts(problem, None, SimpleNamespace(guess=guess), 2)
+    k = guess.revolutions_k
+    assert centre == k
+    assert [s.guess.revolutions_k for s in starts] == [k - 1, k + 1, k + 2]
+
 def test_a_count_no_seed_winds_gets_a_start_that_winds_it():
     """Earth-Venus leaving 2031-01-21 in 720 d (planar): the -45 and -67.5 deg seeds wind
     -17 and -19 turns; the start of k = -18 is a pitch between them whose own

@@ -646,8 +646,11 @@ def _class_starts(problem, first, tr, extra_revolutions):
     # The free start's own window gets a start of its own as well: on Earth-Mars at 30
     # segments the two reach the same transfer with the pitch passing +-90 deg in
     # different segments, and only one of the two polished to a verified schedule.
+    # A real body's k counts from the turns both bodies made since 2000, so it may be
+    # negative (Venus's are); an idealised body's and a window's count from 0.
+    real = getattr(problem.target, "body", None) is not None
     classes = [k for k in range(centre - 1, centre + extra_revolutions + 1)
-               if k >= 0 and not (rendezvous and k == base_k)]
+               if (real or k >= 0) and not (rendezvous and k == base_k)]
     starts = (rendezvous_starts(problem, classes) if rendezvous
               else window_starts(problem, classes))
     return centre, starts
