@@ -1,6 +1,7 @@
 """Fast tests of the optimiser: the transcription against the rectified propagator, the
 Ipopt set-up, problem validation and the ``solve`` command's handling of bad files."""
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -314,14 +315,25 @@ def test_a_seed_that_cannot_reach_the_target_is_a_clear_input_error():
         tr.initial_guess(small_problem(guess_alpha_deg=25.0))
 
 
-def test_a_min_acceleration_seed_that_escapes_names_the_seed_a_c():
+def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
     """A MinAcceleration's a_c only seeds the search: when its seed escapes (10 mm/s^2
-    outward at 45 deg for 600 d), the error says that a smaller one would do, and a
-    minimum-time problem's does not (its a_c is the sail's own)."""
-    outward = dict(sail=eo.Sail(10.0), target=eo.CircularOrbit(1.5))
+    outward at 45 deg for 600 d), the seed flies at a fraction of it that stays bound,
+    its nodes those of that a_c (the guess's ac_scale); where none does (40 mm/s^2), the
+    error says that a smaller a_c would do, and a minimum-time problem's does not (its
+    a_c is the sail's own)."""
+    sizing = small_problem(objective=eo.MinAcceleration(tof_days=600), sail=eo.Sail(10.0),
+                           target=eo.CircularOrbit(1.5))
+    guess = tr.initial_guess(sizing)
+    assert guess.ac_scale < 1
+    n = guess.alpha.size
+    flown = tr.flown_segments(sizing, guess.alpha, guess.lengths, sizing.x0(),
+                              throttle=np.full(n, guess.ac_scale))
+    np.testing.assert_allclose(guess.nodes, flown[:, 1:], rtol=0, atol=1e-12)
+    assert guess.nodes[4, -1] == pytest.approx(units.time_from_days(600.0), rel=1e-2)
+    escaping = dataclasses.replace(sizing, sail=eo.Sail(40.0))
     with pytest.raises(InputError, match=r"guess_alpha_deg = 45 deg: .*"
-                                         r"or a smaller sail\.ac_mm_s2 .*10 mm/s\^2 only seeds"):
-        tr.initial_guess(small_problem(objective=eo.MinAcceleration(tof_days=600), **outward))
+                                         r"or a smaller sail\.ac_mm_s2 .*40 mm/s\^2 only seeds"):
+        tr.initial_guess(escaping)
     with pytest.raises(InputError, match="leaves the closed form.s validity") as raised:
         tr.initial_guess(small_problem(objective=eo.MinTime(), guess_alpha_deg=45.0,
                                        sail=eo.Sail(10.0), target=eo.CircularOrbit(30.0)))
@@ -374,8 +386,6 @@ def test_a_correction_that_loses_the_point_leaves_the_round_before_it(monkeypatc
     """A defect correction that ends with no point (a restoration failure near a
     degenerate optimum) is no answer: the error control keeps the last round that
     found one, judged as flown, and its history keeps the failed round."""
-    import dataclasses
-
     from esail_opt.optimisation import error_control
 
     problem = small_problem(tolerance=eo.Tolerance(position_km=1e-3, velocity_m_s=1e-6))

@@ -250,6 +250,12 @@ def guess_alpha(problem):
     return math.radians(min(max(deg, lo), hi))
 
 
+#: The a_c a MinAcceleration's seed flies at, as fractions of the sail's, tried in turn
+#: until one stays bound for the time of flight: its a_c only seeds the search, and a
+#: seed that escapes (Earth-Mars in 650 d from a 2 mm/s^2 seed) is no start at all.
+SEED_AC_SCALES = (1.0, 0.5, 0.25, 0.125)
+
+
 def initial_guess(problem):
     """Seed the NLP from a forward rectified propagation at one constant pitch (never zeros).
 
@@ -258,24 +264,46 @@ def initial_guess(problem):
     and the nodes are the states the NLP's own segments reach from the departure, so
     every continuity constraint holds exactly at the start.  N is the problem's count,
     or with ``Segments(per_revolution=K)`` ceil(K angle / 2 pi) (``Segments.count_for``):
-    the guess fixes the NLP's size, and :func:`transcribe` takes N from it.
+    the guess fixes the NLP's size, and :func:`transcribe` takes N from it.  A
+    MinAcceleration's seed flies at the first of :data:`SEED_AC_SCALES` times the sail's
+    a_c whose flight stays bound (the guess's ``ac_scale``).
+
+    Raises
+    ------
+    InputError
+        When no seed can be flown: the error of the sail's own a_c.
     """
+    scales = SEED_AC_SCALES if problem.objective.free_acceleration else (1.0,)
+    first = None
+    for scale in scales:
+        try:
+            return _seeded(problem, scale)
+        except InputError as err:
+            first = first or err
+    raise first
+
+
+def _seeded(problem, scale):
+    """:func:`initial_guess` flown at ``scale`` times the sail's a_c."""
+    flown = problem if scale == 1 else dataclasses.replace(
+        problem, sail=dataclasses.replace(problem.sail, ac_mm_s2=problem.sail.ac_mm_s2 * scale))
     x0 = problem.x0()
     alpha = guess_alpha(problem)
     tof = problem.fixed_tof()
     if tof is not None:
-        angle = _fly_until(problem, x0, alpha, lambda xs: _crossing(xs[4], tof),
+        angle = _fly_until(flown, x0, alpha, lambda xs: _crossing(xs[4], tof),
                            f"the time of flight ({problem.objective.tof_days:g} days)")
     else:
         radius = problem.aim_radius_au()
-        angle = _fly_until(problem, x0, alpha, lambda xs: _crossing(xs[0], radius),
+        angle = _fly_until(flown, x0, alpha, lambda xs: _crossing(xs[0], radius),
                            f"the target radius ({radius:g} au)")
     n = problem.segments.count_for(angle)
     lengths = np.full(n, angle / n)
     # The nodes come from the NLP's own segment map, so continuity holds exactly.  In
     # three dimensions the seed's clock is 0: the planar flight above in a fixed plane.
     xs = flown_segments(problem, np.full(n, alpha), lengths,
-                        problem.plane_x0() if problem.three_d() else x0)
+                        problem.plane_x0() if problem.three_d() else x0,
+                        throttle=np.full(n, scale))
     nodes = xs[:, 1:]
     t0 = problem.epoch()
     k = (problem.target.turns_behind(nodes[1, -1], nodes[4, -1], t0)
@@ -283,7 +311,7 @@ def initial_guess(problem):
     nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
     angle = problem.departure.seed_angle() if problem.dated() else 0.0
     return Guess(np.full(n, alpha), lengths, nodes, nu0, k, epoch=t0, vinf_angle=angle,
-                 delta=np.zeros(n) if problem.three_d() else None)
+                 delta=np.zeros(n) if problem.three_d() else None, ac_scale=scale)
 
 
 def lifted_guess(problem, guess):
