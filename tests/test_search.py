@@ -198,6 +198,9 @@ def test_earth_mars_rendezvous_has_separate_optima_and_returns_the_best(tmp_path
     best = data["best"]
     assert best["verified"] and best["rendezvous_k"] == 0
     assert all(best["tof_days_exact"] < r["tof_days_exact"] for r in data["rows"][1:])
+    # Each row says why it is verified or not, in its polish's words.
+    assert best["note"].startswith("exact:")
+    assert all(r["note"] == s.polish.note for r, s in zip(data["rows"], solutions))
     # Against the independent continuous-pitch collocation of the same rendezvous
     # (k = 0): the same revolutions, and within 0.1 % without beating it.
     reference = REFERENCE["earth_mars_rendezvous"]

@@ -24,7 +24,7 @@ from esail_opt.physics import constants as units
 FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous_k",
           "tof_days_closed_form", "tof_days_exact", "verified", "polish_status",
           "closed_form_target_miss_km",
-          "polished_target_miss_km", "found_from")
+          "polished_target_miss_km", "note", "found_from")
 
 
 def _rank_key(row):
@@ -98,6 +98,9 @@ def _row(candidate, sol, index):
         "closed_form_target_miss_km": sol.verification.target_miss_r_km,
         "polished_target_miss_km": (None if p is None or p.verification is None
                                     else p.verification.target_miss_r_km),
+        # Why it is verified or not: the polish's verdict (a miss under 1 m may still
+        # fail it by the verifier's own error), else the closed form's.
+        "note": sol.verification_note if p is None else p.note,
         "found_from": c.found_from,
         "candidate": index,
     }
