@@ -7,10 +7,8 @@ every number is the run's own, converted.
 """
 
 import dataclasses
-import functools
 import math
 
-import casadi as ca
 import numpy as np
 
 from esail_opt.app import schema
@@ -21,17 +19,8 @@ from esail_opt.bodies import dates, lookup
 from esail_opt.optimisation.pipeline import Outcome
 from esail_opt.optimisation.transcription import node_cartesian
 from esail_opt.physics import constants as units
-from esail_opt.physics.elements import classical_from_polar
+from esail_opt.physics.elements import classical_columns
 from esail_opt.physics.thrust import canonical_attitude
-
-
-@functools.lru_cache(maxsize=None)
-def _elements_function():
-    """Osculating (a, e) of one polar state as a Function, so it maps over columns
-    (classical_from_polar itself is written for one state)."""
-    x = ca.SX.sym("x", 4)
-    a, e = classical_from_polar(x)[:2]
-    return ca.Function("elements", [x], [a, e])
 
 
 def _polar(x):
@@ -39,7 +28,7 @@ def _polar(x):
     the fields of a :class:`State` (floats) or of :class:`Samples` (lists)."""
     x = np.asarray(x, float)
     cols = x.reshape(4, -1)
-    a, e = (np.array(v).ravel() for v in _elements_function().map(cols.shape[1])(cols))
+    a, e = classical_columns(cols)
     out = {"r_au": cols[0], "theta_deg": np.degrees(cols[1]),
            "vr_km_s": units.speed_to_km_s(cols[2]), "vtheta_km_s": units.speed_to_km_s(cols[3]),
            "a_au": a, "e": e}

@@ -18,7 +18,7 @@ from scipy.optimize import brentq
 
 from esail_opt.errors import InputError, check_range
 from esail_opt.physics import constants as units
-from esail_opt.physics.elements import classical_from_polar, polar_from_classical
+from esail_opt.physics.elements import classical_columns, polar_from_classical
 from esail_opt.physics.thrust import EXACT
 from esail_opt.propagation.arcs import FIRST_ORDER
 from esail_opt.propagation.batch import arcs_at_angles
@@ -407,16 +407,6 @@ def grid_cases(values, years):
             for a0, e0, nu0, ac, alpha in itertools.product(*axes)]
 
 
-def _elements(xs):
-    """Osculating a (au) and e of polar states [4+, K]."""
-    import casadi as ca
-
-    x = ca.SX.sym("x", 4)
-    fun = ca.Function("a_e", [x], [ca.vertcat(*classical_from_polar(x)[:2])])
-    a, e = np.array(fun.map(xs.shape[1])(xs[:4]))
-    return a, e
-
-
 def run_grid(values, years, samples=None):
     """What ``esail-opt propagate`` writes for ranges: every case of the grid flown as
     Figs. 3-4 fly theirs (:func:`eps_over_swept_angles`: the closed forms in one call).
@@ -442,8 +432,8 @@ def run_grid(values, years, samples=None):
     if good:
         ends = np.column_stack([results[k].closed[:, -1] for k in good])
         numeric = np.column_stack([results[k].numeric[:, -1] for k in good])
-        closed_a[good], closed_e[good] = _elements(ends)
-        cvodes_a[good], cvodes_e[good] = _elements(numeric)
+        closed_a[good], closed_e[good] = classical_columns(ends)
+        cvodes_a[good], cvodes_e[good] = classical_columns(numeric)
         closed_r[good], cvodes_r[good] = ends[0], numeric[0]
         closed_t[good] = units.time_to_days(ends[4])
     columns = {field: [getattr(c, field) for c in cases] for field in GRID_FIELDS}

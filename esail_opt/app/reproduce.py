@@ -325,13 +325,9 @@ def fig5(out, progress=None):
 
 def osculating(xs):
     """Osculating a (au), e, omega (deg, unwrapped) and h (au^2/day) of polar states."""
-    import casadi as ca
+    from esail_opt.physics.elements import classical_columns
 
-    from esail_opt.physics.elements import classical_from_polar
-
-    x = ca.SX.sym("x", 4)
-    elements = ca.Function("elements", [x], [ca.vertcat(*classical_from_polar(x)[:4])])
-    a, e, omega, h = np.array(elements.map(xs.shape[1])(xs[:4]))
+    a, e, omega, h = classical_columns(xs, 4)
     # At e = 0 (the departure) the apse line is undefined and atan2 returns 0.
     omega = np.degrees(np.unwrap(omega))
     return {"a_au": a.tolist(), "e": e.tolist(), "omega_deg": omega.tolist(),

@@ -6,7 +6,10 @@ scaled by a reference radius r0 and speeds by sqrt(mu / r0), and theta is measur
 from whatever fixed direction the polar state uses.
 """
 
+import functools
+
 import casadi as ca
+import numpy as np
 
 from esail_opt.physics import rotation
 
@@ -77,6 +80,19 @@ def classical_from_polar(x):
     e = ca.sqrt(ev[0] ** 2 + ev[1] ** 2)
     omega = ca.atan2(ev[1], ev[0])
     return a, e, omega, x[0] * x[3], x[1] - omega
+
+
+@functools.lru_cache(maxsize=None)
+def _classical(count):
+    x = ca.SX.sym("x", 4)
+    return ca.Function("classical", [x], [ca.vertcat(*classical_from_polar(x)[:count])])
+
+
+def classical_columns(xs, count=2):
+    """The first ``count`` of :func:`classical_from_polar`'s elements (a, e, omega, h,
+    nu) of every column of the polar states ``xs`` [4+ x M], as numbers [count x M]."""
+    xs = np.asarray(xs, float)[:4]
+    return np.array(_classical(count).map(xs.shape[1])(xs), float).reshape(count, -1)
 
 
 def polar_from_classical(a, e, omega, nu):
