@@ -9,6 +9,8 @@ it ended (:func:`die_with_parent`).
 import contextlib
 import ctypes
 import os
+import re
+import shutil
 import signal
 import sys
 import threading
@@ -31,6 +33,20 @@ def alive(pid):
     except PermissionError:  # it exists, under another user
         return True
     return True
+
+
+def remove_dead(folder, prefix):
+    """Remove the entries of ``folder`` named ``prefix`` then the pid of the process that
+    made them, where that process no longer exists (a run killed outright leaves them).
+    An entry whose process is alive, or whose name carries no pid there, is left."""
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return
+    for entry in entries:
+        pid = re.match(r"\d+", entry.name[len(prefix):]) if entry.name.startswith(prefix) else None
+        if pid and not alive(int(pid.group())):
+            shutil.rmtree(entry.path, ignore_errors=True)
 
 
 def die_with_parent(parent):

@@ -657,7 +657,8 @@ def test_the_command_returns_mains_status(tmp_path):
 def test_a_killed_runs_scratch_folder_is_removed_by_the_next_run(tmp_path):
     """SIGKILL leaves a sweep's scratch folder behind; the next run removes it, and
     leaves those of live runs and folders it cannot attribute alone."""
-    from esail_opt.app.parallel import SCRATCH_PREFIX, remove_orphaned_scratch
+    from esail_opt import processes
+    from esail_opt.app.parallel import SCRATCH_PREFIX
 
     ended = subprocess.Popen([sys.executable, "-c", "pass"])
     ended.wait()  # a pid that no longer exists
@@ -667,7 +668,7 @@ def test_a_killed_runs_scratch_folder_is_removed_by_the_next_run(tmp_path):
     for folder in (dead, live, other):
         (folder / "1").mkdir(parents=True)
         (folder / "1" / "0").write_text("12345")
-    remove_orphaned_scratch(tmp_path)
+    processes.remove_dead(tmp_path, SCRATCH_PREFIX)
     assert not dead.exists()
     assert live.exists() and other.exists()
 

@@ -27,7 +27,6 @@ import hashlib
 import json
 import os
 import re
-import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -112,12 +111,9 @@ def load_source(source, filename):
         return load_problem(path)
 
 
-def remove_orphans(folder=None):
+def remove_orphans():
     """Remove the members' folders whose process no longer exists."""
-    for path in Path(folder or tempfile.gettempdir()).glob(f"{MEMBER_PREFIX}*_*"):
-        pid = path.name[len(MEMBER_PREFIX):].split("_", 1)[0]
-        if pid.isdigit() and not processes.alive(int(pid)):
-            shutil.rmtree(path, ignore_errors=True)
+    processes.remove_dead(tempfile.gettempdir(), MEMBER_PREFIX)
 
 
 # ---------------------------------------------------------------- the journal

@@ -30,7 +30,7 @@ import sys
 from pathlib import Path
 
 from esail_opt.errors import InputError, OutputError
-from esail_opt.processes import alive
+from esail_opt import processes
 
 #: Longest file or folder name most file systems take (ext4, xfs, tmpfs), bytes.
 NAME_MAX = 255
@@ -188,17 +188,7 @@ def _make_staging(parent, name):
 
 def _remove_stale(parent, name):
     """Remove staging folders of ``name`` whose process is gone (a killed run's)."""
-    prefix = _STAGING.format(name=name)
-    try:
-        entries = list(os.scandir(parent))
-    except OSError:
-        return
-    for entry in entries:
-        if not entry.name.startswith(prefix):
-            continue
-        pid = entry.name[len(prefix):].partition("-")[0]
-        if pid.isdigit() and not alive(int(pid)):
-            shutil.rmtree(entry.path, ignore_errors=True)
+    processes.remove_dead(parent, _STAGING.format(name=name))
 
 
 # ---------------------------------------------------------------- the swap

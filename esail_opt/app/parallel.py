@@ -22,7 +22,6 @@ jobs wait.  The jobs that ended before were reported as they ended.
 import contextlib
 import logging
 import os
-import shutil
 import signal
 import tempfile
 import threading
@@ -136,16 +135,6 @@ def session(scheduler):
 SCRATCH_PREFIX = "esail_started_"
 
 
-def remove_orphaned_scratch(folder=None):
-    """Remove the scratch folders of runs that no longer exist (killed by SIGKILL, which
-    leaves no time to clean up), in ``folder`` (default the temporary folder).  A folder
-    whose run is alive, or whose name carries no pid, is left alone."""
-    for path in Path(folder or tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*_*"):
-        pid = path.name[len(SCRATCH_PREFIX):].split("_", 1)[0]
-        if pid.isdigit() and not processes.alive(int(pid)):
-            shutil.rmtree(path, ignore_errors=True)
-
-
 class _Runner:
     """One :func:`run`: the executor of the current round, its futures and the losses.
 
@@ -172,7 +161,8 @@ class _Runner:
     def run(self):
         """Run every job to its end (a result or a failure), then shut down."""
         todo = sorted(self.jobs)
-        remove_orphaned_scratch()
+        # A run killed by SIGKILL had no time to remove its scratch folder.
+        processes.remove_dead(tempfile.gettempdir(), SCRATCH_PREFIX)
         # The scratch folder outlives the try below: on an interrupt the workers are
         # stopped before the folder they write into goes away.
         with tempfile.TemporaryDirectory(prefix=f"{SCRATCH_PREFIX}{os.getpid()}_") as scratch:
