@@ -21,8 +21,6 @@ EXIT_OUTPUT = 3
 #: A figure that could not be drawn, the rest of its set written: not 3, which says
 #: that the files are not there.
 EXIT_FIGURE = 4
-#: The shell's convention for a run stopped by SIGINT (128 + 2).
-EXIT_INTERRUPTED = 130
 EPILOG = ("exit status: 0 converged and verified; 1 not converged or not verified (one "
           "line says which bound was missed); 2 bad input (nothing written; refused before the "
           "solve, or after it for a flight found to end past the ephemeris); 3 an output "

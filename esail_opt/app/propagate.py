@@ -198,15 +198,6 @@ def swept_angle(case):
     return float(end[1, -1] - x0[1])
 
 
-def cvodes(case, samples):
-    """Eqs. 1-2 by CVODES to the horizon, sampled at equal steps of theta.
-
-    A first run in time finds the angle at the horizon; a second, with theta as
-    the independent variable, samples it.
-    """
-    return cvodes_at_theta(case, swept_angle(case), samples)
-
-
 def cvodes_at_theta(case, angle, samples):
     """Eqs. 1-2 by CVODES with theta as the independent variable, ``samples`` steps."""
     return simulate(
@@ -362,7 +353,8 @@ def run(case, method="both", samples=None):
         closed = closed_form(case, samples)
         out["closed_form"] = to_boundary(closed)
     if method in ("cvodes", "both"):
-        out["cvodes"] = to_boundary(cvodes(case, samples))
+        # A first run in time finds the angle at the horizon; the second samples it.
+        out["cvodes"] = to_boundary(cvodes_at_theta(case, swept_angle(case), samples))
     if method == "both":
         out.update(_eps_entries(case, closed))
     return out

@@ -158,10 +158,6 @@ class Flight(Record):
     cvodes_final_state: Optional[State] = key(omit=_flight_failed, default=None)
     cvodes_tof_days: Optional[float] = key(omit=_flight_failed, default=None)
 
-    def miss(self, name):
-        """A target's own miss by its file name (None when it has none of that name)."""
-        return self.extra.get(name)
-
 
 @dataclass(frozen=True)
 class Part(Record):
