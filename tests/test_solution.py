@@ -9,7 +9,7 @@ import pytest
 import esail_opt as eo
 from esail_opt.physics import constants as units
 from esail_opt.app import schema
-from esail_opt.app.files import json_ready
+from esail_opt.app.record import plain
 from esail_opt.app.solution import Solution
 from esail_opt.errors import InputError
 
@@ -52,7 +52,7 @@ def test_files_round_trip(solution, tmp_path):
 
 
 def test_non_finite_numbers_become_null():
-    assert json_ready({"a": [math.nan, 1.0], "b": math.inf}) == {"a": [None, 1.0], "b": None}
+    assert plain({"a": [math.nan, 1.0], "b": math.inf}) == {"a": [None, 1.0], "b": None}
 
 
 def test_same_problem_gives_the_same_numbers(solution):

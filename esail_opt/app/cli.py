@@ -150,7 +150,7 @@ def _run_propagate_grid(args, values):
     from pathlib import Path
 
     from esail_opt.app import propagate
-    from esail_opt.app.files import atomic_path, json_ready, save_figure, write_json
+    from esail_opt.app.files import atomic_path, save_figure, write_json
 
     if args.method != "both":
         raise InputError(f"method = {args.method!r} with ranges: a grid flies both; "
@@ -168,7 +168,7 @@ def _run_propagate_grid(args, values):
         with atomic_path(csv) as tmp:
             tmp.write_text(propagate.grid_csv(data))
         save_figure(propagate.grid_figure(data, args.plot), png)
-        write_json(out, json_ready(data))
+        write_json(out, data)
         print(f"wrote {out}, {csv} and {png}")
     return 0
 

@@ -33,7 +33,8 @@ from pathlib import Path
 
 from esail_opt import processes
 from esail_opt.app import parallel
-from esail_opt.app.files import atomic_path, json_ready
+from esail_opt.app.files import atomic_path
+from esail_opt.app.record import plain
 from esail_opt.errors import InputError, OutputError
 from esail_opt.propagation import compiled
 
@@ -250,7 +251,7 @@ class Journal:
 
     @staticmethod
     def _line(obj):
-        return json.dumps(json_ready(obj), allow_nan=False) + "\n"
+        return json.dumps(plain(obj), allow_nan=False) + "\n"
 
     def _fail(self, number, why):
         raise InputError(f"resume: {self.path} line {number} {why}; delete that line, or "

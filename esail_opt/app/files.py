@@ -29,6 +29,7 @@ import signal
 import sys
 from pathlib import Path
 
+from esail_opt.app.record import plain
 from esail_opt.errors import InputError, OutputError
 from esail_opt import processes
 
@@ -409,9 +410,10 @@ def atomic_path(path):
 
 
 def write_json(path, data):
-    """Write ``data`` as indented JSON, atomically."""
+    """Write ``data`` as indented JSON, atomically: numpy numbers as Python ones, NaN
+    and infinity as null (``record.plain``), so that the JSON stays standard."""
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
+        tmp.write_text(json.dumps(plain(data), indent=1, allow_nan=False) + "\n")
 
 
 def figure_bytes(fig, fmt="png", dpi=150):
@@ -450,26 +452,6 @@ def write_table_set(out_dir, names, csv_text, data, fig):
     out = Path(out_dir)
     with publish(out, family=names) as stage:
         (stage / names[0]).write_text(csv_text)
-        write_json(stage / names[1], json_ready(data))
+        write_json(stage / names[1], data)
         save_figure(fig, stage / names[2])
     return [out / name for name in names]
-
-
-def json_ready(obj):
-    """``obj`` with NaN/inf as None and numpy scalars as Python ones, so the JSON stays
-    standard (:func:`write_json` forbids NaN)."""
-    import math
-
-    import numpy as np
-
-    if isinstance(obj, dict):
-        return {k: json_ready(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_ready(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj

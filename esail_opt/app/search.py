@@ -15,7 +15,8 @@ import csv
 import io
 from pathlib import Path
 
-from esail_opt.app.files import json_ready, publish, save_figure, write_json
+from esail_opt.app.files import publish, save_figure, write_json
+from esail_opt.app.record import plain
 from esail_opt.app.solution import Solution
 from esail_opt.errors import FigureError
 from esail_opt.optimisation import multistart, pipeline
@@ -79,7 +80,7 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
                 "active (the best transfer with that many revolutions, not a local "
                 "optimum of the problem as posed)"),
     }
-    return json_ready(data), solutions
+    return plain(data), solutions
 
 
 def _row(candidate, sol, index):

@@ -444,7 +444,7 @@ def run(out, repeats):
     the closed form's.  Writes ``<out>/precision.json`` and ``<out>/precision.png``.
     One progress line per point goes to stderr.  Returns the JSON's path.
     """
-    from esail_opt.app.files import json_ready, save_figure, write_json
+    from esail_opt.app.files import save_figure, write_json
 
     runs = runs_of(repeats)
     _warm_up()
@@ -461,6 +461,6 @@ def run(out, repeats):
         print_table(f"bench precision: {case['problem']}, a_c = {case['ac_mm_s2']:g} mm/s^2, "
                     f"median of {runs}", rows)
     path = Path(out) / "precision.json"
-    write_json(path, json_ready({"cases": solved}))
+    write_json(path, {"cases": solved})
     save_figure(precision_figure(solved), Path(out) / "precision.png")
     return path

@@ -657,7 +657,7 @@ def run(out, repeats, grid=None):
     """
     import numpy as np
 
-    from esail_opt.app.files import json_ready, save_figure, write_json
+    from esail_opt.app.files import save_figure, write_json
 
     functions = _functions()
     seconds = {name: median_seconds(lambda f=f, a=a: f(*a), repeats)
@@ -689,5 +689,5 @@ def run(out, repeats, grid=None):
     _print_batch(data["batch"])
     path = Path(out) / "propagate.json"
     save_figure(race_figure(data["race"], data["batch"]), Path(out) / "propagate.png")
-    write_json(path, json_ready(data))
+    write_json(path, data)
     return path
