@@ -218,7 +218,8 @@ def _flown_miss(problem, check):
 def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
                   defects=None, samples=1):
     """Correct and re-mesh a closed-form optimum until its flight meets
-    ``problem.tolerance`` (the rounds of this module's docstring).
+    ``problem.tolerance`` (the rounds of this module's docstring): an
+    :class:`ErrorControl`.
 
     Parameters
     ----------
@@ -243,18 +244,13 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
         Flight samples per segment of each round's verification (``verify``); the last
         one, :attr:`ErrorControl.check`, is the run's verification, so a caller that
         plots it asks for its plots' samples here rather than flying the result again.
-
-    Returns
-    -------
-    ErrorControl
     """
     say, fresh = progress or (lambda text: None), tr is None
     if fresh:  # a new NLP scales its variables anew: the first correction starts cold
         tr, solver = transcribe(problem, guess=result.as_guess()), None
-    history, last_miss, applied = [], None, defects
+    history, last_miss, applied, found = [], None, defects, None
     local_km = np.full(result.alpha.size, np.nan)  # until a round flies every segment
     started = time.perf_counter()
-    found = None  # the last round that found a point, as the ErrorControl it would end
     for rnd in range(max_rounds + 1):
         check, exact, plain, local_km = _judge(problem, result, samples, applied, local_km,
                                                say)
@@ -262,12 +258,7 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
                             time.perf_counter() - started))
         miss = _said_miss(rnd, problem, check, say)
         if not result.outcome.found and found is not None:
-            # A correction that lost the point (a restoration failure near a degenerate
-            # optimum, say) makes no answer of the rounds before it: the last that
-            # found a point stands, judged as flown.
-            say(f"error control: round {rnd} found no point ({result.status}); keeping "
-                f"round {rnd - 1}'s")
-            return dataclasses.replace(found, history=history)
+            return _kept(found, history, say)
         if result.outcome.found:
             found = ErrorControl(problem, result, tr, None, local_km, check, applied)
         if (rnd == max_rounds or exact is None or not result.outcome.found
@@ -284,6 +275,15 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
             last_miss, fresh = None, False
     # Every way out of the loop is a break after flying the final result.
     return ErrorControl(problem, result, tr, history, local_km, check, applied)
+
+
+def _kept(found, history, say):
+    """``found``, the last round that found a point, with the whole ``history``: a
+    correction after it that lost the point (a restoration failure near a degenerate
+    optimum, say) makes no answer of the rounds before it."""
+    say(f"error control: round {len(history) - 1} found no point "
+        f"({history[-1].status}); keeping round {len(history) - 2}'s")
+    return dataclasses.replace(found, history=history)
 
 
 def _said_miss(rnd, problem, check, say):
