@@ -22,7 +22,8 @@ here:
    fixed point the shifted closed-form chain lands exactly where Eqs. 1-2 do, so the
    flown miss falls towards the verifier's own error; the closed form still supplies the
    derivatives, so the optimum moves only by the difference of its gradients from the
-   true ones.
+   true ones.  A correction that ends with no point (a restoration failure) ends the
+   rounds, and the last round that found one is the answer, judged as flown.
 
 Why this algorithm: a round of defect correction is a warm re-solve of the same NLP
 and cuts the flown miss by orders of magnitude, where refining the mesh alone gains
