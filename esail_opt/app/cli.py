@@ -8,7 +8,6 @@ for every exit status.
 import argparse
 import errno
 import logging
-import re
 import signal
 import sys
 
@@ -76,10 +75,6 @@ def _add_propagate(sub):
         "every case of the grid as Figs. 3-4 do (the closed forms in one batched call) and "
         "writes the grid as JSON (--out), CSV and PNG beside it.",
     )
-    # argparse reads "-90:90:37" as an option, since only plain negative numbers are
-    # values to it; let ranges with a negative START be values too (no option of this
-    # command looks like one).
-    p._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(:\S*)?$")
     p.add_argument("--a0", default="1", help="parking orbit semimajor axis, au (default 1)"
                    + RANGE_HELP)
     p.add_argument("--e0", default="0", help="parking orbit eccentricity, [0, 1) (default 0)"
@@ -472,7 +467,7 @@ def _out(args, option="--out"):
 #: The options whose value is a range, which may start with a minus sign: given as
 #: ``--tof -100:850:2`` the value reaches its own check (one line naming it) instead of
 #: being taken for an option.
-_RANGE_OPTIONS = ("--param", "--depart", "--tof")
+_RANGE_OPTIONS = ("--param", "--depart", "--tof", "--a0", "--e0", "--nu0", "--ac", "--alpha")
 
 
 def _sweepable():
