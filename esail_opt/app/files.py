@@ -18,6 +18,7 @@ Files and folders are created with mode 0666/0777 less the umask, as ``open`` an
 """
 
 import contextlib
+import csv
 import ctypes
 import errno
 import io
@@ -438,6 +439,19 @@ def save_figure(fig, path, dpi=150):
     data = figure_bytes(fig, Path(path).suffix.lstrip(".") or "png", dpi)
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+def csv_text(rows, fields, digits=10):
+    """The dicts ``rows`` as CSV text under a header of ``fields``: None as an empty
+    cell, floats to ``digits`` significant digits (None: as Python writes them)."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: ("" if row[k] is None else f"{row[k]:.{digits}g}"
+                             if digits and isinstance(row[k], float) else row[k])
+                         for k in fields})
+    return buf.getvalue()
 
 
 def write_table_set(out_dir, names, csv_text, data, fig):

@@ -20,9 +20,7 @@ from its date, is marked ``"no_sail": true`` rather than left a failed solve, an
 chart draws that edge of the feasible per date (:func:`mark_no_sail`).
 """
 
-import csv
 import dataclasses
-import io
 import math
 import os
 from pathlib import Path
@@ -30,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from esail_opt.app import engine, parallel
-from esail_opt.app.files import check_output_dir, write_table_set
+from esail_opt.app.files import check_output_dir, csv_text, write_table_set
 from esail_opt.app.parallel import first_line
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import MAX_RANGE_COUNT, InputError, check_range, number_range
@@ -499,12 +497,8 @@ def _target_name(problem):
 
 
 def table_csv(result):
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=CSV_FIELDS, lineterminator="\n")
-    writer.writeheader()
-    for row in result["rows"]:
-        writer.writerow({k: ("" if row[k] is None else row[k]) for k in CSV_FIELDS})
-    return buf.getvalue()
+    """The rows as CSV text, every number as Python writes it."""
+    return csv_text(result["rows"], CSV_FIELDS, digits=None)
 
 
 #: The legend's words for the chart's marks.

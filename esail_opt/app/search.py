@@ -11,11 +11,9 @@ and 1 mm/s (then, for any that do not, on the closed-form time). It writes
 ``schedule.csv`` and plots under ``best/``.
 """
 
-import csv
-import io
 from pathlib import Path
 
-from esail_opt.app.files import publish, save_figure, write_json
+from esail_opt.app.files import csv_text, publish, save_figure, write_json
 from esail_opt.app.record import plain
 from esail_opt.app.solution import Solution
 from esail_opt.errors import FigureError
@@ -127,17 +125,11 @@ def _ranked(rows, solutions, starts):
 
 def table_csv(data):
     """The ranked optima as CSV text (``found_from`` joined by "; ")."""
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
-    writer.writeheader()
-    for row in data["rows"]:
-        out = dict(row)
-        out["window_rev"] = "" if row["window_rev"] is None else "{}-{}".format(*row["window_rev"])
-        out["found_from"] = "; ".join(row["found_from"])
-        writer.writerow({k: ("" if out[k] is None else
-                             f"{out[k]:.10g}" if isinstance(out[k], float) else out[k])
-                         for k in FIELDS})
-    return buf.getvalue()
+    rows = [dict(row, found_from="; ".join(row["found_from"]),
+                 window_rev=(None if row["window_rev"] is None
+                             else "{}-{}".format(*row["window_rev"])))
+            for row in data["rows"]]
+    return csv_text(rows, FIELDS)
 
 
 def figure(data, ax=None):

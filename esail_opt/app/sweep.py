@@ -23,16 +23,14 @@ Only the names in :data:`SWEEPABLE` can be swept; each maps to one field of the
 rather than a free-form attribute path a typo could send anywhere.
 """
 
-import csv
 import dataclasses
 import functools
-import io
 import os
 import time
 from pathlib import Path
 
 from esail_opt.app import engine, parallel
-from esail_opt.app.files import check_output_dir, write_table_set
+from esail_opt.app.files import check_output_dir, csv_text, write_table_set
 from esail_opt.app.parallel import first_line
 from esail_opt.errors import InputError, number_range
 
@@ -432,15 +430,9 @@ def _result(request, outcome):
 
 
 def table_csv(result):
-    """The rows as CSV text (floats to 10 significant digits, empty for missing)."""
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=CSV_FIELDS, lineterminator="\n")
-    writer.writeheader()
-    for row in result["rows"]:
-        writer.writerow({k: ("" if row[k] is None else
-                             f"{row[k]:.10g}" if isinstance(row[k], float) else row[k])
-                         for k in CSV_FIELDS})
-    return buf.getvalue().replace("value", result["param"], 1)
+    """The rows as CSV text (floats to 10 significant digits, empty for missing), the
+    parameter's column named after it."""
+    return csv_text(result["rows"], CSV_FIELDS).replace("value", result["param"], 1)
 
 
 def figure(result, axes=None):
