@@ -96,9 +96,70 @@ def test_problem_switches():
         eo.Sail(ac_mm_s2=1.0, clock_max_deg=200)
     with pytest.raises(InputError, match=r"sail.clock_max_deg = -10 .*outside"):
         eo.Sail(ac_mm_s2=1.0, clock_min_deg=0, clock_max_deg=-10)
-    assert mars_problem().clock_bounds() == (-np.inf, np.inf)
+    # Free over the full circle: a box well past a turn either way of any start in
+    # [-pi, pi], which is all a solve ever starts from.
+    lo, hi = mars_problem().clock_bounds()
+    assert lo == -hi and hi >= 3 * math.pi
     bounded = mars_problem(sail=eo.Sail(ac_mm_s2=1.0, clock_min_deg=-30, clock_max_deg=30))
     assert np.allclose(bounded.clock_bounds(), np.radians([-30, 30]), rtol=0, atol=1e-15)
+
+
+def test_a_wrapped_clock_is_the_same_attitude_and_one_in_range_is_kept():
+    """``wrap_clock`` takes a clock into [-pi, pi] without changing the thrust, written
+    out here (the Cartesian equations' right-hand side), and keeps 180 deg as it is."""
+    from esail_opt.optimisation.ipopt import wrap_clock
+
+    rng = np.random.default_rng(7)
+    deltas = np.r_[rng.uniform(-1e4, 1e4, 20), 4 * math.pi - 1e-9, -3 * math.pi]
+    wrapped = wrap_clock(deltas)
+    assert np.all(np.abs(wrapped) <= math.pi)
+    y = np.r_[1.1, 0.2, 0.05, -0.1, 0.9, 0.03]
+    for delta, back in zip(deltas, wrapped):
+        assert np.allclose(esail_rhs(1e-3, 0.6, delta)(0, y), esail_rhs(1e-3, 0.6, back)(0, y),
+                           rtol=0, atol=1e-15)
+    assert wrap_clock([math.pi, -math.pi, 0.3]).tolist() == [math.pi, -math.pi, 0.3]
+
+
+def test_a_free_clock_is_reported_by_the_attitudes_canonical_name():
+    """With the clock free and the pitch bounds symmetric, the schedule names each
+    attitude with its clock in (-90, 90] deg (the same sail normal as the NLP's); with
+    the clock bounded by the sail, as the NLP has it."""
+    from types import SimpleNamespace
+
+    from esail_opt.app.from_run import _attitudes_deg
+
+    result = SimpleNamespace(alpha=np.radians([30.0, 30.0, -20.0]),
+                             delta=np.radians([170.0, -100.0, 40.0]))
+    free = _attitudes_deg(mars_problem(), result)
+    assert np.allclose(free, [(-30.0, -10.0), (-30.0, 80.0), (-20.0, 40.0)], atol=1e-12)
+    bounded = mars_problem(sail=eo.Sail(ac_mm_s2=1.0, clock_min_deg=-180, clock_max_deg=179))
+    assert np.allclose(_attitudes_deg(bounded, result),
+                       [(30.0, 170.0), (30.0, -100.0), (-20.0, 40.0)], atol=1e-12)
+
+
+@pytest.mark.slow
+def test_a_solve_whose_clock_reaches_its_box_goes_on_past_it(monkeypatch):
+    """The Earth-Venus minimum a_c, one of whose clocks ends near 266 deg from a start at
+    0, solved with the clock's box (``problem.CLOCK_ROOM``) at 216 deg: the solve that
+    pressed a clock on the box goes on from the clocks wrapped, and ends where the
+    solve with the full box ends (without that, it stopped 1e-4 higher on the box)."""
+    from esail_opt.optimisation import ipopt
+    from esail_opt.optimisation import problem as problem_module
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    roomy = pipeline.solve(shipped_problem("earth_venus_min_ac"))
+    room = 1.2 * math.pi
+    monkeypatch.setattr(problem_module, "CLOCK_ROOM", room)
+    monkeypatch.setattr(ipopt, "CLOCK_ROOM", room)
+    taken_on = []
+    off = ipopt._off_the_box
+    monkeypatch.setattr(ipopt, "_off_the_box",
+                        lambda tr, result: taken_on.append(off(tr, result)) or taken_on[-1])
+    boxed = pipeline.solve(shipped_problem("earth_venus_min_ac"))
+    assert any(w is not None for w in taken_on)
+    assert roomy.verified and boxed.verified, (roomy.note, boxed.note)
+    assert boxed.result.ac_scale == pytest.approx(roomy.result.ac_scale, rel=1e-6)
+    assert np.all(np.abs(boxed.result.delta) <= math.pi)
 
 
 def test_the_departure_is_de421s_unprojected_earth():

@@ -73,7 +73,7 @@ def _attitudes_deg(problem, result):
     if result.delta is None:
         return [(math.degrees(a), None) for a in result.alpha]
     lo, hi = problem.alpha_bounds()
-    canonical = problem.clock_bounds() == (-np.inf, np.inf) and lo == -hi
+    canonical = problem.clock_free() and lo == -hi
     pairs = zip(result.alpha, result.delta)
     if canonical:
         pairs = (canonical_attitude(a, d) for a, d in pairs)

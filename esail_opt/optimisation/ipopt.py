@@ -14,6 +14,7 @@ import numpy as np
 
 from esail_opt.errors import SignalsHeld
 from esail_opt.optimisation.outcome import Outcome
+from esail_opt.optimisation.problem import CLOCK_ROOM
 from esail_opt.optimisation.transcription import Guess, initial_guess, transcribe
 
 
@@ -107,12 +108,45 @@ def wrap_pitch(alpha):
     return (np.asarray(alpha, float) + np.pi / 2) % np.pi - np.pi / 2
 
 
+def wrap_clock(delta):
+    """Clock angles (rad) in [-pi, pi]: one outside is wrapped into [-pi, pi), the same
+    attitude; one inside is kept, so that a bound the sail sets at 180 deg stays met."""
+    d = np.asarray(delta, float)
+    return np.where(np.abs(d) > np.pi, (d + np.pi) % (2 * np.pi) - np.pi, d)
+
+
+def _clock_slice(tr):
+    """Where the clocks sit in ``tr``'s variables (the last N), or None when they are
+    not free over the full circle (planar, or bounded by the sail)."""
+    n = tr.segments
+    if tr.rows != 9 or tr.ubx[-n] != CLOCK_ROOM:
+        return None
+    return slice(tr.ubx.size - n, tr.ubx.size)
+
+
+def _off_the_box(tr, result):
+    """``result``'s point with its clocks wrapped (:func:`wrap_clock`), or None if no
+    clock has reached its box (``problem.CLOCK_ROOM``).  The flight, the objective and
+    the constraints are periodic in the clocks, so the wrapped point is the same optimum
+    less the box's pull."""
+    at = _clock_slice(tr)
+    # Ipopt's barrier holds a clock pressed on the box some 1e-6 rad inside it.
+    if at is None or np.all(np.abs(result.w[at]) < CLOCK_ROOM - 1e-3):
+        return None
+    w = result.w.copy()
+    w[at] = wrap_clock(w[at])
+    return w
+
+
 #: Ipopt's status when a checkpoint (:func:`build_solver`) stopped it.
 STOPPED = "User_Requested_Stop"
 #: Ipopt's status at its iteration cap (``max_iter``): a probe that ends so has not
 #: decided its class.
 AT_CAP = "Maximum_Iterations_Exceeded"
 
+#: Times a solve whose clocks reached their box is taken on from them wrapped
+#: (:func:`solve_transcription`).
+CLOCK_RESTARTS = 3
 #: Seconds between two progress lines of one Ipopt solve.
 PROGRESS_SECONDS = 2.0
 
@@ -259,14 +293,25 @@ def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
     monitor.progress = progress
     p = tr.parameters(defects)
     start = time.perf_counter()
+    bounds = {"p": p, "lbx": tr.lbx, "ubx": tr.ubx, "lbg": tr.lbg, "ubg": tr.ubg}
     with monitor:
         if warm is None:
-            sol = solver(x0=tr.x0, p=p, lbx=tr.lbx, ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
+            sol = solver(x0=tr.x0, **bounds)
         else:
-            sol = solver(x0=warm.w, lam_x0=warm.lam_x, lam_g0=warm.lam_g, p=p, lbx=tr.lbx,
-                         ubx=tr.ubx, lbg=tr.lbg, ubg=tr.ubg)
-    seconds = time.perf_counter() - start
-    return _result(tr, sol, solver.stats(), p, seconds)
+            sol = solver(x0=warm.w, lam_x0=warm.lam_x, lam_g0=warm.lam_g, **bounds)
+    result = _result(tr, sol, solver.stats(), p, time.perf_counter() - start)
+    for _ in range(CLOCK_RESTARTS):
+        w = _off_the_box(tr, result)
+        if w is None:
+            break
+        lam_x = result.lam_x.copy()
+        lam_x[_clock_slice(tr)] = 0.0
+        with monitor:
+            sol = solver(x0=w, lam_x0=lam_x, lam_g0=result.lam_g, **bounds)
+        again = _result(tr, sol, solver.stats(), p, time.perf_counter() - start)
+        result = dataclasses.replace(again, iterations=result.iterations + again.iterations,
+                                     stages=result.stages + again.stages)
+    return result
 
 
 def _result(tr, sol, stats, p, seconds):
@@ -288,7 +333,7 @@ def _result(tr, sol, stats, p, seconds):
         w=w, lam_x=np.array(sol["lam_x"]).ravel(), lam_g=np.array(sol["lam_g"]).ravel(),
         revolutions_k=tr.guess.revolutions_k, theta_window=tr.guess.theta_window,
         epoch=parts[8].item(), ac_scale=parts[9].item(), vinf_angle=parts[10].item(),
-        delta=parts[11].ravel() if parts[11].size else None,
+        delta=wrap_clock(parts[11].ravel()) if parts[11].size else None,
     )
 
 

@@ -326,8 +326,8 @@ class Sail:
         subset of [-180, 180] with min <= max: the sail's normal turned by delta about
         the Sun-sail line (0: in the orbital plane, on the side of the motion; positive
         toward the angular momentum; ``physics.thrust.radial_transverse_normal``).  The
-        full circle (the default) leaves delta free and unbounded; a planar problem
-        has no clock angle.
+        full circle (the default) leaves delta free, any number of turns apart
+        (``Problem.clock_bounds``); a planar problem has no clock angle.
     """
 
     ac_mm_s2: float
@@ -467,6 +467,14 @@ class Tolerance:
         check_range("tolerance.position_km", self.position_km, 1e-3, 1e8, unit="km")
         check_range("tolerance.velocity_m_s", self.velocity_m_s, 1e-6, 1e5, unit="m/s")
 
+
+#: Box on a clock angle that is free over the full circle, rad: two turns either way of
+#: a start that is always taken in [-pi, pi] (``ipopt.wrap_clock``).  Unbounded, a
+#: clock that hardly moves the flight on the way (its segment's throttle or pitch near
+#: 0) can run off by millions of turns, and the NLP then loses its point.  The box is not
+#: a limit: a solve that ends with a clock on it is taken on from the same attitudes
+#: wrapped (``ipopt.solve_transcription``).
+CLOCK_ROOM = 4 * math.pi
 
 #: Whether a real-body problem that does not say (``Problem(planar=None)``) flies in the
 #: ecliptic projection.  False: a real body's orbit is not in the ecliptic, and only the
@@ -661,13 +669,17 @@ class Problem:
             return self.departure.state_at(result.epoch, result.vinf_angle)
         return np.asarray(result.x_start, float)
 
+    def clock_free(self):
+        """Whether the sail leaves the clock angle free over the full circle."""
+        return self.sail.clock_min_deg == -180 and self.sail.clock_max_deg == 180
+
     def clock_bounds(self):
-        """Bounds of the clock variables, rad: unbounded for the full circle (delta is an
-        angle, and a box at +-180 deg would be a wall through one attitude)."""
-        lo, hi = self.sail.clock_min_deg, self.sail.clock_max_deg
-        if lo == -180 and hi == 180:
-            return -np.inf, np.inf
-        return math.radians(lo), math.radians(hi)
+        """Bounds of the clock variables, rad: +-:data:`CLOCK_ROOM` for the full circle
+        (delta is an angle, and a box at +-180 deg would be a wall through one
+        attitude), else the sail's own."""
+        if self.clock_free():
+            return -CLOCK_ROOM, CLOCK_ROOM
+        return math.radians(self.sail.clock_min_deg), math.radians(self.sail.clock_max_deg)
 
     def alpha_bounds(self):
         return math.radians(self.sail.alpha_min_deg), math.radians(self.sail.alpha_max_deg)

@@ -71,7 +71,7 @@ def canonical_attitude(alpha, delta):
 
     The sail's normal at (alpha, delta) and at (-alpha, delta + pi) is the same line (the
     normal is turned half a circle about r_hat and its pitch changes sign), so both give
-    the same thrust.  The NLP may land on either name, and its clock is unbounded.  The
+    the same thrust.  The NLP may land on either name, a turn or two away.  The
     canonical name has delta in (-pi/2, pi/2]: the normal leans toward the side of the
     motion's half of the orbital plane, and a thrust that brakes shows as a negative
     pitch, as in the planar problem.
