@@ -162,6 +162,39 @@ def test_a_solve_whose_clock_reaches_its_box_goes_on_past_it(monkeypatch):
     assert np.all(np.abs(boxed.result.delta) <= math.pi)
 
 
+@pytest.mark.slow
+def test_clocks_that_hardly_move_the_flight_stay_in_their_box():
+    """The throttled Earth-Mars minimum time leaving 2033-09-15 (2 mm/s^2, 12 segments,
+    some coasting): unbounded, its clocks ran off to 1e8 turns and no correction of the
+    error control converged again (not verified).  Boxed, it is verified by CVODES on the
+    Cartesian equations, and its final schedule, flown here by DOP853 from DE421's
+    Earth, meets DE421's Mars."""
+    from esail_opt.optimisation import ipopt
+    from esail_opt.optimisation import problem as problem_module
+
+    problem = mars_problem(name="em2033", departure=eo.BodyDeparture(body="earth",
+                                                                      date="2033-09-15"),
+                           sail=eo.Sail(ac_mm_s2=2.0, throttle=True),
+                           segments=eo.Segments(count=12, sub_arcs=3, equal=False))
+    clocks = []  # the largest clock of each 3-D solve, rad (the projected ones have none)
+    off = ipopt._off_the_box
+
+    def spy(tr, result):
+        at = ipopt._clock_slice(tr)
+        if at is not None:
+            clocks.append(np.max(np.abs(result.w[at])))
+        return off(tr, result)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(ipopt, "_off_the_box", spy)
+        run = pipeline.solve(problem)
+    assert run.verified, run.note
+    assert clocks and max(clocks) <= problem_module.CLOCK_ROOM
+    y, arrival = fly_schedule(problem, run.result)
+    mars = de421_ecliptic("mars", arrival)
+    assert np.linalg.norm(y[:3] - mars[:3]) * AU_KM < problem.tolerance.position_km
+
+
 def test_the_departure_is_de421s_unprojected_earth():
     """The NLP's 3-D start (polar state in a plane) is DE421's ecliptic state."""
     problem = mars_problem()
