@@ -15,6 +15,7 @@ for p in earth_bennu_rendezvous earth_mars_2035 earth_mars_low_thrust earth_mars
 done
 run esail-opt solve problems/earth_mars_coast.py --polish
 run esail-opt solve problems/earth_mars_min_ac.py --polish
+run esail-opt solve problems/earth_mars_min_ac_planar.py --polish
 for p in earth_mars_low_thrust earth_mars_min_time earth_venus_low_thrust earth_venus_min_time; do
   run esail-opt solve "problems/$p.py" --polish --out "results/${p}_polished"
 done

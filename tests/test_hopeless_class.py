@@ -17,13 +17,13 @@ from esail_opt.optimisation.problem_file import load_problem
 
 from conftest import PROBLEMS
 
-#: pykep 3's a_c for problems/earth_mars_min_ac.py, mm/s^2.
+#: pykep 3's a_c for problems/earth_mars_min_ac_planar.py, mm/s^2.
 PYKEP_AC_MM_S2 = 0.918326
 
 
 @pytest.mark.slow
 def test_the_classes_beside_the_earth_mars_min_ac_answer_cost_no_more_than_it():
-    problem = load_problem(PROBLEMS / "earth_mars_min_ac.py")
+    problem = load_problem(PROBLEMS / "earth_mars_min_ac_planar.py")
     run = pipeline.solve(problem, polish=True)
     assert run.verified and run.polish.verified, (run.note, run.polish.note)
     data = Solution.of(run).to_json()
