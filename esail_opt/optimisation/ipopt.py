@@ -125,11 +125,14 @@ def _clock_slice(tr):
 
 
 def _off_the_box(tr, result):
-    """``result``'s point with its clocks wrapped (:func:`wrap_clock`), or None if no
-    clock has reached its box (``problem.CLOCK_ROOM``).  The flight, the objective and
-    the constraints are periodic in the clocks, so the wrapped point is the same optimum
-    less the box's pull."""
+    """``result``'s point with its clocks wrapped (:func:`wrap_clock`), or None if it is
+    no optimum (a probe stopped early, a solve that failed: the box did not decide those)
+    or no clock has reached its box (``problem.CLOCK_ROOM``).  The flight, the objective
+    and the constraints are periodic in the clocks, so the wrapped point is the same
+    optimum less the box's pull."""
     at = _clock_slice(tr)
+    if not result.outcome.found:
+        return None
     # Ipopt's barrier holds a clock pressed on the box some 1e-6 rad inside it.
     if at is None or np.all(np.abs(result.w[at]) < CLOCK_ROOM - 1e-3):
         return None
