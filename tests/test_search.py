@@ -130,6 +130,21 @@ def test_search_command_rejects_bad_input_and_writes_nothing(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_search_without_plots_writes_every_file_but_the_figures(tmp_path):
+    """``--no-plots``, as ``solve`` has it: search.json, search.csv and best/'s files,
+    and no PNG anywhere; the same search with the figures adds exactly the PNGs."""
+    args = ["search", str(PROBLEMS / "earth_mars_min_time.py"), "--segments", "6",
+            "--extra-revolutions", "0", "--no-polish"]
+    bare, drawn = tmp_path / "bare", tmp_path / "drawn"
+    assert cli.main(args + ["--no-plots", "--out", str(bare)]) == 0
+    assert cli.main(args + ["--out", str(drawn)]) == 0
+    files = lambda out: {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()}
+    assert files(bare) == {"search.json", "search.csv", "best/solution.json",
+                           "best/schedule.csv"}
+    assert files(drawn) - files(bare) == {"search.png", "best/trajectory.png",
+                                          "best/timeline.png"}
+
+
 # ---------------------------------------------------------------- slow: real searches
 
 

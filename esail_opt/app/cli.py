@@ -272,8 +272,7 @@ def _add_solve(sub):
     p.add_argument("--polish", action="store_true",
                    help="polish the optimum on the exact equations of motion (in time), held "
                    "to 1 m and 1 mm/s")
-    p.add_argument("--no-plots", action="store_true",
-                   help="write everything but the figures (`esail-opt plot` draws them later)")
+    _add_no_plots(p, "`esail-opt plot` draws them later")
     p.set_defaults(run=_run_solve)
 
 
@@ -389,7 +388,13 @@ def _add_search(sub):
     _add_tolerance(p)
     p.add_argument("--out", default=None,
                    help="output directory (default results/<problem name>_search)")
+    _add_no_plots(p, "`esail-opt plot OUT/best` draws the best optimum's later")
     p.set_defaults(run=_run_search)
+
+
+def _add_no_plots(p, later):
+    p.add_argument("--no-plots", action="store_true",
+                   help=f"write everything but the figures ({later})")
 
 
 def _run_search(args):
@@ -410,7 +415,7 @@ def _run_search(args):
         print(f"esail-opt search: no start converged ({len(data['starts'])} starts); "
               "nothing written", file=sys.stderr)
         return 1
-    for path in search.write(data, solutions, out):
+    for path in search.write(data, solutions, out, plots=not args.no_plots):
         print(f"wrote {path}")
     print("\n".join(search.summary(data)))
     if data["best"]["verified"]:

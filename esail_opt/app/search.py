@@ -195,20 +195,22 @@ def _tof(row):
 SEARCH_FILES = ("search.json", "search.csv", "search.png", "best")
 
 
-def write(data, solutions, out_dir):
+def write(data, solutions, out_dir, plots=True):
     """Write search.json, search.csv, search.png and best/ (the best optimum's
     solution files) into ``out_dir`` as one set (:func:`~esail_opt.app.files.publish`);
-    returns the paths written.  OutputError if the folder cannot be written;
-    FigureError, after the set is written, if a figure of best/ could not be drawn."""
+    without ``plots``, every file but the figures.  Returns the paths written.
+    OutputError if the folder cannot be written; FigureError, after the set is written,
+    if a figure of best/ could not be drawn."""
     out = Path(out_dir)
-    names = ["search.json", "search.csv", "search.png"]
+    names = ["search.json", "search.csv"] + (["search.png"] if plots else [])
     failed = None
     with publish(out, family=SEARCH_FILES) as stage:
         write_json(stage / names[0], data)
         (stage / names[1]).write_text(table_csv(data))
-        save_figure(figure(data), stage / names[2])
+        if plots:
+            save_figure(figure(data), stage / names[2])
         try:
-            best = solutions[0].write(stage / "best") if solutions else []
+            best = solutions[0].write(stage / "best", plots=plots) if solutions else []
         except FigureError as err:
             best, failed = err.written, err
     written = [out / name for name in names] + [out / "best" / p.name for p in best]

@@ -659,8 +659,8 @@ def _polish(problem, result, samples, say):
         return PolishRun(None, None, False,
                          f"NOT polished: the closed-form solve ended {result.status}",
                          closed_form_objective=result.objective)
-    model = "the Cartesian equations" if problem.three_d() else "Eqs. 1-2"
-    say(f"{problem.name}: polishing on the exact {model} in time ({result.alpha.size} segments)")
+    say(f"{problem.name}: polishing on {problem.equations()} in time, exactly "
+        f"({result.alpha.size} segments)")
     exact, _ = polishing.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")

@@ -622,6 +622,10 @@ class Problem:
         planar = PLANAR_DEFAULT if self.planar is None else self.planar
         return self.dated() and not planar
 
+    def equations(self):
+        """The equations of motion the problem is verified on, as a reader names them."""
+        return "the Cartesian equations" if self.three_d() else "Eqs. 1-2"
+
     def x0(self):
         """Departure polar state, canonical units, as a numpy array: in three dimensions
         the polar state inside the departure's plane (:meth:`plane_x0`'s first four)."""

@@ -115,8 +115,7 @@ def judge(problem, misses, error, tolerance, against_nlp=False):
     failed = []
     for what, r, v in checks:
         failed += [f"misses {what} by {text}" for text in _exceeded(r, v, r_err, v_err, tolerance)]
-    flight = ("the flight on the Cartesian equations" if problem.three_d()
-              else "the flight on Eqs. 1-2")
+    flight = f"the flight on {problem.equations()}"
     if failed:
         return False, f"NOT verified: {flight} " + "; ".join(failed)
     if all(v is not None for _, _, v in checks):
