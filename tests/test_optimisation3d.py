@@ -502,8 +502,9 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
     assert miss_m_s < problem.tolerance.velocity_m_s
     # Mars is 1.85 deg out of the ecliptic: the flight ends well off it, as Mars does.
     assert abs(y[2]) * AU_KM > 1e5
-    # The files: schema 5, the clock in schedule.csv, the departure state as DE421's Earth,
-    # and the OEM's last state (ICRF, km) on DE421's Mars (rotated back here).
+    # The files: schema 6, the clock in schedule.csv, the departure state as DE421's Earth,
+    # the bodies' distances from the ecliptic and the flight's along its normal, and the
+    # OEM's last state (ICRF, km) on DE421's Mars (rotated back here).
     import csv
     import json
 
@@ -511,10 +512,17 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
 
     Solution.of(run).write(tmp_path, plots=False)
     data = json.loads((tmp_path / "solution.json").read_text())
-    assert data["schema_version"] == 5
+    assert data["schema_version"] == 6
     dep = data["problem"]["departure_state"]
     earth = de421_ecliptic("earthmoon", jd0)
     assert abs(dep["z_au"] - earth[2]) < 1e-12 and abs(dep["x_au"] - earth[0]) < 1e-12
+    assert data["departure_body"]["out_of_plane_km"] == pytest.approx(abs(earth[2]) * AU_KM,
+                                                                      rel=1e-9)
+    body = data["target_body"]
+    assert body["out_of_plane_km"] == pytest.approx(abs(mars[2]) * AU_KM, rel=1e-9)
+    # The verifier's flight and this one end within a few km of each other.
+    assert abs(body["normal_miss_km"] - abs(y[2] - mars[2]) * AU_KM) < 10.0
+    assert data["verification"]["normal_miss_km"] == body["normal_miss_km"]
     rows = list(csv.DictReader((tmp_path / "schedule.csv").open()))
     assert len(rows) == result.alpha.size
     # Each row names the NLP's sail: its normal, in (r_hat, t_hat, h_hat), is the same

@@ -33,7 +33,7 @@ def polished():
 @pytest.fixture(scope="module")
 def flown3d():
     """A fixed-date Earth-Mars rendezvous flown in three dimensions (``planar=False``),
-    on few segments: a schema-5 solution with a clock per segment and CVODES
+    on few segments: a schema-6 solution with a clock per segment and CVODES
     samples in the ecliptic's frame."""
     problem = eo.Problem("em3d", eo.BodyDeparture(body="earth", date="2031-01-01"),
                          eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
@@ -224,7 +224,7 @@ def test_trajectory_in_3d_shows_the_flight_from_above_and_from_the_side(flown3d)
     departure is the Earth's state, the rendezvous meets Mars within the tolerance)."""
     d = flown3d.to_json()
     cv = d["trajectory"]["cvodes"]
-    assert d["schema_version"] == 5
+    assert d["schema_version"] == 6
     top, side = plots.trajectory_figure(flown3d).axes
     assert (top.get_xlabel(), top.get_ylabel()) == ("x (au)", "y (au)")
     assert (side.get_xlabel(), side.get_ylabel()) == ("t since departure (days)", "z (au)")
@@ -267,13 +267,13 @@ def test_timeline_in_3d_adds_the_clock_and_the_inclination(flown3d):
 
 
 def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
-    """`esail-opt plot` on a folder whose solution.json is schema 5 draws both figures,
+    """`esail-opt plot` on a folder whose solution.json is schema 6 draws both figures,
     in 3-D as the fresh solution's."""
     from esail_opt.app import cli
 
     folder = tmp_path / "run"
     flown3d.write(folder, plots=False)
-    assert json.loads((folder / "solution.json").read_text())["schema_version"] == 5
+    assert json.loads((folder / "solution.json").read_text())["schema_version"] == 6
     assert cli.main(["plot", str(folder)]) == 0
     for name, _ in plots.FIGURES:
         assert (folder / name).stat().st_size > 10_000
@@ -282,6 +282,34 @@ def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
     np.testing.assert_array_equal(_lines(side)[FLOWN].get_ydata(),
                                   flown3d.trajectory_cvodes.three_d["z_au"])
     assert len(plots.timeline_figure(loaded).axes) == 10
+
+
+def test_a_target_bodys_distance_from_the_ecliptic_means_one_thing(flown3d):
+    """A 3-D solution gives the target body's distance from the ecliptic as the departure
+    body's, DE421's |z| of each (read independently here), and the flight's miss along
+    the normal apart; a version-5 file, which gave that miss as ``out_of_plane_km``,
+    reads with it as ``normal_miss_km`` and the body's distance unknown."""
+    from test_optimisation3d import AU_KM, de421_ecliptic
+
+    from esail_opt.bodies.dates import jd_from_iso
+
+    d = flown3d.to_json()
+    body = d["target_body"]
+    mars = de421_ecliptic("mars", jd_from_iso(d["arrival_date"]))
+    earth = de421_ecliptic("earthmoon", jd_from_iso(d["departure_date"]))
+    assert body["out_of_plane_km"] == pytest.approx(abs(mars[2]) * AU_KM, rel=1e-6)
+    assert d["departure_body"]["out_of_plane_km"] == pytest.approx(abs(earth[2]) * AU_KM,
+                                                                   rel=1e-6)
+    assert body["normal_miss_km"] <= d["verification"]["target_miss_r_km"]
+    assert body["normal_miss_km"] < 1e-3 * body["out_of_plane_km"]
+    old = json.loads(json.dumps(d))
+    old["schema_version"] = 5
+    for part in (old["target_body"], old["verification"]):
+        part["out_of_plane_km"] = part.pop("normal_miss_km")
+    loaded = Solution.from_json(old)
+    assert loaded.target_body.normal_miss_km == body["normal_miss_km"]
+    assert loaded.target_body.out_of_plane_km is None
+    assert f"{body['normal_miss_km']:.4g} km from the flight" in loaded.summary()
 
 
 @pytest.mark.parametrize("limits", [(2e-4, 20.0), (300.0, 8000.0), (5000.0, 8000.0)])

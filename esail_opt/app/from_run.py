@@ -167,7 +167,8 @@ def _target_body(target, check):
     m = check.misses
     return TargetBody(name=lookup.name(target.body), source=lookup.source(target.body),
                       kind=type(target).__name__, out_of_plane_km=m.get("out_of_plane_km"),
-                      relative_speed_km_s=m.get("relative_speed_km_s"))
+                      relative_speed_km_s=m.get("relative_speed_km_s"),
+                      normal_miss_km=m.get("normal_miss_km"))
 
 
 def calendar(problem, result, check):

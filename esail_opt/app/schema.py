@@ -16,15 +16,18 @@ units as the closed form's (km and m/s, where version 1 used m and mm/s), and ma
 gave the polish its own ``departure_state`` and calendar fields (a polish may move
 the departure and the a_c), and made ``problem.departure_state`` the state the
 verification flies from (for a body, its ephemeris rather than the NLP's track of it).
-Version 5 (this one) added ``classes`` and ``nearest_feasible``, and three dimensions: a
+Version 5 added ``classes`` and ``nearest_feasible``, and three dimensions: a
 problem flown in 3-D gives its
 ``problem.departure_state``, ``final_state`` and ``verification.cvodes_final_state`` also
 as :data:`STATE_KEYS` (the polar keys are then inside the state's own turning plane),
 its schedule rows a ``clock_deg``, its CVODES samples (``trajectory.cvodes``) the
 :data:`STATE_KEYS` and the osculating ``inclination_deg`` and ``node_deg``, and its
-verification's misses are in space against the body's unprojected state
-(``out_of_plane_km`` is then the flight's distance from the body along the ecliptic's
-normal).  Its folder also holds ``trajectory.oem``, the CVODES flight as a CCSDS OEM.
+verification's misses are in space against the body's unprojected state.  Its folder
+also holds ``trajectory.oem``, the CVODES flight as a CCSDS OEM.  Version 6 (this one)
+gave a target body's ``out_of_plane_km`` one meaning, the body's distance from the
+ecliptic at arrival, as the departure body's is: in a 3-D flight of version 5 it was the
+flight's distance from the body along the ecliptic's normal, which is now
+``normal_miss_km`` (:func:`upgrade` reads a version-5 file so).
 
 Top level
 ---------
@@ -87,8 +90,10 @@ departure_body : object
     ``vinf_angle_deg`` (from the local horizontal towards radial outward).
 target_body : object
     For a BodyRendezvous or BodyIntercept: ``name``, ``source``, ``kind``,
-    ``out_of_plane_km`` at the flown arrival and ``relative_speed_km_s`` of the flight
-    against the body there.
+    ``out_of_plane_km`` (the body's distance from the ecliptic at the flown arrival),
+    ``relative_speed_km_s`` of the flight against the body there and, in 3-D,
+    ``normal_miss_km`` (the flight's distance from the body along the ecliptic's
+    normal; also in the verification's misses).
 ac_mm_s2_required : float
     For a MinAcceleration objective: the characteristic acceleration found, mm/s^2.
 
@@ -130,11 +135,12 @@ import numpy as np
 from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 #: Versions this code reads: versions 3 to 5 only added fields, so a version-2 file
 #: reads as one of a problem off the calendar, a version-3 polish has no start of its
-#: own, a file before version 5 names no classes, and a version-4 file is a planar one.
-READABLE = (2, 3, 4, 5)
+#: own, a file before version 5 names no classes, and a version-4 file is a planar one;
+#: a version-5 file is read through :func:`upgrade`.
+READABLE = (2, 3, 4, 5, 6)
 
 
 def check(data, source):
@@ -144,6 +150,30 @@ def check(data, source):
         raise InputError(f"{source}: solution.json schema version {found}, but this esail_opt "
                          f"reads versions {', '.join(map(str, READABLE))}; solve the problem "
                          "again to rewrite it")
+
+
+def upgrade(data):
+    """``data``, a readable ``solution.json``, with the keys of version 6: a 3-D flight of
+    version 5 gave a target's ``out_of_plane_km`` (in ``target_body`` and in the
+    verifications, the polish's included) as the flight's distance from the body along
+    the ecliptic's normal, which is ``normal_miss_km`` now; the body's own distance from
+    the ecliptic is then unknown (None)."""
+    three_d = "x_au" in (data.get("final_state") or {})
+    if data.get("schema_version") != 5 or not three_d:
+        return data
+    return _renamed(data)
+
+
+def _renamed(value):
+    if not isinstance(value, dict):
+        return value
+    out = {}
+    for key, item in value.items():
+        if key in ("target_body", "verification") and isinstance(item, dict) \
+                and "out_of_plane_km" in item:
+            item = {**item, "normal_miss_km": item["out_of_plane_km"], "out_of_plane_km": None}
+        out[key] = _renamed(item)
+    return out
 
 
 #: The keys of a state in three dimensions, as a later version will give every state:

@@ -12,9 +12,10 @@ file read back gives, so a solution loaded from disk prints, plots and writes ex
 as the one that wrote it.  Its terminal summary is :mod:`esail_opt.app.report`'s, its
 folder :mod:`esail_opt.app.solution_files`'s.
 
-Files of schema versions 2 to 4 read through the same fields: every key added since
+Files of schema versions 2 to 5 read through the same fields: every key added since
 version 2 is a field that may be absent (None, or empty, when it is), so no version needs
-a step of its own (:data:`esail_opt.app.schema.READABLE`).
+a step of its own (:data:`esail_opt.app.schema.READABLE`) but version 5, whose one key
+of another meaning :func:`esail_opt.app.schema.upgrade` renames.
 """
 
 import dataclasses
@@ -141,8 +142,9 @@ class Flight(Record):
     and the target, the verifier's own error, and the flown final state.
 
     ``extra`` holds a target's own misses beyond the named ones (an (a, e) target's
-    ``target_miss_a_km`` and ``target_miss_e``, a body's ``relative_speed_km_s`` and
-    ``out_of_plane_km``), by their file names: which ones exist depends on the target.
+    ``target_miss_a_km`` and ``target_miss_e``, a body's ``relative_speed_km_s``,
+    ``out_of_plane_km`` and, in 3-D, ``normal_miss_km``), by their file names: which
+    ones exist depends on the target.
     """
 
     miss_r_km: Optional[float]
@@ -216,13 +218,16 @@ class DepartureBody(Record):
 
 @dataclass(frozen=True)
 class TargetBody(Record):
-    """The body a BodyRendezvous or BodyIntercept flies to, as the flight met it."""
+    """The body a BodyRendezvous or BodyIntercept flies to, as the flight met it: its
+    distance from the ecliptic, and in 3-D the flight's miss along the ecliptic's
+    normal."""
 
     name: str
     source: str
     kind: str
     out_of_plane_km: Optional[float]
     relative_speed_km_s: Optional[float]
+    normal_miss_km: Optional[float] = None
 
 
 @dataclass(frozen=True)
@@ -422,7 +427,7 @@ class Solution(Record):
         """
         schema.check(data, source)
         try:
-            return read(cls, data)
+            return read(cls, schema.upgrade(data))
         except (KeyError, TypeError, ValueError, AttributeError) as err:
             raise InputError(f"{source}: solution.json has no valid field {err}; solve the "
                              "problem again to rewrite it") from None

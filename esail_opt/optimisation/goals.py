@@ -415,13 +415,15 @@ class _BodyTarget:
     def miss3d(self, y, t, t0=0.0):
         """Distance (and, for a rendezvous, relative speed) of the Cartesian state ``y``
         from the body's exact, unprojected ecliptic state at t0 + t (DE421, or a small
-        body's six elements), with the relative speed at encounter and the part of the
-        distance along the ecliptic's normal."""
+        body's six elements), with the relative speed at encounter, the body's distance
+        from the ecliptic there (as :meth:`miss` gives it) and the part of the distance
+        along the ecliptic's normal."""
         body = lookup.ecliptic_state_at(self.body, t0 + t, "target.body")
         dr, dv = cartesian_miss(y, body)
         return _miss(dr, dv if self.matches_velocity else None,
                      relative_speed_km_s=dv / 1e3,
-                     out_of_plane_km=units.length_to_km(abs(float(np.ravel(y)[2] - body[2]))))
+                     out_of_plane_km=units.length_to_km(abs(float(body[2]))),
+                     normal_miss_km=units.length_to_km(abs(float(np.ravel(y)[2] - body[2]))))
 
 
 @functools.lru_cache(maxsize=None)
