@@ -9,6 +9,7 @@ made here without any iteration cap; and the edge of the feasible flights from
 """
 
 import json
+from types import SimpleNamespace
 
 import pytest
 
@@ -72,6 +73,30 @@ def test_solution_json_lists_the_classes_and_old_files_still_load(venus, tmp_pat
     loaded = Solution.from_json(old)
     assert loaded.classes == () and loaded.classes_skipped is None
     assert loaded.nearest_feasible is None and "classes" not in loaded.to_json()
+
+
+def test_the_summary_names_each_start_of_a_count_and_what_was_not_flown():
+    """The terminal's line on the turn counts: a count tried from two starts shows its
+    chosen start first and the other as another start, and a class with a point that
+    was not flown says so (its ``verified`` is None), as a projected one does."""
+    from esail_opt.app.report import _class_lines
+    from esail_opt.app.solution import ClassLooked
+
+    def looked(k, tof, verified, chosen, projected=False):
+        return ClassLooked(revolutions_k=k, label="", status="Solve_Succeeded", iterations=9,
+                           objective=tof, tof_days=tof, ac_mm_s2_required=None,
+                           constraint_violation=0.0, verified=verified, chosen=chosen,
+                           projected=projected)
+
+    classes = (looked(17, 860.1, True, True), looked(16, 1393.0, None, False),
+               looked(18, 990.0, None, False, projected=True),
+               looked(17, 860.2, None, False))
+    line = _class_lines(SimpleNamespace(classes=classes, classes_skipped="k < 16",
+                                        nearest_feasible=None))[0]
+    assert line == ("  turn counts on the body: k = 16 1393.0 d, not flown; "
+                    "k = 17 860.1 d, verified (chosen); "
+                    "k = 17 (another start) 860.2 d, not flown; "
+                    "k = 18 (projected model) 990.0 d, not flown")
 
 
 def test_an_orbit_transfer_says_which_classes_it_did_not_look_at():

@@ -104,7 +104,7 @@ def test_a_count_no_seed_winds_gets_a_start_that_winds_it():
     pitch = float(start.guess.alpha[0])
     assert math.radians(-67.5) < pitch < math.radians(-45.0)
     again = initial_guess(dataclasses.replace(problem, guess_alpha_deg=math.degrees(pitch)))
-    assert again.revolutions_k == -18 and "its own k" not in start.label
+    assert again.revolutions_k == -18 and "by itself winds" not in start.label
 
 
 def test_search_refuses_problems_it_cannot_count():

@@ -43,10 +43,12 @@ def _flight_lines(v):
     return lines
 
 
-def _class_line(c):
+def _class_line(c, again=False):
     """One turn count looked at: what it gave (and on which model, when that was the
-    projection of a 3-D run), and whether it was flown and chosen."""
-    k = f"k = {c.revolutions_k}" + (" (projected model)" if c.projected else "")
+    projection of a 3-D run; ``again`` for another start in a count already shown), and
+    whether it was flown and chosen."""
+    k = (f"k = {c.revolutions_k}" + (" (another start)" if again else "")
+         + (" (projected model)" if c.projected else ""))
     if c.tof_days is None and c.status == STOPPED:
         return (f"{k} hopeless, stopped after {c.iterations} iterations "
                 f"(still infeasible by {c.constraint_violation:.2g})")
@@ -54,7 +56,7 @@ def _class_line(c):
         return f"{k} no point ({c.status} after {c.iterations} iterations)"
     value = (f"{c.ac_mm_s2_required:.4g} mm/s^2" if c.ac_mm_s2_required is not None
              else f"{c.tof_days:.1f} d")
-    verdict = {True: ", verified", False: ", NOT verified", None: ""}[c.verified]
+    verdict = {True: ", verified", False: ", NOT verified", None: ", not flown"}[c.verified]
     return f"{k} {value}{verdict}" + (" (chosen)" if c.chosen else "")
 
 
@@ -62,7 +64,10 @@ def _class_lines(sol):
     """The turn counts looked at, and the nearest feasible flight, if any."""
     lines = []
     if sol.classes:
-        shown = [_class_line(c) for c in sorted(sol.classes, key=lambda c: c.revolutions_k)]
+        # The chosen start of a count first, then its other starts.
+        ranked = sorted(sol.classes, key=lambda c: (c.revolutions_k, not c.chosen))
+        shown = [_class_line(c, i > 0 and ranked[i - 1].revolutions_k == c.revolutions_k)
+                 for i, c in enumerate(ranked)]
         lines.append(f"  turn counts on the body: {'; '.join(shown)}")
         lines.append(f"  not looked at: {sol.classes_skipped}")
     if sol.nearest_feasible is not None:
@@ -92,17 +97,21 @@ def _mission_lines(sol):
         lines.append(f"  a_c of Ipopt's last iterate: {sol.ac_mm_s2_required:.6g} mm/s^2 "
                      "(not converged: no answer)")
     body = sol.target_body
-    if body is not None and body.out_of_plane_km is not None:
-        # A rendezvous's relative speed is its velocity miss, printed below.
-        speed = ("" if body.relative_speed_km_s is None or body.kind != "BodyIntercept"
-                 else f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
-        if sol.final_state.cartesian is not None:
-            lines.append(f"  {body.name}: flown in 3-D against its unprojected state, "
-                         f"{body.out_of_plane_km:.4g} km from it along the ecliptic's "
-                         f"normal at arrival{speed}")
-        else:
-            lines.append(f"  {body.name}: {body.out_of_plane_km:.4g} km from the ecliptic "
-                         f"at arrival, which the planar model ignores{speed}")
+    if body is None:
+        return lines
+    # A rendezvous's relative speed is its velocity miss, printed below.
+    speed = ("" if body.relative_speed_km_s is None or body.kind != "BodyIntercept"
+             else f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
+    off = (None if body.out_of_plane_km is None
+           else f"{body.out_of_plane_km:.4g} km from the ecliptic at arrival")
+    if body.normal_miss_km is not None:
+        # A version-5 file does not give the body's own distance (schema.upgrade).
+        lines.append(f"  {body.name}: flown in 3-D against its unprojected state, "
+                     + (f"{off} and " if off else "")
+                     + f"{body.normal_miss_km:.4g} km from the flight along the ecliptic's "
+                     f"normal{speed}")
+    elif off is not None:
+        lines.append(f"  {body.name}: {off}, which the planar model ignores{speed}")
     return lines
 
 

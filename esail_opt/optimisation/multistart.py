@@ -216,7 +216,7 @@ def rendezvous_starts(problem, classes, seeds=None):
             alpha, guess = _winding(problem, seeds, k) or (alpha, guess)
         label = f"rendezvous k = {k}, constant pitch {math.degrees(alpha):.4g} deg"
         if guess.revolutions_k != k:
-            label += f" (its own k = {guess.revolutions_k})"
+            label += f" (a pitch that by itself winds k = {guess.revolutions_k})"
         starts.append(Start(label, k, dataclasses.replace(guess, revolutions_k=k)))
     return starts
 
