@@ -222,6 +222,24 @@ def test_the_chart_draws_the_edge_and_the_cells_with_no_sail_apart():
     assert math.isnan(edge.get_ydata()[1]) and edge.get_ydata()[2] == 570.0
 
 
+def test_a_porkchop_without_plots_writes_its_table_and_plot_draws_the_chart_later(tmp_path):
+    """``porkchop.write(..., plots=False)`` (``--no-plots``) writes the CSV and the JSON
+    only; ``esail-opt plot`` then draws porkchop.png from the JSON, as the set would have
+    held it (the shipped 3-D Venus chart's record)."""
+    from esail_opt.app import cli
+
+    from conftest import REPO
+
+    record = json.loads((REPO / "results" / "earth_venus_min_ac_porkchop" /
+                         "porkchop.json").read_text())
+    written = porkchop.write(record, tmp_path, plots=False)
+    assert sorted(p.name for p in written) == ["porkchop.csv", "porkchop.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["porkchop.csv", "porkchop.json"]
+    assert json.loads((tmp_path / "porkchop.json").read_text()) == record
+    assert cli.main(["plot", str(tmp_path)]) == 0
+    assert (tmp_path / "porkchop.png").stat().st_size > 10_000
+
+
 def test_a_chart_of_a_record_without_the_edge_still_draws():
     """porkchop.json written before no_sail and the edge: no edge, no no-sail mark."""
     grid, rows = _grid(), _marked_rows()

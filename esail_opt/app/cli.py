@@ -213,6 +213,11 @@ def _add_tolerance(p):
                    help="bound on the flown velocity miss, m/s (default: the problem's, 10)")
 
 
+def _add_no_plots(p, later):
+    p.add_argument("--no-plots", action="store_true",
+                   help=f"write everything but the figures ({later})")
+
+
 def _load(args):
     """The problem file with the command line's segments and tolerance applied."""
     from esail_opt.optimisation.problem_file import load_problem
@@ -392,11 +397,6 @@ def _add_search(sub):
     p.set_defaults(run=_run_search)
 
 
-def _add_no_plots(p, later):
-    p.add_argument("--no-plots", action="store_true",
-                   help=f"write everything but the figures ({later})")
-
-
 def _run_search(args):
     from pathlib import Path
 
@@ -552,6 +552,7 @@ def _add_porkchop(sub):
                    help="also write each verified cell's solution folder (solution.json, "
                    "schedule.csv) into DIR, as its cells end (local pool only)")
     _add_tolerance(p)
+    _add_no_plots(p, "`esail-opt plot OUT` draws it later")
     p.set_defaults(run=_run_porkchop)
 
 
@@ -569,7 +570,7 @@ def _run_porkchop(args):
                           scheduler=args.scheduler, out_dir=out, resume=args.resume,
                           tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_line,
                           cells_out=cells)
-    for path in porkchop.write(result, out):
+    for path in porkchop.write(result, out, plots=not args.no_plots):
         print(f"wrote {path}")
     best = result["best"]
     if best is not None:

@@ -456,7 +456,8 @@ def csv_text(rows, fields, digits=10):
 
 def write_table_set(out_dir, names, csv_text, data, fig):
     """A scan's table, record and picture (``names``: the CSV, JSON and PNG file names)
-    written into ``out_dir`` as one set (:func:`publish`).  Returns their paths.
+    written into ``out_dir`` as one set (:func:`publish`); without a picture (``fig``
+    None), the first two.  Returns their paths.
 
     Raises
     ------
@@ -464,8 +465,10 @@ def write_table_set(out_dir, names, csv_text, data, fig):
         The folder cannot be written (one line; the old set stays as it was).
     """
     out = Path(out_dir)
+    names_written = names if fig is not None else names[:2]
     with publish(out, family=names) as stage:
         (stage / names[0]).write_text(csv_text)
         write_json(stage / names[1], data)
-        save_figure(fig, stage / names[2])
-    return [out / name for name in names]
+        if fig is not None:
+            save_figure(fig, stage / names[2])
+    return [out / name for name in names_written]

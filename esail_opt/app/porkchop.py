@@ -611,8 +611,9 @@ def _dates_tofs_chart(fig, ax, result, marks, label):
     ax.set_ylabel("time of flight [d]")
 
 
-def write(result, out_dir):
-    """porkchop.csv, porkchop.json and porkchop.png in ``out_dir``, as one set
-    (:func:`~esail_opt.app.files.write_table_set`); the journal stays beside them.
+def write(result, out_dir, plots=True):
+    """porkchop.csv, porkchop.json and (with ``plots``) porkchop.png in ``out_dir``, as one
+    set (:func:`~esail_opt.app.files.write_table_set`); the journal stays beside them.
     Returns the paths."""
-    return write_table_set(out_dir, PORKCHOP_FILES, table_csv(result), result, figure(result))
+    return write_table_set(out_dir, PORKCHOP_FILES, table_csv(result), result,
+                           figure(result) if plots else None)
