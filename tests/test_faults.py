@@ -824,12 +824,48 @@ def test_a_bad_scan_option_is_one_line_naming_it(tmp_path, capsys, kind, args, w
     assert not out.exists()
 
 
-def test_search_refuses_an_empty_out(tmp_path, capsys):
+@pytest.mark.parametrize("command", ["search", "solve"])
+def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch, command):
+    """``--out ""`` is no folder: one line, exit 2, and nothing written (solve used to
+    take it for its default ``results/<name>``)."""
+    monkeypatch.chdir(tmp_path)
     problem = tmp_path / "tiny.py"
     problem.write_text(TINY.format(name="tiny"))
-    assert cli.main(["search", str(problem), "--out", ""]) == 2
+    assert cli.main([command, str(problem), "--out", ""]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--out" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.py"]
+
+
+def test_an_out_in_the_way_is_one_line_before_the_work(tmp_path, capsys):
+    """propagate's --out (a file) where a folder is, and reproduce's (a folder) where a
+    file is, are refused before anything is flown: one line, exit 3."""
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "file").write_text("mine\n")
+    assert cli.main(["propagate", "--alpha", "45", "--ac", "0.1", "--years", "5",
+                     "--out", str(tmp_path / "folder")]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "a folder of that name is in the way" in err
+    assert cli.main(["reproduce", "fig2", "--out", str(tmp_path / "file")]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "a file of that name is in the way" in err
+    assert (tmp_path / "file").read_text() == "mine\n"
+    assert not any((tmp_path / "folder").iterdir())
+
+
+def test_a_figure_whose_name_a_folder_holds_is_one_line(tmp_path, capsys):
+    """``esail-opt plot`` into a folder where a folder bears a figure's name: one line
+    naming that figure, exit 3, and the folder's own contents untouched."""
+    from esail_opt.app.solution import Solution
+
+    sol = Solution.load(REPO / "results" / "earth_mars_min_time" / "solution.json")
+    sol.write(tmp_path, plots=False)
+    (tmp_path / "trajectory.png").mkdir()
+    assert cli.main(["plot", str(tmp_path)]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(tmp_path / "trajectory.png") in err
+    held = tmp_path / "trajectory.png"
+    assert held.is_dir() and not any(held.iterdir())
 
 
 def test_a_negative_tof_range_is_one_line_not_a_usage_message(tmp_path, capsys):

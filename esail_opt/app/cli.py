@@ -20,6 +20,10 @@ EXIT_OUTPUT = 3
 #: A figure that could not be drawn, the rest of its set written: not 3, which says
 #: that the files are not there.
 EXIT_FIGURE = 4
+#: The errors of a file system that refuses an output: full, read-only, forbidden, or a
+#: folder or a file in the way.
+_OUTPUT_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+                  errno.EISDIR, errno.ENOTDIR)
 EPILOG = ("exit status: 0 converged and verified; 1 not converged or not verified (one "
           "line says which bound was missed); 2 bad input (nothing written; refused before the "
           "solve, or after it for a flight found to end past the ephemeris); 3 an output "
@@ -100,9 +104,12 @@ def _add_propagate(sub):
 
 def _run_propagate(args):
     from esail_opt.app import propagate
+    from esail_opt.app.files import check_output_file
 
     values = {field: _value_or_range(option, getattr(args, option))
               for field, option in propagate.GRID_FIELDS.items()}
+    if _out(args) is not None:
+        check_output_file(args.out)  # before the flights
     if args.samples is not None and args.samples < 1:
         raise InputError(f"samples = {args.samples} is outside [1, inf)")
     if any(":" in getattr(args, option) for option in propagate.GRID_FIELDS.values()):
@@ -197,8 +204,11 @@ class _FigureNames:
 
 
 def _run_reproduce(args):
+    from esail_opt.app.files import check_output_dir
+
+    out = check_output_dir(_out(args))  # before the figure's work
     progress = progress_printer("reproduce")
-    written = _figures()[args.figure](args.out, progress)
+    written = _figures()[args.figure](out, progress)
     progress.done()
     for path in written:
         print(f"wrote {path}")
@@ -288,7 +298,7 @@ def _run_solve(args):
     from esail_opt.app.files import check_output_dir
 
     problem = _load(args)
-    out = Path(args.out) if args.out else Path("results") / problem.name
+    out = _out(args) or Path("results") / problem.name
     check_output_dir(out, name=None if args.out else problem.name)  # before the solve
     progress = progress_printer("solve")
     sol = solution.solve(problem, progress=progress, polish=args.polish)
@@ -702,11 +712,15 @@ def run_command(label, run, args):
         print(f"{label}: {err}", file=sys.stderr)
         return 1
     except OSError as err:
-        if err.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EROFS):
+        if err.errno not in _OUTPUT_ERRNOS:
             raise
-        # A full or read-only disk met outside the output writers (a bench, a plot).
+        # A full or read-only disk, or a folder or file in the way, met outside the
+        # output checks (a bench, a plot into a folder that holds a folder of a
+        # figure's name).
+        # A rename's error names its source (a temporary file) first, its target second.
         print(f"{label}: error: cannot write "
-              f"{err.filename or 'an output'}: {err.strerror}", file=sys.stderr)
+              f"{err.filename2 or err.filename or 'an output'}: {err.strerror}",
+              file=sys.stderr)
         return EXIT_OUTPUT
     except KeyboardInterrupt as err:
         signum = err.signum if isinstance(err, Terminated) else signal.SIGINT

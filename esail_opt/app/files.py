@@ -111,6 +111,18 @@ def check_output_dir(path, name=None):
     return path
 
 
+def check_output_file(path):
+    """Check, before the work, that the file ``path`` (an ``--out`` that names a file)
+    can be written where it is: OutputError if a folder stands in its place or a file
+    stands in place of a folder above it.  Creates nothing."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"cannot write {str(path)!r}: a folder of that name is in the "
+                          "way (--out names a file here; choose another)")
+    _nearest_folder(path)
+    return path
+
+
 def _checked_out_path(raw):
     """``raw`` as a Path, refused (InputError) if it is no safe folder name or is a
     symbolic link, or (OutputError) if a file stands in its place."""
