@@ -837,6 +837,43 @@ def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch, command):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.py"]
 
 
+def test_a_users_folder_is_never_replaced_by_an_output_set(tmp_path, capsys, monkeypatch):
+    """A run swaps its whole folder in: it refuses, before solving and with one line,
+    an --out that is the working folder or holds it (the shell would be left in a
+    deleted folder), and an --out whose folder holds a folder named like one of its
+    files (that folder, the user's, would go with the old set)."""
+    problem = tmp_path / "tiny.py"
+    problem.write_text(TINY.format(name="tiny"))
+    here = tmp_path / "here"
+    (here / "notes").mkdir(parents=True)
+    monkeypatch.chdir(here)
+    for out in (str(here), str(tmp_path)):
+        assert cli.main(["solve", str(problem), "--out", out]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "is the working folder or holds it" in err
+    assert sorted(p.name for p in here.iterdir()) == ["notes"]
+    mine = here / "run" / "schedule.csv"
+    mine.mkdir(parents=True)
+    (mine / "notes.txt").write_text("precious\n")
+    assert cli.main(["solve", str(problem), "--out", "run"]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "schedule.csv" in err and "in the way" in err
+    assert (mine / "notes.txt").read_text() == "precious\n"
+
+
+def test_publish_keeps_a_folder_that_took_a_files_name_during_the_run(tmp_path):
+    """The same refusal when the folder appears after the check, at the swap: the old
+    set, the user's folder in it, stays, and no staging folder is left."""
+    target = tmp_path / "out"
+    (target / "a.csv").mkdir(parents=True)
+    (target / "a.csv" / "notes.txt").write_text("precious\n")
+    with pytest.raises(OutputError, match="a.csv"):
+        with files.publish(target, family=("a.csv",)) as stage:
+            (stage / "a.csv").write_text("x\n")
+    assert (target / "a.csv" / "notes.txt").read_text() == "precious\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
 def test_an_out_in_the_way_is_one_line_before_the_work(tmp_path, capsys):
     """propagate's --out (a file) where a folder is, and reproduce's (a folder) where a
     file is, are refused before anything is flown: one line, exit 3."""

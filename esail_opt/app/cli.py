@@ -296,10 +296,12 @@ def _run_solve(args):
 
     from esail_opt.app import report, solution
     from esail_opt.app.files import check_output_dir
+    from esail_opt.app.solution_files import SOLUTION_FILES
 
     problem = _load(args)
     out = _out(args) or Path("results") / problem.name
-    check_output_dir(out, name=None if args.out else problem.name)  # before the solve
+    check_output_dir(out, name=None if args.out else problem.name,  # before the solve
+                     files=SOLUTION_FILES)
     progress = progress_printer("solve")
     sol = solution.solve(problem, progress=progress, polish=args.polish)
     progress.done()
@@ -416,7 +418,8 @@ def _run_search(args):
     out = _out(args)
     problem = _load(args)
     out = out or Path("results") / f"{problem.name}_search"
-    check_output_dir(out, name=None if args.out else out.name)  # before the search
+    check_output_dir(out, name=None if args.out else out.name,  # before the search
+                     files=search.SEARCH_TABLES)
     progress = progress_printer("search")
     data, solutions = search.run(problem, args.extra_revolutions, polish=not args.no_polish,
                                  progress=progress)

@@ -71,7 +71,7 @@ def check_name(name, what="output folder name"):
     return text
 
 
-def check_output_dir(path, name=None):
+def check_output_dir(path, name=None, files=()):
     """Check, before any solve, that the run's output folder can be published.
 
     The check creates nothing: a run refused later (by this check or any other) leaves
@@ -86,6 +86,9 @@ def check_output_dir(path, name=None):
     name : str, optional
         The user-given name the folder is named after (a problem's name), checked as
         one safe component with :func:`check_name`.
+    files : iterable of str
+        The names the run writes as files into the folder: a folder of one of these
+        names there is the user's and is refused, never replaced.
 
     Returns
     -------
@@ -97,18 +100,31 @@ def check_output_dir(path, name=None):
     InputError
         The folder's last component is not a safe name (``..``, ``.``, a NUL, more
         than 255 bytes), or ``name`` is not (a ``/`` in it too); or the folder is a
-        symbolic link, dangling or not (folders above it may be links).
+        symbolic link, dangling or not (folders above it may be links); or the folder
+        is the working folder or holds it (replacing it would strand the shell).
     OutputError
         The folder cannot be created or written: a path under a regular file, a
-        regular file in its place, a read-only or full file system.  Nothing is left
-        behind by the check.
+        regular file in its place, a folder in place of one of ``files``, a read-only
+        or full file system.  Nothing is left behind by the check.
     """
     if name is not None:
         check_name(name, "problem name (the output folder's name)")
     path = _checked_out_path(path)
+    _refuse_folders_in_the_way(path, files)
     base, first = _nearest_folder(path)
     _probe(path, base, first)
     return path
+
+
+def _refuse_folders_in_the_way(target, files):
+    """OutputError if ``target`` holds a folder where the run writes a file: the set
+    is swapped in whole, so that folder, the user's, would be deleted with the old set."""
+    for name in files:
+        entry = Path(target) / name
+        if entry.is_dir() and not entry.is_symlink():
+            raise OutputError(f"cannot write {str(entry)!r}: a folder of that name is in "
+                              "the way, and replacing the set would delete it (move it, "
+                              "or choose another --out)")
 
 
 def check_output_file(path):
@@ -147,6 +163,13 @@ def _checked_out_path(raw):
     if path.exists() and not path.is_dir():
         raise OutputError(f"cannot write the output folder {str(path)!r}: a file of that "
                           "name is in the way (choose another --out)")
+    if path.exists():
+        here, out = Path.cwd().resolve(), path.resolve()
+        if here == out or out in here.parents:
+            # The set is swapped in by renaming folders: the shell would be left in
+            # the old one, deleted.
+            raise InputError(f"output folder {str(path)!r} is the working folder or holds "
+                             "it; give a folder below it (for example --out results/run)")
     return path
 
 
@@ -363,6 +386,8 @@ def publish(target, family=()):
     try:
         try:
             yield staging
+            _refuse_folders_in_the_way(
+                target, [e.name for e in os.scandir(staging) if e.is_file()])
             with _signals_held():
                 _carry_over(target, staging, family)
                 _fsync_tree(staging)

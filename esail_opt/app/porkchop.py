@@ -427,9 +427,10 @@ def _request(problem_file, depart, tof, workers, scheduler, retries, resume, out
     workers = engine.check_options(workers, scheduler, retries, resume, out_dir)
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check(problem, grid)
-    for folder in (out_dir, cells_out):
-        if folder is not None:
-            check_output_dir(folder)
+    if out_dir is not None:
+        check_output_dir(out_dir, files=PORKCHOP_FILES)
+    if cells_out is not None:
+        check_output_dir(cells_out)
     if cells_out is not None and scheduler is not None:
         raise InputError("--cells-out writes on this machine: it needs the local pool, "
                          "not --scheduler")

@@ -191,8 +191,10 @@ def _tof(row):
     return exact if row["verified"] and exact is not None else row["tof_days_closed_form"]
 
 
-#: Every entry :func:`write` may put in its folder, replaced as one set.
-SEARCH_FILES = ("search.json", "search.csv", "search.png", "best")
+#: The files :func:`write` puts in its folder, and with best/ every entry, replaced
+#: as one set.
+SEARCH_TABLES = ("search.json", "search.csv", "search.png")
+SEARCH_FILES = SEARCH_TABLES + ("best",)
 
 
 def write(data, solutions, out_dir, plots=True):

@@ -378,7 +378,7 @@ def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, po
         except InputError as err:
             raise InputError(f"param {name}: {err}") from None
     if out_dir is not None:
-        check_output_dir(out_dir)  # before any member runs: a sweep that cannot be
+        check_output_dir(out_dir, files=SWEEP_FILES)  # before any member runs: a sweep that cannot be
         # written must not solve first
     return _Request(str(problem_file), name, values, workers, problem,
                     Path(problem_file).read_text(), polish, tol_km, tol_m_s)
