@@ -22,7 +22,7 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import scan
 from esail_opt.optimisation.problem_file import load_problem
 
-from conftest import USER_PROBLEMS
+from conftest import PROBLEMS, USER_PROBLEMS
 
 PROBLEM = USER_PROBLEMS / "earth_mars_porkchop_2035.py"
 DEPART = "2035-04-01:2035-08-01:3"
@@ -359,3 +359,31 @@ def test_a_3d_chart_half_needs_no_more_a_c_than_lone_solves_where_its_chains_use
         needed = cell.result.ac_scale * problem.sail.ac_mm_s2
         assert needed <= 1.005 * lone.ac_mm_s2_required, (key, needed,
                                                           lone.ac_mm_s2_required)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, depart, tof", [
+    ("earth_mars_window_planar", "2031-09-01T12:00:2031-09-02T12:00:2", None),
+    ("earth_venus_min_ac_planar", "2031-01-01:2031-03-01:2", "600:650:2")])
+def test_a_planar_jobs_first_cell_ends_where_a_lone_solve_does(name, depart, tof):
+    """Each of 2 workers' jobs starts with no neighbour.  Started from its seed's turn
+    counts, Earth-Mars leaving 2031-09-02 ended at 975.75 d (k = 16), and Earth-Venus
+    leaving 2031-01-01 in 650 d at 0.7753 mm/s^2 (k = -21), where lone solves find
+    682.2 d (k = 15) and 0.7484 mm/s^2 (k = -20).  A job's first cell searches its
+    counts as a lone solve does: every cell within 0.5 % of ``eo.solve`` of it."""
+    import esail_opt as eo
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    problem = shipped_problem(name)
+    table = porkchop.run(PROBLEMS / f"{name}.py", depart, tof, workers=2)
+    grid = porkchop.Grid(tuple(porkchop.parse_dates(depart)),
+                         None if tof is None else tuple(porkchop.parse_tofs(tof)))
+    firsts = {job[0] for job in grid.jobs(2)}
+    assert len(firsts) == 2
+    for index in firsts:
+        row = table["rows"][index]
+        lone = eo.solve(porkchop.cell_problem(problem, grid, index))
+        assert row["verified"] and lone.verified, (index, row["error"], lone.note)
+        ours = row["ac_mm_s2_required"] if tof else row["tof_days"]
+        theirs = lone.ac_mm_s2_required if tof else lone.tof_days
+        assert ours <= 1.005 * theirs, (index, ours, theirs)

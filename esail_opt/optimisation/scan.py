@@ -13,8 +13,8 @@ forward pass every cell that ended worse than a neighbour -- not converged, not
 verified, or a larger objective -- is solved again from that neighbour, the other way
 along the scan, and keeps the better of the two; a cell solved again so passes its new
 optimum on to its neighbours.  A cell no neighbour can start is solved cold from its own
-seed, as a lone solve would; in three dimensions a run's first cell searches its turn
-counts on the projected model and lifts the best, as a lone solve does.  A
+seed, as a lone solve would; a run's first cell searches its turn counts as a lone
+solve does (in three dimensions on the projected model, lifting the best).  A
 MinAcceleration or MinTime cell also steps through the turn counts on the body beside
 its best while its objective falls, as a lone solve does
 (``multistart.descend_turns``): the best count drifts across a chart, and a warm chain
@@ -177,17 +177,20 @@ class CellSolver:
 
     def cold(self, problem, k=None, start=None):
         """Solve a cell from its own constant-pitch seed, from turn count ``k``'s seed
-        (``multistart.rendezvous_starts``), or from ``start``, an optimum of the 3-D
-        cell's projected model on the scan's mesh in class ``k``, lifted
-        (``transcription.lifted_guess``; :func:`_projected_first`).  The first cell of
-        a class builds the class's NLP."""
+        (``multistart.rendezvous_starts``), or from ``start``, an optimum of the
+        class search on the scan's mesh in class ``k`` (:func:`_searched_first`; in
+        3-D one of the projected model, lifted by ``transcription.lifted_guess``).  The
+        first cell of a class builds the class's NLP."""
         started = time.perf_counter()
         label = "seed" if k is None else f"class {k}"
         # A class's seed is a look at another basin, not worth a full iteration budget.
         options = None if k is None else ipopt_options(max_iter=CLASS_ITERATIONS)
-        if start is not None:
+        if start is not None and problem.three_d():
             label += ", lifted from the projected model"
             seed = lifted_guess(problem, start.as_guess())
+        elif start is not None:
+            label += ", from the class search"
+            seed = start.as_guess()
         else:
             seed = initial_guess(problem) if k is None else _class_seed(problem, k)
         problem, seed = self._meshed(problem, seed)
@@ -360,10 +363,10 @@ def _first_solves(solver, problem, previous, chains, explore=False):
     tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
     if problem.tracks_body():
         sizing = problem.objective.free_acceleration
-        searched = (previous is None and not explore and problem.three_d()
+        searched = (previous is None and not explore
                     and multistart.searches_classes(problem))
         if searched:
-            tried += _projected_first(solver, problem)
+            tried += _searched_first(solver, problem)
         if explore or not ((sizing or searched) and any(c.solved for c in tried)):
             _own_classes(solver, problem, previous, chains, tried, explore)
         if sizing or not problem.objective.fixed_time:
@@ -380,17 +383,19 @@ def _first_solves(solver, problem, previous, chains, explore=False):
     return tried
 
 
-def _projected_first(solver, problem):
-    """A 3-D scan's first cell, which has no neighbour to start from: its turn counts
-    searched on the projected model as a lone solve searches them
-    (``multistart.search_classes``), and the best of them lifted onto their classes'
-    NLPs (``multistart.lift_best``).  Returns the lifted cells; none when the
-    projection cannot rank the classes (no point, or a class undecided at its cap), and
-    the cell's counts are then solved in 3-D from their seeds.
+def _searched_first(solver, problem):
+    """A run's first cell, which has no neighbour to start from: its turn counts
+    searched as a lone solve searches them (``multistart.search_classes``, on the
+    projected model in 3-D), and the best of them solved on their classes' NLPs from
+    the search's optima (lifted in 3-D, ``multistart.lift_best``).  Returns those
+    cells; none when the search cannot rank the classes (no point, or a class
+    undecided at its cap), and the cell's counts are then solved from their seeds.
 
-    Why: cold from constant pitch in 3-D, a first cell can stall in a count far from
-    its best, and the chain then carries that count on; the projection ranks the counts
-    as a lone solve does, so the run starts where a lone solve would end."""
+    Why: cold from a count's constant-pitch seed, a first cell can stall in a count far
+    from its best, and the chain then carries that count on.  In the plane, Earth-Mars
+    leaving 2031-09-02 as a job's first cell ended at 975.75 d (k = 16), where a lone
+    solve's search finds 682.2 d (k = 15).  The search ranks the counts as a lone solve
+    does, so the run starts where a lone solve would end."""
     problem, _ = solver._meshed(problem, initial_guess(problem))
     model = multistart.probe_model(problem)
     result, tr = solve_problem(model, guess=initial_guess(model))
