@@ -612,6 +612,7 @@ def test_a_failed_append_leaves_no_half_line(tmp_path, monkeypatch):
     path = tmp_path / sweep.JOURNAL
     journal = _journal(path, HEADER)
     journal.open(resume=False)
+    journal.append({**sweep._empty_row(0, 0.3), "converged": True})  # the fresh one's first
     before = path.read_bytes()
     real = os.write
 
@@ -624,6 +625,29 @@ def test_a_failed_append_leaves_no_half_line(tmp_path, monkeypatch):
         journal.append({**sweep._empty_row(0, 0.5), "converged": True})
     monkeypatch.setattr(os, "write", real)
     assert path.read_bytes() == before
+
+
+def test_a_fresh_scan_replaces_the_old_journal_only_with_its_first_row(tmp_path):
+    """A scan started afresh over a folder holding another scan's journal leaves that
+    journal as it is until its own first row (the old outputs beside it still match
+    it, and --resume can continue it); then its header and the row replace it whole.
+    A fresh scan that ends with no row written leaves its header."""
+    path = tmp_path / sweep.JOURNAL
+    old = _journal(path, {**HEADER, "values": [9.0]})
+    old.open(resume=False)
+    old.append({**sweep._empty_row(0, 9.0), "converged": True})
+    before = path.read_bytes()
+    fresh = _journal(path, HEADER)
+    assert fresh.open(resume=False) == {}
+    assert path.read_bytes() == before
+    fresh.append({**sweep._empty_row(0, 0.5), "converged": True})
+    assert fresh.read(resume=True)[0]["value"] == 0.5
+    assert json.loads(path.read_text().splitlines()[0]) == json.loads(json.dumps(HEADER))
+    empty = _journal(path, {**HEADER, "values": [7.0]})
+    empty.open(resume=False)
+    empty.close()
+    assert [json.loads(line) for line in path.read_text().splitlines()] == [
+        json.loads(json.dumps({**HEADER, "values": [7.0]}))]
 
 
 # ---------------------------------------------------------------- 6. problem files

@@ -436,7 +436,8 @@ def test_interrupt_keeps_the_journal_and_resume_runs_only_the_rest(venus, tmp_pa
 
 def test_journal_resumes_on_index_and_value_and_refuses_another_sweep(tmp_path):
     """The journal: a torn last line and rows of another grid are not kept; a fresh
-    start replaces it; another problem file, param, grid or tolerance is refused."""
+    start replaces it (with its first row, or at its end); another problem file, param,
+    grid or tolerance is refused."""
     path = tmp_path / sweep.JOURNAL
     header = {"journal": "esail-opt sweep", "problem": "p", "source_sha256": "abc",
               "param": "ac_mm_s2", "values": [0.5, 1.0, 1.5], "polish": False,
@@ -460,8 +461,11 @@ def test_journal_resumes_on_index_and_value_and_refuses_another_sweep(tmp_path):
             _sweep_journal(path, {**header, key: value}).open(resume=True)
         assert message in str(err.value) and "\n" not in str(err.value)
 
-    # Without resume the old journal is replaced by a bare header.
-    assert _sweep_journal(path, {**header, "values": [9.0]}).open(resume=False) == {}
+    # Without resume the old journal is replaced by a bare header at the run's end
+    # (here no row reached it).
+    fresh = _sweep_journal(path, {**header, "values": [9.0]})
+    assert fresh.open(resume=False) == {}
+    fresh.close()
     assert [json.loads(line) for line in path.read_text().splitlines()] == [
         {**header, "values": [9.0]}]
     path.write_text("not json\n")

@@ -581,7 +581,7 @@ def _run_porkchop(args):
     cells = _out(args, "--cells-out")
     result = porkchop.run(args.problem_file, args.depart, args.tof, workers=args.workers,
                           scheduler=args.scheduler, out_dir=out, resume=args.resume,
-                          tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_line,
+                          tol_km=args.tol_km, tol_m_s=args.tol_m_s, progress=_porkchop_lines(),
                           cells_out=cells)
     for path in porkchop.write(result, out, plots=not args.no_plots):
         print(f"wrote {path}")
@@ -601,16 +601,29 @@ def _run_porkchop(args):
     return 0
 
 
-def _porkchop_line(row, done, total):
-    """One line on stderr per finished cell of a porkchop."""
-    cell = row["departure_date"][:10]
-    if row["tof_days_grid"] is not None:
-        cell += f", tof {row['tof_days_grid']:g} d"
-    if row["verified"]:
-        what = f"{row['objective']:.6g} {row['objective_unit'] or ''}, verified".replace(" ,", ",")
-    else:
-        what = f"NOT verified ({row['error']})"
-    print(f"esail-opt porkchop: [{done}/{total}] {cell}: {what}", file=sys.stderr, flush=True)
+def _porkchop_lines():
+    """The progress of a porkchop: one line on stderr per cell as its job's forward
+    pass ends it, and one more if the job's end changed it (the repair pass, the edge
+    of the feasible)."""
+    seen = set()
+
+    def line(row, done, total):
+        cell = row["departure_date"].removesuffix("T00:00:00")
+        if row["tof_days_grid"] is not None:
+            cell += f", tof {row['tof_days_grid']:g} d"
+        if row["verified"]:
+            what = f"{row['objective']:.6g} {row['objective_unit'] or ''}, verified".replace(
+                " ,", ",")
+        elif row["no_sail"]:
+            what = "no sail (shorter than the edge of the feasible)"
+        else:
+            what = f"NOT verified ({row['error']})"
+        again = " (at its job's end)" if row["index"] in seen else ""
+        seen.add(row["index"])
+        print(f"esail-opt porkchop: [{done}/{total}] {cell}: {what}{again}", file=sys.stderr,
+              flush=True)
+
+    return line
 
 
 def build_parser():

@@ -175,6 +175,7 @@ class Journal:
         self.path = Path(path)
         self.header, self.kinds, self.count = header, kinds, count
         self.belongs = belongs or (lambda i, row: True)
+        self.fresh = False  # started afresh, and no row written yet
 
     def read(self, resume):
         """With ``resume``, the rows the journal holds (index -> row); changes nothing.
@@ -201,7 +202,11 @@ class Journal:
 
     def start(self, kept):
         """Make the journal ready for appending, once the run is accepted: with rows
-        ``kept``, cut a torn last line off; without, replace the file by the header."""
+        ``kept``, cut a torn last line off.  Without, the old journal is replaced by
+        this one's header only with the first row (:meth:`append`) or at the run's end
+        (:meth:`close`): a fresh run stopped before either leaves the old scan's
+        journal, which its outputs beside it match, to be resumed."""
+        self.fresh = not kept
         if kept:
             raw = self.path.read_bytes()
             whole = raw.rfind(b"\n") + 1
@@ -209,11 +214,21 @@ class Journal:
                 with open(self.path, "r+b") as handle:
                     handle.truncate(whole)
                     os.fsync(handle.fileno())
-            return
+
+    def close(self):
+        """At a run's end: a fresh journal that no row reached is written (its header),
+        so that it, not the old scan's, sits beside the run's outputs."""
+        if self.fresh:
+            self._replace()
+
+    def _replace(self, row=None):
         # The header replaces any old journal whole, so a stale row is never read as
         # this scan's.
         with atomic_path(self.path) as tmp:
-            tmp.write_text(self._line(self.header))
+            tmp.write_text(self._line(self.header) + ("" if row is None else self._line(row)))
+            with open(tmp, "rb") as handle:
+                os.fsync(handle.fileno())
+        self.fresh = False
 
     def open(self, resume):
         """:meth:`read`, then :meth:`start`: the rows kept."""
@@ -232,6 +247,13 @@ class Journal:
         OutputError
             The row could not be written (one line; the journal is as it was).
         """
+        if self.fresh:
+            try:
+                self._replace(row)
+            except OSError as err:
+                raise OutputError(f"cannot write the journal {str(self.path)!r}: "
+                                  f"{os.strerror(err.errno) if err.errno else err}") from None
+            return
         data = self._line(row).encode()
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
         try:
@@ -368,7 +390,8 @@ class Outcome:
 
 
 class _Rows:
-    """The scan's rows, filled in as its jobs end, each journaled at once."""
+    """The scan's rows, filled in as its jobs end, each journaled at once, and reported
+    as soon as a job tells of them (:func:`esail_opt.app.parallel.tell`)."""
 
     def __init__(self, scan, kept, journal, progress):
         self.scan, self.journal, self.progress = scan, journal, progress
@@ -377,6 +400,15 @@ class _Rows:
         self.solved = []  # indices ended in this run, in finishing order
         self.filled = set(kept)  # indices with a row
         self.journaled = set(kept)  # indices whose row the journal holds
+        self.told = {}  # index -> the row a job told of before it ended
+
+    def news(self, row):
+        """A row its job told of before ending: reported, not journaled (the job may
+        still replace it), and not reported again unless the job's end changes it."""
+        i = row["index"]
+        if self.rows[i] is None and i not in self.told:
+            self.told[i] = row
+            self._report(row)
 
     def finished(self, job, value):
         for row in value if isinstance(value, list) else [value]:
@@ -394,8 +426,12 @@ class _Rows:
         self.rows[i] = row
         self.solved.append(i)
         self.filled.add(i)
+        if self.told.get(i) != row:
+            self._report(row)
+
+    def _report(self, row):
         if self.progress:
-            self.progress(row, len(self.filled), self.scan.count)
+            self.progress(row, len(self.filled | set(self.told)), self.scan.count)
 
 
 def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
@@ -406,7 +442,8 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
     ``resume`` keeps the rows the journal holds, else it starts afresh; ``workers`` is
     the local pool's size, ``scheduler`` a Dask scheduler's address (checked by
     :func:`check_scheduler`), ``retries`` the times a job lost with its worker runs
-    again, and ``progress(row, done, total)`` is called as each row ends.  Returns an
+    again, and ``progress(row, done, total)`` is called as each row ends (or as its job
+    tells of it, and again at the job's end if that changed it).  Returns an
     :class:`Outcome`.
 
     Raises
@@ -436,12 +473,14 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
             lost = parallel.run(scan.function, {j: job[1] for j, job in todo.items()},
                                 rows.finished, rows.unfinished, workers=workers,
                                 client=client, address=scheduler, retries=retries,
-                                quiet=quiet)
+                                quiet=quiet, on_news=rows.news)
         except parallel.ClusterLost as err:
             raise parallel.ClusterLost(f"{err}; {_kept(rows, journal)}") from None
         finally:
             if client is None:
                 remove_orphans()
+        if journal is not None:
+            journal.close()
     return Outcome(rows.rows, rows.resumed, rows.solved, lost,
                    time.perf_counter() - start, executor,
                    None if journal is None else journal.path)

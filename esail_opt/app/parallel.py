@@ -3,7 +3,9 @@
 :func:`run` calls ``function(index, *args)`` once per job on a
 :mod:`concurrent.futures` executor: a local process pool, or Dask distributed's
 executor on a client of :func:`session` -- the same code path either way.  Results
-and failures are handed to the caller as each job ends, in finishing order.
+and failures are handed to the caller as each job ends, in finishing order.  A job on
+the local pool may also :func:`tell` the caller something before it ends (a porkchop's
+cell as its run of cells goes on); on Dask the result is all the caller hears.
 
 A job whose worker process dies (killed, out of memory, a crash in native code) is run
 again on a fresh pool a bounded number of times; the jobs on healthy workers keep or
@@ -62,7 +64,7 @@ def first_line(err):
 
 
 def run(function, jobs, on_result, on_failure, workers=1, client=None, address=None,
-        retries=RETRIES, quiet=()):
+        retries=RETRIES, quiet=(), on_news=None):
     """Run ``function(i, *jobs[i])`` for every job, reporting each as it ends.
 
     Parameters
@@ -88,6 +90,9 @@ def run(function, jobs, on_result, on_failure, workers=1, client=None, address=N
         What the compile cache has already said in this process
         (:func:`esail_opt.propagation.compiled.check_cache`), which the local workers
         then do not say again.
+    on_news : callable, optional
+        ``on_news(item)`` for each item a local pool's job sent with :func:`tell`, in
+        the order sent and before that job's result.
 
     Returns
     -------
@@ -103,7 +108,7 @@ def run(function, jobs, on_result, on_failure, workers=1, client=None, address=N
         After stopping the workers (:class:`~esail_opt.errors.Terminated` for SIGTERM).
     """
     runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
-                     address, quiet)
+                     address, quiet, on_news)
     runner.run()
     return {i: (n, runner.causes[i]) for i, n in sorted(runner.losses.items())}
 
@@ -144,12 +149,13 @@ class _Runner:
     """
 
     def __init__(self, function, jobs, on_result, on_failure, workers, client, retries,
-                 address=None, quiet=()):
+                 address=None, quiet=(), on_news=None):
         self.function, self.jobs = function, jobs
         self.quiet = tuple(quiet)
         self.address = address
         self.unhealthy = {}  # what is wrong with the cluster -> since when (monotonic)
-        self.on_result, self.on_failure = on_result, on_failure
+        self.on_result, self.on_failure, self.on_news = on_result, on_failure, on_news
+        self.news = None  # the local pool's queue of told items, this round
         self.workers, self.client, self.retries = workers, client, retries
         self.lost_errors = _lost_worker_errors()
         self.losses, self.causes = {}, {}
@@ -187,8 +193,13 @@ class _Runner:
             self.processes = {}
             # pure=False: a job run again must be a new task, not Dask's remembered
             # failure of the same arguments.
-            self.executor = (self.client.get_executor(pure=False) if self.client is not None
-                             else _new_pool(self.workers, self.quiet))
+            if self.client is not None:
+                self.executor = self.client.get_executor(pure=False)
+            else:
+                # A queue per round: a worker killed while writing to it can leave
+                # its lock held, and that round's pool is gone with it.
+                self.news = _news_queue() if self.on_news is not None else None
+                self.executor = _new_pool(self.workers, self.quiet, self.news)
         submitted = []
         try:
             for i in todo:
@@ -218,6 +229,7 @@ class _Runner:
         else:
             self._watch_cluster()
         done, _ = wait(list(self.active), timeout=POLL_SECONDS, return_when=FIRST_COMPLETED)
+        self._hear()  # a job tells before it returns: its news comes before its result
         broken = self.client is None and (unsubmitted or any(
             isinstance(f.exception(), BrokenExecutor) for f in done if not f.cancelled()))
         if broken:
@@ -229,6 +241,11 @@ class _Runner:
             if lost is not None and self._charge(i, first_line(lost)):
                 again.append(i)  # Dask lost its worker: submit it again
         return again
+
+    def _hear(self):
+        """Hand what the local pool's jobs told to ``on_news``."""
+        while self.news is not None and not self.news.empty():
+            self.on_news(self.news.get())
 
     def _settle(self, future, i):
         """Report an ended future; return its lost-worker exception instead, if that."""
@@ -325,13 +342,26 @@ class _Runner:
 # ---------------------------------------------------------------- in the workers
 
 
-def _worker_init(threads, parent=None, quiet=()):
+#: In a local pool's worker, the queue :func:`tell` writes to (None elsewhere).
+_NEWS = None
+
+
+def tell(item):
+    """Send ``item`` (picklable) to the ``on_news`` of the :func:`run` whose local pool
+    runs this job, at once; nothing outside such a job (on Dask, in the parent)."""
+    if _NEWS is not None:
+        _NEWS.put(item)
+
+
+def _worker_init(threads, parent=None, quiet=(), news=None):
     """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
     the whole process group) reaches only the parent, which decides what stops; it
     evaluates its NLP's segments on its share of the cores (``ESAIL_OPT_THREADS``); it
     does not repeat what the compile cache said in the parent (``quiet``); and it ends
     when its parent ``parent`` does, however the parent ended."""
+    global _NEWS
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _NEWS = news
     os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
     if quiet:
         os.environ[SAID] = os.pathsep.join(quiet)
@@ -419,8 +449,15 @@ def _quiet_dask():
             logger.setLevel(level)
 
 
-def _new_pool(workers, quiet=()):
-    """A fresh local process pool whose workers ignore SIGINT."""
+def _news_queue():
+    """A queue the local pool's workers can :func:`tell` on."""
+    import multiprocessing
+
+    return multiprocessing.get_context("spawn").SimpleQueue()
+
+
+def _new_pool(workers, quiet=(), news=None):
+    """A fresh local process pool whose workers ignore SIGINT and tell on ``news``."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
@@ -430,7 +467,8 @@ def _new_pool(workers, quiet=()):
     return ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_worker_init,
-                               initargs=(max(1, cores // workers), os.getpid(), tuple(quiet)))
+                               initargs=(max(1, cores // workers), os.getpid(), tuple(quiet),
+                                         news))
 
 
 def _pool_processes(pool, known):

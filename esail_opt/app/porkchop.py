@@ -11,7 +11,9 @@ This module describes the cells and the outputs; the scan engine
 cells, ``--resume``, retries of lost workers, Ctrl-C.  A job is a run of neighbouring cells
 -- a block of dates, each with all its flight times -- solved in order by
 :func:`esail_opt.optimisation.scan.scan` on one NLP, each cell warm from its solved
-neighbour; the journal holds each job's cells as the job ends.
+neighbour.  A progress line tells of each cell as the forward pass ends it; the journal
+holds each job's cells as the job ends, after its repair pass, so an interrupted job is
+solved again by ``--resume``.
 
 Every cell is verified on Eqs. 1-2 against the body's ephemeris at its flown arrival,
 as a lone solve is; the map marks the cells that are not, and the run exits 1 if any.
@@ -241,7 +243,10 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
     try:
         problem = engine.load_source(source, filename).with_tolerance(tol_km, tol_m_s)
         problems = [cell_problem(problem, grid, i) for i in indices]
-        cells = scan.scan(problems, neighbours=grid.neighbours(indices))
+        # Each cell is told of as the forward pass ends it (the progress line); the
+        # rows returned, after the repair pass, are the ones journaled.
+        cells = scan.scan(problems, neighbours=grid.neighbours(indices),
+                          on_cell=lambda k, cell: parallel.tell(_row(indices[k], grid, cell)))
         rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
     except Exception as err:  # the job's cells all say why
         return [_row(i, grid, error=first_line(err)) for i in indices]

@@ -244,7 +244,7 @@ def _class_seed(problem, k):
     return multistart.rendezvous_starts(problem, [k])[0].guess
 
 
-def scan(cells, progress=None, method=None, neighbours=None, explore=False):
+def scan(cells, progress=None, method=None, neighbours=None, explore=False, on_cell=None):
     """Solve every cell problem of ``cells`` (a list, in scan order) on one NLP per class.
 
     Parameters
@@ -263,6 +263,9 @@ def scan(cells, progress=None, method=None, neighbours=None, explore=False):
     explore : bool
         Solve the turn counts either side of a cell's own at every cell, not only at
         the run's first (a coarse scan that seeds something else needs every class).
+    on_cell : callable, optional
+        ``on_cell(position, cell)`` as each cell ends the forward pass, finished; the
+        repair pass may still replace it.
 
     Returns
     -------
@@ -274,12 +277,12 @@ def scan(cells, progress=None, method=None, neighbours=None, explore=False):
     n = len(cells)
     if neighbours is None:
         neighbours = [[j for j in (i - 1, i + 1) if 0 <= j < n] for i in range(n)]
-    out, classes = _forward(solver, cells, say, explore)
+    out, classes = _forward(solver, cells, say, explore, on_cell or (lambda i, cell: None))
     _repair(solver, cells, out, classes, neighbours, say)
     return out
 
 
-def _forward(solver, cells, say, explore):
+def _forward(solver, cells, say, explore, on_cell):
     """The forward pass: each cell solved warm from the one before it (and from its own
     classes, :func:`_first_solves`), then settled (:func:`_settle`).  Returns the cells
     and, per cell, the set of revolution classes its solves tried."""
@@ -295,6 +298,7 @@ def _forward(solver, cells, say, explore):
         out.append(_settle(solver, tried))
         classes.append({c.result.revolutions_k for c in tried if c.result is not None})
         say(_line(i, n, out[-1]))
+        on_cell(i, out[-1])
     return out, classes
 
 
