@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from esail_opt.app import cli, engine, files, sweep
+from esail_opt.app import cli, engine, files, parallel, sweep
 from esail_opt.errors import InputError, OutputError
 
 from conftest import PROBLEMS, REPO, TINY_PROBLEM as TINY
@@ -376,8 +376,6 @@ def test_a_dask_client_closed_mid_run_ends_the_run_as_cluster_lost(tmp_path):
     """Dask's client closes itself a few seconds after its scheduler dies; a job lost
     with it and submitted again then meets a closed client, which must read as the
     lost cluster, not a traceback."""
-    from esail_opt.app import parallel
-
     class ClosedClient:
         status = "closed"
 
@@ -391,6 +389,28 @@ def test_a_dask_client_closed_mid_run_ends_the_run_as_cluster_lost(tmp_path):
                               "tcp://127.0.0.1:1")
     with pytest.raises(parallel.ClusterLost, match="lost the Dask scheduler"):
         runner._submit([0], str(tmp_path))
+
+
+def _tells_twice(i):
+    """A pool job that tells two items before it returns (a scan's forward pass)."""
+    parallel.tell(("first", i))
+    parallel.tell(("second", i))
+    return ("result", i)
+
+
+def test_a_pool_job_tells_its_news_before_its_result():
+    """What a local pool's job tells reaches ``on_news`` in order, before its result;
+    outside a pool, telling is nothing."""
+    heard = []
+    parallel.run(_tells_twice, {0: (), 1: ()}, lambda i, value: heard.append(value),
+                 lambda i, message: heard.append(("failed", message)), workers=1,
+                 on_news=heard.append)
+    assert sorted(heard) == sorted((what, i) for i in (0, 1)
+                                   for what in ("first", "second", "result"))
+    for i in (0, 1):
+        assert heard.index(("first", i)) < heard.index(("second", i)) < heard.index(
+            ("result", i))
+    assert _tells_twice(5) == ("result", 5)
 
 
 # ---------------------------------------------------------------- 4. outputs
