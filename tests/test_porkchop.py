@@ -238,6 +238,12 @@ def test_a_porkchop_without_plots_writes_its_table_and_plot_draws_the_chart_late
     assert json.loads((tmp_path / "porkchop.json").read_text()) == record
     assert cli.main(["plot", str(tmp_path)]) == 0
     assert (tmp_path / "porkchop.png").stat().st_size > 10_000
+    # A record cut short is refused, not drawn with holes.
+    (tmp_path / "porkchop.png").unlink()
+    cut = dict(record, rows=record["rows"][:3])
+    (tmp_path / "porkchop.json").write_text(json.dumps(cut))
+    assert cli.main(["plot", str(tmp_path)]) == 2
+    assert not (tmp_path / "porkchop.png").exists()
 
 
 def test_a_chart_of_a_record_without_the_edge_still_draws():

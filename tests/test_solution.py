@@ -81,13 +81,40 @@ def test_a_file_that_is_not_a_solution_fails_with_one_clear_line(solution, tmp_p
     data = json.loads(written.read_text())
     del data["schedule"]
     written.write_text(json.dumps(data))
-    with pytest.raises(InputError, match="solution.json has no valid field 'schedule'") as err:
+    with pytest.raises(InputError, match="solution.json's field schedule is missing") as err:
         Solution.load(written)
     assert "\n" not in str(err.value)
     written.write_text("{ not json")
     with pytest.raises(InputError, match="cannot read solution.json") as err:
         Solution.load(written)
     assert "\n" not in str(err.value)
+
+
+def _damaged(data, path, value):
+    """``data`` with the dotted key ``path`` set to ``value``."""
+    *parents, last = path.split(".")
+    where = data
+    for part in parents:
+        where = where[part]
+    where[last] = value
+    return data
+
+
+@pytest.mark.parametrize("path, value, message", [
+    ("trajectory", None, "field trajectory is not a JSON object"),
+    ("schedule", "abc", "field schedule = 'abc' is not a list of segments"),
+    ("verification", 3, "field verification = 3 is not a JSON object"),
+    ("tof_days", float("nan"), "it holds NaN, which is not a number"),
+    ("trajectory.cvodes.r_au", [1.0] * 10,
+     "field trajectory.cvodes is not valid: its samples differ in number (r_au 10, ")])
+def test_a_damaged_field_is_named_in_one_line(solution, tmp_path, path, value, message):
+    """A hand-damaged solution.json is refused as it is read, with one line that names
+    the field and what is wrong with it, before any figure reads a broken array."""
+    written = solution.write(tmp_path, plots=False)[0]
+    written.write_text(json.dumps(_damaged(json.loads(written.read_text()), path, value)))
+    with pytest.raises(InputError) as err:
+        Solution.load(written)
+    assert message in str(err.value) and "\n" not in str(err.value)
 
 
 def test_the_solution_is_typed_and_agrees_with_its_file(solution):

@@ -380,6 +380,9 @@ def _plot_record(record):
         raise InputError(f"{record}: cannot be read as JSON ({err})") from None
     if not isinstance(result, dict) or not isinstance(result.get("rows"), list):
         raise InputError(f"{record}: not a porkchop's record (no list of rows)")
+    if result.get("cells") != len(result["rows"]):
+        raise InputError(f"{record}: holds {len(result['rows'])} rows for its "
+                         f"{result.get('cells')!r} cells; run the porkchop again")
     return plots.write_figures([("porkchop.png", lambda: porkchop.figure(result))],
                                record.parent)
 
@@ -393,7 +396,8 @@ def _add_search(sub):
         "distinct optimum on the exact equations of motion, rank them on the verified "
         "exact time of flight, and write search.json, search.csv, search.png and best/.  "
         "Exit status 0 "
-        "when the best optimum's polish is verified to 1 m and 1 mm/s, 1 otherwise.",
+        "when the best optimum's polish is verified to 1 m and 1 mm/s (with --no-polish: "
+        "when its closed-form flight meets the problem's tolerance), 1 otherwise.",
     )
     p.add_argument("problem_file", metavar="PROBLEM.py", help="problem file defining `problem`")
     p.add_argument("--extra-revolutions", type=int, default=2,

@@ -29,6 +29,19 @@ _ABSENT = object()
 _SCALARS = (str, int, bool, type(None))
 
 
+class BadField(ValueError):
+    """A JSON value that cannot be read as its field: ``field`` is its dotted key (""
+    for the object itself), ``why`` what is wrong with it."""
+
+    def __init__(self, field, why):
+        super().__init__(f"{field} {why}".strip())
+        self.field, self.why = field, why
+
+    def within(self, name):
+        """The same fault, named from the object that holds field ``name``."""
+        return BadField(f"{name}.{self.field}" if self.field else name, self.why)
+
+
 def key(name=None, *, omit=None, flat=None, default=dataclasses.MISSING):
     """A record's field with its place in the JSON object (see the module's docstring)."""
     meta = {k: v for k, v in (("key", name), ("omit", omit), ("flat", flat)) if v is not None}
@@ -136,6 +149,8 @@ def decode(hint, value):
     hint = _unwrap(hint)
     origin = typing.get_origin(hint)
     if origin in (list, tuple):
+        if not isinstance(value, list):
+            raise BadField("", f"= {_short(value)} is not a list")
         item = typing.get_args(hint)[0]
         return origin(decode(item, v) for v in value)
     if issubclass(hint, enum.Enum):
@@ -178,12 +193,23 @@ def _lookup(data, name, required):
     return data
 
 
+def _nullable(hint):
+    return typing.get_origin(hint) is typing.Union and type(None) in typing.get_args(hint)
+
+
+def _short(value):
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def read(cls, data):
     """The dataclass ``cls`` from the JSON object ``data`` that :func:`write` made.
 
-    Raises KeyError naming a missing key; TypeError or ValueError for a value of the
-    wrong kind.
+    Raises :class:`BadField` naming the dotted key at fault: missing, null where the
+    field takes no null, or a value of the wrong kind.
     """
+    if not isinstance(data, dict):
+        raise BadField("", f"= {_short(data)} is not a JSON object")
     fields = dataclasses.fields(cls)
     named = {_name(f).split(".")[0] for f in fields if "flat" not in f.metadata}
     hints, values = _hints(cls), {}
@@ -194,7 +220,37 @@ def read(cls, data):
         elif flat is not None:
             values[f.name] = {k: data[k] for k in flat if k in data} or None
         else:
-            value = _lookup(data, _name(f), f.default is dataclasses.MISSING)
-            if value is not _ABSENT:
-                values[f.name] = decode(hints[f.name], value)
-    return cls(**values)
+            values[f.name] = _read_field(f, hints[f.name], data)
+            if values[f.name] is _ABSENT:
+                del values[f.name]
+    try:
+        return cls(**values)
+    except (TypeError, ValueError) as err:  # a record's own check of its fields
+        raise BadField("", f"is not valid: {err}") from None
+
+
+def _read_field(f, hint, data):
+    """Field ``f`` (annotated ``hint``) of the JSON object ``data``, or ``_ABSENT``."""
+    name = _name(f)
+    required = f.default is dataclasses.MISSING
+    try:
+        value = _lookup(data, name, required)
+    except KeyError:
+        raise BadField(name, "is missing") from None
+    except TypeError:
+        raise BadField(name.rpartition(".")[0], "is not a JSON object") from None
+    if value is None and required and not _nullable(hint):
+        raise BadField(name, "is null")
+    if value is _ABSENT:
+        return value
+    try:
+        return decode(hint, value)
+    except BadField as err:
+        raise err.within(name) from None
+    except (TypeError, ValueError, AttributeError, KeyError):
+        raise BadField(name, f"= {_short(value)} is not a {_kind(hint)}") from None
+
+
+def _kind(hint):
+    hint = _unwrap(hint)
+    return getattr(hint, "__name__", None) or str(hint).replace("typing.", "")

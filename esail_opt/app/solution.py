@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Tuple
 
 from esail_opt.app import report, schema, solution_files
-from esail_opt.app.record import REST, Record, if_none, key, read
+from esail_opt.app.record import REST, BadField, Record, if_none, key, read
 from esail_opt.errors import InputError
 from esail_opt.optimisation import pipeline
 from esail_opt.optimisation.pipeline import Outcome, Round, StartTried
@@ -62,6 +62,15 @@ class Samples(Record):
     t_days: List[Optional[float]]
     three_d: Optional[Dict[str, list]] = key(flat=schema.STATE_KEYS + PLANE_FIELDS,
                                              default=None)
+
+    def __post_init__(self):
+        super().__post_init__()
+        lengths = {f.name: len(getattr(self, f.name)) for f in dataclasses.fields(self)
+                   if f.name != "three_d"}
+        lengths.update((k, len(v)) for k, v in (self.three_d or {}).items())
+        if len(set(lengths.values())) > 1:
+            raise ValueError("its samples differ in number ("
+                             + ", ".join(f"{k} {n}" for k, n in lengths.items()) + ")")
 
 
 @dataclass(frozen=True)
@@ -105,7 +114,9 @@ class Schedule(Record):
 
     @classmethod
     def from_json(cls, rows):
-        first = rows[0] if rows else {}
+        if not isinstance(rows, list):
+            raise BadField("", f"= {rows!r:.40} is not a list of segments")
+        first = rows[0] if rows and isinstance(rows[0], dict) else {}
         return cls(rows=tuple(Segment.from_json(r) for r in rows),
                    throttled="throttle" in first, local_errors="local_error_km" in first)
 
@@ -428,16 +439,19 @@ class Solution(Record):
         schema.check(data, source)
         try:
             return read(cls, schema.upgrade(data))
-        except (KeyError, TypeError, ValueError, AttributeError) as err:
-            raise InputError(f"{source}: solution.json has no valid field {err}; solve the "
-                             "problem again to rewrite it") from None
+        except BadField as err:
+            raise InputError(f"{source}: solution.json's field {err}; solve the problem "
+                             "again to rewrite it") from None
 
     @classmethod
     def load(cls, path):
         """Read a ``solution.json`` back; one of another schema version, or one that is
         not a solution file, is refused with a one-line InputError that says so."""
+        def constant(name):  # NaN and Infinity: never written, so never read
+            raise ValueError(f"it holds {name}, which is not a number")
+
         try:
-            data = json.loads(Path(path).read_text())
+            data = json.loads(Path(path).read_text(), parse_constant=constant)
         except (OSError, ValueError) as err:
             raise InputError(f"{path}: cannot read solution.json ({err})") from None
         return cls.from_json(data, path)
