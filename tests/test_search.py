@@ -143,6 +143,10 @@ def test_search_without_plots_writes_every_file_but_the_figures(tmp_path):
                            "best/schedule.csv"}
     assert files(drawn) - files(bare) == {"search.png", "best/trajectory.png",
                                           "best/timeline.png"}
+    # The ranking chart is drawn later from search.json, and best/ as a solution.
+    assert cli.main(["plot", str(bare)]) == 0
+    assert cli.main(["plot", str(bare / "best")]) == 0
+    assert files(bare) == files(drawn)
 
 
 # ---------------------------------------------------------------- slow: real searches

@@ -329,7 +329,8 @@ def _add_plot(sub):
         "plot", help="draw a solution's or a porkchop's figures again from its files",
         description="Draw the figures of the run in FOLDER again, without solving: "
         "trajectory.png and timeline.png from its solution.json, porkchop.png from its "
-        "porkchop.json.  Exit status 0 when every figure was written; 2 when FOLDER is "
+        "porkchop.json, search.png from its search.json (a search's best/ is a solution's "
+        "folder).  Exit status 0 when every figure was written; 2 when FOLDER is "
         "not a folder or holds neither file (or one that cannot be read); 4 when a "
         "figure could not be drawn (the others are written).",
     )
@@ -344,11 +345,11 @@ def _run_plot(args):
     if not folder.is_dir():
         raise InputError(f"folder = {str(folder)!r} is not a folder (a run's output folder "
                          "is expected, e.g. results/NAME)")
-    records = [folder / name for name in ("solution.json", "porkchop.json")
+    records = [folder / name for name in ("solution.json", "porkchop.json", "search.json")
                if (folder / name).is_file()]
     if not records:
-        raise InputError(f"folder = {str(folder)!r} holds no solution.json or porkchop.json "
-                         "to draw from")
+        raise InputError(f"folder = {str(folder)!r} holds no solution.json, porkchop.json or "
+                         "search.json to draw from")
     written, failures = [], []
     for record in records:
         drawn, failed = _plot_record(record)
@@ -362,8 +363,9 @@ def _run_plot(args):
 
 
 def _plot_record(record):
-    """Draw the figures of one record file (solution.json or porkchop.json) into its
-    folder: the paths written and one line per figure that could not be drawn."""
+    """Draw the figures of one record file (solution.json, porkchop.json or
+    search.json) into its folder: the paths written and one line per figure that could
+    not be drawn."""
     import json
 
     from esail_opt.app import plots
@@ -372,14 +374,20 @@ def _plot_record(record):
         from esail_opt.app.solution import Solution
 
         return plots.write_plots(Solution.load(record), record.parent)
-    from esail_opt.app import porkchop
-
     try:
         result = json.loads(record.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as err:
         raise InputError(f"{record}: cannot be read as JSON ({err})") from None
+    kind = record.stem
     if not isinstance(result, dict) or not isinstance(result.get("rows"), list):
-        raise InputError(f"{record}: not a porkchop's record (no list of rows)")
+        raise InputError(f"{record}: not a {kind}'s record (no list of rows)")
+    if kind == "search":
+        from esail_opt.app import search
+
+        return plots.write_figures([("search.png", lambda: search.figure(result))],
+                                   record.parent)
+    from esail_opt.app import porkchop
+
     if result.get("cells") != len(result["rows"]):
         raise InputError(f"{record}: holds {len(result['rows'])} rows for its "
                          f"{result.get('cells')!r} cells; run the porkchop again")
