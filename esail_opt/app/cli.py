@@ -727,15 +727,10 @@ def run_command(label, run, args):
         previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return run(args)
-    except InputError as err:
+    except (InputError, OutputError, FigureError) as err:
         print(f"{label}: error: {err}", file=sys.stderr)
-        return EXIT_INPUT
-    except OutputError as err:
-        print(f"{label}: error: {err}", file=sys.stderr)
-        return EXIT_OUTPUT
-    except FigureError as err:
-        print(f"{label}: error: {err}", file=sys.stderr)
-        return EXIT_FIGURE
+        return (EXIT_INPUT if isinstance(err, InputError)
+                else EXIT_OUTPUT if isinstance(err, OutputError) else EXIT_FIGURE)
     except ClusterLost as err:
         print(f"{label}: {err}", file=sys.stderr)
         return 1
@@ -744,8 +739,7 @@ def run_command(label, run, args):
             raise
         # A full or read-only disk, or a folder or file in the way, met outside the
         # output checks (a bench, a plot into a folder that holds a folder of a
-        # figure's name).
-        # A rename's error names its source (a temporary file) first, its target second.
+        # figure's name).  A rename's error names its target second.
         print(f"{label}: error: cannot write "
               f"{err.filename2 or err.filename or 'an output'}: {err.strerror}",
               file=sys.stderr)
