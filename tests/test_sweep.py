@@ -183,6 +183,8 @@ def test_bad_workers_and_missing_file(tiny, tmp_path, capsys):
     assert cli.main(["sweep", str(tmp_path / "none.py"), "--param", PARAM,
                      "--out", str(out)]) == 2
     assert "does not exist" in capsys.readouterr().err
+    assert cli.main(["sweep", str(tmp_path), "--param", PARAM, "--out", str(out)]) == 2
+    assert "is a folder" in capsys.readouterr().err
     assert not out.exists()
 
 

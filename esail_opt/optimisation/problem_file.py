@@ -49,6 +49,9 @@ def load_problem(path):
         the file raised it.
     """
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"problem file {str(path)!r} is a folder (a Python file that "
+                         "defines `problem` is expected)")
     if not path.is_file():
         raise InputError(f"problem file {str(path)!r} does not exist")
     if hasattr(os, "fork") and threading.active_count() == 1:
