@@ -517,8 +517,8 @@ def _warn_unusable(folder, reason):
     if _said(str(folder)):
         return
     log.warning("esail-opt: cannot compile into the cache %s: %s; the NLP stays on CasADi's "
-                "virtual machine (several times slower) -- free space there or set "
-                "ESAIL_OPT_CACHE to a writable folder (ESAIL_OPT_COMPILE=0 silences this)",
+                "virtual machine (several times slower) -- make it a writable folder with "
+                "free space, or set ESAIL_OPT_CACHE to one (ESAIL_OPT_COMPILE=0 silences this)",
                 folder, reason)
 
 
@@ -631,7 +631,8 @@ def compiled(fun, calls=()):
     target = folder / f"{key}.so"
 
     def build():
-        log.info("esail-opt: compiling %r and its derivatives to C, once per machine; "
+        log.info("esail-opt: compiling %r and its derivatives to C, once per machine and "
+                 "variant; "
                  "about %d s (cache: %s) ...", fun.name(), 10 if links else 20, folder)
         start = time.perf_counter()
         _build(fun, identity[0], target, links)
