@@ -519,8 +519,13 @@ def test_converged_but_not_verified_member_fails_in_its_row(tiny, monkeypatch):
                         lambda problem, polish=False: _Unverified(problem, "miss 2 au > 1 au"))
     row = sweep.solve_member(0, "ac_mm_s2", 1.0, tiny.read_text(), tiny.name)
     assert row["error"] == "not verified: miss 2 au > 1 au"
-    result = {"rows": [row], "param": "ac_mm_s2"}
-    assert sweep.table_csv(result).splitlines()[1].split(",")[3] == "False"
+    result = {"rows": [row], "param": "ac_mm_s2", "objective_shown_as": [58.5, " d"]}
+    header, line = sweep.table_csv(result).splitlines()
+    cells = dict(zip(header.split(","), line.split(",")))
+    assert cells["verified"] == "False"
+    # The CSV reads in days (the factor the sweep records), the journal in the NLP's TU.
+    assert float(cells["objective"]) == pytest.approx(5.0 * 58.5) and row["objective"] == 5.0
+    assert cells["objective_unit"] == "d"
 
 
 def test_bad_tolerance_is_one_line_exit_2_nothing_written(tiny, tmp_path, capsys):

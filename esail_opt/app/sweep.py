@@ -431,8 +431,16 @@ def _result(request, outcome):
 
 def table_csv(result):
     """The rows as CSV text (floats to 10 significant digits, empty for missing), the
-    parameter's column named after it."""
-    return csv_text(result["rows"], CSV_FIELDS).replace("value", result["param"], 1)
+    parameter's column named after it, and the objective in a user's unit (days,
+    mm/s^2) with its ``objective_unit`` beside it, as porkchop.csv has it; the journal
+    and sweep.json keep the NLP's canonical objective (``objective_meaning``)."""
+    factor, unit = result.get("objective_shown_as") or (1.0, "")
+    unit = unit.strip() or result.get("objective_meaning", "")
+    rows = [dict(r, objective=None if r["objective"] is None else r["objective"] * factor,
+                 objective_unit=unit) for r in result["rows"]]
+    at = CSV_FIELDS.index("objective") + 1
+    fields = CSV_FIELDS[:at] + ("objective_unit",) + CSV_FIELDS[at:]
+    return csv_text(rows, fields).replace("value", result["param"], 1)
 
 
 def figure(result, axes=None):

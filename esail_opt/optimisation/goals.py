@@ -70,7 +70,7 @@ class MinTime:
 
     fixed_time = False
     free_acceleration = False
-    meaning = "time of flight, TU (minimised)"
+    meaning = f"time of flight, TU (1 TU = {units.TU_DAYS:.10g} d; minimised)"
 
     @staticmethod
     def cost(xf, tf):
@@ -292,7 +292,8 @@ class MinAcceleration(_FixedTime):
     """
 
     free_acceleration = True
-    meaning = "characteristic acceleration a_c, canonical (minimised)"
+    meaning = (f"characteristic acceleration a_c, canonical (1 = {units.ACC_UNIT_MM_S2:.10g} "
+               "mm/s^2; minimised)")
 
     @staticmethod
     def cost(xf, tf):
