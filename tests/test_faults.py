@@ -670,6 +670,35 @@ def test_a_fresh_scan_replaces_the_old_journal_only_with_its_first_row(tmp_path)
         json.loads(json.dumps({**HEADER, "values": [7.0]}))]
 
 
+def test_a_verified_row_told_before_its_job_ends_is_journaled_and_kept(tmp_path):
+    """A row a job tells of before ending is journaled at once if it is verified (an
+    interrupted job keeps it), not if it failed (a resumed run solves it again); the
+    job's end journals only what changed, and of two rows of one index the later is
+    read.  A job that dies keeps the verified rows it told of."""
+    path = tmp_path / sweep.JOURNAL
+    journal = _journal(path, HEADER)
+    journal.open(resume=False)
+
+    def row(i, **fields):
+        return {**sweep._empty_row(i, HEADER["values"][i]), "converged": True,
+                "tof_days": 300.0, **fields}
+
+    scan = engine.Scan(journal_name=sweep.JOURNAL, header=HEADER, kinds=sweep.ROW_KINDS,
+                       count=3, function=None, jobs={0: ([0, 1], ()), 1: ([2], ())},
+                       failed_row=lambda i, message: row(i, error=message))
+    rows = engine._Rows(scan, {}, journal, progress=None)
+    rows.news(row(0, verified=True, objective=2.0))
+    rows.news(row(1, verified=False))
+    assert list(journal.read(resume=True)) == [0]  # what an interrupt now leaves
+    rows.finished(0, [row(0, verified=True, objective=2.0), row(1, verified=False)])
+    assert len(path.read_text().splitlines()) == 3  # the header, row 0 once, row 1
+    rows.finished(0, [row(0, verified=True, objective=1.5)])  # a repair pass improved it
+    assert journal.read(resume=True)[0]["objective"] == 1.5
+    rows.news(row(2, verified=True, objective=3.0))
+    rows.unfinished(1, "worker lost")
+    assert rows.rows[2]["objective"] == 3.0 and rows.rows[2]["error"] is None
+
+
 # ---------------------------------------------------------------- 6. problem files
 
 

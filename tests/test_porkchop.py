@@ -136,6 +136,20 @@ def test_jobs_hold_whole_dates():
                 assert {3 * date, 3 * date + 1, 3 * date + 2} <= set(job)
 
 
+def test_a_resumed_job_solves_again_only_the_dates_that_lack_a_cell():
+    """A job interrupted after journaling some cells is resumed as its dates that lack
+    one, whole (a date's cells are judged together against its edge), in the job's
+    order; a job with every cell journaled is not run."""
+    request = porkchop._request(PROBLEM, DEPART, TOF, 1, None, 0, False, None, None, None)
+    scan = porkchop._scan(request)
+    assert list(scan.jobs) == [0] and scan.jobs[0][0] == [0, 1, 3, 2, 4, 5]
+    rows = [{}, {}, None, {}, None, None]  # date 0 whole, date 1 half, date 2 none
+    (cells, args), = scan.todo(rows).values()
+    assert cells == [3, 2, 4, 5] and args[0] == cells
+    assert scan.todo([{}] * 6) == {}
+    assert scan.todo([None] * 6) == {0: scan.jobs[0]}
+
+
 def _marked_rows():
     """The six rows of the 3 x 2 chart as hand-made rows: the 650 d cells of the last
     two dates verified, the other four with no sail, and one walked edge per date."""

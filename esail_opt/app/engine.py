@@ -146,7 +146,8 @@ def _bad_value(value, kind):
 
 
 class Journal:
-    """A scan's record on disk: a header line, then one JSON row per finished row.
+    """A scan's record on disk: a header line, then one JSON row per finished row; of
+    two rows of one index, the later holds (a job's end replaces a row it told of).
 
     Each row is one ``write`` of one whole line to a file opened for appending,
     followed by ``fsync``: a crash or a kill leaves at most a torn last line, which
@@ -196,8 +197,8 @@ class Journal:
             if line.strip():
                 row = self._row(number, line)
                 i = row["index"]
-                if 0 <= i < self.count and self.belongs(i, row) and i not in kept:
-                    kept[i] = row
+                if 0 <= i < self.count and self.belongs(i, row):
+                    kept[i] = row  # a later row of a cell replaces an earlier one
         return kept
 
     def start(self, kept):
@@ -354,6 +355,9 @@ class Scan:
         ``failed_row(index, message)``: the row of a row whose job did not end.
     belongs : callable, optional
         ``belongs(index, row)``: whether a journal row is this grid's.
+    part : callable, optional
+        ``part(job, missing)``: the (indices, args) of a job that needs only its rows
+        ``missing`` (a resumed job that had journaled some); by default the whole job.
     """
 
     journal_name: str
@@ -364,6 +368,18 @@ class Scan:
     jobs: dict
     failed_row: object
     belongs: object = None
+    part: object = None
+
+    def todo(self, rows):
+        """The jobs (index -> (indices, args)) that rows (a list, None where missing)
+        still need, each cut to what it needs by :attr:`part`."""
+        out = {}
+        for j, (indices, args) in self.jobs.items():
+            missing = [i for i in indices if rows[i] is None]
+            if missing:
+                whole = len(missing) == len(indices) or self.part is None
+                out[j] = (indices, args) if whole else self.part(j, missing)
+        return out
 
     def journal(self, out_dir):
         """Its journal in ``out_dir``, or None without a folder."""
@@ -391,7 +407,9 @@ class Outcome:
 
 class _Rows:
     """The scan's rows, filled in as its jobs end, each journaled at once, and reported
-    as soon as a job tells of them (:func:`esail_opt.app.parallel.tell`)."""
+    as soon as a job tells of them (:func:`esail_opt.app.parallel.tell`).  A verified
+    row a job tells of is journaled at once too, so that an interrupted job keeps it;
+    the job's end replaces it."""
 
     def __init__(self, scan, kept, journal, progress):
         self.scan, self.journal, self.progress = scan, journal, progress
@@ -401,26 +419,37 @@ class _Rows:
         self.filled = set(kept)  # indices with a row
         self.journaled = set(kept)  # indices whose row the journal holds
         self.told = {}  # index -> the row a job told of before it ended
+        self.early = set()  # indices whose told row the journal holds
+        self.todo = scan.todo(self.rows)  # the jobs this run runs
 
     def news(self, row):
-        """A row its job told of before ending: reported, not journaled (the job may
-        still replace it), and not reported again unless the job's end changes it."""
+        """A row its job told of before ending: reported, and journaled if verified
+        (kept by an interrupted run; one that failed may yet be judged otherwise, so a
+        resumed run solves it again); not reported again unless the job's end changes
+        it."""
         i = row["index"]
-        if self.rows[i] is None and i not in self.told:
-            self.told[i] = row
-            self._report(row)
+        if i in self.told:
+            return
+        self.told[i] = row
+        if self.journal is not None and row.get("verified"):
+            self.journal.append(row)
+            self.journaled.add(i)
+            self.early.add(i)
+        self._report(row)
 
     def finished(self, job, value):
         for row in value if isinstance(value, list) else [value]:
-            if self.journal is not None:
+            i = row["index"]
+            if self.journal is not None and not (i in self.early and self.told[i] == row):
                 self.journal.append(row)
-                self.journaled.add(row["index"])
-            self._end(row["index"], row)
+                self.journaled.add(i)
+            self._end(i, row)
 
     def unfinished(self, job, message):
-        # Not journaled: it did not finish, so a resumed scan runs it again.
-        for i in self.scan.jobs[job][0]:
-            self._end(i, self.scan.failed_row(i, message))
+        # Not journaled: it did not finish, so a resumed scan runs it again (all but
+        # the verified rows it told of, which the journal holds).
+        for i in self.todo[job][0]:
+            self._end(i, self.told[i] if i in self.early else self.scan.failed_row(i, message))
 
     def _end(self, i, row):
         self.rows[i] = row
@@ -459,8 +488,7 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
     journal = scan.journal(out_dir)
     kept = journal.read(resume) if journal is not None else {}
     rows = _Rows(scan, kept, journal, progress)
-    todo = {j: job for j, job in scan.jobs.items()
-            if any(rows.rows[i] is None for i in job[0])}
+    todo = rows.todo
     executor = (f"dask distributed at {scheduler}" if scheduler is not None
                 else f"process pool, {workers} workers")
     start = time.perf_counter()

@@ -11,9 +11,11 @@ This module describes the cells and the outputs; the scan engine
 cells, ``--resume``, retries of lost workers, Ctrl-C.  A job is a run of neighbouring cells
 -- a block of dates, each with all its flight times -- solved in order by
 :func:`esail_opt.optimisation.scan.scan` on one NLP, each cell warm from its solved
-neighbour.  A progress line tells of each cell as the forward pass ends it; the journal
-holds each job's cells as the job ends, after its repair pass, so an interrupted job is
-solved again by ``--resume``.
+neighbour.  A progress line tells of each cell as the forward pass ends it, and the
+journal takes the cell then if it is verified; the job's end journals its cells again
+after its repair pass.  ``--resume`` of an interrupted job solves again the dates that
+lack a verified cell, and keeps the others' forward-pass cells, which that repair pass
+had not revisited.
 
 Every cell is verified on Eqs. 1-2 against the body's ephemeris at its flown arrival,
 as a lone solve is; the map marks the cells that are not, and the run exits 1 if any.
@@ -452,11 +454,20 @@ def _scan(request):
     common = (request.source, Path(request.problem_file).name, request.tol_km,
               request.tol_m_s, [float(v) for v in grid.departures],
               None if grid.tofs is None else list(grid.tofs), request.cells_out)
+    column = 1 if grid.tofs is None else len(grid.tofs)
+
+    def part(j, missing):
+        # Whole dates, as every job holds them: a date's cells are judged together
+        # against its edge of the feasible (mark_no_sail).
+        dates_missing = {i // column for i in missing}
+        cells = [i for i in request.jobs[j] if i // column in dates_missing]
+        return cells, (cells, *common)
+
     return engine.Scan(
         journal_name=JOURNAL, header=request.header(), kinds=ROW_KINDS,
         count=int(np.prod(grid.shape)), function=solve_job,
         jobs={j: (job, (job, *common)) for j, job in enumerate(request.jobs)},
-        failed_row=lambda i, message: _row(i, grid, error=message))
+        failed_row=lambda i, message: _row(i, grid, error=message), part=part)
 
 
 def _table(request, outcome):
