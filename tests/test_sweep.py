@@ -406,6 +406,8 @@ def test_interrupt_keeps_the_journal_and_resume_runs_only_the_rest(venus, tmp_pa
     assert 1 <= len(kept) < len(values) and len(set(kept)) == len(kept)
     assert all(row["converged"] and row["value"] == values[row["index"]] for row in rows)
     missing = [i for i in range(len(values)) if i not in kept]
+    # The line before the interrupt's says what the journal keeps.
+    assert f"keeps {len(kept)} of the {len(values)} rows; run again with --resume" in stderr
 
     # --resume, as a user would run it after the interrupt.
     assert cli.main(_sweep_command(path, param, out, "--resume")[3:]) == 0

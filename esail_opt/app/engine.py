@@ -25,6 +25,7 @@ import dataclasses
 import errno
 import hashlib
 import json
+import logging
 import os
 import re
 import tempfile
@@ -490,7 +491,7 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
     rows = _Rows(scan, kept, journal, progress)
     todo = rows.todo
     executor = (f"dask distributed at {scheduler}" if scheduler is not None
-                else f"process pool, {workers} workers")
+                else f"process pool, {workers} worker{'' if workers == 1 else 's'}")
     start = time.perf_counter()
     with parallel.session(scheduler) as client:
         if journal is not None:
@@ -504,6 +505,10 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
                                 quiet=quiet, on_news=rows.news)
         except parallel.ClusterLost as err:
             raise parallel.ClusterLost(f"{err}; {_kept(rows, journal)}") from None
+        except KeyboardInterrupt:
+            if journal is not None:  # said before the command's own "interrupted" line
+                logging.getLogger("esail_opt").warning("esail-opt: %s", _kept(rows, journal))
+            raise
         finally:
             if client is None:
                 remove_orphans()
@@ -519,5 +524,9 @@ def _kept(rows, journal):
     count = rows.scan.count
     if journal is None:
         return f"{len(rows.filled)} of {count} rows had finished"
-    return (f"the journal {journal.path} keeps the {len(rows.journaled)} finished rows; "
-            f"run again with --resume for the other {count - len(rows.journaled)}")
+    left = count - len(rows.journaled)
+    if not left:
+        return (f"the journal {journal.path} keeps all {count} rows; run again with "
+                "--resume to write the outputs from it")
+    return (f"the journal {journal.path} keeps {len(rows.journaled)} of the {count} rows; "
+            f"run again with --resume for the other {left}")
