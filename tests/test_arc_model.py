@@ -15,7 +15,8 @@ from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
 from esail_opt.optimisation.segment_methods import arc_model
-from esail_opt.optimisation.transcription import initial_guess, sub_arcs_within_cap
+from esail_opt.optimisation.error_control import sub_arcs_within_cap
+from esail_opt.optimisation.seed import initial_guess
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics.constants import accel_from_mm_s2
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel

@@ -192,7 +192,7 @@ def test_a_lone_solve_is_no_worse_than_its_class_solved_from_other_pitches():
     import dataclasses
     import math
 
-    from esail_opt.optimisation.transcription import initial_guess
+    from esail_opt.optimisation.seed import initial_guess
 
     problem = load_problem(TESTS / "earth_mars_porkchop_2035.py")
     run = pipeline.solve(problem)

@@ -428,7 +428,7 @@ def test_a_real_body_has_other_starts_at_negative_turn_counts():
     often negative; the fallback starts of a failed solve are the counts around it all
     the same (they were once filtered to k >= 0, which left a Venus rendezvous one start)."""
     from esail_opt.optimisation import multistart
-    from esail_opt.optimisation.transcription import initial_guess
+    from esail_opt.optimisation.seed import initial_guess
 
     problem = eo.Problem(name="venus_k", departure=eo.BodyDeparture(body="earth",
                                                                     date="2031-03-01"),

@@ -15,7 +15,7 @@ from esail_opt.propagation.simulate import simulate
 
 CIRCLE = np.array([1.0, 0.0, 0.0, 1.0])
 B1, B2 = 0.75, 0.25
-#: The NLP's Gauss-Legendre points per sub-arc (transcription.QUAD_NODES): the accuracy
+#: The NLP's Gauss-Legendre points per sub-arc (``propagation.arcs.QUAD_NODES``): the accuracy
 #: that matters is the one the optimiser sees.
 QUAD_NODES = 2
 #: First-order arcs (as these measurements were made), one a segment, Richardson-

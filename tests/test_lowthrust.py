@@ -17,7 +17,7 @@ import esail_opt as eo
 from conftest import PROBLEMS, REPO
 from esail_opt.errors import InputError
 from esail_opt.optimisation.problem_file import load_problem
-from esail_opt.optimisation.transcription import initial_guess
+from esail_opt.optimisation.seed import initial_guess
 from esail_opt.physics import constants as units
 from esail_opt.propagation.simulate import simulate
 

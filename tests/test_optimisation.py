@@ -13,9 +13,11 @@ import esail_opt as eo
 from conftest import solved_under
 from esail_opt.app import cli
 from esail_opt.errors import InputError
-from esail_opt.optimisation import transcription as tr
+from esail_opt.optimisation import seed
+from esail_opt.optimisation.nodes import flown_segments
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.outcome import Outcome
+from esail_opt.optimisation.transcription import transcribe
 from esail_opt.physics import constants as units
 from esail_opt.propagation.arcs import QUAD_NODES, ArcModel
 from esail_opt.propagation.rectified import propagate
@@ -44,7 +46,7 @@ def test_segment_chain_is_the_rectified_propagation(extrapolate):
     rng = np.random.default_rng(4)
     alpha = rng.uniform(-1.2, 1.2, 5)
     lengths = rng.uniform(0.1, 0.6, 5)
-    nodes = tr.flown_segments(p, alpha, lengths, p.x0())
+    nodes = flown_segments(p, alpha, lengths, p.x0())
     # The arcs written out, not taken from the transcription: second order, the exact
     # angular momentum, the NLP's quadrature.
     one = ArcModel(order=2, invariant=True, sub_arcs=1, nodes=QUAD_NODES)
@@ -86,7 +88,7 @@ def test_fixed_pitch_solve_reproduces_rectified_propagation():
 
 def test_initial_guess_is_a_forward_propagation_that_reaches_the_target_radius():
     p = small_problem()
-    guess = tr.initial_guess(p)
+    guess = seed.initial_guess(p)
     assert np.all(guess.alpha == math.radians(-45.0))  # inward target: -45 deg
     assert guess.nodes[0, -1] == pytest.approx(0.723, abs=2e-3)
     assert np.all(np.abs(guess.nodes) > 0).any() and np.all(guess.lengths > 0)
@@ -312,7 +314,7 @@ def test_free_lengths_are_solved_in_two_stages_and_do_no_worse():
 def test_a_seed_that_cannot_reach_the_target_is_a_clear_input_error():
     # +25 deg raises the orbit, which escapes long before it could reach 0.723 au.
     with pytest.raises(InputError, match=r"guess_alpha_deg = 25 deg: .*target radius \(0.723 au\)"):
-        tr.initial_guess(small_problem(guess_alpha_deg=25.0))
+        seed.initial_guess(small_problem(guess_alpha_deg=25.0))
 
 
 def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
@@ -323,19 +325,19 @@ def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
     a_c is the sail's own)."""
     sizing = small_problem(objective=eo.MinAcceleration(tof_days=600), sail=eo.Sail(10.0),
                            target=eo.CircularOrbit(1.5))
-    guess = tr.initial_guess(sizing)
+    guess = seed.initial_guess(sizing)
     assert guess.ac_scale < 1
     n = guess.alpha.size
-    flown = tr.flown_segments(sizing, guess.alpha, guess.lengths, sizing.x0(),
+    flown = flown_segments(sizing, guess.alpha, guess.lengths, sizing.x0(),
                               throttle=np.full(n, guess.ac_scale))
     np.testing.assert_allclose(guess.nodes, flown[:, 1:], rtol=0, atol=1e-12)
     assert guess.nodes[4, -1] == pytest.approx(units.time_from_days(600.0), rel=1e-2)
     escaping = dataclasses.replace(sizing, sail=eo.Sail(40.0))
     with pytest.raises(InputError, match=r"guess_alpha_deg = 45 deg: .*"
                                          r"or a smaller sail\.ac_mm_s2 .*40 mm/s\^2 only seeds"):
-        tr.initial_guess(escaping)
+        seed.initial_guess(escaping)
     with pytest.raises(InputError, match="leaves the closed form.s validity") as raised:
-        tr.initial_guess(small_problem(objective=eo.MinTime(), guess_alpha_deg=45.0,
+        seed.initial_guess(small_problem(objective=eo.MinTime(), guess_alpha_deg=45.0,
                                        sail=eo.Sail(10.0), target=eo.CircularOrbit(30.0)))
     assert "sail.ac_mm_s2" not in str(raised.value)
 
@@ -354,7 +356,7 @@ def test_segment_threads_do_not_change_the_optimum(monkeypatch):
 def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value):
     monkeypatch.setenv("ESAIL_OPT_THREADS", value)
     with pytest.raises(InputError, match=r"ESAIL_OPT_THREADS = .* \[1, 64\]"):
-        tr.transcribe(small_problem())
+        transcribe(small_problem())
 
 
 # ------------------------------------------------ the pipeline

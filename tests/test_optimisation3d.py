@@ -20,8 +20,8 @@ from esail_opt.optimisation import multistart, pipeline
 from esail_opt.optimisation.error_control import node_near
 from esail_opt.optimisation.segment_methods import (ClosedForm, closed_form_segment3d,
                                                     node_from_swept, rk4_time_segment3d)
-from esail_opt.optimisation.transcription import (flown_segments, initial_guess, lifted_guess,
-                                                  node_cartesian)
+from esail_opt.optimisation.nodes import flown_segments, node_cartesian
+from esail_opt.optimisation.seed import initial_guess, lifted_guess
 
 # Constants written out again here, not taken from the package.
 AU_KM = 149597870.7

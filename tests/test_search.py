@@ -75,7 +75,7 @@ def test_a_search_for_a_body_with_negative_turn_counts_has_starts_beside_its_own
     converged (1 starts)", Earth-Venus leaving 2031-03-01)."""
     from types import SimpleNamespace
 
-    from esail_opt.optimisation.transcription import initial_guess
+    from esail_opt.optimisation.seed import initial_guess
 
     problem = eo.Problem("venus_2031", eo.BodyDeparture("earth", "2031-03-01"), eo.Sail(1.0),
                          eo.Segments(count=12, sub_arcs=3, equal=False), eo.MinTime(),
@@ -93,7 +93,7 @@ def test_a_count_no_seed_winds_gets_a_start_that_winds_it():
     constant-pitch flight, flown again here, winds -18."""
     from esail_opt.bodies import dates
     from esail_opt.optimisation import scan
-    from esail_opt.optimisation.transcription import initial_guess
+    from esail_opt.optimisation.seed import initial_guess
 
     problem = scan.at_date(_load("earth_venus_min_ac_planar"),
                            dates.jd_from_iso("2031-01-21"), 720.0)

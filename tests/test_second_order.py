@@ -15,7 +15,7 @@ from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
 from esail_opt.propagation.rectified import end_function, panel_function, propagate
 
 B1, B2 = 0.75, 0.25
-#: The NLP's Gauss-Legendre points per sub-arc (transcription.QUAD_NODES).
+#: The NLP's Gauss-Legendre points per sub-arc (``propagation.arcs.QUAD_NODES``).
 QUAD_NODES = 2
 #: One second-order arc without the invariant, on the 8-point panels.
 PLAIN_SECOND = ArcModel(invariant=False, sub_arcs=1, nodes=PANEL_NODES)

@@ -17,7 +17,7 @@ from esail_opt.app.solution import (Bounds, ClassLooked, DepartureBody, Flight,
                                     Segment, Settings, Solution, Stage, State, TargetBody)
 from esail_opt.bodies import dates, lookup
 from esail_opt.optimisation.pipeline import Outcome
-from esail_opt.optimisation.transcription import node_cartesian
+from esail_opt.optimisation.nodes import node_cartesian
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import classical_columns
 from esail_opt.physics.thrust import canonical_attitude

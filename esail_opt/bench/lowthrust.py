@@ -45,7 +45,7 @@ HOW = ("wall time of solver construction + Ipopt solve (MUMPS, exact Hessian) on
 def _shooting(problem, runs):
     """Both shooting NLPs from one seed, each verified on CVODES: the ``closed_form_*``
     and ``cvodes_*`` fields of the JSON, and the seed's time."""
-    from esail_opt.optimisation.transcription import initial_guess
+    from esail_opt.optimisation.seed import initial_guess
     from esail_opt.optimisation.verify import verify
     from esail_opt.physics import constants as units
 

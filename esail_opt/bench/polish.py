@@ -45,7 +45,8 @@ def _polish_case(problem):
     from esail_opt.optimisation.polish import exact_guess, polish, polish_options
     from esail_opt.optimisation.ipopt import solve_problem, solve_transcription
     from esail_opt.optimisation.segment_methods import CVODES
-    from esail_opt.optimisation.transcription import initial_guess, transcribe
+    from esail_opt.optimisation.seed import initial_guess
+    from esail_opt.optimisation.transcription import transcribe
 
     seed = initial_guess(problem)
     case = {"problem": problem.name, "segments": seed.alpha.size,
@@ -106,7 +107,7 @@ def run(out, repeats):
 
     For each problem in :data:`PROBLEMS` (their own N and sub-arcs, free or equal
     segments as shipped) both paths start from the same constant-pitch seed
-    (``transcription.initial_guess``):
+    (``seed.initial_guess``):
 
     * warm: the closed-form NLP (``solve_problem``: equal lengths, then free), then
       the polish on CVODES arcs in time warm-started from it;

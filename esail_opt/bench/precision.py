@@ -175,7 +175,7 @@ def cases():
     must start above a miss to be read there rather than only bounded, and where a
     method may stop converging at all (RK4 with one step at 2 and 3 per revolution did
     not); 10 x 3 is the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break
-    the strain cap (``transcription.STRAIN_CAP``) and the seed adds them back.  CVODES
+    the strain cap (``error_control.STRAIN_CAP``) and the seed adds them back.  CVODES
     segments are exact to 1e-12 at any N and cost seconds per solve, so they run at one
     or two N.  Loaded when called, not at import, so that importing the benches reads
     no file.

@@ -14,7 +14,7 @@ PROBLEMS = ("earth_venus_min_time", "orbit_raising_10yr")
 
 def _solve_case(problem, repeats):
     """Time one problem's NLP with closed-form arcs and with CVODES arcs (see :func:`run`)."""
-    from esail_opt.optimisation.transcription import initial_guess
+    from esail_opt.optimisation.seed import initial_guess
 
     problem = equal_lengths(problem)
     seg = problem.segments

@@ -56,7 +56,7 @@ def timed_nlps(problem, guess, methods, runs):
     Parameters
     ----------
     problem : Problem
-    guess : transcription.Guess
+    guess : seed.Guess
         Shared by every method, so only the arcs differ.
     methods : dict
         Name -> segment method (:func:`shooting_methods`).

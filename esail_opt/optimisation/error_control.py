@@ -12,7 +12,7 @@ here:
    Their difference is the segment's *defect*; its position part is the local error
    the solution reports per segment.
 3. **Re-mesh where the closed form is strained.** If a segment breaks the cap on
-   a~_c dtheta per sub-arc (``transcription.STRAIN_CAP``), every segment gets enough
+   a~_c dtheta per sub-arc (:data:`STRAIN_CAP`), every segment gets enough
    sub-arcs to keep it; if the last round did not at least halve the flown miss, the
    sub-arcs double (the segment Function is mapped over all segments, so they share one
    count).  The cap is kept by adding sub-arcs, never by shortening segments: it bounds
@@ -47,13 +47,47 @@ import numpy as np
 from esail_opt.optimisation.ipopt import build_solver, solve_transcription
 from esail_opt.optimisation.goals import cartesian_miss, state_miss
 from esail_opt.optimisation.segment_methods import ClosedForm
-from esail_opt.optimisation.transcription import node_cartesian, start_node, strain, transcribe
+from esail_opt.optimisation.nodes import node_cartesian, start_node
+from esail_opt.optimisation.transcription import transcribe
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
 from esail_opt.physics import rotation
 from esail_opt.physics.elements import polar3d_from_cartesian
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments,
                                             fly_segments3d)
+
+#: Largest a~_c dtheta of one closed-form sub-arc: an arc's error grows with a~_c dtheta
+#: (as its square for first-order arcs, its cube for the NLP's second-order ones;
+#: THEORY.md §3.8), and an optimiser left free stretches single arcs far past where the
+#: closed form means anything (a 0.1 au spiral swung one arc out to 4 au).  It is kept
+#: by adding sub-arcs -- to the seed before the first solve (:func:`sub_arcs_within_cap`),
+#: and to any optimum that breaks it (step 3 above) -- never as a constraint of the NLP:
+#: as one it made a 4-segment hop to 1.3 au infeasible, deciding the answer instead of
+#: the accuracy.
+STRAIN_CAP = 0.05
+
+
+def strain(problem, r_starts, lengths, throttle=None):
+    """a~_c dtheta of each segment's sub-arcs as a fraction of :data:`STRAIN_CAP`
+    (a~_c = kappa ac r0 with r_E = 1 au; numpy arrays of the segments' start radii,
+    angles and throttles)."""
+    kappa = 1.0 if throttle is None else np.asarray(throttle, float)
+    return (problem.sail.ac * kappa * np.asarray(r_starts, float) * np.asarray(lengths, float)
+            / problem.segments.sub_arcs / STRAIN_CAP)
+
+
+def sub_arcs_within_cap(problem, guess, most):
+    """The problem with enough sub-arcs (at most ``most``) that ``guess`` keeps the cap
+    on a~_c dtheta per sub-arc: the cap is kept by adding sub-arcs, not by shortening
+    the segments the seed chose."""
+    r_starts = np.r_[problem.x0()[0], guess.nodes[0, :-1]]
+    worst = float(np.max(strain(problem, r_starts, guess.lengths, guess.throttle)))
+    if worst <= 1:
+        return problem
+    sub = min(most, math.ceil(problem.segments.sub_arcs * worst))
+    return dataclasses.replace(problem, segments=dataclasses.replace(problem.segments,
+                                                                     sub_arcs=sub))
+
 
 #: Rounds of defect correction after the first solve.
 MAX_ROUNDS = 8

@@ -15,7 +15,8 @@ import numpy as np
 from esail_opt.errors import SignalsHeld
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import CLOCK_ROOM
-from esail_opt.optimisation.transcription import Guess, initial_guess, transcribe
+from esail_opt.optimisation.seed import Guess, initial_guess
+from esail_opt.optimisation.transcription import transcribe
 
 
 def ipopt_options(max_iter=3000, hessian="exact", print_level=0):

@@ -36,8 +36,8 @@ import numpy as np
 from esail_opt.errors import InputError
 from esail_opt.optimisation.ipopt import (AT_CAP, STOPPED, NLPResult, ipopt_options,
                                           primal_warm_options, solve_problem)
-from esail_opt.optimisation.transcription import (
-    Guess, flown_segments, guess_alpha, initial_guess, lifted_guess)
+from esail_opt.optimisation.nodes import flown_segments
+from esail_opt.optimisation.seed import Guess, guess_alpha, initial_guess, lifted_guess
 
 #: Two results are one optimum when their times of flight agree to this fraction and
 #: their revolutions to :data:`SAME_REVOLUTIONS`.  The closed-form NLP's own local
@@ -439,7 +439,7 @@ def second_start(problem, k, seeds, seed_k):
 
 def lift(problem, result, cap, progress=None):
     """:func:`probe` of the 3-D ``problem`` from the optimum ``result`` of its projected
-    model, lifted (``transcription.lifted_guess``) and capped at ``cap`` iterations;
+    model, lifted (``seed.lifted_guess``) and capped at ``cap`` iterations;
     (NLPResult, Transcription), the result's Ipopt record covering ``result`` too."""
     lifted, tr = probe(problem, lifted_guess(problem, result.as_guess()), cap, progress,
                        staged=False)

@@ -23,13 +23,14 @@ from typing import Optional, Tuple
 from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart, scan
 from esail_opt.optimisation import polish as polishing
-from esail_opt.optimisation.error_control import MAX_SUB_ARCS, ErrorControl, Round, control_error
+from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, ErrorControl, Round, control_error,
+                                                  sub_arcs_within_cap)
 from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
                                           solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
-from esail_opt.optimisation.transcription import (Transcription, initial_guess,
-                                                  sub_arcs_within_cap)
+from esail_opt.optimisation.seed import initial_guess
+from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import Verification, verify, within
 
 __all__ = ["Outcome", "Round", "StartTried", "ClassTried", "NearestFeasible", "PolishRun",

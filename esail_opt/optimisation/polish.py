@@ -41,8 +41,8 @@ from esail_opt.optimisation.ipopt import build_solver, ipopt_options, solve_tran
 from esail_opt.optimisation.problem import Tolerance
 from esail_opt.optimisation.error_control import node_near, segment_ends, start_nodes
 from esail_opt.optimisation.segment_methods import CVODES, RK4
-from esail_opt.optimisation.transcription import (body_corrections, node_cartesian, start_node,
-                                                  transcribe)
+from esail_opt.optimisation.nodes import node_cartesian, start_node
+from esail_opt.optimisation.transcription import body_corrections, transcribe
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments3d,
                                             simulate, simulate3d)
 

@@ -38,10 +38,10 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
 from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
                                           solve_transcription)
-from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
+from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error, sub_arcs_within_cap
 from esail_opt.optimisation.problem import Problem
-from esail_opt.optimisation.transcription import (Transcription, initial_guess, lifted_guess,
-                                                  sub_arcs_within_cap)
+from esail_opt.optimisation.seed import initial_guess, lifted_guess
+from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import verify
 
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
@@ -179,7 +179,7 @@ class CellSolver:
         """Solve a cell from its own constant-pitch seed, from turn count ``k``'s seed
         (``multistart.rendezvous_starts``), or from ``start``, an optimum of the
         class search on the scan's mesh in class ``k`` (:func:`_searched_first`; in
-        3-D one of the projected model, lifted by ``transcription.lifted_guess``).  The
+        3-D one of the projected model, lifted by ``seed.lifted_guess``).  The
         first cell of a class builds the class's NLP."""
         started = time.perf_counter()
         label = "seed" if k is None else f"class {k}"
@@ -567,7 +567,7 @@ def _scanned_seed(problem, progress):
 def _lifted_seed(problem, progress):
     """A 3-D free date seeded from the projected model: its best date's optimum
     (``planar=True``, the same problem with the bodies' states in the ecliptic) flown in
-    3-D with the clock at 0 (``transcription.lifted_guess``) and solved as a 3-D cell.
+    3-D with the clock at 0 (``seed.lifted_guess``) and solved as a 3-D cell.
 
     Why: the scan is there to rank dates and turn counts, and the plane change of a
     transfer between bodies a few degrees apart moves each date's optimum by little,

@@ -38,7 +38,6 @@ the last node, and the time of flight when the objective fixes it.
 """
 
 import dataclasses
-import functools
 import math
 import os
 from dataclasses import dataclass
@@ -46,29 +45,11 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from esail_opt.propagation.arcs import FIRST_ORDER
-from esail_opt.propagation.rectified import propagate
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import InputError
+from esail_opt.optimisation.nodes import node_cartesian_function
+from esail_opt.optimisation.seed import Guess, initial_guess
 from esail_opt.optimisation.segment_methods import ClosedForm
-from esail_opt.physics.elements import cartesian_from_polar3d
-
-#: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
-#: a_c = 1 mm/s^2 (THEORY.md §5.2: sub-arcs of about a tenth of a radian).
-GUESS_STEP = 0.05
-#: The seed's constant-pitch propagation: the paper's first-order arcs, GUESS_STEP
-#: long (a seed needs no more, and it is what the shipped problems were seeded with).
-GUESS_MODEL = FIRST_ORDER
-#: Guess steps per call of the (cached) rectified propagator.
-GUESS_CHUNK = 200
-#: Largest a~_c dtheta of one closed-form sub-arc: an arc's error grows with a~_c dtheta
-#: (as its square for first-order arcs, its cube for the NLP's second-order ones;
-#: THEORY.md §3.8), and an optimiser left free stretches single arcs far past where the
-#: closed form means anything (a 0.1 au spiral swung one arc out to 4 au).  It is kept
-#: by adding sub-arcs -- to the seed before the first solve, and to any optimum that
-#: breaks it (``optimisation.error_control``) -- never as a constraint of the NLP: as one it made
-#: a 4-segment hop to 1.3 au infeasible, deciding the answer instead of the accuracy.
-STRAIN_CAP = 0.05
 
 
 def segment_threads():
@@ -84,247 +65,6 @@ def segment_threads():
             raise InputError(f"ESAIL_OPT_THREADS = {text!r} is not a whole number in [1, 64]")
         return int(text)
     return max(1, min(4, os.cpu_count() or 1))
-
-
-def strain(problem, r_starts, lengths, throttle=None):
-    """a~_c dtheta of each segment's sub-arcs as a fraction of :data:`STRAIN_CAP`
-    (a~_c = kappa ac r0 with r_E = 1 au; numpy arrays of the segments' start radii,
-    angles and throttles)."""
-    kappa = 1.0 if throttle is None else np.asarray(throttle, float)
-    return (problem.sail.ac * kappa * np.asarray(r_starts, float) * np.asarray(lengths, float)
-            / problem.segments.sub_arcs / STRAIN_CAP)
-
-
-def sub_arcs_within_cap(problem, guess, most):
-    """The problem with enough sub-arcs (at most ``most``) that ``guess`` keeps the cap
-    on a~_c dtheta per sub-arc: the cap is kept by adding sub-arcs, not by shortening
-    the segments the seed chose."""
-    r_starts = np.r_[problem.x0()[0], guess.nodes[0, :-1]]
-    worst = float(np.max(strain(problem, r_starts, guess.lengths, guess.throttle)))
-    if worst <= 1:
-        return problem
-    sub = min(most, math.ceil(problem.segments.sub_arcs * worst))
-    return dataclasses.replace(problem, segments=dataclasses.replace(problem.segments,
-                                                                     sub_arcs=sub))
-
-
-def start_node(x_start):
-    """The first segment's start node, with time 0: [r, theta, v_r, v_theta, 0], or in
-    three dimensions [r, theta, v_r, v_theta, 0, qw, qx, qy, qz] from the 8-row start."""
-    x = np.asarray(x_start, float).ravel()
-    return np.r_[x[:4], 0.0, x[4:]]
-
-
-@functools.lru_cache(maxsize=None)
-def _node_cartesian():
-    """``node[9] -> [x, y, z, vx, vy, vz]``, the quaternion normalised: SX, so that the
-    NLP's final state costs its derivatives a small block, not an MX graph."""
-    node = ca.SX.sym("node", 9)
-    quat = node[5:9] / ca.norm_2(node[5:9])
-    return ca.Function("node_cartesian", [node], [cartesian_from_polar3d(node[:4], quat)])
-
-
-def node_cartesian(node):
-    """The Cartesian ecliptic state [x, y, z, vx, vy, vz] of a 3-D node (9 rows; its
-    quaternion normalised) as numbers."""
-    return np.array(_node_cartesian()(np.asarray(node, float).ravel()), float).ravel()
-
-
-def flown_segments(problem, alpha, lengths, x_start, throttle=None, delta=None):
-    """The NLP's own chain of segments flown forward from ``x_start`` (no continuity
-    defects): node states [5 x N+1] with time (9 rows in three dimensions, from an
-    8-row ``x_start``), for checks and tests.  ``throttle`` is kappa per segment,
-    default 1; ``delta`` the clock per segment in three dimensions, default 0."""
-    n = len(alpha)
-    kappa = np.ones(n) if throttle is None else np.asarray(throttle, float)
-    x = start_node(x_start)
-    controls = [np.asarray(alpha, float)[None, :]]
-    if problem.three_d():
-        controls.append((np.zeros(n) if delta is None else np.asarray(delta, float))[None, :])
-    # One call of the accumulated segment rather than one Python call per segment: the
-    # same numbers, without a call's overhead per segment.
-    ends = ClosedForm().function(problem).mapaccum(n)(
-        x, problem.sail.ac * kappa[None, :], *controls,
-        np.asarray(lengths, float)[None, :])[0]
-    return np.column_stack([x, np.array(ends)])
-
-
-@dataclass
-class Guess:
-    """A start of the NLP in canonical units, and the revolution class it belongs to.
-
-    ``throttle`` None means full thrust (1) everywhere.  The revolution class is part of
-    the start because it is part of the NLP: ``revolutions_k`` fixes a rendezvous'
-    whole turns between the sail and the body, and ``theta_window`` (rad), when given,
-    boxes the final polar angle to confine a transfer to a number of revolutions
-    (``optimisation.multistart``).  Every NLP built from this start keeps both.
-    """
-
-    alpha: np.ndarray
-    lengths: np.ndarray
-    nodes: np.ndarray  # 5 x N: [r, theta, v_r, v_theta, t] at each segment's end
-    nu0: float
-    revolutions_k: int = 0
-    throttle: np.ndarray = None
-    theta_window: tuple = None
-    epoch: float = 0.0  # departure, TU since J2000 (dated problems)
-    ac_scale: float = 1.0  # a_c over the sail's (MinAcceleration)
-    vinf_angle: float = 0.0  # excess velocity's direction, rad (BodyDeparture)
-    delta: np.ndarray = None  # clock per segment, rad (three dimensions; None: 0)
-
-
-def _fly_until(problem, x0, alpha, stop, what):
-    """Fly constant pitch from x0 in GUESS_STEP arcs until ``stop(xs)`` returns an index.
-
-    Returns the angle flown to the (linearly interpolated) stopping point.
-
-    Raises
-    ------
-    InputError
-        If the propagation leaves the closed form's validity (an escaping orbit, q3 <= 0)
-        or flies ``max_revolutions`` before it stops: no seed can be built from it.
-    """
-    limit = 2 * math.pi * problem.max_revolutions
-    ac = problem.sail.ac
-    coeff = problem.sail.coefficients
-    state, flown, t0 = np.asarray(x0, float), 0.0, 0.0
-    deg = math.degrees(alpha)
-    while flown < limit:
-        xs, q3 = propagate(state, np.full(GUESS_CHUNK, alpha), np.full(GUESS_CHUNK, GUESS_STEP),
-                           ac, samples=1, coefficients=coeff, model=GUESS_MODEL)
-        xs[4] += t0
-        hit = stop(xs)
-        if hit is not None:
-            return flown + GUESS_STEP * hit
-        bad = ~np.isfinite(xs[0, 1:]) | (xs[0, 1:] <= 0) | ~(q3 > 0)
-        if bad.any():
-            left = flown + GUESS_STEP * np.flatnonzero(bad)[0]
-            raise InputError(
-                f"guess_alpha_deg = {deg:g} deg: the seeding propagation at constant pitch "
-                f"leaves the closed form's validity (escape or q3 <= 0) after {left:.3g} rad "
-                f"without reaching {what}; choose another guess_alpha_deg"
-                + _seed_ac_hint(problem))
-        flown += GUESS_STEP * GUESS_CHUNK
-        state, t0 = xs[:4, -1], xs[4, -1]
-    raise InputError(f"max_revolutions = {problem.max_revolutions:g}: the seeding propagation "
-                     f"at {deg:g} deg does not reach {what} within it")
-
-
-def _seed_ac_hint(problem):
-    """What else a MinAcceleration user can change when its seed escapes: the sail's
-    a_c there only seeds the search (and scales it), and a smaller one flies a seed that
-    stays bound, while the optimum's a_c is the same."""
-    if not problem.objective.free_acceleration:
-        return ""
-    return (f", or a smaller sail.ac_mm_s2 (a MinAcceleration sizes a_c itself: "
-            f"{problem.sail.ac_mm_s2:g} mm/s^2 only seeds it)")
-
-
-def _crossing(values, level):
-    """Fractional index where ``values`` first reaches ``level`` (from either side), or None.
-
-    Only the finite leading part counts: past a NaN (an arc beyond its validity) there
-    is nothing to interpolate."""
-    bad = np.flatnonzero(~np.isfinite(values))
-    values = values[: bad[0]] if bad.size else values
-    if values.size < 2:
-        return None
-    side = np.sign(values - level)
-    change = np.flatnonzero(side[1:] != side[0])
-    if not change.size:
-        return None
-    i = change[0]
-    a, b = values[i], values[i + 1]
-    return i + (level - a) / (b - a) if b != a else float(i)
-
-
-def guess_alpha(problem):
-    """Constant pitch (rad) of the seeding propagation: the problem's, else +-45 deg by
-    whether the target lies outward, clipped to the pitch bounds."""
-    if problem.guess_alpha_deg is not None:
-        deg = problem.guess_alpha_deg
-    else:
-        radius = problem.aim_radius_au()
-        deg = -45.0 if radius is not None and radius < problem.x0()[0] else 45.0
-    lo, hi = problem.sail.alpha_min_deg, problem.sail.alpha_max_deg
-    return math.radians(min(max(deg, lo), hi))
-
-
-#: The a_c a MinAcceleration's seed flies at, as fractions of the sail's, tried in turn
-#: until one stays bound for the time of flight: its a_c only seeds the search, and a
-#: seed that escapes (Earth-Mars in 650 d from a 2 mm/s^2 seed) is no start at all.
-SEED_AC_SCALES = (1.0, 0.5, 0.25, 0.125)
-
-
-def initial_guess(problem):
-    """Seed the NLP from a forward rectified propagation at one constant pitch (never zeros).
-
-    The total angle is where that propagation (GUESS_STEP arcs) reaches the target
-    radius (minimum time) or the fixed time of flight; it is cut into N equal segments,
-    and the nodes are the states the NLP's own segments reach from the departure, so
-    every continuity constraint holds exactly at the start.  N is the problem's count,
-    or with ``Segments(per_revolution=K)`` ceil(K angle / 2 pi) (``Segments.count_for``):
-    the guess fixes the NLP's size, and :func:`transcribe` takes N from it.  A
-    MinAcceleration's seed flies at the first of :data:`SEED_AC_SCALES` times the sail's
-    a_c whose flight stays bound (the guess's ``ac_scale``).
-
-    Raises
-    ------
-    InputError
-        When no seed can be flown: the error of the sail's own a_c.
-    """
-    scales = SEED_AC_SCALES if problem.objective.free_acceleration else (1.0,)
-    first = None
-    for scale in scales:
-        try:
-            return _seeded(problem, scale)
-        except InputError as err:
-            first = first or err
-    raise first
-
-
-def _seeded(problem, scale):
-    """:func:`initial_guess` flown at ``scale`` times the sail's a_c."""
-    flown = problem if scale == 1 else dataclasses.replace(
-        problem, sail=dataclasses.replace(problem.sail, ac_mm_s2=problem.sail.ac_mm_s2 * scale))
-    x0 = problem.x0()
-    alpha = guess_alpha(problem)
-    tof = problem.fixed_tof()
-    if tof is not None:
-        angle = _fly_until(flown, x0, alpha, lambda xs: _crossing(xs[4], tof),
-                           f"the time of flight ({problem.objective.tof_days:g} days)")
-    else:
-        radius = problem.aim_radius_au()
-        angle = _fly_until(flown, x0, alpha, lambda xs: _crossing(xs[0], radius),
-                           f"the target radius ({radius:g} au)")
-    n = problem.segments.count_for(angle)
-    lengths = np.full(n, angle / n)
-    # The nodes come from the NLP's own segment map, so continuity holds exactly.  In
-    # three dimensions the seed's clock is 0: the planar flight above in a fixed plane.
-    xs = flown_segments(problem, np.full(n, alpha), lengths,
-                        problem.plane_x0() if problem.three_d() else x0,
-                        throttle=np.full(n, scale))
-    nodes = xs[:, 1:]
-    t0 = problem.epoch()
-    k = (problem.target.turns_behind(nodes[1, -1], nodes[4, -1], t0)
-         if problem.tracks_body() else 0)
-    nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
-    angle = problem.departure.seed_angle() if problem.dated() else 0.0
-    return Guess(np.full(n, alpha), lengths, nodes, nu0, k, epoch=t0, vinf_angle=angle,
-                 delta=np.zeros(n) if problem.three_d() else None, ac_scale=scale)
-
-
-def lifted_guess(problem, guess):
-    """A planar start (``guess``, of the same problem with ``planar=True``) as a start of
-    the 3-D ``problem``: the same pitches, lengths, throttles and a_c scale, the clock at
-    0, and the nodes the 3-D segments reach from the departure's own plane, so that
-    continuity holds exactly and only the target's rows are off (by the body's height
-    over the ecliptic, and what the unprojected departure changes)."""
-    kappa = np.ones(guess.alpha.size) if guess.throttle is None else np.asarray(guess.throttle)
-    xs = flown_segments(problem, guess.alpha, guess.lengths,
-                        problem.departure.plane_state_at(guess.epoch, guess.vinf_angle),
-                        throttle=guess.ac_scale * kappa)
-    return dataclasses.replace(guess, nodes=xs[:, 1:], delta=np.zeros(guess.alpha.size))
 
 
 @dataclass
@@ -585,7 +325,7 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
            "durations": length if in_time else elapsed,
            "xf": nodes[:4, -1], "tf": nodes[4, -1], "epoch": epoch, "ac_scale": ac_scale}
     if three_d:
-        out["yf"] = _node_cartesian()(nodes[:, -1])
+        out["yf"] = node_cartesian_function()(nodes[:, -1])
     return out
 
 

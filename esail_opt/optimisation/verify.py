@@ -25,7 +25,7 @@ import numpy as np
 
 from esail_opt.optimisation.goals import cartesian_miss, state_miss
 from esail_opt.optimisation.segment_methods import arc_model
-from esail_opt.optimisation.transcription import node_cartesian, start_node
+from esail_opt.optimisation.nodes import node_cartesian, start_node
 from esail_opt.propagation.rectified import propagate
 from esail_opt.propagation.rectified3d import propagate3d
 from esail_opt.propagation.simulate import (CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate,
