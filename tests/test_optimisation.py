@@ -13,7 +13,7 @@ import esail_opt as eo
 from conftest import solved_under
 from esail_opt.app import cli
 from esail_opt.errors import InputError
-from esail_opt.optimisation import seed
+from esail_opt.optimisation import pipeline, seed
 from esail_opt.optimisation.nodes import flown_segments
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.outcome import Outcome
@@ -329,7 +329,7 @@ def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
     assert guess.ac_scale < 1
     n = guess.alpha.size
     flown = flown_segments(sizing, guess.alpha, guess.lengths, sizing.x0(),
-                              throttle=np.full(n, guess.ac_scale))
+                           throttle=np.full(n, guess.ac_scale))
     np.testing.assert_allclose(guess.nodes, flown[:, 1:], rtol=0, atol=1e-12)
     assert guess.nodes[4, -1] == pytest.approx(units.time_from_days(600.0), rel=1e-2)
     escaping = dataclasses.replace(sizing, sail=eo.Sail(40.0))
@@ -340,6 +340,24 @@ def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
         seed.initial_guess(small_problem(objective=eo.MinTime(), guess_alpha_deg=45.0,
                                        sail=eo.Sail(10.0), target=eo.CircularOrbit(30.0)))
     assert "sail.ac_mm_s2" not in str(raised.value)
+
+
+def test_a_throttled_sail_whose_full_thrust_seed_escapes_seeds_at_a_lower_throttle():
+    """At 6 mm/s^2 and 45 deg the seed escapes before it reaches 2 au; a throttled sail
+    seeds at a throttle that stays bound (the NLP may throttle as it likes), its nodes
+    those of that throttle, and the solve verifies where it used to stop at the seed."""
+    throttled = small_problem(sail=eo.Sail(6.0, throttle=True), target=eo.CircularOrbit(2.0))
+    with pytest.raises(InputError, match="leaves the closed form.s validity"):
+        seed.initial_guess(dataclasses.replace(throttled, sail=eo.Sail(6.0)))
+    guess = seed.initial_guess(throttled)
+    assert guess.ac_scale == 1 and 0 < guess.throttle[0] < 1
+    assert np.all(guess.throttle == guess.throttle[0])
+    flown = flown_segments(throttled, guess.alpha, guess.lengths, throttled.x0(),
+                           throttle=guess.throttle)
+    np.testing.assert_allclose(guess.nodes, flown[:, 1:], rtol=0, atol=1e-12)
+    # The seed aims with first-order arcs; the nodes are the NLP's second-order ones.
+    assert guess.nodes[0, -1] == pytest.approx(2.0, rel=2e-2)
+    assert pipeline.solve(throttled).verified
 
 
 def test_segment_threads_do_not_change_the_optimum(monkeypatch):
@@ -366,7 +384,6 @@ def test_a_run_that_found_nothing_is_neither_error_controlled_nor_polished():
     """finish() on a solve stopped after one iteration (FAILED): the run is verified
     against nothing, the error control and the polish do not run, and each says why."""
     from esail_opt.app.solution import Solution
-    from esail_opt.optimisation import pipeline
     from esail_opt.optimisation.ipopt import ipopt_options
 
     problem = small_problem()

@@ -132,7 +132,10 @@ def guess_alpha(problem):
 
 #: The a_c a MinAcceleration's seed flies at, as fractions of the sail's, tried in turn
 #: until one stays bound for the time of flight: its a_c only seeds the search, and a
-#: seed that escapes (Earth-Mars in 650 d from a 2 mm/s^2 seed) is no start at all.
+#: seed that escapes (Earth-Mars in 650 d from a 2 mm/s^2 seed) is no start at all.  A
+#: throttled sail's seed tries the same fractions as its throttle (those within the
+#: sail's throttle bounds): at full thrust a strong sail's seed escapes before it
+#: reaches a far target (Psyche at 3 mm/s^2), where the NLP may throttle down anyway.
 SEED_AC_SCALES = (1.0, 0.5, 0.25, 0.125)
 
 
@@ -146,16 +149,16 @@ def initial_guess(problem):
     or with ``Segments(per_revolution=K)`` ceil(K angle / 2 pi) (``Segments.count_for``):
     the guess fixes the NLP's size, and :func:`transcribe` takes N from it.  A
     MinAcceleration's seed flies at the first of :data:`SEED_AC_SCALES` times the sail's
-    a_c whose flight stays bound (the guess's ``ac_scale``).
+    a_c whose flight stays bound (the guess's ``ac_scale``), a throttled sail's at the
+    first of them as its throttle (the guess's ``throttle``).
 
     Raises
     ------
     InputError
         When no seed can be flown: the error of the sail's own a_c.
     """
-    scales = SEED_AC_SCALES if problem.objective.free_acceleration else (1.0,)
     first = None
-    for scale in scales:
+    for scale in _seed_scales(problem):
         try:
             return _seeded(problem, scale)
         except InputError as err:
@@ -163,8 +166,19 @@ def initial_guess(problem):
     raise first
 
 
+def _seed_scales(problem):
+    """The fractions of the sail's a_c that :func:`initial_guess` tries, in turn."""
+    if problem.objective.free_acceleration:
+        return SEED_AC_SCALES
+    if problem.sail.throttle:
+        lo, hi = problem.throttle_bounds()
+        return tuple(s for s in SEED_AC_SCALES if lo <= s <= hi) or (1.0,)
+    return (1.0,)
+
+
 def _seeded(problem, scale):
-    """:func:`initial_guess` flown at ``scale`` times the sail's a_c."""
+    """:func:`initial_guess` flown at ``scale`` times the sail's a_c: as the a_c's
+    scale for a MinAcceleration, else as the throttle of a throttled sail."""
     flown = problem if scale == 1 else dataclasses.replace(
         problem, sail=dataclasses.replace(problem.sail, ac_mm_s2=problem.sail.ac_mm_s2 * scale))
     x0 = problem.x0()
@@ -190,8 +204,11 @@ def _seeded(problem, scale):
          if problem.tracks_body() else 0)
     nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
     angle = problem.departure.seed_angle() if problem.dated() else 0.0
+    sizing = problem.objective.free_acceleration
     return Guess(np.full(n, alpha), lengths, nodes, nu0, k, epoch=t0, vinf_angle=angle,
-                 delta=np.zeros(n) if problem.three_d() else None, ac_scale=scale)
+                 delta=np.zeros(n) if problem.three_d() else None,
+                 ac_scale=scale if sizing else 1.0,
+                 throttle=None if sizing or scale == 1 else np.full(n, scale))
 
 
 def lifted_guess(problem, guess):
