@@ -44,8 +44,13 @@ def test_a_bound_is_met_only_with_the_verifiers_error_included():
     ok, note = judge(problem, _misses(r=90.0, r_err=20.0), None, problem.tolerance)
     assert not ok
     assert "90 km (+ 20 km verifier error), bound 100 km" in note
+    assert "verifier's own error alone" not in note
     ok, note = judge(problem, _misses(v=0.5, v_err=0.6), None, problem.tolerance)
     assert not ok and "bound 1 m/s" in note
+    assert "verifier's own error alone" not in note
+    ok, note = judge(problem, _misses(r=0.5, r_err=110.0), None, problem.tolerance)
+    assert not ok and note.endswith("the verifier's own error alone reaches the bound, so "
+                                    "no flight can be shown to meet it on these equations")
     ok, note = judge(problem, _misses(), "CVODES failed: too many steps", problem.tolerance)
     assert not ok and "CVODES failed" in note
 

@@ -117,7 +117,13 @@ def judge(problem, misses, error, tolerance, against_nlp=False):
         failed += [f"misses {what} by {text}" for text in _exceeded(r, v, r_err, v_err, tolerance)]
     flight = f"the flight on {problem.equations()}"
     if failed:
-        return False, f"NOT verified: {flight} " + "; ".join(failed)
+        speeds = any(v is not None for _, _, v in checks)
+        # Then no flight, however good, passes: say so, or a user tries again in vain.
+        blind = (r_err >= tolerance.position_km
+                 or (speeds and v_err >= tolerance.velocity_m_s))
+        return False, (f"NOT verified: {flight} " + "; ".join(failed)
+                       + ("; the verifier's own error alone reaches the bound, so no flight "
+                          "can be shown to meet it on these equations" if blind else ""))
     if all(v is not None for _, _, v in checks):
         return True, (f"verified: {flight} is within {tolerance.position_km:g} "
                       f"km and {tolerance.velocity_m_s:g} m/s of "
