@@ -197,6 +197,28 @@ def test_a_porkchop_cell_is_checked_with_its_own_flight_time():
         check(late, Grid(grid.departures, (300.0, 700.0)))
 
 
+@pytest.mark.parametrize("planar", [True, False], ids=["projected", "3-D"])
+def test_an_arrival_window_bounds_the_arrival_in_the_plane_and_in_space(planar):
+    """The window is a row of the NLP in both models, at the seed's arrival within it
+    as the calendar places that arrival.  The 3-D NLP once had no such row, and its
+    answers arrived up to years after the window closed, verified."""
+    from esail_opt.optimisation.transcription import transcribe
+
+    window = ("2033-06-01", "2034-06-01")
+    problem = eo.Problem(name="mars_window", departure=eo.BodyDeparture(body="earth",
+                                                                     date="2033-03-01"),
+                         sail=eo.Sail(ac_mm_s2=1.5), segments=eo.Segments(count=8),
+                         target=eo.BodyRendezvous(body="mars", arrival_window=window),
+                         planar=planar)
+    tr = transcribe(problem)
+    names = list(tr.names)
+    row = sum(tr.names[name] for name in names[:names.index("arrival")])
+    share = (tr.constraints(tr.x0)[row] - tr.lbg[row]) / (tr.ubg[row] - tr.lbg[row])
+    first, last = (jd_of(day + "T00:00:00") for day in window)
+    arrival = jd_of("2033-03-01T00:00:00") + units.time_to_days(tr.guess.nodes[4, -1])
+    assert share == pytest.approx((arrival - first) / (last - first), abs=1e-9)
+
+
 def test_a_body_target_needs_a_dated_departure():
     with pytest.raises(InputError, match="BodyDeparture"):
         eo.Problem(name="x", departure=eo.ParkingOrbit(a_au=1.0), sail=eo.Sail(ac_mm_s2=1.0),

@@ -18,7 +18,7 @@ import pytest
 import esail_opt as eo
 from esail_opt.errors import InputError
 from esail_opt.optimisation.problem_file import load_problem
-from esail_opt.optimisation.verify import judge
+from esail_opt.optimisation.verify import judge, window_miss, within
 from esail_opt.physics import constants as units
 
 from conftest import (
@@ -53,6 +53,25 @@ def test_a_bound_is_met_only_with_the_verifiers_error_included():
                                     "no flight can be shown to meet it on these equations")
     ok, note = judge(problem, _misses(), "CVODES failed: too many steps", problem.tolerance)
     assert not ok and "CVODES failed" in note
+
+
+def test_a_flight_outside_its_arrival_window_is_not_verified():
+    """However close to the body, a flight that arrives outside the target's window is
+    not the answer asked for; a second's slack covers the constraint's tolerance."""
+    body = eo.BodyRendezvous(body="mars", arrival_window=("2033-06-01", "2034-06-01"))
+    problem = eo.Problem("judge", eo.BodyDeparture(body="earth", date="2033-03-01"),
+                         eo.Sail(1.0), target=body)
+    late = dict(_misses(), arrival_outside_window_days=481.0)
+    ok, note = judge(problem, late, None, TOLERANCE)
+    assert not ok and "arrives 481 d outside the arrival window 2033-06-01 to 2034-06-01" in note
+    assert not within(late, TOLERANCE)
+    inside = dict(_misses(), arrival_outside_window_days=1e-6)
+    assert judge(problem, inside, None, TOLERANCE)[0] and within(inside, TOLERANCE)
+    first, last = body.arrival_jd
+    assert window_miss(body, 0.0, units.time_from_days(last - 2451545.0 + 2.0)) == \
+        pytest.approx(2.0, abs=1e-9)
+    assert window_miss(body, 0.0, units.time_from_days(first - 2451545.0 + 1.0)) == 0.0
+    assert window_miss(eo.BodyRendezvous(body="mars"), 0.0, 1.0) is None
 
 
 def test_without_a_target_the_flight_is_held_to_the_nlps_final_state():

@@ -360,11 +360,11 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
         target = problem.target.constraints(xf, flight["tf"], guess.revolutions_k,
                                             flight["epoch"])
         g.add("target", ca.vertcat(*target), 0, 0)
-        window = getattr(problem.target, "arrival_jd", None)
-        if window is not None:
-            lo, hi = (dates.tu_from_jd(jd) - scales.epoch for jd in window)
-            g.add("arrival", (flight["epoch"] - scales.epoch + flight["tf"]) / scales.time,
-                  lo / scales.time, hi / scales.time)
+    window = getattr(problem.target, "arrival_jd", None)
+    if window is not None:
+        lo, hi = (dates.tu_from_jd(jd) - scales.epoch for jd in window)
+        g.add("arrival", (flight["epoch"] - scales.epoch + flight["tf"]) / scales.time,
+              lo / scales.time, hi / scales.time)
     return g
 
 

@@ -23,6 +23,7 @@ from typing import Optional
 
 import numpy as np
 
+from esail_opt.bodies import dates
 from esail_opt.optimisation.goals import cartesian_miss, state_miss
 from esail_opt.optimisation.segment_methods import arc_model
 from esail_opt.optimisation.nodes import node_cartesian, start_node
@@ -75,10 +76,30 @@ def within(misses, tolerance, against="target"):
     target (``against="target"``) or of the NLP's final state (``"nlp"``)."""
     prefix = "target_" if against == "target" else ""
     r, v = misses.get(prefix + "miss_r_km"), misses.get(prefix + "miss_v_m_s")
-    if r is None or misses.get("verifier_error_r_km") is None:
+    if r is None or misses.get("verifier_error_r_km") is None or _outside(misses):
         return False
     return not _exceeded(r, v, misses["verifier_error_r_km"], misses["verifier_error_v_m_s"],
                          tolerance)
+
+
+#: How far (days) a flight may arrive outside its target's arrival window and still be
+#: in it: about a second.  The NLP holds the window as a constraint, far closer than this.
+WINDOW_SLACK_DAYS = 1e-5
+
+
+def window_miss(target, epoch, tof):
+    """Days by which an arrival at ``epoch + tof`` (TU since J2000 TDB) falls outside
+    ``target``'s arrival window (0 inside it), or None for a target without one."""
+    window = getattr(target, "arrival_jd", None)
+    if window is None:
+        return None
+    arrival = dates.jd_from_tu(float(epoch) + float(tof))
+    return max(window[0] - arrival, arrival - window[1], 0.0)
+
+
+def _outside(misses):
+    late = misses.get("arrival_outside_window_days")
+    return late is not None and late > WINDOW_SLACK_DAYS
 
 
 def judge(problem, misses, error, tolerance, against_nlp=False):
@@ -115,6 +136,10 @@ def judge(problem, misses, error, tolerance, against_nlp=False):
     failed = []
     for what, r, v in checks:
         failed += [f"misses {what} by {text}" for text in _exceeded(r, v, r_err, v_err, tolerance)]
+    if _outside(misses):
+        first, last = problem.target.arrival_window
+        failed.append(f"arrives {misses['arrival_outside_window_days']:.4g} d outside the "
+                      f"arrival window {first} to {last}")
     flight = f"the flight on {problem.equations()}"
     if failed:
         speeds = any(v is not None for _, _, v in checks)
@@ -220,6 +245,7 @@ def verify(problem, result, samples=16, defects=None):
         err_r, err_v, _ = state_miss(check[:4, -1], xf_cv)
         misses.update(verifier_error_r_km=err_r, verifier_error_v_m_s=err_v)
         misses.update(target_miss(problem.target, xf_cv, flown[4, -1], result.epoch))
+        _add_window_miss(misses, problem.target, result.epoch, flown[4, -1])
         nlp_target = target_miss(problem.target, xf_nlp, float(np.sum(result.durations)),
                                  result.epoch)
         misses["nlp_target_miss_r_km"] = nlp_target["target_miss_r_km"]
@@ -292,4 +318,13 @@ def verify3d(problem, result, samples=16, defects=None):
     else:
         # An orbit target (or none) holds r, v_r and h only: the plane's polar view is exact.
         misses.update(target_miss(problem.target, view[:4, -1], tf, result.epoch))
+    _add_window_miss(misses, problem.target, result.epoch, tf)
     return Verification(view, closed, misses, None, flown)
+
+
+def _add_window_miss(misses, target, epoch, tof):
+    """``misses`` with ``arrival_outside_window_days`` for a target with an arrival
+    window (:func:`window_miss`)."""
+    late = window_miss(target, epoch, tof)
+    if late is not None:
+        misses["arrival_outside_window_days"] = late
