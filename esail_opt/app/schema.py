@@ -97,7 +97,10 @@ target_body : object
     ``normal_miss_km`` (the flight's distance from the body along the ecliptic's
     normal; also in the verification's misses).
 ac_mm_s2_required : float
-    For a MinAcceleration objective: the characteristic acceleration found, mm/s^2.
+    For a MinAcceleration objective: the characteristic acceleration found, mm/s^2.  A
+    run that found no point (``outcome`` "infeasible" or "failed") gives its last
+    iterate's, which its schedule's throttles are fractions of: no sail is required
+    by it (see ``nearest_feasible``).
 
 Classes and the edge of the feasible (version 5)
 ------------------------------------------------
