@@ -201,3 +201,17 @@ def test_schedule_names_each_attitude_canonically_where_both_names_are_allowed(s
             assert -90 < c_deg <= 90
         else:
             assert a_deg == pytest.approx(math.degrees(a), abs=1e-12)
+
+
+def test_an_answer_at_the_end_of_its_date_window_says_the_window_binds():
+    """A free departure that Ipopt left at its window's end was stopped by the window,
+    not by the mission: the summary says so, and says nothing where the date is inside."""
+    data = json.loads((Path(__file__).parents[1] / "results" / "earth_mars_window"
+                       / "solution.json").read_text())
+    inside = Solution.from_json(data)
+    assert "the window binds" not in inside.summary()
+    data["problem"]["departure"]["window"] = ["2030-01-01", data["departure_date"][:10]]
+    data["departure_date"] = data["departure_date"][:10] + "T00:00:00.000"
+    line = (f"  departs as its departure window closes ({data['departure_date'][:10]}): "
+            "the window binds, and a wider one may do better")
+    assert line in Solution.from_json(data).summary().splitlines()

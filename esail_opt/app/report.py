@@ -2,6 +2,7 @@
 ``esail-opt solve`` prints after a solve, read from the record alone (a solution loaded
 from its file prints the same lines)."""
 
+from esail_opt.bodies import dates
 from esail_opt.optimisation.ipopt import STOPPED
 
 
@@ -84,12 +85,30 @@ def nearest_feasible_line(n):
             f"; none found at {n.infeasible_tof_days:.1f} d)")
 
 
+def _binding_windows(sol):
+    """A line for each date window whose end the answer sits at: the window, not the
+    mission, stopped the optimum there, and a wider one may do better."""
+    lines = []
+    for verb, when, what, window in (
+            ("departs", sol.departure_date, "departure", getattr(sol.problem.departure,
+                                                                "window", None)),
+            ("arrives", sol.arrival_date, "arrival", getattr(sol.problem.target,
+                                                            "arrival_window", None))):
+        for end, day in zip(("opens", "closes"), window or ()):
+            # The dates are written to the millisecond: a second is well within.
+            if abs(dates.jd_from_iso(when) - dates.jd_from_iso(day)) < 1 / 86400:
+                lines.append(f"  {verb} as its {what} window {end} ({day}): the window "
+                             "binds, and a wider one may do better")
+    return lines
+
+
 def _mission_lines(sol):
     """The dates, the a_c a MinAcceleration found and what the plane hides at a body:
     the answers a dated or sail-sizing problem was asked for."""
     lines = []
     if sol.departure_date is not None:
         lines.append(f"  departs {sol.departure_date}, arrives {sol.arrival_date} (TDB)")
+        lines += _binding_windows(sol) if sol.converged else []
     if sol.ac_mm_s2_required is not None and sol.converged:
         lines.append(f"  a_c needed: {sol.ac_mm_s2_required:.6g} mm/s^2 (the schedule's "
                      "throttles are fractions of it)")
