@@ -407,3 +407,20 @@ def test_a_planar_jobs_first_cell_ends_where_a_lone_solve_does(name, depart, tof
         ours = row["ac_mm_s2_required"] if tof else row["tof_days"]
         theirs = lone.ac_mm_s2_required if tof else lone.tof_days
         assert ours <= 1.005 * theirs, (index, ours, theirs)
+
+
+def test_a_cell_changed_at_its_jobs_end_is_told_as_a_correction_without_a_count(capsys):
+    """The progress counts cells as the forward pass ends them; a cell the repair pass
+    changed is told again as a correction, not as one more cell ("[6/6]" four times)."""
+    from esail_opt.app.cli import _porkchop_lines
+
+    line = _porkchop_lines()
+    row = {"index": 3, "departure_date": "2040-01-31T00:00:00", "tof_days_grid": 720.0,
+           "verified": True, "objective": 0.876527, "objective_unit": "mm/s^2",
+           "no_sail": False, "error": None}
+    line(row, 6, 6)
+    line(dict(row, objective=0.874644), 6, 6)
+    first, again = capsys.readouterr().err.splitlines()
+    assert first == "esail-opt porkchop: [6/6] 2040-01-31, tof 720 d: 0.876527 mm/s^2, verified"
+    assert again == ("esail-opt porkchop: 2040-01-31, tof 720 d: 0.874644 mm/s^2, verified "
+                     "(changed at its job's end)")

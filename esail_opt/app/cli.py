@@ -630,10 +630,11 @@ def _porkchop_lines():
             what = "no sail (shorter than the edge of the feasible)"
         else:
             what = f"NOT verified ({row['error']})"
-        again = " (at its job's end)" if row["index"] in seen else ""
+        # A cell told again is a correction, not one more cell: no count.
+        again = row["index"] in seen
         seen.add(row["index"])
-        print(f"esail-opt porkchop: [{done}/{total}] {cell}: {what}{again}", file=sys.stderr,
-              flush=True)
+        print(f"esail-opt porkchop: {'' if again else f'[{done}/{total}] '}{cell}: {what}"
+              + (" (changed at its job's end)" if again else ""), file=sys.stderr, flush=True)
 
     return line
 
