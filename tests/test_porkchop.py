@@ -419,6 +419,7 @@ def test_a_cell_changed_at_its_jobs_end_is_told_as_a_correction_without_a_count(
            "verified": True, "objective": 0.876527, "objective_unit": "mm/s^2",
            "no_sail": False, "error": None}
     line(row, 6, 6)
+    line(dict(row, seconds=9.0), 6, 6)  # the same line: not told again
     line(dict(row, objective=0.874644), 6, 6)
     first, again = capsys.readouterr().err.splitlines()
     assert first == "esail-opt porkchop: [6/6] 2040-01-31, tof 720 d: 0.876527 mm/s^2, verified"

@@ -617,7 +617,7 @@ def _porkchop_lines():
     """The progress of a porkchop: one line on stderr per cell as its job's forward
     pass ends it, and one more if the job's end changed it (the repair pass, the edge
     of the feasible)."""
-    seen = set()
+    told = {}  # index -> what its line said
 
     def line(row, done, total):
         cell = row["departure_date"].removesuffix("T00:00:00")
@@ -630,9 +630,12 @@ def _porkchop_lines():
             what = "no sail (shorter than the edge of the feasible)"
         else:
             what = f"NOT verified ({row['error']})"
-        # A cell told again is a correction, not one more cell: no count.
-        again = row["index"] in seen
-        seen.add(row["index"])
+        # A cell told again is a correction, not one more cell: no count; and one whose
+        # line would not change (its row changed elsewhere) is not told again.
+        again = row["index"] in told
+        if told.get(row["index"]) == what:
+            return
+        told[row["index"]] = what
         print(f"esail-opt porkchop: {'' if again else f'[{done}/{total}] '}{cell}: {what}"
               + (" (changed at its job's end)" if again else ""), file=sys.stderr, flush=True)
 
