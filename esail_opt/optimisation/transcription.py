@@ -92,6 +92,10 @@ class Transcription:
     # of the departure body at departure and of the target body at arrival
     # (:func:`body_corrections`); zero unless a caller holds the NLP to the ephemeris.
     corrections: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(8))
+    # How the variables are scaled, and whether the lengths are durations: what
+    # :meth:`start_of` needs to put another start into this NLP.
+    scales: object = None
+    in_time: bool = False
 
     @property
     def segments(self):
@@ -116,6 +120,13 @@ class Transcription:
         tof = problem.fixed_tof()
         return dataclasses.replace(self, epoch=problem.epoch(),
                                    tof=0.0 if tof is None else tof)
+
+    def start_of(self, problem, guess):
+        """``guess`` (of this NLP's size and class) as a point of this NLP's variables,
+        scaled as this NLP scales them and clipped to its bounds: a start from another
+        model's optimum, solved on this NLP rather than on one built for it."""
+        _, blocks = _variables(problem, guess, self.scales, self.in_time)
+        return np.clip(blocks.stacked()[3], self.lbx, self.ubx)
 
     def constraints(self, w, defects=None):
         """The constraint values g at the flat point ``w`` (numpy), with the segment
@@ -420,7 +431,7 @@ def transcribe(problem, method=None, guess=None, threads=None):
                          np.clip(w0, lbx, ubx), lbx, ubx, lbg, ubg,
                          _unpack_function(problem, guess, v, flight, w, p), guess, g.sizes,
                          problem.objective.shown_as(), problem.epoch(),
-                         0.0 if tof is None else tof, np.zeros(n_corr))
+                         0.0 if tof is None else tof, np.zeros(n_corr), scales, in_time)
 
 
 def _checked_segment(problem, segment):
