@@ -206,3 +206,26 @@ def test_polish_steps_are_the_fewest_whose_defects_are_small():
     assert worst[steps[0]] > polish.STEP_DEFECT, worst
     assert count > steps[0] and worst[count] < polish.STEP_DEFECT, (count, worst)
     assert worst[steps[steps.index(count) - 1]] >= polish.STEP_DEFECT, (count, worst)
+
+
+def test_a_polish_that_fails_leaves_the_closed_form_verdict_standing(tmp_path, monkeypatch,
+                                                                     capsys):
+    """A polish not verified makes the run exit 1, and its line also gives the
+    closed-form answer's verdict, which stands: an analyst must not read the failure of
+    a 1 m polish as the failure of the transfer."""
+    from esail_opt.app import cli, solution
+
+    data = json.loads((REPO / "results" / "earth_mars_min_time_polished"
+                       / "solution.json").read_text())
+    data["polish"]["verified"] = False
+    data["polish"]["note"] = "NOT verified: the verifier's own error alone reaches the bound"
+    monkeypatch.setattr(solution, "solve",
+                        lambda *args, **kwargs: solution.Solution.from_json(data))
+    code = cli.main(["solve", str(REPO / "problems" / "earth_mars_min_time.py"), "--polish",
+                     "--no-plots", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert code == 1
+    assert err == ("esail-opt solve: polish NOT verified: the verifier's own error alone "
+                   "reaches the bound; the closed-form answer stays "
+                   + data["verification_note"])
+    assert data["verification_note"].startswith("verified: ")

@@ -316,7 +316,10 @@ def _run_solve(args):
     if figures is not None:
         print(f"esail-opt solve: error: {figures}", file=sys.stderr)
     if not sol.verified:
-        reason = sol.verification_note if not sol.flight_verified else sol.polish.note
+        # A polish that failed leaves the closed-form answer's verdict standing: say both.
+        reason = (sol.verification_note if not sol.flight_verified else
+                  f"polish {sol.polish.note}; the closed-form answer stays "
+                  f"{sol.verification_note}")
         if sol.nearest_feasible is not None:
             reason += "; " + report.nearest_feasible_line(sol.nearest_feasible)
         print(f"esail-opt solve: {reason}", file=sys.stderr)
