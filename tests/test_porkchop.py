@@ -444,3 +444,16 @@ def test_a_3d_cell_ends_where_a_lone_solve_does_not_in_its_neighbours_basin():
     assert cells[1].verified and lone.verified, (cells[1].note, lone.note)
     ours = cells[1].result.ac_scale * problem.sail.ac_mm_s2
     assert ours <= 1.005 * lone.ac_mm_s2_required, (ours, lone.ac_mm_s2_required)
+
+
+@pytest.mark.slow
+def test_a_3d_scan_lifts_onto_a_class_nlp_the_error_control_refined():
+    """On Earth-Mars from 2030-01-01 the error control refines the class's mesh at one
+    cell, and the class gets a new NLP: a lift then solved on it with the solver built
+    for the old one, and every cell of the job failed in Ipopt's interface."""
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    problem = shipped_problem("earth_mars_window")
+    grid = porkchop.Grid(tuple(porkchop.parse_dates("2030-01-01:2030-05-18:4")))
+    cells = scan.scan([porkchop.cell_problem(problem, grid, i) for i in grid.path()])
+    assert all(cell.verified for cell in cells), [cell.note for cell in cells]

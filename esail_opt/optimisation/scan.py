@@ -124,7 +124,9 @@ class CellSolver:
         self.method = method
         self.last = {}  # k -> the class's last cell, for a solver of projected cells
         self._projected = None
-        self.lifters = {}  # k -> a cold Ipopt solver on the class's NLP (:meth:`lifted`)
+        # k -> (the class's NLP, a cold Ipopt solver on it) (:meth:`lifted`); a class
+        # whose mesh the error control refined has a new NLP, and needs a new solver.
+        self.lifters = {}
 
     @property
     def projected(self):
@@ -227,15 +229,15 @@ class CellSolver:
         if k not in self.nlps:
             return None
         started = time.perf_counter()
-        tr, _, segments = self.nlps[k]
+        base, _, segments = self.nlps[k]
         problem = dataclasses.replace(problem, segments=segments)
         guess = lifted_guess(problem, start.as_guess())
-        if guess.alpha.size != tr.segments:
+        if guess.alpha.size != base.segments:
             return None
-        tr = dataclasses.replace(tr.at(problem), x0=tr.start_of(problem, guess))
-        if k not in self.lifters:
-            self.lifters[k] = build_solver(tr, ipopt_options(max_iter=CLASS_ITERATIONS))
-        result = solve_transcription(tr, solver=self.lifters[k])
+        tr = dataclasses.replace(base.at(problem), x0=base.start_of(problem, guess))
+        if self.lifters.get(k, (None,))[0] is not base:
+            self.lifters[k] = (base, build_solver(tr, ipopt_options(max_iter=CLASS_ITERATIONS)))
+        result = solve_transcription(tr, solver=self.lifters[k][1])
         return self._candidate(problem, result, tr, started,
                                f"class {k}, lifted from the projected model", result)
 
