@@ -188,7 +188,7 @@ def test_nothing_is_clipped_or_overlapping(which, request):
 # ---------------------------------------------------------------- in three dimensions
 
 AU_KM = 149597870.7  # written out again here, not taken from the package
-FLOWN = "CVODES (Cartesian equations)"
+FLOWN = "CVODES flight"
 
 
 def _lines(ax):

@@ -1,16 +1,18 @@
 """The 3-D rectified closed form (``propagation.rectified3d``, ``batch.propagate_batch3d``)
-against the Cartesian flights: CVODES on the Cartesian equations (``simulate.simulate3d``),
-itself checked here against DOP853 on the Cartesian equations written out in
-``test_plane_turn``, and RK4 on them (``rk4.rk4_segment3d``)."""
+against CVODES flights in three dimensions (``simulate.simulate3d``, in the turning plane
+and on the Cartesian equations), themselves checked here against DOP853 on the Cartesian
+equations written out in ``test_plane_turn`` and on the turning plane's equations written
+out below, and RK4 on them (``rk4.rk4_segment3d``)."""
 
 import math
 
 import casadi as ca
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 from esail_opt.physics import rotation
-from esail_opt.physics.constants import accel_from_mm_s2
+from esail_opt.physics.constants import accel_from_mm_s2, length_to_km, time_from_days
 from esail_opt.physics.elements import cartesian_from_polar3d, polar_from_classical
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.batch import propagate_batch3d
@@ -19,8 +21,8 @@ from esail_opt.propagation.rectified3d import (cartesian_states, end_function3d,
                                               panel_function3d, propagate3d,
                                               rectified3d_function)
 from esail_opt.propagation.rk4 import rk4_segment3d, rk4_segment_turning
-from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, fly_segments3d, simulate,
-                                            simulate3d)
+from esail_opt.propagation.simulate import (FORMS_3D, VERIFY_TOLERANCE, fly_segments3d,
+                                            simulate, simulate3d)
 from test_plane_turn import fly_cartesian_theta
 
 AC = accel_from_mm_s2(1.0)
@@ -46,31 +48,82 @@ def test_cartesian_states_column_by_column():
     assert np.abs(whole[6] - xs[4]).max() == 0
 
 
-def reference():
-    """The schedule flown by Cartesian CVODES (lengths: angles the Sun-sail line sweeps)."""
+def reference(form="turning"):
+    """The schedule flown by CVODES in ``form`` (lengths: angles the Sun-sail line sweeps)."""
     y0 = np.array(cartesian_from_polar3d(X0, PLANE)).ravel()
     return simulate3d(y0, ALPHAS, DELTAS, LENGTHS, AC, length_in="theta",
-                      tol=VERIFY_TOLERANCE)
+                      tol=VERIFY_TOLERANCE, form=form)
 
 
-def test_cvodes_3d_is_dop853_on_the_cartesian_equations():
-    """simulate3d in theta ends where DOP853 on the Cartesian equations (written out in
-    the tests with Huo's geometry) does, segment after segment."""
-    ref = reference()
+@pytest.mark.parametrize("form", FORMS_3D)
+def test_cvodes_3d_is_dop853_on_the_cartesian_equations(form):
+    """simulate3d in theta, in either form, ends where DOP853 on the Cartesian equations
+    (written out in the tests with Huo's geometry) does, segment after segment."""
+    ref = reference(form)
     y = ref[:6, 0]
     for k, (alpha, delta, length) in enumerate(zip(ALPHAS, DELTAS, LENGTHS)):
         y = fly_cartesian_theta(y, AC, alpha, delta, length)
         assert np.abs(y - ref[:6, k + 1]).max() < 1e-10
 
 
-def test_cvodes_3d_in_time_in_the_plane_is_eqs_1_2():
-    """In the fixed x-y plane at delta = 0, the Cartesian flight in time is the polar
-    flight of Eqs. 1-2 (``simulate.simulate``)."""
+def fly_turning_dop853(y0, ac, alphas, deltas, durations, rtol):
+    """A schedule flown in time by DOP853 on the turning plane's equations, written out
+    here with the plane's frame carried as two unit vectors (e1, e2) rather than a
+    quaternion: Eqs. 1-2 for (r, theta, v_r, v_theta), and the frame turning at
+    (r f_N / h) r_hat, with Huo's thrust a = (a_c/2r)[(1 + cos^2 a) r_hat + cos a sin a
+    (cos d t_hat + sin d h_hat)].  Returns the final Cartesian state."""
+    pos, vel = np.asarray(y0[:3], float), np.asarray(y0[3:6], float)
+    r = np.linalg.norm(pos)
+    h_hat = np.cross(pos, vel) / np.linalg.norm(np.cross(pos, vel))
+    z = np.r_[r, 0.0, pos @ vel / r, np.linalg.norm(np.cross(pos, vel)) / r,
+              pos / r, np.cross(h_hat, pos / r)]
+    for alpha, delta, duration in zip(alphas, deltas, durations):
+        c, s = math.cos(alpha), math.sin(alpha)
+        force = 0.5 * ac * np.array([1 + c * c, c * s * math.cos(delta),
+                                     c * s * math.sin(delta)])
+
+        def rates(_, z, force=force):
+            r, theta, vr, vt = z[:4]
+            fr, ft, fn = force / r
+            omega = fn / vt * (math.cos(theta) * z[4:7] + math.sin(theta) * z[7:10])
+            return np.r_[vr, vt / r, vt**2 / r - 1 / r**2 + fr, -vr * vt / r + ft,
+                         np.cross(omega, z[4:7]), np.cross(omega, z[7:10])]
+
+        z = solve_ivp(rates, (0, duration), z, method="DOP853", rtol=rtol,
+                      atol=1e-17).y[:, -1]
+    r, theta, vr, vt = z[:4]
+    r_hat = math.cos(theta) * z[4:7] + math.sin(theta) * z[7:10]
+    t_hat = -math.sin(theta) * z[4:7] + math.cos(theta) * z[7:10]
+    return np.r_[r * r_hat, vr * r_hat + vt * t_hat]
+
+
+def test_a_930_day_3d_flight_is_resolved_well_within_a_metre():
+    """The verifier's flight of 30 month-long segments at 1 mm/s^2, pitch and clock
+    changing at every segment, ends within half a metre of DOP853 on the turning plane's
+    equations written out here, itself within centimetres of its own flight at a looser
+    tolerance: a polish's 1 m bound can be judged over a long 3-D flight."""
+    y0 = np.array(cartesian_from_polar3d(X0, PLANE)).ravel()
+    k = np.arange(30)
+    alphas = np.radians(np.where(k < 15, 35.0, -35.0))
+    deltas = np.radians(60 * np.cos(0.7 * k))
+    durations = np.full(30, time_from_days(31.0))
+    ref = fly_turning_dop853(y0, AC, alphas, deltas, durations, rtol=2.3e-14)
+    looser = fly_turning_dop853(y0, AC, alphas, deltas, durations, rtol=1e-13)
+    assert length_to_km(np.linalg.norm(ref[:3] - looser[:3])) < 5e-5
+    flown = simulate3d(y0, alphas, deltas, durations, AC, tol=VERIFY_TOLERANCE)[:6, -1]
+    assert length_to_km(np.linalg.norm(flown[:3] - ref[:3])) < 5e-4
+
+
+@pytest.mark.parametrize("form", FORMS_3D)
+def test_cvodes_3d_in_time_in_the_plane_is_eqs_1_2(form):
+    """In the fixed x-y plane at delta = 0, the 3-D flight in time is the polar flight of
+    Eqs. 1-2 (``simulate.simulate``)."""
     x0 = np.array([1.0, 0.2, 0.05, 0.98])
     durations = [2.0, 3.0, 1.5]
     polar = simulate(x0, ALPHAS[:3], durations, AC, tol=VERIFY_TOLERANCE)
     y0 = np.array(cartesian_from_polar3d(x0, rotation.IDENTITY)).ravel()
-    cart = simulate3d(y0, ALPHAS[:3], np.zeros(3), durations, AC, tol=VERIFY_TOLERANCE)
+    cart = simulate3d(y0, ALPHAS[:3], np.zeros(3), durations, AC, tol=VERIFY_TOLERANCE,
+                      form=form)
     for k in range(4):
         want = np.array(cartesian_from_polar3d(polar[:4, k], rotation.IDENTITY)).ravel()
         assert np.abs(cart[:6, k] - want).max() < 1e-11
@@ -192,11 +245,12 @@ def test_arc_derivatives_are_finite_on_circles_and_without_turn(order):
             assert np.abs(fd - j[:, k]).max() < 1e-7
 
 
-def test_segments_flown_apart_are_the_chain():
+@pytest.mark.parametrize("form", FORMS_3D)
+def test_segments_flown_apart_are_the_chain(form):
     """fly_segments3d from the chained flight's own segment starts gives its ends."""
-    ref = reference()
+    ref = reference(form)
     ends = fly_segments3d(ref[:, :-1], np.full(6, AC), ALPHAS, DELTAS, LENGTHS,
-                          length_in="theta", tol=VERIFY_TOLERANCE)
+                          length_in="theta", tol=VERIFY_TOLERANCE, form=form)
     assert np.abs(ends - ref[:, 1:]).max() < 1e-12
 
 

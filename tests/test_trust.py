@@ -74,6 +74,35 @@ def test_a_flight_outside_its_arrival_window_is_not_verified():
     assert window_miss(eo.BodyRendezvous(body="mars"), 0.0, 1.0) is None
 
 
+def test_a_3d_flight_that_the_cartesian_equations_contradict_is_not_verified(monkeypatch):
+    """The 3-D verifier judges the flight in the turning plane and counts its gap to the
+    same schedule flown on the Cartesian equations as its own error: were the
+    decomposition wrong, by 20,000 km here, no verdict could be earned with it."""
+    from esail_opt.optimisation import pipeline, verify
+
+    problem = eo.Problem("em3d", eo.BodyDeparture(body="earth", date="2031-01-01"),
+                         eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
+                         eo.BodyRendezvous(body="mars"), planar=False)
+    run = pipeline.solve(problem)
+    assert run.verified, run.note
+    honest = verify.verify(problem, run.result).misses["verifier_error_r_km"]
+    assert honest < 1e-2
+    flown = verify.simulate3d
+    shift = 2e4 / units.length_to_km(1.0)
+
+    def contradicted(*args, form="turning", **kwargs):
+        ys = flown(*args, form=form, **kwargs)
+        if form == "cartesian":
+            ys[0, -1] += shift
+        return ys
+
+    monkeypatch.setattr(verify, "simulate3d", contradicted)
+    check = verify.verify(problem, run.result)
+    assert check.misses["verifier_error_r_km"] == pytest.approx(2e4, abs=1.0)
+    ok, note = check.judge(problem)
+    assert not ok and "verifier's own error alone reaches the bound" in note
+
+
 def test_without_a_target_the_flight_is_held_to_the_nlps_final_state():
     problem = _problem(target=None, objective=eo.MaxRadius(tof_days=100.0))
     misses = dict(_misses(), miss_r_km=2e4)

@@ -14,7 +14,7 @@ A solution flown in three dimensions (its schedule has a clock angle, solution.j
 schema 5) draws ``trajectory.png`` from above and from the side (z against the days
 since departure), the bodies on their unprojected tracks, and adds the clock angle and
 the osculating inclination to ``timeline.png``.  Both 3-D views show the CVODES flight
-on the Cartesian equations: the closed form's samples are polar in their own turning
+in the ecliptic's Cartesian coordinates: the closed form's samples are polar in their own turning
 plane, and the record holds no Cartesian form of them.
 
 Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
@@ -350,7 +350,7 @@ def _flight3d(sol):
     """The CVODES flight's Cartesian samples (``Samples.three_d``) as float arrays, with
     its ``t_days``; None when the flight failed.  The closed form's samples are polar in
     their own turning plane and have no place in the ecliptic's frame, so the 3-D views
-    show the flight on the Cartesian equations (a verified one is within the tolerance
+    show the CVODES flight (a verified one is within the tolerance
     of the closed form's nodes)."""
     cv = sol.trajectory_cvodes
     if cv is None or cv.three_d is None:
@@ -386,8 +386,8 @@ def _trajectory3d_figure(sol, axes=None):
     else:
         t = flight["t_days"]
         top.plot(flight["x_au"], flight["y_au"], color="tab:red", lw=1.2,
-                 label="CVODES (Cartesian equations)")
-        side.plot(t, flight["z_au"], color="tab:red", lw=1.2, label="CVODES (Cartesian equations)")
+                 label="CVODES flight")
+        side.plot(t, flight["z_au"], color="tab:red", lw=1.2, label="CVODES flight")
         starts = [row.t_days for row in sol.schedule]
         x, y, z = (np.interp(starts, t, flight[k]) for k in ("x_au", "y_au", "z_au"))
         top.plot(x, y, "o", ms=3, color="k", label="segment starts")

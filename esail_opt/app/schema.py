@@ -69,7 +69,7 @@ verification : object
     final state; ``target_miss_r_km``, ``target_miss_v_m_s`` against the target (an (a, e)
     target adds ``target_miss_a_km`` and ``target_miss_e``); ``nlp_target_miss_r_km``;
     ``verifier_error_r_km``, ``verifier_error_v_m_s`` (two CVODES flights at 3e-16 and
-    1e-15 apart); ``error``; ``cvodes_final_state``, ``cvodes_tof_days``; for a target
+    1e-15 apart; in 3-D, plus the gap to a flight on the Cartesian equations); ``error``; ``cvodes_final_state``, ``cvodes_tof_days``; for a target
     with an arrival window, ``arrival_outside_window_days`` (0 inside it; a flight more
     than a second outside is not verified).
 refinement : object

@@ -243,8 +243,8 @@ def summary(data):
 
 def _faster_unpolished(data):
     """A line for each optimum ranked below the best only because its polish was not
-    verified, though it is faster and its flight meets the problem's tolerance: on a
-    long 3-D flight the verifier's own error can exceed the polish's 1 m, and a user
+    verified, though it is faster and its flight meets the problem's tolerance: over a
+    long enough flight the verifier's own error can exceed the polish's 1 m, and a user
     must not take the best for the fastest transfer there is."""
     best = data.get("best")
     if not data["polished"] or best is None or not best["verified"]:

@@ -12,7 +12,7 @@ solved the same three ways in one process (``porkchop.timed_scans``):
   state), at the fewest steps a segment whose first cell verifies;
 * every cell solved cold by ``eo.solve``, its turn counts searched as a lone solve's are.
 
-Every cell of every method is verified on the Cartesian equations by CVODES, against
+Every cell of every method is verified in three dimensions by CVODES, against
 Venus's unprojected state.
 """
 

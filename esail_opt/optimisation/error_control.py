@@ -191,8 +191,7 @@ def node_near(y, ref):
 
 
 def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
-    """Every 3-D segment flown by CVODES on the Cartesian equations from its start node,
-    in the angle swept (``simulate.fly_segments3d``), as nodes next to the model's ends
+    """Every 3-D segment flown by CVODES from its start node, in the angle swept (``simulate.fly_segments3d``), as nodes next to the model's ends
     (:func:`node_near`)."""
     y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
     ends = fly_segments3d(y0, ac, alpha, delta, lengths, "theta", problem.sail.coefficients,

@@ -17,9 +17,10 @@ exact shooting.
 
 In three dimensions (``Problem.three_d``) the exact arc is an RK4 arc on the Cartesian
 equations between the NLP's 3-D nodes (``segment_methods.rk4_time_segment3d``), corrected
-against CVODES on the same Cartesian equations (``simulate.fly_segments3d``), with a
-clock angle per segment beside the pitch (and the throttle where the problem has one).
-No part of it flies the turning-plane decomposition, which only names its nodes.  RK4
+against the verifier's CVODES flights (``simulate.fly_segments3d``, Eqs. 1-2 in the
+turning plane), with a clock angle per segment beside the pitch (and the throttle where
+the problem has one).  No closed form is flown: the turning plane's exact equations are
+what the verifier judges by, so the polish lands where it is judged.  RK4
 rather than a 3-D CVODES segment for the reason above: the Hessian of one segment's
 Lagrangian was 15 to 50 times cheaper with RK4 at 4 to 16 steps than through CVODES's
 sensitivities at the check tolerance, and the defect correction brings either to the
@@ -108,7 +109,7 @@ def _controls(guess):
 
 
 def _flown_nodes3d(problem, x_start, guess):
-    """The schedule ``guess`` flown by CVODES on the Cartesian equations from the
+    """The schedule ``guess`` flown by CVODES (``simulate.simulate3d``) from the
     NLP's 3-D start ``x_start``, as nodes next to ``guess``'s own
     (``error_control.node_near``)."""
     flown = simulate3d(node_cartesian(start_node(x_start)), guess.alpha, guess.delta,
@@ -124,7 +125,7 @@ def exact_guess(problem, x_start, guess):
 
     ``guess`` holds the schedule (pitch, clock in three dimensions, durations in TU,
     throttle) and its revolution class.  The nodes become the CVODES flight of that
-    schedule from ``x_start`` (on the Cartesian equations in three dimensions), so
+    schedule from ``x_start`` (``simulate.simulate3d`` in three dimensions), so
     every continuity constraint holds at the start; if that flight fails, ``guess``
     itself is returned, its own nodes unchanged.  The polish passes a closed-form
     optimum here; the benchmark passes the constant-pitch seed (a cold start).

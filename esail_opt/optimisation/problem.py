@@ -624,7 +624,7 @@ class Problem:
 
     def equations(self):
         """The equations of motion the problem is verified on, as a reader names them."""
-        return "the Cartesian equations" if self.three_d() else "Eqs. 1-2"
+        return "the equations of motion in 3-D" if self.three_d() else "Eqs. 1-2"
 
     def x0(self):
         """Departure polar state, canonical units, as a numpy array: in three dimensions

@@ -4,7 +4,9 @@ Every segment is one call of a CVODES integrator on a normalised interval
 tau in [0, 1]; its length (a time, or an angle when theta is the independent
 variable) is a parameter, so one compiled integrator serves every segment, and a
 ``mapaccum`` chains the segments into a single ``casadi.Function``.  The state
-carried is ``[r, theta, v_r, v_theta, t]`` in canonical units.
+carried is ``[r, theta, v_r, v_theta, t]`` in canonical units; in three dimensions a
+flight takes and returns Cartesian states, whichever form it integrates
+(:data:`FORMS_3D`).
 """
 
 import contextlib
@@ -15,7 +17,9 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.errors import SignalsHeld
-from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_cartesian_in_theta, rhs_in_theta)
+from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_in_theta, rhs_turning,
+                                        swept_angle_rate)
+from esail_opt.physics.elements import cartesian_from_polar3d, polar3d_from_cartesian
 from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse_normal
 
 #: Tight enough that the reference is not the error being measured (THEORY.md §5.5).
@@ -175,24 +179,65 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time
     return np.column_stack([start, xs])
 
 
+#: The forms a 3-D flight can integrate.  ``"turning"``: Eqs. 1-2 in a plane whose
+#: quaternion turns about r_hat (``dynamics.rhs_turning``, THEORY.md §9.2), the form the
+#: verifier judges by.  Its polar state moves as smoothly as a planar flight's and its
+#: quaternion only as fast as the normal thrust turns the plane, so CVODES resolves it
+#: better than the Cartesian coordinates, which swing by 1 au each revolution (THEORY.md
+#: §5.5).  ``"cartesian"``: the Cartesian equations (``dynamics.rhs_cartesian``), which use
+#: no plane and no polar state, so that a flight on them checks the decomposition.
+FORMS_3D = ("turning", "cartesian")
+
+
+def _rates3d(form, ac, R, T, N):
+    """The state of a 3-D flight in ``form``, its time derivative (its last row, t, has
+    rate 1) and dt/dtheta, theta the angle the Sun-sail line sweeps."""
+    if form == "turning":
+        z = ca.SX.sym("z", 9)  # [r, theta, v_r, v_theta, quaternion, t]
+        rates = ca.vertcat(rhs_turning(z[:4], z[4:8], ac, R, T, N), 1)
+        # The plane turns about r_hat only, so its theta is the angle swept (§9.3).
+        return z, rates, z[0] / z[3]
+    if form == "cartesian":
+        z = ca.SX.sym("y", 7)
+        return z, ca.vertcat(rhs_cartesian(z[:6], ac, R, T, N), 1), 1 / swept_angle_rate(z[:6])
+    raise ValueError(f"form must be one of {FORMS_3D}, not {form!r}")
+
+
+def _from_cartesian(form, y):
+    """A Cartesian state with t (7 rows) as the state of ``form``."""
+    if form == "cartesian":
+        return y
+    x, quat = polar3d_from_cartesian(y[:6])
+    return ca.vertcat(x, quat, y[6])
+
+
+def _to_cartesian(form, zs):
+    """The columns of ``zs``, states of ``form``, as Cartesian states with t."""
+    if form == "cartesian":
+        return zs
+    columns = [ca.vertcat(cartesian_from_polar3d(z[:4], z[4:8] / ca.norm_2(z[4:8])), z[8])
+               for z in ca.horzsplit(zs)]
+    return ca.horzcat(*columns)
+
+
 @functools.lru_cache(maxsize=None)
-def segment_integrator3d(samples, length_in="time", coefficients=EXACT, tol=TOLERANCE):
-    """CVODES over one segment of constant pitch and clock on the Cartesian equations
-    (``dynamics.rhs_cartesian``), sampled at tau = k / samples.
+def segment_integrator3d(samples, length_in="time", coefficients=EXACT, tol=TOLERANCE,
+                         form="turning"):
+    """CVODES over one segment of constant pitch and clock in three dimensions, sampled
+    at tau = k / samples, integrating ``form`` (:data:`FORMS_3D`).
 
     Returns ``(y0[7], ac, alpha, delta, length) -> ys[7 x samples]``, y = [x, y, z, vx,
-    vy, vz, t] canonical (any fixed frame, the ecliptic of J2000 for real bodies);
-    ``length`` is a duration (TU) or the angle the Sun-sail line sweeps (rad,
-    ``dynamics.swept_angle_rate``).  It is the 3-D verifier: it flies no plane and no
-    polar state, so it checks the turning-plane decomposition rather than using it.
+    vy, vz, t] canonical (any fixed frame, the ecliptic of J2000 for real bodies), so
+    that both forms are called alike; ``length`` is a duration (TU) or the angle the
+    Sun-sail line sweeps (rad, ``dynamics.swept_angle_rate``).
     """
-    y = ca.SX.sym("y", 7)
     ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "length"))
     R, T, N = radial_transverse_normal(alpha, delta, coefficients)
+    z, rates, dt_dtheta = _rates3d(form, ac, R, T, N)
     if length_in == "time":
-        ode = ca.vertcat(rhs_cartesian(y[:6], ac, R, T, N), 1) * length
+        ode = rates * length
     elif length_in == "theta":
-        ode = rhs_cartesian_in_theta(y[:6], ac, R, T, N) * length
+        ode = rates * dt_dtheta * length
     else:
         raise ValueError(f"length_in must be 'time' or 'theta', not {length_in!r}")
     grid = [k / samples for k in range(1, samples + 1)]
@@ -200,26 +245,28 @@ def segment_integrator3d(samples, length_in="time", coefficients=EXACT, tol=TOLE
             "linear_multistep_method": "adams",
             "disable_internal_warnings": True, "show_eval_warnings": False}
     integ = ca.integrator("segment3d", "cvodes",
-                          {"x": y, "p": ca.vertcat(ac, alpha, delta, length), "ode": ode},
+                          {"x": z, "p": ca.vertcat(ac, alpha, delta, length), "ode": ode},
                           0, grid, opts)
     y0 = ca.MX.sym("y0", 7)
     ac, alpha, delta, length = (ca.MX.sym(n) for n in ("ac", "alpha", "delta", "length"))
-    ys = integ(x0=y0, p=ca.vertcat(ac, alpha, delta, length))["xf"]
-    return ca.Function("segment3d", [y0, ac, alpha, delta, length], [ys],
+    zs = integ(x0=_from_cartesian(form, y0), p=ca.vertcat(ac, alpha, delta, length))["xf"]
+    return ca.Function("segment3d", [y0, ac, alpha, delta, length], [_to_cartesian(form, zs)],
                        ["y0", "ac", "alpha", "delta", "length"], ["ys"])
 
 
 @functools.lru_cache(maxsize=None)
 def schedule_function3d(segments, samples, length_in="time", coefficients=EXACT,
-                        tol=TOLERANCE):
+                        tol=TOLERANCE, form="turning"):
     """All 3-D segments chained: ``(y0[7], ac[N], alpha[N], delta[N], length[N]) ->
     ys[7 x N*samples]`` (:func:`segment_integrator3d`)."""
-    return _chained(segment_integrator3d(samples, length_in, coefficients, tol), segments)
+    return _chained(segment_integrator3d(samples, length_in, coefficients, tol, form),
+                    segments)
 
 
 def simulate3d(y0, alphas, deltas, lengths, ac, throttles=None, samples=1, length_in="time",
-               coefficients=EXACT, tol=TOLERANCE):
-    """Fly the Cartesian equations from ``y0`` under a schedule of pitch and clock angles.
+               coefficients=EXACT, tol=TOLERANCE, form="turning"):
+    """Fly the motion in three dimensions from ``y0`` under a schedule of pitch and clock
+    angles, integrating ``form`` (:data:`FORMS_3D`).
 
     Parameters
     ----------
@@ -231,6 +278,9 @@ def simulate3d(y0, alphas, deltas, lengths, ac, throttles=None, samples=1, lengt
         ``"theta"``.
     ac, throttles, samples, coefficients, tol
         As :func:`simulate`.
+    form : str
+        What CVODES integrates (:data:`FORMS_3D`); the states given and returned are
+        Cartesian either way.
 
     Returns
     -------
@@ -245,7 +295,7 @@ def simulate3d(y0, alphas, deltas, lengths, ac, throttles=None, samples=1, lengt
     alphas = np.atleast_1d(np.asarray(alphas, float))
     n = alphas.size
     kappa = np.ones(n) if throttles is None else np.asarray(throttles, float)
-    fun = schedule_function3d(n, samples, length_in, coefficients, tol)
+    fun = schedule_function3d(n, samples, length_in, coefficients, tol, form)
     start = np.r_[np.asarray(y0, float), 0.0]
     try:
         with SignalsHeld(), quiet_stderr():
@@ -258,13 +308,13 @@ def simulate3d(y0, alphas, deltas, lengths, ac, throttles=None, samples=1, lengt
 
 
 @functools.lru_cache(maxsize=None)
-def _segments_function3d(segments, length_in, coefficients, tol):
-    return segment_integrator3d(1, length_in, coefficients, tol).map(segments)
+def _segments_function3d(segments, length_in, coefficients, tol, form):
+    return segment_integrator3d(1, length_in, coefficients, tol, form).map(segments)
 
 
 def fly_segments3d(starts, ac, alphas, deltas, lengths, length_in="time",
-                   coefficients=EXACT, tol=TOLERANCE):
-    """Every segment flown on the Cartesian equations from its own start, not chained
+                   coefficients=EXACT, tol=TOLERANCE, form="turning"):
+    """Every segment flown in ``form`` from its own start, not chained
     (:func:`fly_segments` in three dimensions).
 
     ``starts`` is [7 x N] Cartesian states with t; ``ac`` (times the throttle),
@@ -276,7 +326,7 @@ def fly_segments3d(starts, ac, alphas, deltas, lengths, length_in="time",
         If CVODES cannot fly a segment.
     """
     n = np.shape(starts)[1]
-    fun = _segments_function3d(n, length_in, coefficients, tol)
+    fun = _segments_function3d(n, length_in, coefficients, tol, form)
     rows = [np.reshape(v, (1, -1)) for v in (ac, alphas, deltas, lengths)]
     try:
         with SignalsHeld(), quiet_stderr():
