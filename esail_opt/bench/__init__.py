@@ -15,7 +15,9 @@ Each is the ``run`` of its own module:
   segments with the same reuse and against every cell solved cold; ``porkchop3d``
   the same in three dimensions;
 * ``precision``: solve time against verified accuracy for the closed form, RK4
-  (``propagation.rk4``) and CVODES segments.
+  (``propagation.rk4``) and CVODES segments;
+* ``verifier3d``: the 3-D verifier's flights of polished schedules against heyoka in
+  quadruple precision (an accuracy bench: nothing is timed).
 
 Their problems are the shipped problem files, loaded by name from the package data
 ``esail_opt.problems`` (``optimisation.problem_file.shipped_problem``), so an installed
@@ -27,7 +29,7 @@ application modules, none of which imports them.
 """
 
 from esail_opt.bench import (lowthrust, polish, porkchop, porkchop3d, precision, propagate,
-                             rockit_baseline, solve_speed, sweep)
+                             rockit_baseline, solve_speed, sweep, verifier3d)
 
 BENCHES = {
     "propagate": propagate.run,
@@ -38,6 +40,7 @@ BENCHES = {
     "rockit": rockit_baseline.run,
     "precision": precision.run,
     "porkchop": porkchop.run,
+    "verifier3d": verifier3d.run,
     "porkchop3d": porkchop3d.run,
 }
 

@@ -72,9 +72,28 @@ def system():
     x, push = ca.SX.sym("x", 4), ca.SX.sym("push", 2)
     # a_c = 1 with R, T standing for a_c R and a_c T: the same thrust a_c (R, T) / r.
     fun = ca.Function("eqs_1_2", [x, push], [dynamics.rhs(x, 1.0, push[0], push[1])])
-    variables = hy.make_vars("r", "theta", "v_r", "v_theta")
-    inputs = (variables, (hy.par[0], hy.par[1]))
-    ops, work, rates = _ops(hy), {}, [None] * 4
+    return replay(fun, hy.make_vars("r", "theta", "v_r", "v_theta"))
+
+
+def replay(fun, variables):
+    """The SX Function ``fun(state, push) -> rates`` as heyoka's ODE system: its
+    instructions replayed on heyoka's expressions, ``state`` as ``variables`` and
+    ``push`` as the runtime parameters ``par[0]``, ``par[1]``, ...
+
+    Returns
+    -------
+    list of (heyoka.expression, heyoka.expression)
+        (variable, derivative) pairs.
+
+    Raises
+    ------
+    NotImplementedError
+        If ``fun`` uses an operation this translation does not know.
+    """
+    import heyoka as hy
+
+    inputs = (variables, [hy.par[k] for k in range(fun.size1_in(1))])
+    ops, work, rates = _ops(hy), {}, [None] * len(variables)
     for k in range(fun.n_instructions()):
         op, args, out = fun.instruction_id(k), fun.instruction_input(k), fun.instruction_output(k)
         if op == ca.OP_INPUT:

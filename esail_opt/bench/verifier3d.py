@@ -1,0 +1,141 @@
+"""The 3-D verifier's accuracy: its flights of polished schedules against a Taylor
+integration in quadruple precision.
+
+The verifier judges a 3-D schedule by a CVODES flight of Eqs. 1-2 in the turning plane at
+3e-16 and counts as its own error the gap to a second such flight at 1e-15 plus the gap
+to a flight on the Cartesian equations at 3e-16 (``optimisation.verify.verify3d``).  This
+bench flies each case's polished schedule those three ways and a fourth, the Cartesian
+equations at 1e-15 (before the turning plane, the verifier judged by the Cartesian flight
+at 3e-16 and took its gap to this one as its error), and reports how far each ends from
+the truth, and whether the error the verifier states covers its judged flight's.
+
+The truth is heyoka's Taylor integrator (the ``bench`` extra) in quadruple precision
+(``real128``, tolerance 1e-30) on the Cartesian equations, replayed from
+``dynamics.rhs_cartesian`` (:func:`esail_opt.bench.taylor.replay`).  Without heyoka the
+bench reports the flights' gaps and no true errors.
+
+The cases are the shipped 3-D rendezvous problems solved with ``--polish``, and the
+minimum-time Earth-Mars rendezvous of ``earth_mars_2035`` moved to a 941-day transfer (a_c
+1.5 mm/s^2, leaving 2033-03-01, 30 free segments of 3 sub-arcs), whose polish the
+Cartesian verifier could not judge to 1 m.  Nothing is timed: ``repeats`` is not used.
+"""
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+import esail_opt as eo
+from esail_opt.app.files import write_json
+from esail_opt.bench import taylor
+from esail_opt.optimisation import pipeline
+from esail_opt.optimisation.problem_file import shipped_problem
+from esail_opt.physics import constants as units
+from esail_opt.physics.dynamics import rhs_cartesian
+from esail_opt.physics.thrust import radial_transverse_normal
+from esail_opt.propagation.simulate import CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate3d
+
+#: The flights measured: (key, form, CVODES tolerance).  The first is the judged one.
+FLIGHTS = (("turning_3e-16", "turning", VERIFY_TOLERANCE),
+           ("turning_1e-15", "turning", CHECK_TOLERANCE),
+           ("cartesian_3e-16", "cartesian", VERIFY_TOLERANCE),
+           ("cartesian_1e-15", "cartesian", CHECK_TOLERANCE))
+#: heyoka's tolerance in quadruple precision.
+TRUTH_TOLERANCE = 1e-30
+
+
+def cases():
+    """(label, problem) of every case: the shipped 3-D rendezvous problems solved at a
+    fixed date, and the long Earth-Mars transfer."""
+    long = shipped_problem("earth_mars_2035")
+    long = dataclasses.replace(
+        long, name="earth_mars_941d", departure=eo.BodyDeparture(body="earth", date="2033-03-01"),
+        sail=eo.Sail(ac_mm_s2=1.5), segments=eo.Segments(count=30, sub_arcs=3, equal=False))
+    return [(name, shipped_problem(name)) for name in ("earth_mars_min_ac", "earth_venus_min_ac",
+                                                       "earth_mars_2035")] + [(long.name, long)]
+
+
+def schedule(problem, result):
+    """The departure state, a_c per segment (throttle included), pitch, clock and
+    durations of ``result``, canonical."""
+    kappa = np.ones(result.alpha.size) if result.throttle is None else result.throttle
+    acs = problem.sail.ac * result.ac_scale * np.asarray(kappa, float)
+    return (problem.start_state(result), acs, np.asarray(result.alpha, float),
+            np.asarray(result.delta, float), np.asarray(result.durations, float))
+
+
+def truth(y0, acs, alphas, deltas, durations, coefficients):
+    """The schedule's final Cartesian state by heyoka in quadruple precision, or None
+    without heyoka."""
+    if not taylor.available():
+        return None
+    import heyoka as hy
+
+    y, push = ca.SX.sym("y", 6), ca.SX.sym("push", 3)
+    # a_c = 1 with the pushes standing for a_c R, a_c T and a_c N.
+    fun = ca.Function("cartesian", [y, push], [rhs_cartesian(y, 1.0, *ca.vertsplit(push))])
+    real = hy.real128
+    ta = hy.taylor_adaptive(taylor.replay(fun, hy.make_vars("x", "y", "z", "vx", "vy", "vz")),
+                            [real(float(v)) for v in y0], fp_type=real,
+                            tol=real(TRUTH_TOLERANCE), pars=[real(0.0)] * 3)
+    for ac, alpha, delta, duration in zip(acs, alphas, deltas, durations):
+        R, T, N = (float(v) for v in radial_transverse_normal(alpha, delta, coefficients))
+        ta.pars[:] = [real(ac * R), real(ac * T), real(ac * N)]
+        ta.propagate_for(real(float(duration)))
+    return np.array([float(v) for v in ta.state])
+
+
+def measure(problem, result):
+    """Every flight of :data:`FLIGHTS`' final-position error against the truth (m, None
+    without it), the verifier's stated error (m) and whether it covers the judged
+    flight's true error, and the error the Cartesian pair alone would state (m)."""
+    y0, acs, alphas, deltas, durations = schedule(problem, result)
+    coeff = problem.sail.coefficients
+    ends = {key: np.asarray(simulate3d(y0, alphas, deltas, durations, acs, form=form, tol=tol,
+                                       coefficients=coeff))[:3, -1]
+            for key, form, tol in FLIGHTS}
+    exact = truth(y0, acs, alphas, deltas, durations, coeff)
+
+    def metres(a, b):
+        return float(units.length_to_km(np.linalg.norm(a - b)) * 1e3)
+
+    judged = ends["turning_3e-16"]
+    stated = metres(judged, ends["turning_1e-15"]) + metres(judged, ends["cartesian_3e-16"])
+    errors = {key: None if exact is None else metres(end, exact[:3]) for key, end in ends.items()}
+    return {"error_m": errors, "verifier_error_m": stated,
+            "covered": None if exact is None else stated >= errors["turning_3e-16"],
+            "cartesian_pair_error_m": metres(ends["cartesian_3e-16"], ends["cartesian_1e-15"])}
+
+
+def run(out, repeats=1):
+    """Solve and polish every case, measure its flights (:func:`measure`), print a table
+    and write ``verifier3d.json``; returns its path."""
+    rows = []
+    for label, problem in cases():
+        print(f"bench verifier3d: {label}: solving with --polish ...", file=sys.stderr, flush=True)
+        run_ = pipeline.solve(problem, polish=True)
+        polished = run_.polish is not None and run_.polish.result is not None
+        result = run_.polish.result if polished else run_.result
+        rows.append({"case": label, "tof_days": units.time_to_days(float(np.sum(result.durations))),
+                     "polished": polished,
+                     "polish_verified": bool(polished and run_.polish.verified),
+                     **measure(problem, result)})
+    _print(rows)
+    path = Path(out) / "verifier3d.json"
+    write_json(path, {"truth": f"heyoka real128, tolerance {TRUTH_TOLERANCE:g}"
+                      if taylor.available() else None, "rows": rows})
+    return path
+
+
+def _print(rows):
+    keys = [key for key, _, _ in FLIGHTS]
+    print("bench verifier3d: final-position error against the truth, m")
+    print(f"  {'case':22s} {'days':>6s} " + " ".join(f"{k:>16s}" for k in keys)
+          + f" {'stated':>8s} {'old':>8s}")
+    for row in rows:
+        errors = " ".join("               -" if row["error_m"][k] is None
+                          else f"{row['error_m'][k]:16.4f}" for k in keys)
+        print(f"  {row['case']:22s} {row['tof_days']:6.1f} {errors} "
+              f"{row['verifier_error_m']:8.4f} {row['cartesian_pair_error_m']:8.4f}")
