@@ -1,7 +1,8 @@
 """The exceptions the command line turns into one line and an exit status.
 
 :class:`InputError` is bad user input (exit 2); its message names the field and the
-allowed range.  :class:`OutputError` is an output folder or file that cannot be
+allowed range.  :class:`NoStart` is a valid problem that no start can be flown for
+(exit 1).  :class:`OutputError` is an output folder or file that cannot be
 written (exit 3).  :class:`FigureError` is a figure that could not be drawn while the
 rest of its set was written (exit 4).  :class:`Terminated` is SIGTERM, raised where Python would raise
 KeyboardInterrupt for SIGINT (exit 143); :class:`SignalsHeld` keeps both signals
@@ -17,6 +18,14 @@ import unicodedata
 
 class InputError(ValueError):
     """Bad input from a user: a problem file, a command-line option or an API argument."""
+
+
+class NoStart(Exception):
+    """A valid problem for which no start can be flown: at the seed's constant pitch the
+    sail escapes the Sun (which the closed form cannot follow), winds past
+    ``max_revolutions``, or needs its target body after the dates it is known at,
+    before it reaches its aim.  Not bad input: the command says why in one line,
+    writes nothing and exits 1 (nothing was solved)."""
 
 
 class OutputError(Exception):

@@ -11,12 +11,13 @@ made here without any iteration cap; and the edge of the feasible flights from
 import json
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 import esail_opt as eo
 from esail_opt.app import cli, search
 from esail_opt.app.solution import Solution
-from esail_opt.errors import InputError
+from esail_opt.errors import NoStart
 from esail_opt.optimisation import multistart, pipeline, scan
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.problem_file import load_problem
@@ -158,11 +159,11 @@ def test_a_min_acceleration_solve_with_no_sail_reports_the_shortest_feasible_fli
 
 def test_a_longer_flight_whose_seed_escapes_ends_the_walk_without_an_error(monkeypatch):
     """Earth-Ceres in 1,500 d at a seed a_c of 1 mm/s^2 found no point, and its seed at
-    1,650 d escaped before its time of flight: the InputError of that seed ended the
+    1,650 d escaped before its time of flight: the error of that seed ended the
     whole run with exit 2 and nothing written.  A rung with no seed has no point."""
     problem = load_problem(TESTS / "earth_mars_no_sail_600d.py")
-    escaped = InputError("the seeding propagation at constant pitch leaves the closed "
-                         "form's validity")
+    escaped = NoStart("no start: at the seed's constant pitch of 45 deg the sail leaves "
+                      "the closed form's validity")
 
     def seed(cell):
         raise escaped
@@ -218,3 +219,34 @@ def test_a_lone_solve_is_no_worse_than_its_class_solved_from_other_pitches():
                 best = min(best, result.ac_scale)
     assert best < math.inf
     assert run.result.ac_scale <= best * (1 + 1e-3), (run.result.ac_scale, best)
+
+
+@pytest.mark.slow
+def test_a_failure_on_a_handful_of_segments_says_so_and_more_segments_solve():
+    """Mercury to Venus on 3 segments finds no point, and its note named only the
+    throttle; it names the mesh first, and on 20 segments the same transfer verifies."""
+    def problem(count):
+        return eo.Problem("mercury_venus", eo.BodyDeparture("mercury", "2029-10-10"),
+                          eo.Sail(4.0), eo.Segments(count=count, sub_arcs=6, equal=False),
+                          eo.MinTime(), eo.BodyRendezvous("venus"),
+                          path=eo.PathConstraints(r_min_au=0.3), planar=True)
+
+    coarse = pipeline.solve(problem(3))
+    assert not coarse.verified
+    assert "on 3 segments the pitch takes only 3 values" in coarse.note
+    assert coarse.note.index("segments") < coarse.note.index("throttle")
+    assert pipeline.solve(problem(20)).verified
+
+
+def test_a_failure_note_names_an_arrival_window_and_a_coarse_mesh_only_where_they_are():
+    windowed = eo.Problem("w", eo.BodyDeparture("earth", "2031-01-01"), eo.Sail(1.0),
+                          eo.Segments(count=10), eo.MinTime(),
+                          eo.BodyRendezvous("mars", arrival_window=("2031-06-01", "2033-01-01")))
+    assert "target.arrival_window = ('2031-06-01', '2033-01-01')" in pipeline._window_hint(
+        windowed)
+    assert pipeline._window_hint(eo.Problem("n", eo.BodyDeparture("earth", "2031-01-01"),
+                                            eo.Sail(1.0), eo.Segments(count=10),
+                                            eo.MinTime(), eo.BodyRendezvous("mars"))) == ""
+    few, many = (SimpleNamespace(alpha=np.zeros(n)) for n in (pipeline.FEW_SEGMENTS - 1,
+                                                               pipeline.FEW_SEGMENTS))
+    assert "segments.count" in pipeline._mesh_hint(few) and pipeline._mesh_hint(many) == ""

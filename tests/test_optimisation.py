@@ -12,7 +12,7 @@ import pytest
 import esail_opt as eo
 from conftest import solved_under
 from esail_opt.app import cli
-from esail_opt.errors import InputError
+from esail_opt.errors import InputError, NoStart
 from esail_opt.optimisation import pipeline, seed
 from esail_opt.optimisation.nodes import flown_segments
 from esail_opt.optimisation.ipopt import solve_problem
@@ -311,10 +311,18 @@ def test_free_lengths_are_solved_in_two_stages_and_do_no_worse():
     assert np.ptp(free.lengths) > 1e-3  # and they did move
 
 
-def test_a_seed_that_cannot_reach_the_target_is_a_clear_input_error():
+def test_a_seed_that_cannot_reach_the_target_says_why_there_is_no_start():
+    """The problem is valid, so the error is not bad input: it names the pitch (the
+    user's field when the file set it) and why its flight gives no start."""
     # +25 deg raises the orbit, which escapes long before it could reach 0.723 au.
-    with pytest.raises(InputError, match=r"guess_alpha_deg = 25 deg: .*target radius \(0.723 au\)"):
+    with pytest.raises(NoStart, match=r"^no start: at guess_alpha_deg = 25 deg the sail "
+                                      r"leaves .*target radius \(0.723 au\)"):
         seed.initial_guess(small_problem(guess_alpha_deg=25.0))
+    # 20 turns at 0.01 mm/s^2 spiral nowhere near 3 au, and the file set no pitch.
+    with pytest.raises(NoStart, match=r"^no start: at the seed's constant pitch of 45 deg "
+                                      r"\(guess_alpha_deg sets another\), the sail does not "
+                                      r"reach .*max_revolutions = 20 turns"):
+        seed.initial_guess(small_problem(sail=eo.Sail(0.01), target=eo.CircularOrbit(3.0)))
 
 
 def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
@@ -333,10 +341,10 @@ def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
     np.testing.assert_allclose(guess.nodes, flown[:, 1:], rtol=0, atol=1e-12)
     assert guess.nodes[4, -1] == pytest.approx(units.time_from_days(600.0), rel=1e-2)
     escaping = dataclasses.replace(sizing, sail=eo.Sail(40.0))
-    with pytest.raises(InputError, match=r"guess_alpha_deg = 45 deg: .*"
-                                         r"or a smaller sail\.ac_mm_s2 .*40 mm/s\^2 only seeds"):
+    with pytest.raises(NoStart, match=r"the seed's constant pitch of 45 deg .*"
+                                      r"a smaller sail\.ac_mm_s2 .*40 mm/s\^2 only seeds"):
         seed.initial_guess(escaping)
-    with pytest.raises(InputError, match="leaves the closed form.s validity") as raised:
+    with pytest.raises(NoStart, match="leaves the closed form.s validity") as raised:
         seed.initial_guess(small_problem(objective=eo.MinTime(), guess_alpha_deg=45.0,
                                        sail=eo.Sail(10.0), target=eo.CircularOrbit(30.0)))
     assert "sail.ac_mm_s2" not in str(raised.value)
@@ -347,7 +355,7 @@ def test_a_throttled_sail_whose_full_thrust_seed_escapes_seeds_at_a_lower_thrott
     seeds at a throttle that stays bound (the NLP may throttle as it likes), its nodes
     those of that throttle, and the solve verifies where it used to stop at the seed."""
     throttled = small_problem(sail=eo.Sail(6.0, throttle=True), target=eo.CircularOrbit(2.0))
-    with pytest.raises(InputError, match="leaves the closed form.s validity"):
+    with pytest.raises(NoStart, match="leaves the closed form.s validity"):
         seed.initial_guess(dataclasses.replace(throttled, sail=eo.Sail(6.0)))
     guess = seed.initial_guess(throttled)
     assert guess.ac_scale == 1 and 0 < guess.throttle[0] < 1

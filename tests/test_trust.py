@@ -132,6 +132,23 @@ def _independently_within(problem, data):
     return r <= tol.position_km and (v is None or v <= tol.velocity_m_s), (r, v)
 
 
+def test_a_valid_problem_with_no_start_exits_1_with_the_cause_and_writes_nothing(tmp_path):
+    """A strong sail whose constant-pitch seed escapes the Sun long before 30 au: the
+    file is not at fault (exit 2 named a guess_alpha_deg it never set); the run says
+    that no start can be flown and why, exits 1 and writes nothing."""
+    path = tmp_path / "far.py"
+    path.write_text("import esail_opt as eo\n"
+                    "problem = eo.Problem('far', eo.ParkingOrbit(1.0), eo.Sail(10.0),\n"
+                    "                     eo.Segments(10), eo.MinTime(), eo.CircularOrbit(30.0))\n")
+    run = _solve_cli(path, tmp_path / "out")
+    assert run.returncode == 1, run.stderr
+    line = run.stderr.strip().splitlines()[-1]
+    assert line.startswith("esail-opt solve: no start: at the seed's constant pitch of 45 deg")
+    assert "escapes the Sun" in line and "target radius (30 au)" in line
+    assert "Traceback" not in run.stderr
+    assert not (tmp_path / "out").exists()
+
+
 USER_FILES = ["spiral_out_multi_rev", "spiral_in_multi_rev", "eccentric_departure", "ae_target",
               "venus_rendezvous_behind", "low_thrust_raise", "max_energy_one_year"]
 

@@ -11,7 +11,8 @@ import logging
 import signal
 import sys
 
-from esail_opt.errors import FigureError, InputError, OutputError, Terminated, number_range
+from esail_opt.errors import (FigureError, InputError, NoStart, OutputError, Terminated,
+                              number_range)
 
 EXIT_INPUT = 2
 #: An output that cannot be written (a full disk, a read-only folder): not 1, which
@@ -29,7 +30,8 @@ EPILOG = ("exit status: 0 converged and verified; 1 not converged or not verifie
           "solve, or after it for a flight found to end past the ephemeris); 3 an output "
           "could not be written (full disk, read-only or unsafe folder; the old files "
           "stay); 4 a figure could not be drawn (one line names it; every other file "
-          "written); 1 also when a Dask cluster is lost (the journal keeps what finished); "
+          "written); 1 also when no start can be flown (one line says why; nothing "
+          "written) and when a Dask cluster is lost (the journal keeps what finished); "
           "130 interrupted by SIGINT, 143 by SIGTERM (nothing half-written)")
 
 
@@ -738,7 +740,7 @@ def run_command(label, run, args):
         print(f"{label}: error: {err}", file=sys.stderr)
         return (EXIT_INPUT if isinstance(err, InputError)
                 else EXIT_OUTPUT if isinstance(err, OutputError) else EXIT_FIGURE)
-    except ClusterLost as err:
+    except (ClusterLost, NoStart) as err:
         print(f"{label}: {err}", file=sys.stderr)
         return 1
     except OSError as err:

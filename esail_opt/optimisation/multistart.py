@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from esail_opt.errors import InputError
+from esail_opt.errors import InputError, NoStart
 from esail_opt.optimisation.ipopt import (AT_CAP, STOPPED, NLPResult, ipopt_options,
                                           primal_warm_options, solve_problem)
 from esail_opt.optimisation.nodes import flown_segments
@@ -141,7 +141,7 @@ def constant_pitch_seeds(problem):
         try:
             seeds[alpha] = initial_guess(dataclasses.replace(
                 problem, guess_alpha_deg=math.degrees(alpha)))
-        except InputError:
+        except NoStart:
             continue
     return seeds
 
@@ -239,7 +239,7 @@ def _winding(problem, seeds, k):
             try:
                 guess = initial_guess(dataclasses.replace(problem,
                                                           guess_alpha_deg=math.degrees(mid)))
-            except InputError:
+            except NoStart:
                 return None
             if guess.revolutions_k == k:
                 return mid, guess

@@ -20,7 +20,9 @@ import math
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
-from esail_opt.errors import InputError
+import numpy as np
+
+from esail_opt.errors import InputError, NoStart
 from esail_opt.optimisation import multistart, scan
 from esail_opt.optimisation import polish as polishing
 from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, ErrorControl, Round, control_error,
@@ -257,6 +259,8 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     ------
     InputError
         ``segments`` is not an integer >= 1 (before any solve starts).
+    NoStart
+        No seed can be flown (``seed.initial_guess``): nothing is solved.
     """
     if segments is not None:
         if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
@@ -554,7 +558,7 @@ def _ladder(problem, say):
         say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
         try:
             cell, result, tr, spent = _rung(scan.at_tof(problem, asked * factor), say)
-        except InputError as why:
+        except NoStart as why:
             # The rung's seed cannot be flown (it escapes before the time of flight):
             # no point there, and a longer rung's seed flies longer still.
             say(f"{problem.name}: no seed at {asked * factor:.6g} d: {why}")
@@ -569,7 +573,7 @@ def _ladder(problem, say):
 def _rung(problem, say):
     """One rung of :func:`_ladder`: a single solve from ``problem``'s seed and, when
     that finds no point, a lone solve (:func:`_lone`, without a walk of its own):
-    (problem, NLPResult, Transcription, Ipopt iterations of both).  Raises InputError
+    (problem, NLPResult, Transcription, Ipopt iterations of both).  Raises NoStart
     when the seed cannot be flown.
 
     Why both: the single solve is cheap, and where it converges the walk has always
@@ -636,11 +640,37 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         note = f"NOT verified: Ipopt ended {result.status}" + (
             "" if result.outcome is not Outcome.INFEASIBLE else
             f" from {len(starts) or 1} start(s); no start found a feasible point, which "
-            "does not prove the target unreachable" + _always_on_hint(problem))
+            "does not prove the target unreachable" + _window_hint(problem)
+            + _mesh_hint(result) + _always_on_hint(problem))
     run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
               error_control=controlled, check=check, verified=verified, note=note,
               sub_arcs_requested=requested)
     return _polished(run, polish, samples, say)
+
+
+#: Fewer segments than this may be why no start found a point: the note says so.
+FEW_SEGMENTS = 8
+
+
+def _window_hint(problem):
+    """The failure note's word on an arrival window: a window the flight must arrive in
+    may be all that leaves no point (a transfer found without it arrived later)."""
+    window = getattr(problem.target, "arrival_window", None)
+    if window is None:
+        return ""
+    return (f"; the arrival must fall in target.arrival_window = {tuple(window)!r}, which "
+            "may be what no point meets: without it a later arrival may be found")
+
+
+def _mesh_hint(result):
+    """The failure note's word on a coarse mesh: with a handful of segments the pitch
+    takes a handful of values, and no such schedule may arrive (Mercury to Venus on 3
+    segments found no point; on 20 it took 262.4 d)."""
+    n = result.alpha.size
+    if n >= FEW_SEGMENTS:
+        return ""
+    return (f"; on {n} segments the pitch takes only {n} values: more segments "
+            "(segments.count) may find a point")
 
 
 def _always_on_hint(problem):

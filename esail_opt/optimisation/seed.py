@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esail_opt.errors import InputError
+from esail_opt.bodies import dates
+from esail_opt.errors import InputError, NoStart
 from esail_opt.optimisation.nodes import flown_segments
 from esail_opt.propagation.arcs import FIRST_ORDER
 from esail_opt.propagation.rectified import propagate
@@ -60,7 +61,7 @@ def _fly_until(problem, x0, alpha, stop, what):
 
     Raises
     ------
-    InputError
+    NoStart
         If the propagation leaves the closed form's validity (an escaping orbit, q3 <= 0)
         or flies ``max_revolutions`` before it stops: no seed can be built from it.
     """
@@ -68,7 +69,6 @@ def _fly_until(problem, x0, alpha, stop, what):
     ac = problem.sail.ac
     coeff = problem.sail.coefficients
     state, flown, t0 = np.asarray(x0, float), 0.0, 0.0
-    deg = math.degrees(alpha)
     while flown < limit:
         xs, q3 = propagate(state, np.full(GUESS_CHUNK, alpha), np.full(GUESS_CHUNK, GUESS_STEP),
                            ac, samples=1, coefficients=coeff, model=GUESS_MODEL)
@@ -79,15 +79,24 @@ def _fly_until(problem, x0, alpha, stop, what):
         bad = ~np.isfinite(xs[0, 1:]) | (xs[0, 1:] <= 0) | ~(q3 > 0)
         if bad.any():
             left = flown + GUESS_STEP * np.flatnonzero(bad)[0]
-            raise InputError(
-                f"guess_alpha_deg = {deg:g} deg: the seeding propagation at constant pitch "
-                f"leaves the closed form's validity (escape or q3 <= 0) after {left:.3g} rad "
-                f"without reaching {what}; choose another guess_alpha_deg"
+            raise NoStart(
+                f"no start: {_pitch(problem, alpha)} the sail leaves the closed form's "
+                f"validity (it escapes the Sun, or q3 <= 0) after {left:.3g} rad, without "
+                f"reaching {what}; the closed form cannot follow an escape"
                 + _seed_ac_hint(problem))
         flown += GUESS_STEP * GUESS_CHUNK
         state, t0 = xs[:4, -1], xs[4, -1]
-    raise InputError(f"max_revolutions = {problem.max_revolutions:g}: the seeding propagation "
-                     f"at {deg:g} deg does not reach {what} within it")
+    raise NoStart(f"no start: {_pitch(problem, alpha)} the sail does not reach {what} within "
+                  f"max_revolutions = {problem.max_revolutions:g} turns (raise it for a "
+                  "longer spiral)")
+
+
+def _pitch(problem, alpha):
+    """The seed's pitch as a failure names it: the user's field if the file set it."""
+    deg = math.degrees(alpha)
+    if problem.guess_alpha_deg is not None:
+        return f"at guess_alpha_deg = {deg:g} deg"
+    return f"at the seed's constant pitch of {deg:g} deg (guess_alpha_deg sets another),"
 
 
 def _seed_ac_hint(problem):
@@ -96,8 +105,8 @@ def _seed_ac_hint(problem):
     stays bound, while the optimum's a_c is the same."""
     if not problem.objective.free_acceleration:
         return ""
-    return (f", or a smaller sail.ac_mm_s2 (a MinAcceleration sizes a_c itself: "
-            f"{problem.sail.ac_mm_s2:g} mm/s^2 only seeds it)")
+    return (f"; a smaller sail.ac_mm_s2 may stay bound (a MinAcceleration sizes a_c "
+            f"itself: {problem.sail.ac_mm_s2:g} mm/s^2 only seeds it)")
 
 
 def _crossing(values, level):
@@ -154,14 +163,14 @@ def initial_guess(problem):
 
     Raises
     ------
-    InputError
+    NoStart
         When no seed can be flown: the error of the sail's own a_c.
     """
     first = None
     for scale in _seed_scales(problem):
         try:
             return _seeded(problem, scale)
-        except InputError as err:
+        except NoStart as err:
             first = first or err
     raise first
 
@@ -200,8 +209,7 @@ def _seeded(problem, scale):
                         throttle=np.full(n, scale))
     nodes = xs[:, 1:]
     t0 = problem.epoch()
-    k = (problem.target.turns_behind(nodes[1, -1], nodes[4, -1], t0)
-         if problem.tracks_body() else 0)
+    k = _turns_behind(problem, alpha, nodes, t0) if problem.tracks_body() else 0
     nu0 = math.radians(getattr(problem.departure, "nu_deg", 0.0))
     angle = problem.departure.seed_angle() if problem.dated() else 0.0
     sizing = problem.objective.free_acceleration
@@ -209,6 +217,42 @@ def _seeded(problem, scale):
                  delta=np.zeros(n) if problem.three_d() else None,
                  ac_scale=scale if sizing else 1.0,
                  throttle=None if sizing or scale == 1 else np.full(n, scale))
+
+
+def _turns_behind(problem, alpha, nodes, t0):
+    """The seed's whole turns behind its target body, where the body is known at the
+    seed's arrival; a seed that arrives after that, or whose segments leave the closed
+    form's validity on the way, has no start to give."""
+    if not np.all(np.isfinite(nodes[:, -1])):
+        raise NoStart(f"no start: {_pitch(problem, alpha)} the seed's segments leave the "
+                      "closed form's validity before they end")
+    try:
+        return problem.target.turns_behind(nodes[1, -1], nodes[4, -1], t0)
+    except InputError:
+        arrival = dates.iso_from_jd(dates.jd_from_tu(t0 + nodes[4, -1]))
+        window = getattr(problem.target, "arrival_window", None)
+        raise NoStart(
+            f"no start: {_pitch(problem, alpha)} the sail reaches its target only on "
+            f"{arrival} TDB, after the dates the body is known at"
+            + (f" and after its arrival window closes ({window[1]})" if window else "")
+            + "; no transfer of this sail was found to start from") from None
+
+
+def split_guess(problem, guess, x_start, parts):
+    """``guess`` with every segment cut into ``parts`` equal ones of the same attitude
+    and throttle, its nodes flown again on ``problem``'s segments from ``x_start`` (the
+    NLP's start), so that continuity holds exactly: the same flight on a finer mesh."""
+    def cut(values):
+        return None if values is None else np.repeat(np.asarray(values, float), parts)
+
+    alpha, lengths, throttle, delta = (cut(v) for v in (guess.alpha, guess.lengths,
+                                                          guess.throttle, guess.delta))
+    lengths = lengths / parts
+    kappa = np.ones(alpha.size) if throttle is None else throttle
+    xs = flown_segments(problem, alpha, lengths, x_start, throttle=guess.ac_scale * kappa,
+                        delta=delta)
+    return dataclasses.replace(guess, alpha=alpha, lengths=lengths, throttle=throttle,
+                               delta=delta, nodes=xs[:, 1:])
 
 
 def lifted_guess(problem, guess):
