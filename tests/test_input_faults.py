@@ -83,10 +83,10 @@ def test_check_output_dir_refuses_a_link_also_given_with_a_slash(tmp_path):
 # ---------------------------------------------------------------- 4. the body API
 
 
-def _dated(departure=None, target=None, objective=None):
+def _dated(departure=None, target=None, objective=None, segments=None):
     return eo.Problem(name="dated",
                       departure=departure or eo.BodyDeparture(body="earth", date="2031-01-01"),
-                      sail=eo.Sail(ac_mm_s2=1.0), segments=eo.Segments(count=10),
+                      sail=eo.Sail(ac_mm_s2=1.0), segments=segments or eo.Segments(count=10),
                       objective=objective or eo.MinTime(),
                       target=target or eo.BodyRendezvous(body="mars"))
 
@@ -112,6 +112,23 @@ def _small(**changes):
                     target=eo.BodyIntercept(body="mars",
                                             arrival_window=("2030-01-01", "2030-12-31"))),
      ["target.arrival_window", "departure.window[0] = 2031-01-01"]),
+    # A fixed time of flight that no departure date of the window can arrive in: 37 s in
+    # Ipopt ended in "does not prove the target unreachable".
+    (lambda: _dated(departure=eo.BodyDeparture(body="earth",
+                                               window=("2031-01-01", "2032-01-01")),
+                    objective=eo.MinAcceleration(tof_days=600.0),
+                    target=eo.BodyRendezvous(body="mars",
+                                             arrival_window=("2032-01-01", "2032-06-01"))),
+     ["objective.tof_days = 600 d", "from 2032-08-23T00:00:00 to 2033-08-23T00:00:00",
+      "never inside target.arrival_window"]),
+    (lambda: _dated(objective=eo.MinAcceleration(tof_days=300.0),
+                    target=eo.BodyRendezvous(body="mars",
+                                             arrival_window=("2032-01-01", "2032-06-01"))),
+     ["objective.tof_days = 300 d", "never inside target.arrival_window"]),
+    # Extrapolated arcs exist in the plane only: refused when the file loads, not after
+    # a window scan on the projected model had run.
+    (lambda: _dated(segments=eo.Segments(count=10, extrapolate=True)),
+     ["segments.extrapolate = True", "three dimensions"]),
     # A date and a window together: the date was silently ignored.
     (lambda: eo.BodyDeparture(body="earth", date="2031-06-01",
                               window=("2031-01-01", "2032-01-01")),
@@ -145,11 +162,19 @@ def test_body_and_numeric_fields_are_refused_naming_the_field(build, words):
 
 def test_an_arrival_window_that_fits_the_departure_is_kept():
     """The checks refuse only what cannot fly: a window that opens before the departure
-    but closes after it is a loose bound, and stays."""
+    but closes after it is a loose bound, and stays; so does a fixed time of flight
+    that some date of the departure window ends inside it, and a planar problem's
+    extrapolated arcs."""
     problem = _dated(target=eo.BodyRendezvous(body="mars",
                                               arrival_window=("2029-01-01", "2033-01-01")))
     lo, hi = problem.target.arrival_jd
     assert hi - lo == (datetime.date(2033, 1, 1) - datetime.date(2029, 1, 1)).days
+    _dated(departure=eo.BodyDeparture(body="earth", window=("2031-01-01", "2032-01-01")),
+           objective=eo.MinAcceleration(tof_days=600.0),
+           target=eo.BodyRendezvous(body="mars", arrival_window=("2032-01-01", "2032-09-01")))
+    planar = dataclasses.replace(_dated(), planar=True,
+                                 segments=eo.Segments(count=10, extrapolate=True))
+    assert not planar.three_d()
 
 
 @pytest.mark.parametrize("name, kind", [

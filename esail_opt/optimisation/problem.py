@@ -572,6 +572,11 @@ class Problem:
         if self.planar is False and not dated:
             raise InputError("planar = False needs a real body: three dimensions are for "
                              "departure = BodyDeparture(...); idealised problems are planar")
+        if self.segments.extrapolate and self.three_d():
+            # Checked here, not where the 3-D arcs are built, so that a run never
+            # starts (a window scan on the projected model) before it is refused.
+            raise InputError("segments.extrapolate = True is not available in three "
+                             "dimensions; use False (or planar=True)")
 
     def _check_arrival_tracked(self):
         """A fixed time of flight from a body says when the flight ends: refuse, before
@@ -589,17 +594,29 @@ class Problem:
 
     def _check_arrival_after_departure(self):
         """Refuse an arrival window that closes before the sail can leave: at or before
-        the departure date, or the earliest date of a departure window."""
+        the departure date, or the earliest date of a departure window; and, with a
+        fixed time of flight, one that no departure date can arrive in."""
         dep = self.departure
         earliest = dep.window_jd[0] if dep.window is not None else dep.epoch_jd()
         field = "departure.window[0]" if dep.window is not None else "departure.date"
-        closes = self.target.arrival_jd[1]
+        opens, closes = self.target.arrival_jd
+        window = tuple(self.target.arrival_window)
         if closes <= earliest:
             raise InputError(
-                f"target.arrival_window = {tuple(self.target.arrival_window)!r} closes on "
+                f"target.arrival_window = {window!r} closes on "
                 f"{dates.iso_from_jd(closes)} TDB, not after {field} = "
                 f"{dates.iso_from_jd(earliest)}: the arrival window must end after the "
                 "earliest departure")
+        if not self.objective.fixed_time:
+            return
+        tof = self.objective.tof_days
+        latest = dep.window_jd[1] if dep.window is not None else earliest
+        first, last = earliest + tof, latest + tof
+        if first > closes or last < opens:
+            raise InputError(
+                f"objective.tof_days = {tof:g} d: departing as the problem allows, the flight "
+                f"arrives from {dates.iso_from_jd(first)} to {dates.iso_from_jd(last)} TDB, "
+                f"never inside target.arrival_window = {window!r}")
 
     def with_segments(self, count):
         """The same problem with ``count`` control segments (``--segments``; it replaces
