@@ -597,6 +597,22 @@ def test_a_polished_941_day_3d_rendezvous_is_verified_and_meets_de421s_mars():
     assert np.linalg.norm(y[3:] - mars[3:]) * AU_KM * 1e3 / (TU_DAYS * 86400) < 1e-3
 
 
+def test_a_per_revolution_mesh_follows_the_turns_its_optimum_flies():
+    """``Segments(per_revolution=10)`` is counted on the seed's angle, about half a turn
+    to Laurel: the delivered flight used to have 10 segments over the 2.49 turns it
+    flew, 4 a turn (1778.7 d; 1520.0 d on 40 segments).  Each optimum that flies more
+    turns than its mesh was counted for is solved again on a finer one, so the
+    delivered flight has at least 10 a turn of its own, less the slack allowed."""
+    from conftest import USER_PROBLEMS
+    from esail_opt.optimisation.problem_file import load_problem
+
+    run = pipeline.solve(load_problem(USER_PROBLEMS / "earth_laurel_per_revolution.py"))
+    assert run.verified, run.note
+    turns = float(np.sum(run.result.lengths)) / (2 * math.pi)
+    assert run.result.alpha.size >= 10 * turns / pipeline.DENSITY_SLACK
+    assert turns > 1  # the seed's half turn would not have asked for this mesh
+
+
 @pytest.mark.parametrize("turns", [-21, 3])
 def test_cylindrical_target_rows_are_the_cartesian_miss(turns):
     """The 3-D rendezvous rows (``cylindrical_constraints``) at a state 2,000 km and

@@ -31,7 +31,7 @@ from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_
                                           solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
-from esail_opt.optimisation.seed import initial_guess
+from esail_opt.optimisation.seed import initial_guess, split_guess
 from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import Verification, verify, within
 
@@ -327,6 +327,7 @@ def _first_solve(problem, say):
     starts = ()
     if not result.outcome.found:
         result, tr, starts = _other_starts(problem, result, tr, say)
+    result, tr = _per_revolution(problem, result, tr, say)
     if seed is not None:
         # The scan that chose the date is part of the run's Ipopt record.
         result.iterations += seed.iterations
@@ -389,6 +390,39 @@ def _other_starts(problem, result, tr, say):
     return result, tr, tuple(records)
 
 
+#: How far below its asked density a ``Segments(per_revolution=K)`` mesh may fall on
+#: the turns its optimum flies before that optimum is solved again on a finer mesh.
+DENSITY_SLACK = 1.25
+
+
+def _per_revolution(problem, result, tr, say):
+    """A ``Segments(per_revolution=K)`` optimum solved again from itself, each segment
+    cut into as many as the turns it flies need: (NLPResult, Transcription).
+
+    The count is set on the seed's angle, and an optimum may fly far more turns than
+    its seed: an Earth-Laurel minimum time asked for 10 segments a turn flew 2.49 turns
+    on 10, and on that mesh its best turn count found no point (1778.7 d against
+    1520.0 d on 40).  The first optimum stands where it found none, or was not found."""
+    seg, n = problem.segments, result.alpha.size
+    wanted = seg.count_for(float(np.sum(result.lengths))) if result.outcome.found else n
+    if seg.per_revolution is None or wanted <= DENSITY_SLACK * n:
+        return result, tr
+    parts = math.ceil(wanted / n)
+    say(f"{problem.name}: the optimum flies {np.sum(result.lengths) / (2 * math.pi):.3g} "
+        f"turns on {n} segments; solving it again on {n * parts} "
+        f"({seg.per_revolution} a turn asked)")
+    guess = split_guess(problem, result.as_guess(), result.x_start, parts)
+    finer, finer_tr = solve_problem(problem, guess=guess, progress=say, staged=False,
+                                    options=primal_warm_options(ipopt_options()))
+    finer.iterations += result.iterations
+    finer.solve_seconds += result.solve_seconds
+    if not finer.outcome.found:
+        say(f"{problem.name}: the finer mesh found no point; keeping {n} segments")
+        result.iterations, result.solve_seconds = finer.iterations, finer.solve_seconds
+        return result, tr
+    return finer, finer_tr
+
+
 def _projected_classes(problem, samples, say, spent):
     """The run of a 3-D class-searching ``problem`` whose turn counts are searched on
     its projected model (the seed's solve and :func:`_classes`, hopeless stops
@@ -413,6 +447,8 @@ def _projected_classes(problem, samples, say, spent):
     if not result.outcome.found:
         say(f"{problem.name}: the projected model found no point; solving in 3-D")
         return None
+    result, tr = _per_revolution(model, result, tr, say)
+    spent[-1] = result
     try:
         tried, skipped = _classes(model, result, tr, say, spent)
     except multistart.Undecided as why:
@@ -624,6 +660,8 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
     say = progress or _quiet
     controlled = None
     if result.outcome.found:
+        # A class other than the first solve's may fly more turns on the same mesh.
+        result, tr = _per_revolution(problem, result, tr, say)
         # Its last round's verification is the run's: flown with the plots' samples.
         controlled = control_error(problem, result, tr, say, samples=samples)
         # The run's Ipopt record covers the first solve and every round after it.

@@ -384,7 +384,9 @@ class Segments:
         Segments per revolution K, >= 1, instead of a total: N is then
         ceil(K angle / 2 pi), with ``angle`` the one the constant-pitch seeding
         propagation flies to the target radius or the fixed time of flight
-        (``seed.initial_guess``).  For multi-revolution spirals, whose number
+        (``seed.initial_guess``).  An optimum that flies more turns than
+        1.25 N / K is solved again from itself on a mesh of K a turn of its own
+        (``pipeline.DENSITY_SLACK``).  For multi-revolution spirals, whose number
         of turns is not known before that propagation.  Exclusive with ``count``.
     """
 
