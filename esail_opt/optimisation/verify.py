@@ -278,12 +278,12 @@ def verify3d(problem, result, samples=16, defects=None):
     coordinates of the ecliptic of J2000, to the NLP's final node and to the target
     body's exact, unprojected state at the flown arrival (``miss3d``).
 
-    The judged flight integrates Eqs. 1-2 in the turning plane (``simulate.FORMS_3D``),
-    which CVODES resolves better than the Cartesian equations, and two of whose flights
-    agree far better (THEORY.md §5.5).  The same schedule is also flown on the Cartesian equations,
-    which use no plane and no polar state, and the verifier's own error is the gap to a
-    second turning flight at ``CHECK_TOLERANCE`` plus the gap to that Cartesian flight:
-    a fault in the decomposition can then only make a verdict harder to earn."""
+    The judged flight integrates Eqs. 1-2 in the turning plane (``simulate.FORMS_3D``).
+    The same schedule is also flown on the Cartesian equations, which use no plane and
+    no polar state, and the verifier's own error is the gap to a second turning flight
+    at ``CHECK_TOLERANCE`` plus the gap to that Cartesian flight: two forms do not share
+    each other's integration errors, as two flights of one form do (THEORY.md §5.5), and
+    a fault in the decomposition can only make a verdict harder to earn."""
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     y0 = problem.start_state(result)
     kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None

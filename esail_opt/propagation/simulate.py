@@ -181,11 +181,10 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time
 
 #: The forms a 3-D flight can integrate.  ``"turning"``: Eqs. 1-2 in a plane whose
 #: quaternion turns about r_hat (``dynamics.rhs_turning``, THEORY.md §9.2), the form the
-#: verifier judges by.  Its polar state moves as smoothly as a planar flight's and its
-#: quaternion only as fast as the normal thrust turns the plane, so CVODES resolves it
-#: better than the Cartesian coordinates, which swing by 1 au each revolution (THEORY.md
-#: §5.5).  ``"cartesian"``: the Cartesian equations (``dynamics.rhs_cartesian``), which use
-#: no plane and no polar state, so that a flight on them checks the decomposition.
+#: verifier judges by and the polish lands on, as the planar verifier flies Eqs. 1-2.
+#: ``"cartesian"``: the Cartesian equations (``dynamics.rhs_cartesian``), which use no
+#: plane and no polar state, so that a flight on them checks the decomposition, and
+#: the gap between the two forms is part of the verifier's error (THEORY.md §5.5).
 FORMS_3D = ("turning", "cartesian")
 
 
