@@ -157,6 +157,33 @@ def test_a_polished_mars_rendezvous_meets_mars_itself_to_a_metre():
         jd_of("2028-09-01") + units.time_to_days(elapsed), abs=1e-3 / 86400)
 
 
+@pytest.mark.slow
+def test_a_polished_free_date_is_written_to_the_microsecond_it_flies_from():
+    """A free departure date falls anywhere in its window (here a fraction of a
+    millisecond after it opens), and its date is written to the millisecond, in which
+    Mars moves some 25 m: the polished record's
+    ``departure_epoch_days``, flown here by DOP853 from the Earth-Moon barycentre's
+    DE421 state at that epoch, meets Mars's DE421 state within the polish's 1 m and
+    1 mm/s at that epoch plus the polished durations, and it rounds to the date written."""
+    problem = dataclasses.replace(MARS_POLISHED, departure=eo.BodyDeparture(
+        body="earth", window=("2028-08-20", "2028-09-10")))
+    sol = eo.solve(problem, polish=True)
+    assert sol.verified, sol.polish.note
+    d = sol.to_json()["polish"]
+    epoch_jd = 2451545.0 + d["departure_epoch_days"]
+    assert epoch_jd == pytest.approx(jd_of(d["departure_date"]), abs=0.5e-3 / 86400 + 1e-9)
+    x0 = ecliptic_polar("earthmoon", epoch_jd)
+    flown = dataclasses.replace(
+        MARS_POLISHED, departure=eo.PolarState(r_au=x0[0], theta_deg=math.degrees(x0[1]),
+                                               vr_km_s=units.speed_to_km_s(x0[2]),
+                                               vtheta_km_s=units.speed_to_km_s(x0[3])),
+        target=eo.CircularOrbit(radius_au=1.5))
+    xf, elapsed = fly_dop853(flown, d["schedule"])
+    mars = ecliptic_polar("mars", epoch_jd, units.time_to_days(elapsed))
+    assert position_km(xf, mars) <= 1e-3
+    assert velocity_m_s(xf, mars) <= 1e-3
+
+
 @pytest.mark.parametrize("build, field", [
     (lambda: eo.BodyDeparture(body="pluto", date="2031-01-01"), "departure.body"),
     (lambda: eo.BodyDeparture(body="earth", date="2131-01-01"), "departure.date"),

@@ -503,7 +503,7 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
     assert miss_m_s < problem.tolerance.velocity_m_s
     # Mars is 1.85 deg out of the ecliptic: the flight ends well off it, as Mars does.
     assert abs(y[2]) * AU_KM > 1e5
-    # The files: schema 6, the clock in schedule.csv, the departure state as DE421's Earth,
+    # The files: schema 7, the clock in schedule.csv, the departure state as DE421's Earth,
     # the bodies' distances from the ecliptic and the flight's along its normal, and the
     # OEM's last state (ICRF, km) on DE421's Mars (rotated back here).
     import csv
@@ -513,7 +513,7 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
 
     Solution.of(run).write(tmp_path, plots=False)
     data = json.loads((tmp_path / "solution.json").read_text())
-    assert data["schema_version"] == 6
+    assert data["schema_version"] == 7
     dep = data["problem"]["departure_state"]
     earth = de421_ecliptic("earthmoon", jd0)
     assert abs(dep["z_au"] - earth[2]) < 1e-12 and abs(dep["x_au"] - earth[0]) < 1e-12

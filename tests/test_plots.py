@@ -33,7 +33,7 @@ def polished():
 @pytest.fixture(scope="module")
 def flown3d():
     """A fixed-date Earth-Mars rendezvous flown in three dimensions (``planar=False``),
-    on few segments: a schema-6 solution with a clock per segment and CVODES
+    on few segments: a schema-7 solution with a clock per segment and CVODES
     samples in the ecliptic's frame."""
     problem = eo.Problem("em3d", eo.BodyDeparture(body="earth", date="2031-01-01"),
                          eo.Sail(1.0), eo.Segments(6, 1), eo.MinTime(),
@@ -224,7 +224,7 @@ def test_trajectory_in_3d_shows_the_flight_from_above_and_from_the_side(flown3d)
     departure is the Earth's state, the rendezvous meets Mars within the tolerance)."""
     d = flown3d.to_json()
     cv = d["trajectory"]["cvodes"]
-    assert d["schema_version"] == 6
+    assert d["schema_version"] == 7
     top, side = plots.trajectory_figure(flown3d).axes
     assert (top.get_xlabel(), top.get_ylabel()) == ("x (au)", "y (au)")
     assert (side.get_xlabel(), side.get_ylabel()) == ("t since departure (days)", "z (au)")
@@ -267,13 +267,13 @@ def test_timeline_in_3d_adds_the_clock_and_the_inclination(flown3d):
 
 
 def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
-    """`esail-opt plot` on a folder whose solution.json is schema 6 draws both figures,
+    """`esail-opt plot` on a folder whose solution.json is schema 7 draws both figures,
     in 3-D as the fresh solution's."""
     from esail_opt.app import cli
 
     folder = tmp_path / "run"
     flown3d.write(folder, plots=False)
-    assert json.loads((folder / "solution.json").read_text())["schema_version"] == 6
+    assert json.loads((folder / "solution.json").read_text())["schema_version"] == 7
     assert cli.main(["plot", str(folder)]) == 0
     for name, _ in plots.FIGURES:
         assert (folder / name).stat().st_size > 10_000

@@ -185,6 +185,7 @@ def calendar(problem, result, check):
     start_jd = dates.jd_from_tu(result.epoch)
     z0 = lookup.polar_state(dep.body, start_jd)[1]
     out.update(departure_date=dates.iso_from_jd(start_jd),
+               departure_epoch_days=units.time_to_days(float(result.epoch)),
                arrival_date=dates.iso_from_jd(dates.jd_from_tu(
                    result.epoch + float(np.sum(result.durations)))),
                departure_body=DepartureBody(

@@ -23,11 +23,13 @@ as :data:`STATE_KEYS` (the polar keys are then inside the state's own turning pl
 its schedule rows a ``clock_deg``, its CVODES samples (``trajectory.cvodes``) the
 :data:`STATE_KEYS` and the osculating ``inclination_deg`` and ``node_deg``, and its
 verification's misses are in space against the body's unprojected state.  Its folder
-also holds ``trajectory.oem``, the CVODES flight as a CCSDS OEM.  Version 6 (this one)
+also holds ``trajectory.oem``, the CVODES flight as a CCSDS OEM.  Version 6
 gave a target body's ``out_of_plane_km`` one meaning, the body's distance from the
 ecliptic at arrival, as the departure body's is: in a 3-D flight of version 5 it was the
 flight's distance from the body along the ecliptic's normal, which is now
-``normal_miss_km`` (:func:`upgrade` reads a version-5 file so).
+``normal_miss_km`` (:func:`upgrade` reads a version-5 file so).  Version 7 (this one)
+added ``departure_epoch_days``, the departure's epoch to a fraction of a microsecond
+(a version-6 file reads with none).
 
 Top level
 ---------
@@ -86,6 +88,12 @@ On the calendar (a BodyDeparture; absent otherwise)
 departure_date, arrival_date : str
     ISO 8601, TDB, to the millisecond (``YYYY-MM-DDTHH:MM:SS.sss``, the fraction left
     out when it is zero); the arrival is the departure plus the NLP's time of flight.
+departure_epoch_days : float
+    The departure's epoch, days since J2000 (2000-01-01T12:00:00 TDB), as solved: to a
+    fraction of a microsecond, where the date is rounded to the millisecond (a
+    planet moves some 35 m in one).  With ``tof_days`` (``polish.tof_days`` for the
+    polished flight) it gives the arrival to the same precision, so that a 1 m
+    polish can be checked from the file.
 departure_body : object
     ``name``, ``source`` (the ephemeris or the elements), ``out_of_plane_km`` (the body's
     distance from the ecliptic at departure, which the 2-D model drops), ``vinf_km_s`` and
@@ -140,12 +148,12 @@ import numpy as np
 from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 #: Versions this code reads: versions 3 to 5 only added fields, so a version-2 file
 #: reads as one of a problem off the calendar, a version-3 polish has no start of its
 #: own, a file before version 5 names no classes, and a version-4 file is a planar one;
 #: a version-5 file is read through :func:`upgrade`.
-READABLE = (2, 3, 4, 5, 6)
+READABLE = (2, 3, 4, 5, 6, 7)
 
 
 def check(data, source):
@@ -158,7 +166,8 @@ def check(data, source):
 
 
 def upgrade(data):
-    """``data``, a readable ``solution.json``, with the keys of version 6: a 3-D flight of
+    """``data``, a readable ``solution.json``, with the keys of version 7 (those it added
+    are read as absent): a 3-D flight of
     version 5 gave a target's ``out_of_plane_km`` (in ``target_body`` and in the
     verifications, the polish's included) as the flight's distance from the body along
     the ecliptic's normal, which is ``normal_miss_km`` now; the body's own distance from
