@@ -76,6 +76,23 @@ def test_a_file_of_another_schema_version_fails_with_one_clear_line(solution, tm
         Solution.load(written)
 
 
+def test_a_dated_file_gives_its_exact_epoch_and_one_of_version_6_loads_without_it(tmp_path):
+    """Version 7 added ``departure_epoch_days``: the shipped window answer's agrees with
+    its date, written to the millisecond, and a version-6 file (no such key) loads."""
+    from esail_opt.bodies.dates import jd_from_iso
+
+    results = Path(__file__).resolve().parents[1] / "results"
+    data = json.loads((results / "earth_mars_window" / "solution.json").read_text())
+    days = data["departure_epoch_days"]
+    assert abs(2451545.0 + days - jd_from_iso(data["departure_date"])) <= 0.5e-3 / 86400 + 1e-9
+    old = dict(data, schema_version=6)
+    del old["departure_epoch_days"]
+    (tmp_path / "solution.json").write_text(json.dumps(old))
+    loaded = Solution.load(tmp_path / "solution.json")
+    assert loaded.departure_epoch_days is None
+    assert loaded.departure_date == data["departure_date"]
+
+
 def test_a_file_that_is_not_a_solution_fails_with_one_clear_line(solution, tmp_path):
     written = solution.write(tmp_path, plots=False)[0]
     data = json.loads(written.read_text())
