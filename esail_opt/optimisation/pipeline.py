@@ -697,7 +697,7 @@ def _window_hint(problem):
     if window is None:
         return ""
     return (f"; the arrival must fall in target.arrival_window = {tuple(window)!r}, which "
-            "may be what no point meets: without it a later arrival may be found")
+            "may be why no point was found: without it a later arrival may be")
 
 
 def _mesh_hint(result):
