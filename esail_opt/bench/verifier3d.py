@@ -61,9 +61,8 @@ def cases():
 def schedule(problem, result):
     """The departure state, a_c per segment (throttle included), pitch, clock and
     durations of ``result``, canonical."""
-    kappa = np.ones(result.alpha.size) if result.throttle is None else result.throttle
-    acs = problem.sail.ac * result.ac_scale * np.asarray(kappa, float)
-    return (problem.start_state(result), acs, np.asarray(result.alpha, float),
+    return (problem.start_state(result), result.accelerations(problem),
+            np.asarray(result.alpha, float),
             np.asarray(result.delta, float), np.asarray(result.durations, float))
 
 
