@@ -10,6 +10,7 @@
 - Tracks: the exact sources above at random times, and finite differences of them.
 """
 
+import json
 import math
 
 import casadi as ca
@@ -33,6 +34,7 @@ from esail_opt.bodies import (
     iso_from_jd,
     jd_from_iso,
     jd_from_tu,
+    lookup,
     polar_state,
     track_of,
     tu_from_jd,
@@ -291,13 +293,80 @@ def test_kepler_equation(e):
     ({"a_au": float("nan")}, "body.a_au"), ({"inclination_deg": 120.0}, "body.inclination_deg"),
     ({"node_deg": 400.0}, "body.node_deg"), ({"mean_anomaly_deg": "x"}, "body.mean_anomaly_deg"),
     ({"epoch": "2020-02-31"}, "body.epoch"), ({"name": ""}, "body.name"),
+    ({"argument_of_perihelion_deg": 400.0}, "body.argument_of_perihelion_deg"),
+    ({"argument_of_perihelion_deg": None, "perihelion_deg": 800.0}, "body.perihelion_deg"),
 ])
 def test_small_body_checks_its_fields(changes, field):
     fields = dict(name="test", a_au=1.5, e=0.1, inclination_deg=2.0, node_deg=10.0,
-                  perihelion_deg=50.0, mean_anomaly_deg=20.0, epoch="2030-01-01", source="test")
+                  argument_of_perihelion_deg=40.0, mean_anomaly_deg=20.0, epoch="2030-01-01",
+                  source="test")
     fields.update(changes)
     with pytest.raises(InputError, match="^" + field.replace(".", r"\.") + " = "):
         SmallBody(**fields)
+
+
+SMALL = dict(name="test", a_au=1.5, e=0.1, inclination_deg=2.0, node_deg=310.0,
+             mean_anomaly_deg=20.0, epoch="2030-01-01")
+
+
+@pytest.mark.parametrize("given", [dict(argument_of_perihelion_deg=100.0, perihelion_deg=50.0),
+                                   dict()], ids=["both", "neither"])
+def test_small_body_takes_exactly_one_perihelion_angle(given):
+    """Both angles lie in the same range, so a catalogue's w pasted as the longitude
+    is not caught by a range: both or neither is refused in one line that names each
+    field and says what it is."""
+    with pytest.raises(InputError) as caught:
+        SmallBody(**SMALL, **given)
+    message = str(caught.value)
+    assert "\n" not in message
+    assert message.startswith(
+        f"body.argument_of_perihelion_deg = {given.get('argument_of_perihelion_deg')!r} and "
+        f"body.perihelion_deg = {given.get('perihelion_deg')!r}: give exactly one")
+    for words in ("argument_of_perihelion_deg (omega, measured from the ascending node",
+                  "small-body database lists it as w", "in [-360, 360] deg",
+                  "perihelion_deg (the longitude of perihelion, node + omega)",
+                  "in [-720, 720] deg"):
+        assert words in message
+    # The angles after the node are named: the old positional form, whose sixth number
+    # meant the longitude, is refused rather than read as either angle.
+    with pytest.raises(TypeError):
+        SmallBody("test", 1.5, 0.1, 2.0, 310.0, 50.0, 20.0, "2030-01-01")
+
+
+@pytest.mark.parametrize("argument", [100.0, 0.0, 359.5, -30.0])
+def test_small_body_by_argument_or_by_longitude_is_one_orbit(argument):
+    """omega and varpi = node + omega give one body: the same state, and each angle
+    read back as the other implies (varpi wrapped into [0, 360))."""
+    by_argument = SmallBody(**SMALL, argument_of_perihelion_deg=argument)
+    longitude = SMALL["node_deg"] + argument  # 410, 310, 669.5, 280 deg: unwrapped
+    by_longitude = SmallBody(**SMALL, perihelion_deg=longitude)
+    assert by_argument.perihelion_deg == pytest.approx(longitude % 360.0, abs=1e-12)
+    assert 0.0 <= by_argument.perihelion_deg < 360.0
+    assert math.remainder(by_longitude.argument_of_perihelion_deg - argument, 360.0) \
+        == pytest.approx(0.0, abs=1e-12)
+    jd = jd_from_iso("2033-07-04") + np.array([0.0, 123.4, 987.6])
+    np.testing.assert_allclose(by_longitude.ecliptic_state(jd), by_argument.ecliptic_state(jd),
+                               rtol=0, atol=1e-12)
+    # The catalogue's w pasted as the longitude is another orbit: an au away, not 1e-12.
+    misread = SmallBody(**SMALL, perihelion_deg=argument)
+    miss = np.linalg.norm(misread.ecliptic_state(jd)[:3] - by_argument.ecliptic_state(jd)[:3],
+                          axis=0)
+    assert miss.min() > 0.5
+
+
+@pytest.mark.parametrize("body", [BENNU, CERES])
+def test_shipped_small_bodies_are_written_with_the_argument_of_perihelion(body):
+    """A solution file holds the body by its fields: the argument, not the longitude.
+    A file written before the argument existed (its body with ``perihelion_deg``) still
+    gives the same body back."""
+    written = lookup.describe(body)
+    assert "argument_of_perihelion_deg" in written and "perihelion_deg" not in written
+    assert lookup.resolve(json.loads(json.dumps(written))) == body
+    older = dict(written, perihelion_deg=body.node_deg + written.pop("argument_of_perihelion_deg"))
+    again = lookup.resolve(older)
+    jd = body.epoch_jd + np.array([0.0, 500.0])
+    np.testing.assert_allclose(again.ecliptic_state(jd), body.ecliptic_state(jd), rtol=0,
+                               atol=1e-12)
 
 
 # ---------------------------------------------------------------------------- tracks

@@ -156,7 +156,8 @@ ELEMENTS = [  # a au, e, i deg, node deg, varpi deg, M deg; the shipped bodies a
 @pytest.mark.parametrize("elements", ELEMENTS, ids=lambda el: f"a{el[0]:.2f}_e{el[1]:.2f}_i{el[2]:.1f}")
 def test_small_body_3d_against_textbook(elements):
     a, e, inc, node, varpi, m0 = elements
-    body = SmallBody("test", a, e, inc, node, varpi, m0, "2030-01-01")
+    body = SmallBody("test", a, e, inc, node, perihelion_deg=varpi, mean_anomaly_deg=m0,
+                     epoch="2030-01-01")
     days = np.linspace(-1500.0, 2500.0, 23) + 0.37
     mine = body.ecliptic_state(np.full(days.shape, body.epoch_jd), jd2=days)
     worst = 0.0
@@ -173,6 +174,60 @@ def test_small_body_3d_against_textbook(elements):
     expected, z_expected = polar_from_ecliptic(mine)
     np.testing.assert_array_equal(polar, expected)
     np.testing.assert_array_equal(z, z_expected)
+
+
+# JPL's heliocentric ecliptic-J2000 osculating elements as its small-body database and
+# Horizons list them (a au, e, i deg, om deg, w deg, M deg, epoch JD TDB), written out
+# again here: w is the argument of perihelion, measured from the node.
+JPL_ELEMENTS = {
+    "bennu": (BENNU, (1.1263910258948120, 0.2037450762416414, 6.0349437702479403,
+                      2.060866195696420, 66.22306084084298, 101.7039520024729, 2455562.5)),
+    "ceres": (CERES, (2.769289292143484, 0.07687465013145245, 10.59127767086216,
+                      80.3011901917491, 73.80896808746482, 130.3159688200986, 2458849.5)),
+}
+
+
+def position_km_from_jpl(a_au, e, i_deg, om_deg, w_deg, m_deg, epoch_jd, jd):
+    """Heliocentric ecliptic position, km, from JPL's elements at ``jd`` (TDB): the mean
+    motion from GM_sun in SI, Kepler's equation by brentq, and the rotation written as
+    the product of its three elementary matrices (node, inclination, argument)."""
+    a_km = a_au * AU_KM
+    n = math.sqrt(GM_SUN / 1e9 / a_km ** 3)  # rad/s
+    m = math.remainder(math.radians(m_deg) + n * (jd - epoch_jd) * 86400.0, 2 * math.pi)
+    big_e = brentq(lambda x: x - e * math.sin(x) - m, -math.pi - 1, math.pi + 1, xtol=1e-16)
+    perifocal = np.array([a_km * (math.cos(big_e) - e),
+                          a_km * math.sqrt(1 - e * e) * math.sin(big_e), 0.0])
+
+    def about_z(angle):
+        c, s = math.cos(angle), math.sin(angle)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    c, s = math.cos(math.radians(i_deg)), math.sin(math.radians(i_deg))
+    about_x = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    return about_z(math.radians(om_deg)) @ about_x @ about_z(math.radians(w_deg)) @ perifocal
+
+
+@pytest.mark.parametrize("name", sorted(JPL_ELEMENTS))
+def test_shipped_body_from_jpl_argument_of_perihelion(name):
+    """The shipped body holds JPL's w as its argument of perihelion, and flies where
+    JPL's elements put it, to 1 km, from its epoch to a decade on.  Reading w as the
+    longitude of perihelion (the mistake this field exists to prevent) would put it a
+    fraction of an au away."""
+    body, (a, e, inc, om, w, m, epoch_jd) = JPL_ELEMENTS[name]
+    assert (body.a_au, body.e, body.inclination_deg, body.node_deg,
+            body.argument_of_perihelion_deg, body.mean_anomaly_deg) == (a, e, inc, om, w, m)
+    assert body.epoch_jd == epoch_jd
+    assert body.perihelion_deg == pytest.approx(om + w, abs=1e-12)
+    worst_km = 0.0
+    for jd in epoch_jd + np.array([0.0, 123.25, 1000.0, 3652.5]):
+        reference = position_km_from_jpl(a, e, inc, om, w, m, epoch_jd, jd)
+        worst_km = max(worst_km, np.linalg.norm(body.ecliptic_state(jd)[:3] * AU_KM - reference))
+        # w pasted as the longitude: the argument flown would be w - om (Bennu's node is
+        # only 2 deg, still millions of km along its orbit).
+        misread = position_km_from_jpl(a, e, inc, om, w - om, m, epoch_jd, jd)
+        assert np.linalg.norm(misread - reference) > 1e6
+    assert worst_km < 1.0
+    print(f"{body.name}: against JPL's elements flown here, worst {worst_km * 1e3:.3g} m")
 
 
 def elements_of(state):
@@ -202,7 +257,9 @@ def test_planet_flown_from_its_osculating_elements(planet):
     epoch = "2031-05-17"
     jd0 = jd_from_iso(epoch)
     a, e, inc, node, varpi, m = elements_of(ecliptic_state(planet, jd0))
-    body = SmallBody(planet, a, e, *np.degrees([inc, node, varpi, m]), epoch)
+    inc, node, varpi, m = np.degrees([inc, node, varpi, m])
+    body = SmallBody(planet, a, e, inc, node, perihelion_deg=varpi, mean_anomaly_deg=m,
+                     epoch=epoch)
     # At the epoch the elements give the state back (the round trip through degrees
     # and Kepler's equation: 1e-13 relative).
     at_epoch = body.ecliptic_state(jd0) - ecliptic_state(planet, jd0)
@@ -257,7 +314,8 @@ def test_planets_exact_state_at_a_split_time():
                                lookup.ecliptic_state_at("mars", t), rtol=0, atol=1e-15)
 
 
-STEEP = SmallBody("steep", 1.3, 0.5, 70.0, 40.0, 100.0, 10.0, "2030-01-01")
+STEEP = SmallBody("steep", 1.3, 0.5, 70.0, 40.0, argument_of_perihelion_deg=60.0,
+                  mean_anomaly_deg=10.0, epoch="2030-01-01")
 
 
 @pytest.mark.parametrize("body", ["earth", "mars", "venus", BENNU, STEEP],

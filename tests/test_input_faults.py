@@ -93,7 +93,7 @@ def _dated(departure=None, target=None, objective=None, segments=None):
 
 def _small(**changes):
     fields = dict(name="test", a_au=1.5, e=0.1, inclination_deg=2.0, node_deg=10.0,
-                  perihelion_deg=50.0, mean_anomaly_deg=20.0, epoch="2030-01-01")
+                  argument_of_perihelion_deg=40.0, mean_anomaly_deg=20.0, epoch="2030-01-01")
     return eo.SmallBody(**dict(fields, **changes))
 
 
@@ -140,6 +140,14 @@ def _small(**changes):
     (lambda: _small(a_au=1e9), ["body.a_au = 1000000000.0 au", "[0.05, 100] au"]),
     (lambda: _small(a_au=1e-6), ["body.a_au = 1e-06 au", "[0.05, 100] au"]),
     (lambda: _small(name="Bennu\r\x1b[2K"), ["body.name = ", "U+000D CR"]),
+    # A small body's perihelion given twice (or not at all): the catalogue's w and the
+    # longitude of perihelion share a range, so only naming one of them tells them apart.
+    (lambda: _small(perihelion_deg=50.0),
+     ["body.argument_of_perihelion_deg = 40.0 and body.perihelion_deg = 50.0",
+      "give exactly one", "small-body database lists it as w", "node + omega"]),
+    (lambda: _small(argument_of_perihelion_deg=None),
+     ["body.argument_of_perihelion_deg = None and body.perihelion_deg = None",
+      "give exactly one"]),
     # Numbers given as strings: a TypeError far from the file that named no field.
     (lambda: eo.MinAcceleration(tof_days="650"), ["objective.tof_days = '650'", "(0, 36525]"]),
     (lambda: eo.MaxRadius(tof_days="365"), ["objective.tof_days = '365'"]),
@@ -265,6 +273,26 @@ def test_load_problem_words_any_base_exception_as_one_line(tmp_path, call, kind)
     problem.write_text(f"{call}\n")
     with pytest.raises(InputError, match=f"^raises.py: {kind}"):
         load_problem(problem)
+
+
+@pytest.mark.parametrize("angles, words", [
+    ("argument_of_perihelion_deg=66.2, perihelion_deg=68.3",
+     ["body.argument_of_perihelion_deg = 66.2 and body.perihelion_deg = 68.3",
+      "give exactly one"]),
+    # The positional form whose sixth number was the longitude: refused, not read.
+    ("68.3, 101.7, '2030-01-01'", ["TypeError", "positional"]),
+])
+def test_a_problem_file_with_an_ambiguous_perihelion_is_one_line(tmp_path, angles, words):
+    problem = tmp_path / "rock.py"
+    problem.write_text("import esail_opt as eo\n"
+                       f"rock = eo.SmallBody('rock', 1.1, 0.2, 6.0, 2.1, {angles}"
+                       + (", mean_anomaly_deg=101.7, epoch='2030-01-01')\n"
+                          if "=" in angles else ")\n"))
+    with pytest.raises(InputError) as refused:
+        load_problem(problem)
+    line = str(refused.value)
+    assert line.startswith("rock.py: ") and "\n" not in line
+    assert all(w in line for w in words), line
 
 
 def test_a_loaded_file_prints_once_and_its_problem_is_the_files(tmp_path, capfd):

@@ -75,9 +75,37 @@ def eccentric_anomaly(mean_anomaly, e):
     return float(result) if np.ndim(mean_anomaly) == 0 else result
 
 
-@dataclass(frozen=True)
+#: The perihelion's two angles and what each is, for the line that refuses a body
+#: given both or neither.
+_PERIHELION_CHOICE = (
+    "give exactly one: argument_of_perihelion_deg (omega, measured from the ascending node "
+    "in the orbit's plane; JPL's small-body database lists it as w) in [-360, 360] deg, "
+    "or perihelion_deg (the longitude of perihelion, node + omega) in [-720, 720] deg")
+
+
+def _wrapped_deg(angle):
+    """``angle`` (deg) wrapped into [0, 360)."""
+    wrapped = angle % 360.0
+    return 0.0 if wrapped == 360.0 else wrapped  # a tiny negative angle rounds up to 360
+
+
+@dataclass(frozen=True, init=False)
 class SmallBody:
     """A small body on a heliocentric Keplerian orbit (ecliptic and equinox J2000).
+
+    The perihelion's direction is given by exactly one of two angles, by name:
+
+    - ``argument_of_perihelion_deg``, omega, measured from the ascending node in the
+      orbit's plane.  JPL's small-body database lists w, the argument of perihelion:
+      paste it here.  The shipped bodies are written this way.
+    - ``perihelion_deg``, the longitude of perihelion varpi = node + omega, which some
+      catalogues (and planetary tables) give instead.
+
+    Both or neither is refused (both lie in the same range of angles, so a catalogue's
+    w given as the longitude would not be caught by a range).  The other one is derived:
+    ``body.argument_of_perihelion_deg`` and ``body.perihelion_deg`` are both readable
+    whichever was given.  Every angle after ``node_deg`` is keyword-only, so that no
+    position in the argument list can stand for the wrong one.
 
     Attributes (boundary units)
     ---------------------------
@@ -92,9 +120,13 @@ class SmallBody:
         describes prograde motion about the ecliptic pole, so retrograde and polar orbits,
         whose projected longitude stalls or runs backwards, are refused.
     node_deg : float
-        Longitude of the ascending node, deg, in [-360, 360].
-    perihelion_deg : float
-        Longitude of perihelion varpi = node + argument of perihelion, deg, in [-720, 720].
+        Longitude of the ascending node (Omega, JPL's "om"), deg, in [-360, 360].
+    argument_of_perihelion_deg : float
+        Argument of perihelion omega (JPL's "w"), deg, from the node: in [-360, 360] when
+        given, wrapped into [0, 360) when derived from ``perihelion_deg``.
+    perihelion_deg : float (read-only property)
+        Longitude of perihelion varpi = node + omega, deg: in [-720, 720] when given
+        (as a keyword argument), always read back wrapped into [0, 360).
     mean_anomaly_deg : float
         Mean anomaly at the epoch, deg, in [-360, 360].
     epoch : str
@@ -106,7 +138,8 @@ class SmallBody:
         Where the elements come from.
 
     Every field is checked when the body is created; a bad one raises InputError naming
-    ``body.<field>`` and its allowed range.
+    ``body.<field>`` and its allowed range.  A solution file holds the body's fields
+    with ``argument_of_perihelion_deg``; an older one's ``perihelion_deg`` still reads.
     """
 
     name: str
@@ -114,33 +147,52 @@ class SmallBody:
     e: float
     inclination_deg: float
     node_deg: float
-    perihelion_deg: float
+    argument_of_perihelion_deg: float
     mean_anomaly_deg: float
     epoch: str
     source: str = ""
     epoch_jd: float = _field(init=False, repr=False, compare=False)
 
-    def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name.strip():
-            raise InputError(f"body.name = {self.name!r} must be a non-empty string")
-        check_printable("body.name", self.name)
-        if not isinstance(self.source, str):
-            raise InputError(f"body.source = {self.source!r} must be a string")
+    def __init__(self, name, a_au, e, inclination_deg, node_deg, *,
+                 argument_of_perihelion_deg=None, perihelion_deg=None,
+                 mean_anomaly_deg, epoch, source=""):
+        if not isinstance(name, str) or not name.strip():
+            raise InputError(f"body.name = {name!r} must be a non-empty string")
+        check_printable("body.name", name)
+        if not isinstance(source, str):
+            raise InputError(f"body.source = {source!r} must be a string")
+        if (argument_of_perihelion_deg is None) == (perihelion_deg is None):
+            raise InputError(f"body.argument_of_perihelion_deg = {argument_of_perihelion_deg!r} "
+                             f"and body.perihelion_deg = {perihelion_deg!r}: "
+                             f"{_PERIHELION_CHOICE}")
+        node = check_range("body.node_deg", node_deg, -360.0, 360.0, unit="deg")
+        if argument_of_perihelion_deg is not None:
+            argument = check_range("body.argument_of_perihelion_deg",
+                                   argument_of_perihelion_deg, -360.0, 360.0, unit="deg")
+        else:
+            argument = _wrapped_deg(check_range("body.perihelion_deg", perihelion_deg,
+                                                -720.0, 720.0, unit="deg") - node)
         checked = {
-            "a_au": check_range("body.a_au", self.a_au, *A_AU_RANGE, unit="au"),
-            "e": check_range("body.e", self.e, 0.0, 1.0, high_open=True),
-            "inclination_deg": check_range("body.inclination_deg", self.inclination_deg,
+            "name": name,
+            "a_au": check_range("body.a_au", a_au, *A_AU_RANGE, unit="au"),
+            "e": check_range("body.e", e, 0.0, 1.0, high_open=True),
+            "inclination_deg": check_range("body.inclination_deg", inclination_deg,
                                            0.0, 90.0, high_open=True, unit="deg"),
-            "node_deg": check_range("body.node_deg", self.node_deg, -360.0, 360.0, unit="deg"),
-            "perihelion_deg": check_range("body.perihelion_deg", self.perihelion_deg,
-                                          -720.0, 720.0, unit="deg"),
-            "mean_anomaly_deg": check_range("body.mean_anomaly_deg", self.mean_anomaly_deg,
+            "node_deg": node,
+            "argument_of_perihelion_deg": argument,
+            "mean_anomaly_deg": check_range("body.mean_anomaly_deg", mean_anomaly_deg,
                                             -360.0, 360.0, unit="deg"),
+            "epoch": epoch,
+            "source": source,
+            "epoch_jd": check_tracked(jd_from_iso(epoch, "body.epoch"), "body.epoch"),
         }
         for key, value in checked.items():
             object.__setattr__(self, key, value)
-        object.__setattr__(self, "epoch_jd",
-                           check_tracked(jd_from_iso(self.epoch, "body.epoch"), "body.epoch"))
+
+    @property
+    def perihelion_deg(self):
+        """Longitude of perihelion varpi = node + argument of perihelion, deg, in [0, 360)."""
+        return _wrapped_deg(self.node_deg + self.argument_of_perihelion_deg)
 
     @property
     def mean_motion(self):
@@ -203,7 +255,7 @@ class SmallBody:
         """The 3x2 matrix R3(-node) R1(-i) R3(-argument of perihelion), first two columns."""
         node = math.radians(self.node_deg)
         inc = math.radians(self.inclination_deg)
-        arg = math.radians(self.perihelion_deg - self.node_deg)
+        arg = math.radians(self.argument_of_perihelion_deg)
         cn, sn = math.cos(node), math.sin(node)
         ci, si = math.cos(inc), math.sin(inc)
         cw, sw = math.cos(arg), math.sin(arg)
@@ -229,9 +281,8 @@ def _from_horizons(name, designation, elements, epoch, solution):
     designation : str
         The body as Horizons names it, for ``source``.
     elements : tuple of float
-        Horizons' own elements in its order, (A au, EC, IN deg, OM deg, W deg, MA deg).
-        The longitude of perihelion :class:`SmallBody` takes, varpi = OM + W, is formed
-        here, so that every number stays as Horizons prints it.
+        Horizons' own elements in its order, (A au, EC, IN deg, OM deg, W deg, MA deg),
+        given to :class:`SmallBody` as printed: W is ``argument_of_perihelion_deg``.
     epoch : str
         ISO 8601 date of the elements (0 h TDB).
     solution : str
@@ -240,7 +291,7 @@ def _from_horizons(name, designation, elements, epoch, solution):
     a, e, inclination, node, argument, mean_anomaly = elements
     return SmallBody(
         name=name, a_au=a, e=e, inclination_deg=inclination, node_deg=node,
-        perihelion_deg=node + argument, mean_anomaly_deg=mean_anomaly, epoch=epoch,
+        argument_of_perihelion_deg=argument, mean_anomaly_deg=mean_anomaly, epoch=epoch,
         source=(f"JPL Horizons heliocentric ecliptic J2000 osculating elements of "
                 f"{designation}, epoch JD {jd_from_iso(epoch):.1f} ({epoch}.0) TDB, {solution}"))
 

@@ -10,7 +10,7 @@ import esail_opt as eo
 
 LAUREL = eo.SmallBody(name="2865 Laurel", a_au=2.561338323366159, e=0.07019375927807329,
                       inclination_deg=14.29225894747608, node_deg=321.7746687674003,
-                      perihelion_deg=321.7746687674003 + 293.5453340658181,
+                      argument_of_perihelion_deg=293.5453340658181,
                       mean_anomaly_deg=157.4596025949455, epoch="2018-08-29",
                       source="JPL Horizons, JPL#74, epoch 2018-08-29 TDB")
 
