@@ -6,8 +6,11 @@ import copy
 import csv
 import io
 import json
+import re
 import shutil
+from datetime import datetime, timedelta
 
+import matplotlib.dates as mdates
 import numpy as np
 import pytest
 from conftest import RESULTS, TINY_PROBLEM
@@ -19,8 +22,9 @@ from esail_opt.app import plots
 from esail_opt.app.solution import Solution
 
 DIGITS = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
-SERIES = ["r (au)", "v_r (km/s)", "v_theta (km/s)", "alpha (deg)", "osculating a (au)",
-          "osculating e"]
+SERIES = ["r (au)", "v_r (km/s)", "v_theta (km/s)", "osculating a (au)", "osculating e"]
+#: An Ipopt status as Ipopt spells it (Solve_Succeeded, Maximum_Iterations_Exceeded).
+IPOPT_STATUS = re.compile(r"[A-Z][a-z]+_[A-Z][a-z]+")
 
 
 @pytest.fixture(scope="module")
@@ -87,9 +91,10 @@ def test_trajectory_has_its_curves_labels_and_legend(polished):
     (ax,) = fig.axes
     assert _labels(ax) == ["departure orbit", "target orbit", "closed form (NLP)",
                            "CVODES (Eqs. 1-2)", "polished, CVODES (Eqs. 1-2)",
-                           "segment starts"]
+                           "segment starts", "Sun"]
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("x (au)", "y (au)")
-    assert ax.get_title().startswith("tiny: tof ") and "\npolished: tof " in ax.get_title()
+    assert ax.get_title() == ("tiny: closed form verified, polished verified\n"
+                              f"time of flight {d['tof_days_exact']:.2f} days, a_c 1 mm/s²")
     lines = {line.get_label(): line for line in ax.get_lines()}
     cf = d["trajectory"]["closed_form"]
     theta = np.radians(cf["theta_deg"])
@@ -104,35 +109,36 @@ def test_trajectory_has_its_curves_labels_and_legend(polished):
     np.testing.assert_allclose(np.hypot(dx, dy), 1.0, rtol=1e-12)
 
 
+def _rows(fig, twins=()):
+    """The figure's panels read row by row, left to right, twins left out."""
+    return sorted((ax for ax in fig.axes if ax not in twins),
+                  key=lambda ax: (-round(ax.get_position().y0, 3), ax.get_position().x0))
+
+
 @pytest.mark.parametrize("which", ["polished", "throttled"])
 def test_timeline_has_its_panels_curves_and_labels(which, request):
     sol = request.getfixturevalue(which)
     d = sol.to_json()
+    assert len(d["refinement"]["rounds"]) == 1  # no rounds' panel: one dot is no data
     fig = plots.timeline_figure(sol)
     twins = [ax for ax in fig.axes if ax.get_ylabel() == "throttle kappa"]
     assert len(twins) == (1 if which == "throttled" else 0)
-    panels = [ax for ax in fig.axes if ax not in twins]
-    assert len(panels) == 8
-    # Read row by row: the six series, then the local error and refinement panels.
-    panels.sort(key=lambda ax: (-round(ax.get_position().y0, 3), ax.get_position().x0))
+    panels = _rows(fig, twins)
     assert [ax.get_ylabel() for ax in panels] == SERIES + [
-        "closed-form local error (km)", "position miss (km)"]
-    for ax in panels[:6]:
-        if ax.get_ylabel() == "alpha (deg)":
-            (step,) = ax.get_lines()
-            # The polished schedule's pitch, held to the polished time of flight.
-            alphas = [row["alpha_deg"] for row in d["polish"]["schedule"]]
-            np.testing.assert_array_equal(step.get_ydata(), alphas + alphas[-1:])
-            assert step.get_xdata()[-1] == d["tof_days_exact"]
-        else:
-            assert [line.get_label() for line in ax.get_lines()] == [
-                "closed form", "CVODES", "polished (CVODES)"]
+        plots.PITCH_LABEL, plots.LOCAL_ERROR_LABEL, plots.THRUST_LABEL]
+    for ax in panels[:5]:
+        assert [line.get_label() for line in ax.get_lines()] == [
+            "closed form", "CVODES", "polished (CVODES)"]
+    # The polished schedule's pitch, held to the polished time of flight.
+    (step,) = panels[5].get_lines()
+    alphas = [row["alpha_deg"] for row in d["polish"]["schedule"]]
+    np.testing.assert_array_equal(step.get_ydata(), alphas + alphas[-1:])
+    assert step.get_xdata()[-1] == d["tof_days_exact"]
+    assert panels[5].get_position().x0 > 0.5  # the pitch (and its throttle) on the right
     assert _labels(panels[0]) == ["closed form", "CVODES", "polished (CVODES)"]
-    assert [ax.get_xlabel() for ax in panels] == [""] * 4 + ["t (days)"] * 3 + [
-        "error-control round"]
-    assert panels[6].get_yscale() == panels[7].get_yscale() == "log"
-    assert _labels(panels[7]) == ["flown miss", "tolerance"]
-    assert "polished Solve_Succeeded" in fig._suptitle.get_text()
+    assert [ax.get_xlabel() for ax in panels] == [""] * 6 + [plots.DAYS_LABEL] * 2
+    assert panels[6].get_yscale() == "log"
+    assert "polished" in fig._suptitle.get_text()
     if twins:
         kappa = [row["throttle"] for row in d["polish"]["schedule"]]
         np.testing.assert_array_equal(twins[0].get_lines()[0].get_ydata(), kappa + kappa[-1:])
@@ -146,12 +152,11 @@ def test_timeline_limits_hold_the_closed_form_and_its_flight(polished):
     flights = [d["trajectory"][key] for key in ("closed_form", "cvodes", "polished")]
     fig = plots.timeline_figure(polished)
     panels = {ax.get_ylabel(): ax for ax in fig.axes}
-    for key, label in plots.TIMELINE_PANELS:
+    low, high = panels[plots.PITCH_LABEL].get_ylim()
+    assert low <= -90 and high >= 90
+    for key, label in plots.SERIES.items():
         ax = panels[label]
         low, high = ax.get_ylim()
-        if key is None:
-            assert low <= -90 and high >= 90
-            continue
         values = np.concatenate([flight[key] for flight in flights])
         span = values.max() - values.min()
         assert low == pytest.approx(values.min() - 0.05 * span, rel=1e-9, abs=1e-12)
@@ -162,7 +167,20 @@ def test_timeline_limits_hold_the_closed_form_and_its_flight(polished):
     assert high == pytest.approx(t.max() + 0.05 * np.ptp(t), rel=1e-12)
 
 
-@pytest.mark.parametrize("which", ["polished", "throttled", "narrow", "flown3d"])
+@pytest.fixture(scope="module")
+def two_rounds(polished):
+    """The same data with two error-control rounds, the second within the tolerance,
+    and without local errors (as a file of another segment method would be)."""
+    data = copy.deepcopy(polished.to_json())
+    rounds = data["refinement"]["rounds"]
+    rounds.append(dict(rounds[0], round=1, target_miss_r_km=rounds[0]["target_miss_r_km"] / 1e4))
+    for row in data["schedule"]:
+        del row["local_error_km"]
+    return Solution.from_json(data)
+
+
+@pytest.mark.parametrize("which", ["polished", "throttled", "narrow", "flown3d",
+                                   "planar_mars", "two_rounds"])
 def test_nothing_is_clipped_or_overlapping(which, request):
     sol = request.getfixturevalue(which)
     for fig in (plots.trajectory_figure(sol), plots.timeline_figure(sol)):
@@ -209,30 +227,38 @@ def planar_mars():
 @pytest.mark.parametrize("which", ["polished", "planar_mars"])
 def test_planar_figures_keep_their_axes(which, request):
     """A planar solution has no clock: one trajectory view, and the timeline's eight
-    panels (none of them the clock or the inclination)."""
+    panels (none of them the clock or the inclination), and the rounds' when there
+    were more than one."""
     sol = request.getfixturevalue(which)
     assert not plots.three_d(sol)
     assert len(plots.trajectory_figure(sol).axes) == 1
     labels = [ax.get_ylabel() for ax in plots.timeline_figure(sol).axes]
-    assert len(labels) == 8
+    rounds = len(sol.rounds) > 1
+    assert len(labels) == 8 + rounds and set(SERIES) <= set(labels)
+    assert (plots.ROUNDS_LABEL in labels) == rounds
     assert plots.CLOCK_LABEL not in labels and plots.INCLINATION_LABEL not in labels
 
 
 def test_trajectory_in_3d_shows_the_flight_from_above_and_from_the_side(flown3d):
     """The top view is the CVODES flight's x, y and the side view its z (au) against its
-    t (days); the bodies' tracks start and end where the verified flight does (the
-    departure is the Earth's state, the rendezvous meets Mars within the tolerance)."""
+    date; the bodies' tracks start and end where the verified flight does (the
+    departure is the Earth's state, the rendezvous meets Mars within the tolerance),
+    marked there and so named in the legend."""
     d = flown3d.to_json()
     cv = d["trajectory"]["cvodes"]
     assert d["schema_version"] == 7
-    top, side = plots.trajectory_figure(flown3d).axes
+    fig = plots.trajectory_figure(flown3d)
+    top, side = fig.axes
     assert (top.get_xlabel(), top.get_ylabel()) == ("x (au)", "y (au)")
-    assert (side.get_xlabel(), side.get_ylabel()) == ("t since departure (days)", "z (au)")
+    assert (side.get_xlabel(), side.get_ylabel()) == (plots.DATE_LABEL, "z (au)")
+    assert fig._suptitle.get_text().startswith("em3d in 3-D: verified\n")
+    assert top.get_title().startswith("from above")
+    assert side.get_title().startswith("from the side")
     x, y = _lines(top)[FLOWN].get_data()
     np.testing.assert_array_equal(x, cv["x_au"])
     np.testing.assert_array_equal(y, cv["y_au"])
     t, z = _lines(side)[FLOWN].get_data()
-    np.testing.assert_array_equal(t, cv["t_days"])
+    np.testing.assert_allclose(t - _day_number("2031-01-01"), cv["t_days"], rtol=0, atol=1e-9)
     np.testing.assert_array_equal(z, cv["z_au"])
     assert np.ptp(z) * AU_KM > 1e6  # Mars's plane is 1.85 deg off: the flight leaves the ecliptic
     assert len(_lines(side)["segment starts"].get_xdata()) == len(d["schedule"])
@@ -243,7 +269,9 @@ def test_trajectory_in_3d_shows_the_flight_from_above_and_from_the_side(flown3d)
         for body, end, bound in ((earth, 0, 1e-9), (mars, -1, miss_au)):
             assert abs(body[0][end] - flight[0][end]) <= bound
             assert abs(body[1][end] - flight[1][end]) <= bound
-    assert abs(_lines(side)["mars over the flight"].get_xdata()[-1] - d["tof_days"]) < 1e-6
+    assert abs(_lines(side)["mars over the flight"].get_xdata()[-1]
+               - _day_number(d["arrival_date"])) < 1e-6
+    _assert_marked_bodies(top, d)
 
 
 def test_timeline_in_3d_adds_the_clock_and_the_inclination(flown3d):
@@ -252,18 +280,23 @@ def test_timeline_in_3d_adds_the_clock_and_the_inclination(flown3d):
     d = flown3d.to_json()
     fig = plots.timeline_figure(flown3d)
     panels = {ax.get_ylabel(): ax for ax in fig.axes}
-    assert len(fig.axes) == 10 and set(SERIES) <= set(panels)
+    assert len(fig.axes) == 10 + (len(d["refinement"]["rounds"]) > 1)
+    assert set(SERIES) <= set(panels)
     clock_rows = [float(row["clock_deg"]) for row in
                   csv.DictReader(io.StringIO(flown3d.schedule_csv()))]
     (step,) = panels[plots.CLOCK_LABEL].get_lines()
+    day0 = _day_number("2031-01-01")
     np.testing.assert_array_equal(step.get_ydata(), clock_rows + clock_rows[-1:])
-    np.testing.assert_array_equal(step.get_xdata(),
-                                  [row["t_days"] for row in d["schedule"]] + [d["tof_days"]])
+    np.testing.assert_allclose(step.get_xdata() - day0, [row["t_days"] for row in d["schedule"]]
+                               + [d["tof_days"]], rtol=0, atol=1e-9)
     (incl,) = panels[plots.INCLINATION_LABEL].get_lines()
     cv = d["trajectory"]["cvodes"]
-    np.testing.assert_array_equal(incl.get_xdata(), cv["t_days"])
+    np.testing.assert_allclose(incl.get_xdata() - day0, cv["t_days"], rtol=0, atol=1e-9)
     np.testing.assert_array_equal(incl.get_ydata(), cv["inclination_deg"])
-    assert panels[plots.INCLINATION_LABEL].get_xlabel() == "t (days)"
+    series = [ax for ax in _rows(fig) if ax.get_ylabel() != plots.ROUNDS_LABEL]
+    assert [ax.get_ylabel() for ax in series[-4:]] == [
+        plots.CLOCK_LABEL, plots.PITCH_LABEL, plots.LOCAL_ERROR_LABEL, plots.THRUST_LABEL]
+    assert [ax.get_xlabel() for ax in series[-2:]] == [plots.DATE_LABEL] * 2
 
 
 def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
@@ -281,7 +314,162 @@ def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
     top, side = plots.trajectory_figure(loaded).axes
     np.testing.assert_array_equal(_lines(side)[FLOWN].get_ydata(),
                                   flown3d.trajectory_cvodes.three_d["z_au"])
-    assert len(plots.timeline_figure(loaded).axes) == 10
+    assert len(plots.timeline_figure(loaded).axes) == len(plots.timeline_figure(flown3d).axes)
+
+
+def _day_number(iso):
+    """matplotlib's date number of an ISO date, counted here by hand: days since
+    matplotlib's epoch."""
+    epoch = datetime.fromisoformat(mdates.get_epoch())
+    return (datetime.fromisoformat(iso) - epoch).total_seconds() / 86400
+
+
+def _assert_marked_bodies(ax, d):
+    """Each body's track has a circle where it starts (the departure) and a square where
+    it ends (the arrival), and the legend says which is which, with the dates."""
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert f"at departure, {d['departure_date'][:10]}" in legend
+    assert f"at arrival, {d['arrival_date'][:10]}" in legend
+    assert "Sun" in legend
+    marks = {(line.get_marker(), line.get_xdata()[0], line.get_ydata()[0])
+             for line in ax.get_lines() if len(line.get_xdata()) == 1}
+    tracks = [line for line in ax.get_lines() if line.get_label().endswith(" over the flight")]
+    assert len(tracks) == 2
+    for track in tracks:
+        x, y = track.get_data()
+        assert ("o", x[0], y[0]) in marks and ("s", x[-1], y[-1]) in marks
+
+
+def test_a_dated_planar_trajectory_marks_the_bodies_in_its_legend(planar_mars):
+    d = planar_mars.to_json()
+    (ax,) = plots.trajectory_figure(planar_mars).axes
+    _assert_marked_bodies(ax, d)
+
+
+def test_a_dated_timeline_runs_on_calendar_dates_from_the_departure(planar_mars):
+    """Every time axis of a dated solution reads calendar dates, ISO style, each at its
+    tick, and its curves start at the departure date (2031-01-01 here)."""
+    d = planar_mars.to_json()
+    fig = plots.timeline_figure(planar_mars)
+    _drawn(fig)
+    day0, arrival = _day_number("2031-01-01"), _day_number(d["arrival_date"])
+    epoch = datetime.fromisoformat(mdates.get_epoch())
+    panels = [ax for ax in _rows(fig) if ax.get_ylabel() != plots.ROUNDS_LABEL]
+    assert len(panels) == 8
+    for ax in panels:
+        assert min(line.get_xdata()[0] for line in ax.get_lines()) == pytest.approx(day0,
+                                                                                     abs=1e-9)
+        low, high = ax.get_xlim()
+        assert low < day0 < arrival < high and day0 - low < 0.06 * (arrival - day0)
+        ticks = [(x, t.get_text()) for x, t in zip(ax.get_xticks(), ax.get_xticklabels())
+                 if low <= x <= high]
+        assert len(ticks) >= 3
+        for x, text in ticks:
+            assert re.fullmatch(r"\d{4}-\d{2}(-\d{2})?", text)
+            assert (epoch + timedelta(days=float(x))).isoformat().startswith(text)
+    assert [ax.get_xlabel() for ax in panels[-2:]] == [plots.DATE_LABEL] * 2
+
+
+def _thrust_line(fig):
+    (ax,) = [ax for ax in fig.axes if ax.get_ylabel() == plots.THRUST_LABEL]
+    (line,) = ax.get_lines()
+    return line
+
+
+def test_thrust_at_zero_pitch_and_full_throttle_is_a_c_at_1_au_over_r(polished):
+    """At alpha = 0 and throttle 1, (R, T, N) = (1, 0, 0): the thrust panel draws
+    a_c (1 au / r) at every sample of the flight that flies (the polished one)."""
+    data = copy.deepcopy(polished.to_json())
+    data["problem"]["ac_mm_s2"] = 0.37
+    for row in data["polish"]["schedule"]:
+        row["alpha_deg"] = 0.0
+    t, a = _thrust_line(plots.timeline_figure(Solution.from_json(data))).get_data()
+    flown = data["trajectory"]["polished"]
+    assert set(t) == set(flown["t_days"])
+    np.testing.assert_allclose(a, 0.37 / np.interp(t, flown["t_days"], flown["r_au"]),
+                               rtol=1e-15, atol=0)
+
+
+@pytest.mark.parametrize("name", ["earth_venus_min_ac_planar", "earth_mars_min_ac"])
+def test_thrust_is_the_sails_acceleration_at_the_flown_radius(name):
+    """On a committed MinAcceleration solve (throttled; the second polished, in 3-D),
+    the thrust panel draws kappa (a_c / 2)(1 au / r) sqrt(1 + 3 cos^2 alpha), Huo's
+    exact model whatever the clock (PHYSICS-NOTES), with the a_c the flight needed, at
+    every sample inside a segment."""
+    path = RESULTS / name / "solution.json"
+    if not path.exists():
+        pytest.skip(f"no committed {name}")
+    d = json.loads(path.read_text())
+    assert d["problem"]["coefficients"] == [0.75, 0.25]
+    polished = d["trajectory"].get("polished") is not None
+    source = d["polish"] if polished else d
+    sched, a_c = source["schedule"], source["ac_mm_s2_required"]
+    flown = d["trajectory"]["polished" if polished else "cvodes"]
+    t, a = _thrust_line(plots.timeline_figure(Solution.load(path))).get_data()
+    t = t - _day_number(source["departure_date"])
+    starts = np.array([row["t_days"] for row in sched])
+    inside = 0
+    for ts, r in zip(flown["t_days"], flown["r_au"]):
+        if np.isclose(ts, starts, rtol=0, atol=1e-6).any():
+            continue
+        row = sched[np.searchsorted(starts, ts) - 1]
+        expected = (row["throttle"] * a_c / 2 / r
+                    * np.sqrt(1 + 3 * np.cos(np.radians(row["alpha_deg"]))**2))
+        (i,) = np.flatnonzero(np.abs(t - ts) < 1e-7)
+        assert a[i] == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        inside += 1
+    assert inside > len(flown["t_days"]) / 2
+
+
+def test_a_panel_without_data_is_not_drawn(polished, two_rounds):
+    """One error-control round is one dot: no axes for it.  Two get a strip across both
+    columns under the series; a schedule without local errors has no local error panel,
+    and the thrust, then the last of seven, spans both columns: no cell is empty."""
+    fig = plots.timeline_figure(polished)
+    assert plots.ROUNDS_LABEL not in [ax.get_ylabel() for ax in fig.axes]
+    assert all(ax.get_lines() for ax in fig.axes)
+    fig = plots.timeline_figure(two_rounds)
+    panels = _rows(fig)
+    labels = [ax.get_ylabel() for ax in panels]
+    assert plots.LOCAL_ERROR_LABEL not in labels
+    assert labels == SERIES + [plots.PITCH_LABEL, plots.THRUST_LABEL, plots.ROUNDS_LABEL]
+    left, right = panels[0].get_position(), panels[1].get_position()
+    for ax in panels[-2:]:
+        assert ax.get_position().x0 == pytest.approx(left.x0)
+        assert ax.get_position().x1 == pytest.approx(right.x1)
+    miss, tolerance = panels[-1].get_lines()
+    rounds = two_rounds.to_json()["refinement"]["rounds"]
+    assert list(miss.get_ydata()) == [r["target_miss_r_km"] for r in rounds]
+    assert all(ax.get_lines() for ax in fig.axes)
+
+
+@pytest.fixture(scope="module")
+def failed(polished):
+    """The same data as a closed-form solve that hit Ipopt's iteration limit."""
+    data = copy.deepcopy(polished.to_json())
+    data.update(status="Maximum_Iterations_Exceeded", outcome="failed", converged=False,
+                verified=False)
+    return Solution.from_json(data)
+
+
+@pytest.mark.parametrize("which", ["polished", "flown3d", "planar_mars", "failed"])
+def test_titles_say_in_words_the_verdict_the_time_of_flight_a_c_and_dates(which, request):
+    sol = request.getfixturevalue(which)
+    d = sol.to_json()
+    polished = d["trajectory"].get("polished") is not None
+    tof = f"{d['tof_days_exact']:.2f}" if polished else f"{d['tof_days']:.1f}"
+    for fig in (plots.trajectory_figure(sol), plots.timeline_figure(sol)):
+        head = (fig._suptitle or fig.axes[0].title).get_text()
+        text = " ".join([head] + [ax.get_title() for ax in fig.axes])
+        assert not IPOPT_STATUS.search(text) and d["status"] not in text
+        name, verdict = head.split("\n")[0].split(": ", 1)
+        assert name == d["problem"]["name"] + (" in 3-D" if which == "flown3d" else "")
+        assert verdict == {"polished": "closed form verified, polished verified",
+                           "failed": "closed form not verified (Ipopt: failed), "
+                                     "polished verified"}.get(which, "verified")
+        assert f"time of flight {tof} days, a_c 1 mm/s²" in head
+        if sol.dated:
+            assert head.endswith(f", {d['departure_date'][:10]} to {d['arrival_date'][:10]}")
 
 
 def test_a_target_bodys_distance_from_the_ecliptic_means_one_thing(flown3d):

@@ -2,20 +2,25 @@
 (a solution loaded from its file plots as the fresh one did).
 
 ``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
-the departure and target orbits and the segment boundaries.  ``timeline.png``: r, v_r,
-v_theta, alpha_n (with the throttle kappa on a second axis when the problem has one) and
-the osculating a and e against time, then the closed form's local error per segment
-(where it is strained) and the flown miss of each error-control round against the
-tolerance.
-A polished solution adds the CVODES flight of its polished schedule to both, and the
-pitch panel shows that schedule.
+the departure and target orbits (or the bodies over the flight, marked at the departure
+and at the arrival) and the segment starts.  A solution flown in three dimensions (its
+schedule has a clock angle, solution.json schema 5) is drawn in two views of its
+CVODES flight in the ecliptic's Cartesian coordinates: from above (x, y) and from the
+side (z against time); the closed form's samples are polar in their own turning plane,
+and the record holds no Cartesian form of them.
 
-A solution flown in three dimensions (its schedule has a clock angle, solution.json
-schema 5) draws ``trajectory.png`` from above and from the side (z against the days
-since departure), the bodies on their unprojected tracks, and adds the clock angle and
-the osculating inclination to ``timeline.png``.  Both 3-D views show the CVODES flight
-in the ecliptic's Cartesian coordinates: the closed form's samples are polar in their own turning
-plane, and the record holds no Cartesian form of them.
+``timeline.png``: against time, r, v_r, v_theta and the osculating a and e (and, in
+3-D, the osculating inclination), the sail's attitude (pitch, with the throttle on a
+second axis when the problem has one, and the clock in 3-D), the thrust acceleration
+along the flight (:func:`thrust_acceleration`), and the closed form's local error per
+segment; under them the flown miss of each error-control round, when there was more
+than one.  A panel without data is not drawn.  A polished solution adds the CVODES
+flight of its polished schedule, and the attitude and thrust panels show that
+schedule, the one that flies.
+
+A dated solution's time axes are calendar dates (TDB), an undated one's the days since
+departure.  The titles say in words whether the flight is verified, its time of
+flight, a_c and dates (:func:`headline`).
 
 Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
 caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
@@ -27,14 +32,19 @@ matplotlib: the rest of the package imports it only when a figure is drawn.
 
 import functools
 import re
+from datetime import datetime
 from pathlib import Path
+from types import SimpleNamespace
 
+import matplotlib.dates as mdates
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import LogFormatterSciNotation
 
 from esail_opt.app.files import atomic_path, figure_bytes
+from esail_opt.physics import thrust
 
 
 def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
@@ -83,18 +93,18 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
 #: room for the y tick labels and label on the left, the x ones below and a two-line
 #: title above; the legend is inside.  Constrained layout chose about these.
 TRAJECTORY_MARGINS = dict(left=0.106, right=0.993, bottom=0.094, top=0.925)
+#: The trajectory's title size (points), for its two lines of :func:`headline`.
+TRAJECTORY_TITLE_SIZE = 10
 
 #: The timeline's columns on its 10 in width: room for the left column's y labels, and
 #: between the columns for the right column's.
 TIMELINE_COLUMNS = dict(left=0.067, right=0.987, wspace=0.185)
 #: The timeline's right edge when the pitch panel carries the throttle's own axis.
 TIMELINE_RIGHT_WITH_THROTTLE = 0.944
-#: The six time series, three rows under the figure's title: the gap between two rows
-#: holds a row's x tick labels.
-TIMELINE_SERIES_ROWS = dict(top=0.955, bottom=0.3085, hspace=0.153)
-#: The error panels' row, in a grid of its own so that the wider gap above it holds
-#: the "t (days)" labels of the last series and the local error panel's title.
-TIMELINE_ERROR_ROW = dict(top=0.2405, bottom=0.045)
+#: The timeline's rows, inches: above the first (the two-line title), each panel,
+#: between two rows (a row's x tick labels), and below the last (its tick labels and
+#: the time label); the error-control rounds' strip, under as wide a gap, when drawn.
+TIMELINE_ROWS_IN = dict(title=0.75, panel=1.9, gap=0.31, foot=0.5, rounds=1.6)
 
 
 #: The resolution the two figures are made and written at: the labels that
@@ -104,9 +114,10 @@ DPI = 150
 LABEL_PAD_IN = 3 / 72
 
 
-def _fit_columns(fig, axes):
-    """Set the left margin, and the gap between the columns of ``axes`` (an array of
-    rows of Axes whose grids share their columns), to the widest y labels of each column.
+def _fit_columns(fig, left, right=()):
+    """Set the left margin to the widest y labels of the Axes ``left`` (those at the
+    figure's left edge), and the gap between the columns of a two-column grid to those
+    of the Axes ``right`` (its right column).
 
     A panel's y tick labels depend on its height only, which this leaves alone, so one
     measurement is final.  It is a small part of what constrained layout does to the
@@ -122,28 +133,28 @@ def _fit_columns(fig, axes):
         return pad + max(ax.get_window_extent(renderer).x0
                          - ax.yaxis.get_tightbbox(renderer).x0 for ax in column) / width
 
-    axes = np.atleast_2d(axes)
-    left = room(axes[:, 0])
-    grids = {id(g): g for g in (ax.get_subplotspec().get_gridspec() for ax in axes[:, 0])}
-    _fit_right(fig, renderer, grids.values(), pad, axes[:, -1])
+    margin = room(left)
+    grids = {id(g): g for g in (ax.get_subplotspec().get_gridspec() for ax in left)}
+    placed = [ax for ax in fig.axes if ax.get_subplotspec() is not None
+              and id(ax.get_subplotspec().get_gridspec()) in grids]
+    edge = [ax for ax in placed
+            if ax.get_subplotspec().colspan.stop == ax.get_subplotspec().get_gridspec().ncols]
+    _fit_right(fig, renderer, grids.values(), pad, edge)
+    gap = room(right) if len(right) else 0.0
     for grid in grids.values():
-        if axes.shape[1] == 1:
-            grid.update(left=left)
-        else:
-            gap = room(axes[:, 1])
-            panel = (grid.get_subplot_params(fig).right - left - gap) / 2
-            grid.update(left=left, wspace=gap / panel)
+        grid.update(left=margin)
+        if grid.ncols == 2:
+            panel = (grid.get_subplot_params(fig).right - margin - gap) / 2
+            grid.update(wspace=gap / panel)
     # GridSpec.update moves the Axes of pyplot's figures only; these (twins too) are
     # moved here.
-    for ax in fig.axes:
-        spec = ax.get_subplotspec()
-        if spec is not None and id(spec.get_gridspec()) in grids:
-            ax.set_position(spec.get_position(fig))
+    for ax in placed:
+        ax.set_position(ax.get_subplotspec().get_position(fig))
 
 
 def _fit_right(fig, renderer, grids, pad, right):
     """Move the right edge of ``grids`` left by as much as an x tick label of the Axes
-    ``right`` (the right-hand column, the only ones whose labels can reach the edge)
+    ``right`` (those at the right edge, the only ones whose labels can reach it)
     reaches past the figure's right edge less ``pad`` (a fraction of its width), and not
     at all when none does: the last label is centred on a panel's right end, and a time
     axis that ends at 1000 days puts half of its "1000" beyond a margin fixed for
@@ -155,37 +166,6 @@ def _fit_right(fig, renderer, grids, pad, right):
     if over > 0:
         for grid in grids:
             grid.update(right=grid.get_subplot_params(fig).right - over)
-
-
-#: The timeline's height with its three rows of series, inches.
-TIMELINE_HEIGHT_IN = 10.5
-
-
-def _timeline_rows(rows):
-    """The series' and the error row's grids for ``rows`` rows of series, and the
-    figure's height: each row of series as tall as in the three-row timeline, and the
-    margins and the error row as many inches as there."""
-    h = TIMELINE_HEIGHT_IN
-    top, bottom, space = (TIMELINE_SERIES_ROWS[k] for k in ("top", "bottom", "hspace"))
-    panel = (top - bottom) * h / (3 + 2 * space)
-    height = h + (rows - 3) * panel * (1 + space)
-    series = dict(top=1 - (1 - top) * h / height, bottom=bottom * h / height, hspace=space)
-    errors = {k: v * h / height for k, v in TIMELINE_ERROR_ROW.items()}
-    return series, errors, height
-
-
-def _timeline_axes(throttled, rows=3):
-    """A new timeline figure and its (``rows`` + 1) x 2 array of Axes, placed once by
-    fixed margins (see :func:`axes_or_new` on why not constrained layout); ``throttled``
-    widens the right margin for the throttle's axis."""
-    columns = dict(TIMELINE_COLUMNS)
-    if throttled:
-        columns["right"] = TIMELINE_RIGHT_WITH_THROTTLE
-    series_rows, error_row, height = _timeline_rows(rows)
-    fig = Figure(figsize=(10, height), dpi=DPI)
-    series = fig.add_gridspec(rows, 2, **columns, **series_rows).subplots()
-    errors = fig.add_gridspec(1, 2, **columns, **error_row).subplots(squeeze=False)
-    return fig, np.vstack([series, errors])
 
 
 #: Digits and minus as Unicode superscripts, for :class:`PlainLogFormatter`.
@@ -242,28 +222,172 @@ def _orbit_xy(a, e, omega_rad=0.0, points=361):
     return r * np.cos(nu + omega_rad), r * np.sin(nu + omega_rad)
 
 
+def _samples_xy(samples):
+    return _xy(samples.r_au, samples.theta_deg)
+
+
 def _xy(r_au, theta_deg):
     r = np.asarray(r_au, float)
     th = np.radians(np.asarray(theta_deg, float))
     return r * np.cos(th), r * np.sin(th)
 
 
-def _samples_xy(samples):
-    return _xy(samples.r_au, samples.theta_deg)
+# ------------------------------------------------------------------ words, time, the flight
 
 
-def _draw_bodies(ax, sol):
-    """The departure and target bodies on their real orbits over the flight (ephemeris
-    or elements, projected on the ecliptic), each at the departure and at the arrival."""
-    from esail_opt.bodies import lookup
+def headline(sol):
+    """A figure's title in two lines of words: the problem's name (with "in 3-D" when so
+    flown) and whether its flight is verified (and the polished one's), then the time of
+    flight, a_c (the one needed, for MinAcceleration) and the dates of a dated problem;
+    after a polish, the polished flight's."""
+    verdict = _verdict(sol.flight_verified, sol.outcome)
+    if sol.polished:
+        verdict = (f"closed form {verdict}, polished "
+                   + _verdict(sol.polish.verified, sol.polish.outcome))
+    flown = _flown(sol)
+    facts = [f"time of flight {flown.tof_days:.{2 if flown.polished else 1}f} days",
+             f"a_c {'needed ' if sol.ac_mm_s2_required is not None else ''}"
+             f"{flown.ac_mm_s2:.4g} mm/s²"]
+    if flown.departure_date is not None:
+        facts.append(f"{flown.departure_date[:10]} to {flown.arrival_date[:10]}")
+    name = sol.problem.name + (" in 3-D" if three_d(sol) else "")
+    return f"{name}: {verdict}\n" + ", ".join(facts)
 
-    start, jd, pairs = _flight_bodies(sol)
+
+def _verdict(verified, outcome):
+    """"verified", or "not verified" with Ipopt's outcome in a word when it did not converge."""
+    if verified:
+        return "verified"
+    if outcome is None or outcome.value == "converged":
+        return "not verified"
+    return f"not verified (Ipopt: {outcome.value})"
+
+
+def _flown(sol):
+    """The flight that flies, which the attitude and thrust panels show: after a polish
+    its schedule and CVODES samples, else the closed form's schedule and its CVODES
+    flight (the closed form's samples when CVODES failed); with its time of flight,
+    a_c (``ac_mm_s2_required`` for MinAcceleration) and dates."""
+    ac = sol.ac_mm_s2_required if sol.ac_mm_s2_required is not None else sol.problem.ac_mm_s2
+    if sol.trajectory_polished is None:
+        cv = sol.trajectory_cvodes
+        return SimpleNamespace(
+            polished=False, schedule=sol.schedule, tof_days=sol.tof_days, ac_mm_s2=ac,
+            samples=cv if cv is not None else sol.trajectory_closed_form,
+            departure_date=sol.departure_date, arrival_date=sol.arrival_date)
+    p = sol.polish
+    return SimpleNamespace(
+        polished=True, schedule=p.schedule, tof_days=sol.tof_days_exact,
+        samples=sol.trajectory_polished,
+        ac_mm_s2=p.ac_mm_s2_required if p.ac_mm_s2_required is not None else ac,
+        departure_date=p.departure_date or sol.departure_date,
+        arrival_date=p.arrival_date or sol.arrival_date)
+
+
+#: The time axes' labels: a dated solution's, and an undated one's.
+DATE_LABEL = "date (TDB)"
+DAYS_LABEL = "t since departure (days)"
+
+
+def _day_zero(date):
+    """Where day 0 of a flight that departs on ``date`` (ISO 8601, TDB; None when
+    undated) lies on the time axes: its matplotlib date number (days), or 0."""
+    return 0.0 if date is None else mdates.date2num(datetime.fromisoformat(date))
+
+
+def _time_axis(ax, sol):
+    """Calendar dates, ISO style, on the x axis of ``ax`` (and of the Axes that share
+    it) for a dated solution; returns the time axis's label."""
+    if not sol.dated:
+        return DAYS_LABEL
+    locator = mdates.AutoDateLocator(minticks=3, maxticks=7)
+    formatter = mdates.AutoDateFormatter(locator, defaultfmt="%Y-%m-%d")
+    formatter.scaled = {1 / 24: "%Y-%m-%d %H:%M", 1.0: "%Y-%m-%d", 30.0: "%Y-%m",
+                        365.0: "%Y-%m"}
+    ax.xaxis.set_major_locator(locator)
+    ax.xaxis.set_major_formatter(formatter)
+    return DATE_LABEL
+
+
+def thrust_acceleration(sol):
+    """The sail's thrust acceleration along the flight that flies (:func:`_flown`):
+    |a| = kappa a_c (r_E / r) |(R, T, N)|, with r_E = 1 au (a_c is the acceleration at
+    1 au), (R, T, N) of each segment's pitch and clock
+    (:func:`esail_opt.physics.thrust.radial_transverse_normal`) and r of the samples.
+
+    Returns
+    -------
+    t_days, a_mm_s2 : numpy.ndarray
+        Days since departure and |a| (mm/s²) at each sample; a sample on a segment's
+        start comes twice, with the segment it ends and the one it starts, so the steps
+        of the piecewise-constant schedule are drawn upright.
+    """
+    flown = _flown(sol)
+    sched = flown.schedule
+    t = np.asarray(flown.samples.t_days, float)
+    starts = np.array([row.t_days for row in sched])
+    # Within 0.1 s of a start a sample lies on it (the samples end and start segments).
+    before = np.searchsorted(starts, t - 1e-6) - 1
+    after = np.searchsorted(starts, t + 1e-6, side="right") - 1
+    seg = np.clip(np.column_stack([before, after]), 0, len(sched) - 1)
+    keep = np.column_stack([np.ones(len(t), bool), seg[:, 0] != seg[:, 1]]).ravel()
+    seg = seg.ravel()[keep]
+
+    def column(name, default):
+        return np.array([default if getattr(row, name) is None else getattr(row, name)
+                         for row in sched], float)[seg]
+
+    rtn = thrust.radial_transverse_normal(np.radians(column("alpha_deg", 0.0)),
+                                          np.radians(column("clock_deg", 0.0)),
+                                          tuple(sol.problem.coefficients))
+    factor = np.sqrt(sum(np.array(f, float).ravel()**2 for f in rtn))  # |(R, T, N)|
+    r_au = np.repeat(np.asarray(flown.samples.r_au, float), 2)[keep]
+    r_e_au = 1.0
+    return np.repeat(t, 2)[keep], column("throttle", 1.0) * flown.ac_mm_s2 * r_e_au / r_au * factor
+
+
+# --------------------------------------------------------------------------- trajectory
+
+
+def _draw_bodies(sol, top, side=None):
+    """The departure and target bodies on their real tracks over the flight (DE421, or
+    a small body's elements, in the ecliptic of J2000): x, y into ``top`` (for a planar
+    solution, the projection on the ecliptic), and z against the date into ``side``;
+    each marked at the departure (circle) and at the arrival (square), as
+    :func:`_legend` explains."""
+    from esail_opt.bodies import dates, lookup
+
+    prob = sol.problem
+    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
+    jd = np.linspace(start, end, 200)
+    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
+    if sol.target_body is not None:
+        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
     for label, body, colour in pairs:
-        # The projection on the ecliptic is the ecliptic x and y, read for all the dates
-        # in one call (the polar states put theta on the track's branch, one by one).
-        x, y = lookup.ecliptic_state(lookup.resolve(body), jd)[:2]
-        ax.plot(x, y, color=colour, lw=0.8, ls="--", label=f"{label} over the flight")
-        ax.plot(x[[0, -1]], y[[0, -1]], "o", color=colour, ms=4)
+        # All the dates in one call (the polar states put theta on the track's branch,
+        # one by one).
+        x, y, z = lookup.ecliptic_state(lookup.resolve(body), jd)[:3]
+        views = [(top, x, y)]
+        if side is not None:
+            views.append((side, _day_zero(sol.departure_date) + (jd - start), z))
+        for ax, u, v in views:
+            ax.plot(u, v, color=colour, lw=0.8, ls="--", label=f"{label} over the flight")
+            for end, marker in ((0, "o"), (-1, "s")):
+                ax.plot(u[[end]], v[[end]], marker, color=colour, mec="k", mew=0.6, ms=5,
+                        zorder=3)
+
+
+def _legend(ax, sol):
+    """The legend of ``ax``, with the bodies' markers at the departure (circle) and the
+    arrival (square) explained once, with their dates, for every body."""
+    handles, labels = ax.get_legend_handles_labels()
+    if sol.dated:
+        for marker, when, date in (("o", "departure", sol.departure_date),
+                                   ("s", "arrival", sol.arrival_date)):
+            handles.append(Line2D([], [], ls="none", marker=marker, mfc="w", mec="k",
+                                  mew=0.6, ms=5))
+            labels.append(f"at {when}, {date[:10]}")
+    _plain_legend(ax.legend(handles, labels, fontsize=7, loc="upper right"))
 
 
 def _draw_orbits(ax, sol):
@@ -279,7 +403,7 @@ def _draw_orbits(ax, sol):
                 label="departure a (circle)")
     tgt = prob.target
     if sol.dated:
-        _draw_bodies(ax, sol)
+        _draw_bodies(sol, ax)
     elif tgt is not None:
         if tgt.kind == "Orbit":
             # The apse line is free: draw the circle of radius a as a guide.
@@ -289,6 +413,10 @@ def _draw_orbits(ax, sol):
             xy = _orbit_xy(tgt.radius_au, 0.0)
             label = "target orbit"
         ax.plot(*xy, color="tab:green", lw=0.8, ls="--", label=label)
+
+
+def _sun(ax):
+    ax.plot([0], [0], "*", color="orange", ms=12, label="Sun")
 
 
 def trajectory_figure(solution, ax=None):
@@ -301,7 +429,6 @@ def trajectory_figure(solution, ax=None):
     sol = solution
     if three_d(sol):
         return _trajectory3d_figure(sol, ax)
-    prob = sol.problem
     created = ax is None
     fig, ax = axes_or_new(ax, figsize=(6.4, 6.4), margins=TRAJECTORY_MARGINS)
     _draw_orbits(ax, sol)
@@ -320,24 +447,18 @@ def trajectory_figure(solution, ax=None):
     th_starts = [row.theta_deg for row in sol.schedule]
     r_starts = [np.interp(th, th_cf, r_cf) for th in th_starts]
     ax.plot(*_xy(r_starts, th_starts), "o", ms=3, color="k", label="segment starts")
-    ax.plot([0], [0], "*", color="orange", ms=12)
+    _sun(ax)
     ax.set_aspect("equal")
     ax.set_xlabel("x (au)")
     ax.set_ylabel("y (au)")
-    title = f"{prob.name}: tof {sol.tof_days:.1f} d, {sol.status}"
-    if sol.tof_days_exact is not None:
-        title += f"\npolished: tof {sol.tof_days_exact:.2f} d, {sol.polish.status}"
     # A title at a given height is not moved clear of ticks above the axes (there are
     # none): matplotlib skips measuring the y axis for it, once per title and draw.
-    ax.set_title(title, y=1.0, parse_math=False)
-    _plain_legend(ax.legend(fontsize=7, loc="upper right"))
+    ax.set_title(headline(sol), y=1.0, fontsize=TRAJECTORY_TITLE_SIZE, parse_math=False)
+    _legend(ax, sol)
     ax.grid(alpha=0.3)
     if created:
-        _fit_columns(fig, [[ax]])
+        _fit_columns(fig, [ax])
     return fig
-
-
-# ------------------------------------------------------------------- in three dimensions
 
 
 def three_d(sol):
@@ -360,16 +481,17 @@ def _flight3d(sol):
     return out
 
 
-#: Where the 3-D trajectory's two views sit on their 6.4 x 9 in figure (fractions):
-#: from above, square, and under it from the side, z against time.
-TRAJECTORY3D_SIZE = (6.4, 9.0)
-TRAJECTORY3D_MARGINS = dict(left=0.12, right=0.965, bottom=0.06, top=0.945, hspace=0.2)
+#: The 3-D trajectory's figure (inches) and where its two views sit on it (fractions):
+#: under the two-line title, from above, square, and under it from the side, z against
+#: time.
+TRAJECTORY3D_SIZE = (6.4, 9.4)
+TRAJECTORY3D_MARGINS = dict(left=0.12, right=0.965, bottom=0.06, top=0.912, hspace=0.22)
 TRAJECTORY3D_HEIGHTS = (3.0, 1.15)
 
 
 def _trajectory3d_figure(sol, axes=None):
-    """A 3-D solution's path from above (x, y: the ecliptic of J2000) and from the side
-    (z against the time since departure, days), with the bodies' real 3-D tracks over the
+    """A 3-D solution's two views: its path from above (x, y: the ecliptic of J2000)
+    and from the side (z against the date), with the bodies' real 3-D tracks over the
     flight and the segment starts (the CVODES samples at the schedule's start times)."""
     created = axes is None
     if created:
@@ -378,8 +500,10 @@ def _trajectory3d_figure(sol, axes=None):
         top, side = fig.subplots(2, 1, height_ratios=TRAJECTORY3D_HEIGHTS)
     else:
         fig, (top, side) = axes_or_new(axes)
-    _draw_bodies3d(top, side, sol)
+    if sol.dated:
+        _draw_bodies(sol, top, side)
     flight = _flight3d(sol)
+    day0 = _day_zero(sol.departure_date)
     if flight is None:
         side.text(0.5, 0.5, "no 3-D flight (CVODES failed)", ha="center",
                   transform=side.transAxes)
@@ -387,47 +511,136 @@ def _trajectory3d_figure(sol, axes=None):
         t = flight["t_days"]
         top.plot(flight["x_au"], flight["y_au"], color="tab:red", lw=1.2,
                  label="CVODES flight")
-        side.plot(t, flight["z_au"], color="tab:red", lw=1.2, label="CVODES flight")
-        starts = [row.t_days for row in sol.schedule]
+        side.plot(day0 + t, flight["z_au"], color="tab:red", lw=1.2, label="CVODES flight")
+        starts = np.array([row.t_days for row in sol.schedule])
         x, y, z = (np.interp(starts, t, flight[k]) for k in ("x_au", "y_au", "z_au"))
         top.plot(x, y, "o", ms=3, color="k", label="segment starts")
-        side.plot(starts, z, "o", ms=3, color="k", label="segment starts")
-    top.plot([0], [0], "*", color="orange", ms=12)
+        side.plot(day0 + starts, z, "o", ms=3, color="k", label="segment starts")
+    _sun(top)
     side.axhline(0.0, color="0.3", lw=0.6)
     top.set_aspect("equal")
     top.set(xlabel="x (au)", ylabel="y (au)")
-    side.set(xlabel="t since departure (days)", ylabel="z (au)")
-    title = f"{sol.problem.name}: tof {sol.tof_days:.1f} d, {sol.status}, in 3-D"
-    top.set_title(title + "\nfrom above: the ecliptic of J2000", y=1.0, parse_math=False)
+    side.set(xlabel=_time_axis(side, sol), ylabel="z (au)")
+    fig.suptitle(headline(sol), fontsize=TRAJECTORY_TITLE_SIZE, parse_math=False)
+    top.set_title("from above: the ecliptic plane of J2000", fontsize=9, y=1.0)
     side.set_title("from the side: height above the ecliptic", fontsize=9, y=1.0)
-    _plain_legend(top.legend(fontsize=7, loc="upper right"))
+    _legend(top, sol)
     for ax in (top, side):
         ax.grid(alpha=0.3)
     if created:
-        _fit_columns(fig, [[top], [side]])
+        _fit_columns(fig, [top, side])
     return fig
 
 
-def _draw_bodies3d(top, side, sol):
-    """The departure and target bodies on their real 3-D states over the flight (DE421
-    unprojected, or a small body's six elements): x, y from above, z against time from
-    the side, each marked at the departure and at the arrival."""
-    from esail_opt.bodies import lookup
+# ----------------------------------------------------------------------------- timeline
 
-    if not sol.dated:
-        return
-    start, jd, pairs = _flight_bodies(sol)
-    for label, body, colour in pairs:
-        x, y, z = lookup.ecliptic_state(lookup.resolve(body), jd)[:3]
-        t = jd - start
-        for ax, (u, v) in ((top, (x, y)), (side, (t, z))):
-            ax.plot(u, v, color=colour, lw=0.8, ls="--", label=f"{label} over the flight")
-            ax.plot(u[[0, -1]], v[[0, -1]], "o", color=colour, ms=4)
+#: The series panels: solution.json's sample fields and their y labels.
+SERIES = {"r_au": "r (au)", "vr_km_s": "v_r (km/s)", "vtheta_km_s": "v_theta (km/s)",
+          "a_au": "osculating a (au)", "e": "osculating e"}
+#: The other panels' y labels.
+PITCH_LABEL = "pitch alpha (deg)"
+CLOCK_LABEL = "clock delta (deg)"
+THRUST_LABEL = "thrust acceleration (mm/s²)"
+INCLINATION_LABEL = "osculating i to ecliptic (deg)"
+LOCAL_ERROR_LABEL = "closed-form local error (km)"
+ROUNDS_LABEL = "position miss (km)"
 
 
-def _pitch_schedule(sol, polished):
-    """The schedule that the pitch panel shows: the polished one when there is one."""
-    return sol.polish.schedule if polished else sol.schedule
+def timeline_panels(sol):
+    """The timeline's panels that have data, in the order drawn (two a row): pairs of
+    the y label and ``draw(ax, sol)``.  The state, the attitude, the local error and
+    the thrust: the pitch in the right column (its throttle's axis is at the figure's
+    edge), the thrust under it."""
+    panels = [(label, functools.partial(_series, key=key)) for key, label in SERIES.items()]
+    if three_d(sol) and _flight3d(sol) is not None:
+        panels.append((INCLINATION_LABEL, _inclination_panel))
+    attitude = [(CLOCK_LABEL, _clock_panel)] if three_d(sol) else []
+    attitude.insert((len(panels) + 1) % 2, (PITCH_LABEL, _pitch_panel))
+    local = [(LOCAL_ERROR_LABEL, _local_error_panel)] if _local_errors(sol) else []
+    return panels + attitude + local + [(THRUST_LABEL, _thrust_panel)]
+
+
+def _timeline_axes(count, rounds, throttled):
+    """A new timeline figure and its Axes: ``count`` panels two a row (the last across
+    both columns when ``count`` is odd), then, with ``rounds``, the error-control
+    rounds' strip across both; placed once by fixed margins (see :func:`axes_or_new`
+    on why not constrained layout).  ``throttled`` widens the right margin for the
+    throttle's axis."""
+    inch = TIMELINE_ROWS_IN
+    rows = -(-count // 2)
+    strip = inch["foot"] + inch["rounds"] if rounds else 0.0
+    height = (inch["title"] + rows * inch["panel"] + (rows - 1) * inch["gap"]
+              + inch["foot"] + strip)
+    columns = dict(TIMELINE_COLUMNS)
+    if throttled:
+        columns["right"] = TIMELINE_RIGHT_WITH_THROTTLE
+    fig = Figure(figsize=(10, height), dpi=DPI)
+    grid = fig.add_gridspec(rows, 2, top=1 - inch["title"] / height,
+                            bottom=(inch["foot"] + strip) / height,
+                            hspace=inch["gap"] / inch["panel"], **columns)
+    axes = [fig.add_subplot(grid[k // 2, k % 2]) for k in range(count - count % 2)]
+    if count % 2:
+        axes.append(fig.add_subplot(grid[rows - 1, :]))
+    if rounds:
+        below = fig.add_gridspec(1, 1, top=strip / height, bottom=inch["foot"] / height,
+                                 left=columns["left"], right=columns["right"])
+        axes.append(fig.add_subplot(below[0, 0]))
+    return fig, axes
+
+
+def timeline_figure(solution, axes=None):
+    """The :func:`timeline_panels` against time (calendar dates when dated), and under
+    them the flown miss of each error-control round when there was more than one.
+
+    Drawn into ``axes`` (as many Axes as panels, and one for the rounds) if given, else
+    into a new figure placed by fixed margins (:func:`_timeline_axes`); returns the
+    figure.  Each series panel's limits span every flight it shows, with matplotlib's
+    margins.
+    """
+    sol = solution
+    panels = timeline_panels(sol)
+    misses = _round_misses(sol)
+    rounds = len(misses) > 1
+    created = axes is None
+    if created:
+        fig, axes = _timeline_axes(len(panels), rounds, _throttled(_flown(sol).schedule))
+    else:
+        fig, axes = axes_or_new(axes)
+        axes = list(np.ravel(axes))
+    series = axes[:len(panels)]
+    for ax in series[1:]:
+        ax.sharex(series[0])
+    time_label = _time_axis(series[0], sol)
+    for ax, (label, draw) in zip(series, panels):
+        draw(ax, sol)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    for ax in series[-(2 - len(panels) % 2):]:  # the last row
+        ax.set_xlabel(time_label)
+    if rounds:
+        _rounds_panel(axes[len(panels)], sol, misses)
+    _plain_legend(series[0].legend(fontsize=7))
+    fig.suptitle(headline(sol), parse_math=False)
+    if created:
+        left = [ax for ax in axes if ax.get_subplotspec().colspan.start == 0]
+        _fit_columns(fig, left, [ax for ax in axes if ax not in left])
+    return fig
+
+
+def _series(ax, sol, key):
+    """One sample field of solution.json against time: the closed form, its CVODES
+    flight, and the polished flight."""
+    cf, cv, exact = sol.trajectory_closed_form, sol.trajectory_cvodes, sol.trajectory_polished
+    day0 = _day_zero(sol.departure_date)
+    ax.plot(day0 + np.asarray(cf.t_days, float), getattr(cf, key), color="tab:blue", lw=1.4,
+            label="closed form")
+    if cv is not None:
+        ax.plot(day0 + np.asarray(cv.t_days, float), getattr(cv, key), color="tab:red",
+                lw=0.9, ls="-.", label="CVODES")
+    if exact is not None:
+        ax.plot(_day_zero(_flown(sol).departure_date) + np.asarray(exact.t_days, float),
+                getattr(exact, key), color="tab:purple", lw=1.0, ls=":",
+                label="polished (CVODES)")
 
 
 def _throttled(sched):
@@ -435,161 +648,86 @@ def _throttled(sched):
     return len(sched) > 0 and sched.throttled
 
 
-def _pitch_axes(ax, throttled):
-    """The pitch panel's axes, and the throttle's on its right when the problem has
-    one (returned; else None): what :func:`_pitch_steps` draws into."""
+def _steps(ax, sol, name, **style):
+    """The flown schedule's column ``name`` as steps against time, held to the arrival;
+    the time axis is the series' (shared), set by the flights alone: a polished
+    schedule ends a hair away."""
+    flown = _flown(sol)
+    x = _day_zero(flown.departure_date) + np.array(
+        [row.t_days for row in flown.schedule] + [flown.tof_days])
+    y = [getattr(row, name) for row in flown.schedule]
+    return ax.step(x, y + y[-1:], where="post", scalex=False, **style)
+
+
+def _pitch_panel(ax, sol):
+    """The pitch of the flown schedule (the polished one when there is one) and, on an
+    axis of its own at the right, its throttle when the problem has one: it switches at
+    the same times, and a coast (kappa = 0) explains a pitch that wanders."""
+    _steps(ax, sol, "alpha_deg", color="k")
     ax.set_ylim(-95, 95)
-    if not throttled:
-        return None
-    # The throttle shares the pitch panel: it switches at the same times, and a coast
-    # (kappa = 0) explains a pitch that wanders.
-    twin = ax.twinx()
-    twin.set_ylim(-0.05, 1.05)
-    twin.set_ylabel("throttle kappa", color="tab:orange")
-    return twin
-
-
-def _pitch_steps(ax, twin, sol, polished):
-    """The pitch schedule (the polished one when there is one) as steps against time,
-    and the throttle's into ``twin``; returns their lines.  The time axis is the
-    series' (shared), set by the closed form's flights alone: a polished schedule ends a
-    hair away."""
-    sched = _pitch_schedule(sol, polished)
-    t = [row.t_days for row in sched]
-    alpha = [row.alpha_deg for row in sched]
-    t_end = sol.tof_days_exact if polished else sol.tof_days
-    lines = ax.step(t + [t_end], alpha + alpha[-1:], where="post", color="k", scalex=False,
-                    label="polished" if polished else None)
-    if twin is not None:
-        kappa = [row.throttle for row in sched]
-        lines += twin.step(t + [t_end], kappa + kappa[-1:], where="post", color="tab:orange",
-                           lw=1.0, scalex=False)
-    return lines
-
-
-#: The five series panels (solution.json's sample fields) and the pitch panel (None),
-#: in the order of the timeline's axes.
-TIMELINE_PANELS = (("r_au", "r (au)"), ("vr_km_s", "v_r (km/s)"),
-                   ("vtheta_km_s", "v_theta (km/s)"), (None, "alpha (deg)"),
-                   ("a_au", "osculating a (au)"), ("e", "osculating e"))
-
-
-def timeline_figure(solution, axes=None):
-    """r, v_r, v_theta, alpha and osculating a and e against time (days), then the local
-    errors and the error-control rounds.  A solution flown in three dimensions adds a
-    row: the clock angle per segment and the CVODES flight's osculating inclination to
-    the ecliptic (r, v_r and v_theta are then those of the flight's own turning plane).
-
-    Drawn into ``axes`` (a 4 x 2 array of Axes, 5 x 2 in 3-D) if given, else into a new
-    figure placed by fixed margins (:func:`_timeline_axes`); returns the figure.
-
-    Each series panel's limits span every flight it shows, with matplotlib's margins.
-    """
-    sol = solution
-    created = axes is None
-    throttled = _throttled(sol.schedule)
-    rows = 4 if three_d(sol) else 3
-    fig, axes = _timeline_axes(throttled, rows) if created else axes_or_new(axes)
-    for ax in axes[:rows].ravel():
-        ax.sharex(axes[0, 0])
-    # With a polish, the pitch panel shows the polished schedule: the one that flies.
-    polished = sol.trajectory_polished is not None
-    for ax, (key, label) in zip(axes.ravel(), TIMELINE_PANELS):
-        if key is None:
-            _pitch_steps(ax, _pitch_axes(ax, throttled), sol, polished)
-        else:
-            _series(ax, sol, key)
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    if rows == 4:
-        _clock_panel(axes[3, 0], sol)
-        _inclination_panel(axes[3, 1], sol)
-    for ax in axes[rows - 1]:
-        ax.set_xlabel("t (days)")
-    _local_error_panel(axes[rows, 0], sol)
-    _error_control_panel(axes[rows, 1], sol)
-    _plain_legend(axes[0, 0].legend(fontsize=7))
-    verdict = "verified" if sol.flight_verified else "NOT verified"
-    fig.suptitle(f"{sol.problem.name}: {sol.status}, {verdict}"
-                 + (f"; polished {sol.polish.status} (pitch: polished schedule)"
-                    if polished else ""), parse_math=False)
-    if created:
-        _fit_columns(fig, axes)
-    return fig
-
-
-#: The clock panel's and the inclination panel's y labels (3-D timelines).
-CLOCK_LABEL = "clock delta (deg)"
-INCLINATION_LABEL = "osculating i to ecliptic (deg)"
+    ax.set_yticks(range(-90, 91, 45))
+    if _throttled(_flown(sol).schedule):
+        twin = ax.twinx()
+        _steps(twin, sol, "throttle", color="tab:orange", lw=1.0)
+        twin.set_ylim(-0.05, 1.05)
+        twin.set_ylabel("throttle kappa", color="tab:orange")
 
 
 def _clock_panel(ax, sol):
-    """The clock angle per segment as steps against time, held to the arrival as the
-    pitch is; 0 is in the orbital plane, positive toward the angular momentum."""
-    sched = sol.schedule
-    t = [row.t_days for row in sched] + [sol.tof_days]
-    clock = [row.clock_deg for row in sched]
-    ax.step(t, clock + clock[-1:], where="post", color="k", scalex=False)
+    """The clock angle of the flown schedule; 0 is in the orbital plane, positive
+    toward the angular momentum."""
+    _steps(ax, sol, "clock_deg", color="k")
     ax.set_ylim(-190, 190)
     ax.set_yticks(range(-180, 181, 90))
-    ax.set_ylabel(CLOCK_LABEL)
+
+
+def _thrust_panel(ax, sol):
+    """The thrust acceleration along the flight that flies (:func:`thrust_acceleration`)."""
+    t, a = thrust_acceleration(sol)
+    ax.plot(_day_zero(_flown(sol).departure_date) + t, a, color="tab:brown", lw=1.0)
+    ax.set_ylim(bottom=0.0)
 
 
 def _inclination_panel(ax, sol):
     """The CVODES flight's osculating inclination to the ecliptic of J2000."""
     cv = sol.trajectory_cvodes
-    if cv is None or cv.three_d is None:
-        ax.text(0.5, 0.5, "no 3-D flight (CVODES failed)", ha="center",
-                transform=ax.transAxes)
-    else:
-        ax.plot(cv.t_days, cv.three_d["inclination_deg"], color="tab:red", lw=0.9,
-                label="CVODES")
-    ax.set_ylabel(INCLINATION_LABEL)
+    ax.plot(_day_zero(sol.departure_date) + np.asarray(cv.t_days, float),
+            cv.three_d["inclination_deg"], color="tab:red", lw=0.9, label="CVODES")
 
 
-def _series(ax, sol, key):
-    """One sample field of solution.json against time: the closed form, its CVODES
-    flight, and the polished flight."""
-    cf, cv, exact = sol.trajectory_closed_form, sol.trajectory_cvodes, sol.trajectory_polished
-    ax.plot(cf.t_days, getattr(cf, key), color="tab:blue", lw=1.4, label="closed form")
-    if cv is not None:
-        ax.plot(cv.t_days, getattr(cv, key), color="tab:red", lw=0.9, ls="-.", label="CVODES")
-    if exact is not None:
-        ax.plot(exact.t_days, getattr(exact, key), color="tab:purple", lw=1.0, ls=":",
-                label="polished (CVODES)")
+def _local_errors(sol):
+    """Whether every segment of the closed form has its local error (error control)."""
+    return len(sol.schedule) > 0 and all(row.local_error_km is not None for row in sol.schedule)
 
 
 def _local_error_panel(ax, sol):
     """The closed form's position error over each segment from its own start node."""
     sched = sol.schedule
+    x = _day_zero(sol.departure_date) + np.array([row.t_days for row in sched] + [sol.tof_days])
     errors = [row.local_error_km for row in sched]
-    if not len(sched) or any(e is None for e in errors):
-        ax.text(0.5, 0.5, "no local errors (no error control)", ha="center",
-                transform=ax.transAxes)
-        return
-    t = [row.t_days for row in sched] + [sol.tof_days]
-    ax.step(t, errors + errors[-1:], where="post", color="tab:green")
+    ax.step(x, errors + errors[-1:], where="post", color="tab:green",
+            label=f"per segment, {sol.problem.sub_arcs} sub-arcs each")
     ax.set_yscale("log")
     _plain_log_labels(ax.yaxis)
-    ax.set_xlabel("t (days)")
-    ax.set_ylabel("closed-form local error (km)")
-    ax.set_title(f"per segment, {sol.problem.sub_arcs} sub-arcs each", fontsize=9, y=1.0)
     ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
 
 
-def _error_control_panel(ax, sol):
-    """The flown miss after each error-control round, against the tolerance."""
+def _round_misses(sol):
+    """The flown miss (km) after each error-control round."""
     key = "target_miss_r_km" if sol.problem.target is not None else "miss_r_km"
-    misses = [getattr(r, key) for r in sol.rounds if getattr(r, key) is not None]
-    if not misses:
-        ax.text(0.5, 0.5, "no flight to judge", ha="center", transform=ax.transAxes)
-        return
+    return [getattr(r, key) for r in sol.rounds if getattr(r, key) is not None]
+
+
+def _rounds_panel(ax, sol, misses):
+    """The flown miss after each error-control round, against the tolerance."""
     ax.semilogy(range(len(misses)), misses, "o-", color="tab:red", label="flown miss")
     _plain_log_labels(ax.yaxis)
     ax.axhline(sol.tolerance.position_km, color="k", ls="--", lw=0.8, label="tolerance")
     ax.set_xlabel("error-control round")
-    ax.set_ylabel("position miss (km)")
+    ax.set_ylabel(ROUNDS_LABEL)
     ax.set_xticks(range(len(misses)))
+    ax.set_xlim(-0.5, len(misses) - 0.5)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3, which="both")
 
@@ -634,15 +772,3 @@ def write_figures(figures, out_dir):
         written.append(out / name)
     return written, failures
 
-
-def _flight_bodies(sol):
-    """The departure date (JD), 200 dates over the flight, and (label, body, colour) of
-    the departure and target bodies, which both trajectory views draw."""
-    from esail_opt.bodies import dates
-
-    prob = sol.problem
-    start, end = (dates.jd_from_iso(d) for d in (sol.departure_date, sol.arrival_date))
-    pairs = [(sol.departure_body.name, prob.departure.body, "0.5")]
-    if sol.target_body is not None:
-        pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
-    return start, np.linspace(start, end, 200), pairs
