@@ -203,6 +203,12 @@ def _lines(ax):
     return {line.get_label(): line for line in ax.get_lines()}
 
 
+def _legend(fig):
+    """The words of a figure's legend (it sits below the axes)."""
+    (legend,) = fig.legends
+    return [t.get_text() for t in legend.get_texts()]
+
+
 def _marks(line):
     """A chart line's points as (departure date, time of flight)."""
     import matplotlib.dates as mdates
@@ -226,7 +232,7 @@ def test_the_chart_draws_the_edge_and_the_cells_with_no_sail_apart():
     assert sorted(_marks(lines[porkchop.NO_SAIL_LABEL])) == [
         ("2035-04-01", 650.0), ("2035-06-01", 500.0), ("2035-08-01", 500.0)]
     assert _marks(lines[porkchop.FAILED_LABEL]) == [("2035-04-01", 500.0)]
-    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    legend = _legend(ax.figure)
     assert {porkchop.EDGE_LABEL, porkchop.NO_SAIL_LABEL, porkchop.FAILED_LABEL} <= set(legend)
     # A date with no walked edge breaks the line: nothing is drawn between dates there.
     for row in rows[2:4]:
@@ -274,6 +280,173 @@ def test_a_chart_of_a_record_without_the_edge_still_draws():
     lines = _lines(porkchop.figure(table).axes[0])
     assert porkchop.EDGE_LABEL not in lines and porkchop.NO_SAIL_LABEL not in lines
     assert len(lines[porkchop.FAILED_LABEL].get_xdata()) == 4
+
+
+def _table_of(depart, tof=None, state=None, edge=None):
+    """A porkchop's record as :func:`porkchop._table` makes it, over the grid ``depart``
+    x ``tof``, through JSON as ``esail-opt plot`` reads it: every cell verified at
+    a_c = 3 - tof / 500 + date / 10 mm/s^2 (date: its index), unless ``state`` maps its
+    index to "failed" or "no_sail"; ``edge`` is each date's edge of the feasible (days)."""
+    grid = porkchop.Grid(tuple(porkchop.parse_dates(depart)),
+                         None if tof is None else tuple(porkchop.parse_tofs(tof)))
+    rows = _rows(grid, range(math.prod(grid.shape)))
+    for row in rows:
+        date, flight = divmod(row["index"], len(grid.tofs or [0]))
+        kind = (state or {}).get(row["index"], "verified")
+        if edge is not None:
+            row.update(edge_tof_days=edge, edge_infeasible_tof_days=edge - 4.0,
+                       edge_ac_mm_s2=3.0)
+        if kind == "verified":
+            tof_days = row["tof_days_grid"] or 600.0
+            value = 3.0 - tof_days / 500.0 + date / 10.0
+            row.update(verified=True, converged=True, objective=value,
+                       objective_unit="mm/s^2", tof_days=tof_days, ac_mm_s2_required=value,
+                       status="Solve_Succeeded", arrival_date="2037-01-01T00:00:00")
+        elif kind == "no_sail":
+            row.update(no_sail=True, error="no sail")
+        else:
+            row.update(error="Infeasible_Problem_Detected")
+    request = SimpleNamespace(problem=load_problem(PROBLEM), grid=grid, problem_file="p.py")
+    outcome = SimpleNamespace(rows=rows, executor="", seconds=0.0, resumed=[], journal=None)
+    return json.loads(json.dumps(porkchop._table(request, outcome)))
+
+
+def _drawn(table):
+    """The chart of ``table``, laid out and drawn: its main axes and the renderer."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = porkchop.figure(table)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return fig.axes[0], canvas.get_renderer()
+
+
+def _inside(ax, x, y):
+    """Whether the data point (x, y) lies inside the axes with a margin of at least 12
+    pixels (half the best cell's star) on every side."""
+    px, py = ax.transData.transform((x, y))
+    box = ax.bbox
+    return box.x0 + 12 <= px <= box.x1 - 12 and box.y0 + 12 <= py <= box.y1 - 12
+
+
+def _best_inside(ax):
+    best = _lines(ax)["best"]
+    return _inside(ax, best.get_xdata()[0], best.get_ydata()[0])
+
+
+def test_a_one_date_chart_is_the_objective_against_the_time_of_flight():
+    """One date and five flight times (``--depart A:A:1 --tof 500:700:5``), which drew
+    a (5, 1) contour and raised: a line of a_c against the time of flight, the cells
+    not verified and with no sail at the top, the edge a vertical line."""
+    table = _table_of("2035-06-01:2035-06-01:1", "500:700:5",
+                      {0: "no_sail", 1: "failed"}, edge=540.0)
+    ax, _ = _drawn(table)
+    lines = _lines(ax)
+    verified = lines[porkchop.VERIFIED_LABEL]
+    assert list(verified.get_xdata()) == [600.0, 650.0, 700.0]
+    assert list(verified.get_ydata()) == pytest.approx([1.8, 1.7, 1.6])
+    assert list(lines[porkchop.FAILED_LABEL].get_xdata()) == [550.0]
+    assert list(lines[porkchop.NO_SAIL_LABEL].get_xdata()) == [500.0]
+    assert list(lines[porkchop.EDGE_LABEL].get_xdata()) == [540.0, 540.0]
+    assert list(lines["best"].get_xdata()) == [700.0] and _best_inside(ax)
+    assert ax.get_xlabel() == "time of flight [d]"
+    assert ax.get_ylabel() == "required a_c [mm/s^2]"
+    assert ax.get_title().startswith("earth_mars_porkchop_2035: to mars, leaving 2035-06-01\n3/5 ")
+    assert set(_legend(ax.figure)) == {porkchop.VERIFIED_LABEL, porkchop.FAILED_LABEL,
+                                       porkchop.NO_SAIL_LABEL, porkchop.EDGE_LABEL, "best"}
+    # Values are written beside the points only when there are three or fewer.
+    assert [t.get_text() for t in ax.texts] == ["1.8 mm/s^2", "1.7 mm/s^2", "1.6 mm/s^2"]
+
+
+@pytest.mark.parametrize("tof", ["650:650:1", None])
+def test_a_one_flight_time_chart_is_the_objective_against_the_date(tof):
+    """Many dates and one flight time (or none): a_c against the date, its month
+    labels each told once over a span of months or of years."""
+    for depart in ("2035-04-01:2035-08-01:3", "2031-01-01:2035-01-01:9"):
+        table = _table_of(depart, tof)
+        ax, _ = _drawn(table)
+        verified = _lines(ax)[porkchop.VERIFIED_LABEL]
+        assert [d for d, _ in _marks(verified)] == [d[:10] for d in table["departures"]]
+        assert list(verified.get_ydata()) == [r["objective"] for r in table["rows"]]
+        assert _best_inside(ax) and ax.get_xlabel() == "departure date (TDB)"
+        labels = [t.get_text() for t in ax.get_xticklabels()
+                  if ax.get_xlim()[0] <= t.get_position()[0] <= ax.get_xlim()[1]]
+        assert len(labels) >= 3 and len(set(labels)) == len(labels), labels
+        assert (", in 650 d\n" in ax.get_title()) == (tof is not None)
+
+
+@pytest.mark.parametrize("tof", ["650:650:1", None])
+def test_a_one_cell_chart_is_one_point_with_its_value(tof):
+    """``--depart A:A:1 --tof T:T:1``: the point starred inside the axes, its value
+    beside it, the date axis a few days either side in ISO dates."""
+    table = _table_of("2035-06-01:2035-06-01:1", tof)
+    ax, renderer = _drawn(table)
+    assert _best_inside(ax)
+    (text,) = ax.texts
+    assert text.get_text() == f"{table['rows'][0]['objective']:.4g} mm/s^2" \
+        == ("1.7 mm/s^2" if tof else "1.8 mm/s^2")
+    assert ax.bbox.contains(*text.get_window_extent(renderer).p0) \
+        and ax.bbox.contains(*text.get_window_extent(renderer).p1)
+    labels = [t.get_text() for t in ax.get_xticklabels()]
+    assert "2035-06-01" in labels or any(label.startswith("2035-06-0") for label in labels)
+
+
+@pytest.mark.parametrize("depart, tof", [
+    ("2035-06-01:2035-06-01:1", None), ("2035-06-01:2035-06-01:1", "650:650:1"),
+    ("2035-06-01:2035-06-01:1", "500:650:2"), ("2035-04-01:2035-08-01:3", "650:650:1"),
+    ("2035-04-01:2035-08-01:3", None), ("2035-04-01:2035-08-01:3", "500:650:2")])
+def test_a_chart_of_any_shape_with_no_verified_cell_draws_without_a_best(depart, tof):
+    count = math.prod(_table_of(depart, tof)["shape"])
+    table = _table_of(depart, tof, {i: ("failed", "no_sail")[i % 2] for i in range(count)})
+    lines = _lines(_drawn(table)[0])
+    assert "best" not in lines and porkchop.VERIFIED_LABEL not in lines
+    assert len(lines[porkchop.FAILED_LABEL].get_xdata()) == (count + 1) // 2
+
+
+def test_the_2d_chart_marks_every_cell_and_the_arrival_dates_inside_its_axes():
+    """3 dates x 3 flight times: every verified cell marked, dashed lines of constant
+    arrival date labelled where departure + flight time is their date, the contour
+    labels and the best cell's star inside the axes, date labels each told once."""
+    import matplotlib.dates as mdates
+
+    table = _table_of("2031-01-01:2031-07-01:3", "600:800:3", {4: "failed"})
+    ax, renderer = _drawn(table)
+    lines = _lines(ax)
+    assert len(lines[porkchop.VERIFIED_LABEL].get_xdata()) == 8
+    assert _marks(lines[porkchop.FAILED_LABEL]) == [("2031-04-01", 700.0)]
+    assert _best_inside(ax)
+    arrivals = [t for t in ax.texts if t.get_text().startswith("arr ")]
+    values = [t for t in ax.texts if not t.get_text().startswith("arr ")]
+    assert len(arrivals) >= 2 and values
+    for text in arrivals:
+        x, y = text.get_position()
+        assert mdates.num2date(x + y).date().isoformat()[:7] == text.get_text()[4:]
+        assert mdates.num2date(x + y).day == 1
+    for text in ax.texts:
+        box = text.get_window_extent(renderer)
+        assert ax.bbox.contains(box.x0, box.y0) and ax.bbox.contains(box.x1, box.y1), \
+            text.get_text()
+    labels = [t.get_text() for t in ax.get_xticklabels()]
+    assert len(set(labels)) == len(labels)
+    assert {porkchop.VERIFIED_LABEL, porkchop.FAILED_LABEL, porkchop.ARRIVAL_LABEL,
+            "best"} <= set(_legend(ax.figure))
+
+
+def test_a_one_date_porkchop_from_the_command_line_writes_its_chart(tmp_path, capsys):
+    """``esail-opt porkchop --depart A:A:1 --tof ...`` ended in a traceback from the
+    figure, exit 1, after solving every cell: now exit 0, the set written, and the
+    chart's line over the flight times."""
+    from esail_opt.app import cli
+
+    out = tmp_path / "pc"
+    assert cli.main(["porkchop", str(PROBLEMS / "earth_venus_min_ac_planar.py"),
+                     "--depart", "2031-01-01:2031-01-01:1", "--tof", "600:700:2",
+                     "--workers", "1", "--out", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} >= set(porkchop.PORKCHOP_FILES)
+    record = json.loads((out / "porkchop.json").read_text())
+    line = _lines(porkchop.figure(record).axes[0])[porkchop.VERIFIED_LABEL]
+    assert list(line.get_xdata()) == [600.0, 700.0]
+    assert "Traceback" not in capsys.readouterr().err
 
 
 #: The edge of the feasible from two departure dates by the walk of the issue, independent

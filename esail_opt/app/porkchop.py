@@ -522,110 +522,185 @@ def table_csv(result):
 NO_SAIL_LABEL = "no sail (shorter than the edge)"
 EDGE_LABEL = "edge: shortest feasible flight"
 FAILED_LABEL = "not verified"
+VERIFIED_LABEL = "verified"
+ARRIVAL_LABEL = "arrival date"
 
 
 def figure(result):
-    """The porkchop: the objective over calendar dates, unverified cells marked with a
-    cross, cells with no sail (``no_sail``) with a hollow square apart from them, the
-    best cell starred and, in two dimensions, the edge of the feasible (the shortest
-    feasible flight per date, :func:`edge_line`) drawn as a line.  A record written
-    before the edge was walked draws without it."""
-    from datetime import datetime
+    """The porkchop, drawn from ``result`` alone, for a grid of any shape.
 
-    import matplotlib.dates as mdates
+    Dates x flight times: the objective's contours, every cell marked, lines of constant
+    arrival date and the edge of the feasible (the shortest feasible flight per date,
+    :func:`edge_line`).  One date: the objective against the time of flight, the edge a
+    vertical line; dates alone, or one flight time: the objective against the date.
+    With three verified cells or fewer, each value is written beside its cell.  Cells
+    not verified are marked with a cross, cells with no sail (``no_sail``) with a hollow
+    square, the best cell with a star; the axes are padded so that every mark sits
+    inside them.  A record written before the edge was walked draws without it.
+    """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(8, 5))
+    fig = Figure(figsize=(8, 5), layout="constrained")
     ax = fig.add_subplot()
     rows = result["rows"]
-    marks = {"when": np.array([datetime.fromisoformat(r["departure_date"]) for r in rows]),
-             "value": np.array([np.nan if r["objective"] is None else r["objective"]
-                                for r in rows]),
-             "ok": np.array([bool(r["verified"]) for r in rows]),
-             "no_sail": np.array([bool(r.get("no_sail")) for r in rows])}
+    edge = {e["departure_date"]: e["tof_days"] for e in result.get("edge") or edge_line(rows)}
+    marks = {"date": np.array([_day(r["departure_date"]) for r in rows]),
+             "tof": _floats(r["tof_days_grid"] for r in rows),
+             "value": _floats(r["objective"] for r in rows),
+             # The edge of each cell's date, NaN where none was walked.
+             "edge": _floats(edge.get(r["departure_date"]) for r in rows),
+             "ok": np.array([bool(r["verified"]) for r in rows], bool),
+             "no_sail": np.array([bool(r.get("no_sail")) for r in rows], bool)}
     unit = result["objective_unit"] or ""
-    label = ("time of flight [d]" if result["objective"] == "MinTime"
-             else f"{result['objective']} [{unit}]")
-    if result["tofs_days"] is None:
-        _dates_chart(ax, marks, label)
+    label = {"MinTime": "time of flight [d]", "MinAcceleration": f"required a_c [{unit}]"}.get(
+        result["objective"], f"{result['objective']} [{unit}]")
+    dates_n, tofs_n = (list(result["shape"]) + [1])[:2]
+    two_d = dates_n > 1 and tofs_n > 1
+    across = "tof" if dates_n == 1 and tofs_n > 1 else "date"
+    if two_d:
+        contoured, y = _dates_tofs_chart(fig, ax, result["shape"], marks, label), marks["tof"]
+        dots = {"ls": "", "ms": 4, "mfc": "k", "mec": "w", "mew": 0.6}
     else:
-        _dates_tofs_chart(fig, ax, result, marks, label)
+        contoured, y, dots = False, _line_chart(ax, marks, across, label), {"ms": 5}
+    x, ok, no_sail = marks[across], marks["ok"], marks["no_sail"]
+    for mask, style, name in ((ok, dict(marker="o", **dots), VERIFIED_LABEL),
+                              (~ok & ~no_sail, dict(ls="", marker="x", color="C3", ms=8),
+                               FAILED_LABEL),
+                              (no_sail, dict(ls="", marker="s", mfc="none", mec="0.3", ms=7),
+                               NO_SAIL_LABEL)):
+        if mask.any():
+            ax.plot(x[mask], y[mask], label=name, **style)
+    if not contoured and (two_d or ok.sum() <= 3):
+        x0, x1 = ax.get_xlim()
+        for xv, yv, value in zip(x[ok], y[ok], marks["value"][ok]):
+            side = 1 if xv <= (x0 + x1) / 2 else -1  # towards the middle: inside the axes
+            ax.annotate(f"{value:.4g} {unit}".strip(), (xv, yv), xytext=(12 * side, 0),
+                        textcoords="offset points", ha="left" if side > 0 else "right",
+                        va="center", fontsize=9)
     best = result["best"]
     if best is not None:
-        bx = datetime.fromisoformat(best["departure_date"])
-        by = best["objective"] if result["tofs_days"] is None else best["tof_days_grid"]
-        ax.plot([bx], [by], "*", color="gold", mec="k", ms=16, label="best", zorder=5,
-                clip_on=False)
-    ax.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m"))
-    fig.autofmt_xdate()
-    ax.set_xlabel("departure date (TDB)")
+        ax.plot([best["tof_days_grid"] if across == "tof" else _day(best["departure_date"])],
+                [best["tof_days_grid"] if two_d else best["objective"]], "*", color="gold",
+                mec="k", ms=16, label="best", zorder=5)
+    if across == "date":
+        _date_axis(ax.xaxis)
+    ax.set_xlabel("departure date (TDB)" if across == "date" else "time of flight [d]")
     target = result["target"] or "target"
-    no_sail = int(marks["no_sail"].sum())
-    ax.set_title(f"{result['problem']}: {result['verified_cells']}/{result['cells']} cells "
-                 f"verified{f', {no_sail} with no sail' if no_sail else ''}, to {target}",
+    where = [f"leaving {result['departures'][0][:10]}" if dates_n == 1 else "",
+             f"in {result['tofs_days'][0]:g} d" if result["tofs_days"] and tofs_n == 1
+             else ""]
+    count = int(no_sail.sum())
+    ax.set_title(f"{result['problem']}: to {target}" + "".join(f", {w}" for w in where if w)
+                 + f"\n{result['verified_cells']}/{result['cells']} cells verified"
+                 + (f", {count} with no sail" if count else ""),
                  parse_math=False)  # names as written
-    ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
+    fig.legend(loc="outside lower center", ncols=4, fontsize=8)
     return fig
 
 
-def _dates_chart(ax, marks, label):
-    """One dimension: the objective per date; the cells not verified at the top."""
-    when, value, ok, no_sail = marks["when"], marks["value"], marks["ok"], marks["no_sail"]
-    ax.plot(when[ok], value[ok], "o-", ms=4, label="verified")
-    top = np.nanmax(value) if np.isfinite(value).any() else 0.0
-    failed = ~ok & ~no_sail
-    if failed.any():
-        ax.plot(when[failed], np.where(np.isfinite(value[failed]), value[failed], top), "x",
-                color="C3", ms=8, label=FAILED_LABEL)
-    if no_sail.any():
-        ax.plot(when[no_sail], np.full(no_sail.sum(), top), "s", mfc="none", mec="0.3",
-                ms=7, label=NO_SAIL_LABEL)
-    ax.set_ylabel(label)
+def _floats(values):
+    return np.array([np.nan if v is None else v for v in values], float)
 
 
-def _dates_tofs_chart(fig, ax, result, marks, label):
-    """Two dimensions: the objective's contours over dates and flight times, the cells
-    not verified and those with no sail marked apart, and the edge of the feasible."""
+def _day(iso):
+    """An ISO 8601 date as a matplotlib date number (days)."""
+    from datetime import datetime
+
     import matplotlib.dates as mdates
 
-    shape = result["shape"]
-    unit = result["objective_unit"] or ""
-    tofs = np.array(result["tofs_days"])
+    return mdates.date2num(datetime.fromisoformat(iso))
+
+
+def _date_axis(axis):
+    """Calendar dates, ISO style, at ticks that match the span: years, months, days or
+    hours, each told once."""
+    import matplotlib.dates as mdates
+
+    locator = mdates.AutoDateLocator(minticks=3, maxticks=6)
+    formatter = mdates.AutoDateFormatter(locator)
+    formatter.scaled = {mdates.DAYS_PER_YEAR: "%Y", mdates.DAYS_PER_MONTH: "%Y-%m",
+                        1.0: "%Y-%m-%d", 1 / mdates.HOURS_PER_DAY: "%Y-%m-%d %H:%M"}
+    axis.set_major_locator(locator)
+    axis.set_major_formatter(formatter)
+
+
+def _fit(set_lim, values, least, pad=0.06):
+    """Limits around the finite ``values``, padded by ``pad`` of their span (``least``
+    each side when they are one value), so that the marks at the ends sit inside."""
+    values = np.asarray(values, float)
+    values = values[np.isfinite(values)]
+    if values.size:
+        lo, hi = values.min(), values.max()
+        step = pad * (hi - lo) if hi > lo else least
+        set_lim(lo - step, hi + step)
+
+
+def _halo(texts, colour):
+    """Outline ``texts`` in ``colour``, so that they read on any fill and on white."""
+    from matplotlib import patheffects
+
+    for text in texts:
+        text.set_path_effects([patheffects.withStroke(linewidth=2, foreground=colour)])
+
+
+def _line_chart(ax, marks, across, label):
+    """One dimension (one date, one flight time, or dates alone): the axes for the
+    objective against the date or the time of flight, and with one date its edge of
+    the feasible; returns each cell's height, the cells with no value at the top."""
+    x, value, edge = marks[across], marks["value"], marks["edge"][:1]
+    top = np.nanmax(value) if np.isfinite(value).any() else 0.0
+    y = np.where(np.isfinite(value) & ~marks["no_sail"], value, top)
+    if across == "tof" and np.isfinite(edge).all():
+        ax.axvline(edge[0], color="C1", lw=1.5, label=EDGE_LABEL)
+    _fit(ax.set_xlim, np.r_[x, edge] if across == "tof" else x,
+         10.0 if across == "date" else 5.0)
+    _fit(ax.set_ylim, y, 0.1 * abs(top) or 1.0)
+    ax.set_ylabel(label)
+    return y
+
+
+def _dates_tofs_chart(fig, ax, shape, marks, label):
+    """Two dimensions: the axes over dates and flight times, the objective's contours
+    (whether drawn is returned: four verified cells and more, not all one value), the
+    edge of the feasible and lines of constant arrival date."""
+    x, tofs = marks["date"].reshape(shape)[:, 0], marks["tof"].reshape(shape)[0]
+    # One point per date, NaN where no edge was walked: the line breaks there rather
+    # than join dates it knows nothing between.
+    edge = marks["edge"].reshape(shape)[:, 0]
+    _fit(ax.set_xlim, x, 10.0)
+    _fit(ax.set_ylim, np.r_[tofs, edge], 5.0)
     z = np.where(marks["ok"], marks["value"], np.nan).reshape(shape).T
-    x = mdates.date2num(marks["when"].reshape(shape)[:, 0])
-    contoured = np.isfinite(z).sum() >= 4
+    contoured = np.isfinite(z).sum() >= 4 and np.nanmax(z) > np.nanmin(z)
     if contoured:
         cs = ax.contourf(x, tofs, z, levels=12, cmap="viridis")
         lines = ax.contour(x, tofs, z, levels=cs.levels[::2], colors="w", linewidths=0.6)
-        ax.clabel(lines, fmt="%.2g", fontsize=7)
-        fig.colorbar(cs, ax=ax, label=f"required a_c [{unit}]" if
-                     result["objective"] == "MinAcceleration" else label)
-    no_sail = marks["no_sail"].reshape(shape).T
-    bad = ~marks["ok"].reshape(shape).T
-    xx, yy = np.meshgrid(x, tofs)
-    if (bad & ~no_sail).any():
-        ax.plot(xx[bad & ~no_sail], yy[bad & ~no_sail], "x", color="C3", ms=7,
-                label=FAILED_LABEL)
-    if no_sail.any():
-        ax.plot(xx[no_sail], yy[no_sail], "s", mfc="none", mec="0.3", ms=7,
-                label=NO_SAIL_LABEL)
-    # Too few verified cells for contours: each is marked, its value beside it.
-    ax.plot(xx[~bad], yy[~bad], "." if contoured else "o", color="k" if contoured else "C0",
-            ms=2 if contoured else 6, label=None if contoured else "verified")
-    if not contoured:
-        for xv, yv, zv in zip(xx[~bad], yy[~bad], z[~bad]):
-            ax.annotate(f"{zv:.4g}", (xv, yv), xytext=(5, 5), textcoords="offset points",
-                        fontsize=8)
-    edge = {e["departure_date"]: e["tof_days"]
-            for e in result.get("edge") or edge_line(result["rows"])}
-    if edge:
-        # One point per date, NaN where no edge was walked: the line breaks there rather
-        # than join dates it knows nothing between.
-        dates_iso = [r["departure_date"] for r in result["rows"][::shape[1]]]
-        ax.plot(x, [edge.get(d, np.nan) for d in dates_iso], "o-", color="C1", ms=4,
-                lw=1.5, label=EDGE_LABEL)
+        _halo(ax.clabel(lines, fmt="%.2g", fontsize=7, use_clabeltext=True), "0.2")
+        fig.colorbar(cs, ax=ax, label=label)
+    _arrival_lines(ax)
+    if np.isfinite(edge).any():
+        ax.plot(x, edge, "o-", color="C1", ms=4, lw=1.5, label=EDGE_LABEL)
     ax.set_ylabel("time of flight [d]")
+    return contoured
+
+
+def _arrival_lines(ax):
+    """Dashed lines of constant arrival date (departure + time of flight) across the
+    axes, at dates that match their span, each labelled with its ISO month (or day)."""
+    import matplotlib.dates as mdates
+
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    xx, yy = np.meshgrid(np.linspace(x0, x1, 20), np.linspace(y0, y1, 20))
+    levels = [t for t in mdates.AutoDateLocator(minticks=3, maxticks=6).tick_values(
+        *mdates.num2date([x0 + y0, x1 + y1])) if x0 + y0 < t < x1 + y1]
+    if not levels:
+        return
+    names = {t: f"arr {mdates.num2date(t):%Y-%m}" if mdates.num2date(t).day == 1
+             else f"arr {mdates.num2date(t):%Y-%m-%d}" for t in levels}
+    lines = ax.contour(xx, yy, xx + yy, levels=levels, colors="0.25", linestyles="--",
+                       linewidths=0.7)
+    _halo(ax.clabel(lines, fmt=names, fontsize=7, use_clabeltext=True), "w")
+    ax.plot([], [], "--", color="0.25", lw=0.7, label=ARRIVAL_LABEL)
 
 
 def write(result, out_dir, plots=True):
