@@ -478,7 +478,7 @@ def test_a_full_disk_while_writing_keeps_the_old_set(tmp_path, monkeypatch):
     # The command line: the same fault is one line and exit 3 (a stand-in solve).
     from esail_opt.app import solution
 
-    monkeypatch.setattr(solution, "solve", lambda problem, **kw: sol)
+    monkeypatch.setattr(solution, "solve_with_nearest", lambda problem, **kw: (sol, None))
     problem = tmp_path / "p.py"
     problem.write_text(TINY.format(name="tiny"))
     assert cli.main(["solve", str(problem), "--out", str(out)]) == cli.EXIT_OUTPUT == 3

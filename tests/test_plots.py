@@ -548,7 +548,7 @@ def _stand_in_solve(monkeypatch, sol, tmp_path):
     handling of what is written."""
     from esail_opt.app import solution
 
-    monkeypatch.setattr(solution, "solve", lambda problem, **kw: sol)
+    monkeypatch.setattr(solution, "solve_with_nearest", lambda problem, **kw: (sol, None))
     problem = tmp_path / "p.py"
     problem.write_text(TINY_PROBLEM.format(name="tiny"))
     return problem
@@ -574,7 +574,7 @@ def test_names_are_drawn_as_written_never_parsed_as_math(polished, tmp_path):
     assert timeline._suptitle.get_text().split(":")[0] == NAME
     written = sol.write(tmp_path / "out")
     assert sorted(p.name for p in written) == sorted(
-        ["solution.json", "schedule.csv", "schedule_polished.csv", "trajectory.png",
+        ["solution.json", "schedule.csv", "schedule_closed_form.csv", "trajectory.png",
          "timeline.png"])
     assert all(p.stat().st_size > 10_000 for p in written if p.suffix == ".png")
 
@@ -598,7 +598,7 @@ def test_a_figure_that_fails_is_one_line_and_exit_4_and_the_rest_is_written(
     line = _one_error_line(captured.err)
     assert "timeline.png could not be drawn: ValueError: no figure today" in line
     assert sorted(p.name for p in out.iterdir()) == [
-        "schedule.csv", "schedule_polished.csv", "solution.json", "trajectory.png"]
+        "schedule.csv", "schedule_closed_form.csv", "solution.json", "trajectory.png"]
     assert Solution.load(out / "solution.json") == polished
     assert f"wrote {out / 'trajectory.png'}" in captured.out
     # Redrawing it fails the same way, with the same status, and keeps the rest.
@@ -615,7 +615,7 @@ def test_no_plots_writes_everything_but_the_figures_and_plot_draws_them(
     out = tmp_path / "out"
     assert cli.main(["solve", str(problem), "--out", str(out), "--no-plots"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [
-        "schedule.csv", "schedule_polished.csv", "solution.json"]
+        "schedule.csv", "schedule_closed_form.csv", "solution.json"]
     capsys.readouterr()
     assert cli.main(["plot", str(out)]) == 0
     assert capsys.readouterr().out.split() == [

@@ -96,10 +96,10 @@ def test_polished_schedule_is_consistent(coarse_venus):
 def test_polished_solution_writes_and_loads_back(coarse_venus, tmp_path):
     _, sol, _ = coarse_venus
     paths = sol.write(tmp_path)
-    assert tmp_path / "schedule_polished.csv" in paths
+    assert tmp_path / "schedule_closed_form.csv" in paths
     back = eo.Solution.load(tmp_path / "solution.json")
     assert back["polish"]["verified"] and back["tof_days_exact"] == sol["tof_days_exact"]
-    lines = (tmp_path / "schedule_polished.csv").read_text().splitlines()
+    lines = (tmp_path / "schedule.csv").read_text().splitlines()
     assert len(lines) == 7 and float(lines[1].split(",")[3]) > 0
     # The file holds the verified schedule to the digit: flown from it, it is the same
     # flight (10 significant digits put a 2500-day polished spiral 3.5 m off).
@@ -219,8 +219,8 @@ def test_a_polish_that_fails_leaves_the_closed_form_verdict_standing(tmp_path, m
                        / "solution.json").read_text())
     data["polish"]["verified"] = False
     data["polish"]["note"] = "NOT verified: the verifier's own error alone reaches the bound"
-    monkeypatch.setattr(solution, "solve",
-                        lambda *args, **kwargs: solution.Solution.from_json(data))
+    monkeypatch.setattr(solution, "solve_with_nearest",
+                        lambda *args, **kwargs: (solution.Solution.from_json(data), None))
     code = cli.main(["solve", str(REPO / "problems" / "earth_mars_min_time.py"), "--polish",
                      "--no-plots", "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.splitlines()[-1]

@@ -174,7 +174,7 @@ def test_a_polished_solution_built_from_its_run_equals_the_one_read_back(tmp_pat
                               eo.MinTime(), eo.CircularOrbit(0.723)), polish=True)
     written = sol.write(tmp_path, plots=False)[0]
     assert sol.polished and Solution.load(written) == sol
-    rows = (tmp_path / "schedule_polished.csv").read_text().splitlines()
+    rows = (tmp_path / "schedule.csv").read_text().splitlines()
     assert len(rows) == len(sol.polish.schedule) + 1
     old = json.loads(written.read_text())
     old["schema_version"] = 3

@@ -288,7 +288,11 @@ def _add_solve(sub):
     p.add_argument("--out", default=None, help="output directory (default results/<problem name>)")
     p.add_argument("--polish", action="store_true",
                    help="polish the optimum on the exact equations of motion (in time), held "
-                   "to 1 m and 1 mm/s")
+                   "to 1 m and 1 mm/s; the files are then the polished flight")
+    p.add_argument("--object-name", default=None,
+                   help="OBJECT_NAME of trajectory.oem (default: the problem's name)")
+    p.add_argument("--object-id", default=None,
+                   help="OBJECT_ID of trajectory.oem (default: the object's name)")
     _add_no_plots(p, "`esail-opt plot` draws them later")
     p.set_defaults(run=_run_solve)
 
@@ -302,14 +306,19 @@ def _run_solve(args):
 
     problem = _load(args)
     out = _out(args) or Path("results") / problem.name
-    check_output_dir(out, name=None if args.out else problem.name,  # before the solve
-                     files=SOLUTION_FILES)
+    nearest_out = out.with_name(out.name + "_nearest")
+    for folder in (out, nearest_out):  # before the solve
+        check_output_dir(folder, name=None if args.out else folder.name, files=SOLUTION_FILES)
     progress = progress_printer("solve")
-    sol = solution.solve(problem, progress=progress, polish=args.polish)
+    sol, near = solution.solve_with_nearest(problem, progress=progress, polish=args.polish)
     progress.done()
     figures = None
+    oem_names = {"object_name": args.object_name, "object_id": args.object_id}
     try:
-        written = sol.write(out, plots=not args.no_plots)
+        written = sol.write(out, plots=not args.no_plots, **oem_names)
+        if near is not None:
+            # The question asked has no sail; the nearest one that flies is a whole answer.
+            written += near.write(nearest_out, plots=not args.no_plots, **oem_names)
     except FigureError as err:
         written, figures = err.written, err
     for path in written:
@@ -322,8 +331,9 @@ def _run_solve(args):
         reason = (sol.verification_note if not sol.flight_verified else
                   f"polish {sol.polish.note}; the closed-form answer stays "
                   f"{sol.verification_note}")
-        if sol.nearest_feasible is not None:
-            reason += "; " + report.nearest_feasible_line(sol.nearest_feasible)
+        if near is not None:
+            reason += ("; " + report.nearest_feasible_line(sol.nearest_feasible)
+                       + f", written to {nearest_out}")
         print(f"esail-opt solve: {reason}", file=sys.stderr)
         return 1
     return 0 if figures is None else EXIT_FIGURE

@@ -352,7 +352,7 @@ def publish(target, family=()):
         The output folder.  Its parents are created.
     family : iterable of str
         Names the writer owns in ``target``: those in the old set that the new set
-        does not write are dropped with it (a stale ``schedule_polished.csv`` never
+        does not write are dropped with it (a stale ``schedule_closed_form.csv`` never
         sits beside an unpolished solution).  Every other entry of the old folder is
         the user's (or a journal) and is carried into the new set.
 

@@ -19,6 +19,13 @@ Decisions:
 - **Digits.**  The library's scientific format keeps 15 significant digits: each position
   coordinate to 0.5 mm within 1e9 km (6.7 au) of the Sun (5e-15 relative beyond), each
   velocity coordinate to 0.5 nm/s below 100 km/s.
+- **One data segment per schedule segment.**  The thrust switches between segments, so
+  the flight's acceleration jumps there; a polynomial through samples on both sides of a
+  switch would smear it (hundreds of km at a day's spacing).  Segments that meet share
+  their boundary epoch, as the standard allows, and each states the Hermite interpolation
+  (positions and velocities) that reproduces the flight between its samples.
+- **Comments.**  ``COMMENT`` lines after the version line say what was flown and how
+  well: the reader of the message alone learns the model, the verdict and the miss.
 - **Whole or nothing.**  The file is written under a temporary name beside ``path`` and
   renamed onto it (:func:`esail_opt.app.files.atomic_path`): a reader sees the old file
   or the new one.
@@ -28,6 +35,7 @@ with this module: a command that never writes a message does not pay for it.
 """
 
 import datetime as _dt
+from pathlib import Path
 
 import numpy as np
 
@@ -44,6 +52,10 @@ REF_FRAME = "ICRF"
 TIME_SYSTEM = "TDB"
 #: The epochs' format, as the ``oem`` package writes them.
 EPOCH_FORMAT = "%Y-%m-%dT%H:%M:%S.%f"
+#: Hermite interpolation of degree 7 (four samples, positions and velocities) within a
+#: data segment: on a day's spacing it follows a flight to well under a metre.
+INTERPOLATION = "HERMITE"
+INTERPOLATION_DEGREE = 7
 
 
 def states_km_km_s(states):
@@ -55,7 +67,7 @@ def states_km_km_s(states):
 
 
 def write_oem(path, object_name, epochs, states_km_kms_ecliptic, *, jd2=0.0, object_id=None,
-              originator="esail_opt", creation_date=None):
+              originator="esail_opt", creation_date=None, breaks=(), comments=()):
     """Write a trajectory as a CCSDS OEM in KVN, heliocentric ICRF, TDB, km and km/s.
 
     Parameters
@@ -80,26 +92,44 @@ def write_oem(path, object_name, epochs, states_km_kms_ecliptic, *, jd2=0.0, obj
         ``ORIGINATOR``.
     creation_date : datetime.datetime, optional
         ``CREATION_DATE`` (UTC); now by default.
+    breaks : sequence of int
+        Sample indices where the flight's thrust switches: the message gets one data
+        segment from each break to the next, both ends included.
+    comments : sequence of str
+        One-line ``COMMENT`` lines written after the version line.
 
     Raises
     ------
     InputError
         Naming ``oem.<argument>``: states not of shape (6, N) or not finite, epochs of
-        another count, not finite or not increasing at the microsecond, or a name that is
-        empty or spans lines.
+        another count, not finite or not increasing at the microsecond, or a name or
+        comment that is empty or spans lines.
     """
     states = _checked_states(states_km_kms_ecliptic)
-    stamps = _epochs(epochs, jd2, states.shape[1])
+    count = states.shape[1]
+    edges = [0] + sorted({int(b) for b in breaks if 0 < int(b) < count - 1}) + [count - 1]
+    stamps = _epochs(epochs, jd2, count)
     fields = {"object_name": object_name, "object_id": object_name if object_id is None else object_id,
               "originator": originator}
-    for key, value in fields.items():
+    lines = {f"comments[{k}]": c for k, c in enumerate(comments)}
+    for key, value in {**fields, **lines}.items():
         if not isinstance(value, str) or not value.strip() or "\n" in value or "\r" in value:
             raise InputError(f"oem.{key} = {value!r} must be a non-empty one-line string")
     created = creation_date or _dt.datetime.now(_dt.timezone.utc)
     message = _message(fields, created.strftime("%Y-%m-%dT%H:%M:%S"), stamps,
-                       icrf_from_ecliptic(states))
+                       icrf_from_ecliptic(states), edges)
     with atomic_path(path) as tmp:
         message.save_as(tmp, file_format="kvn")
+        if comments:
+            _insert_comments(tmp, comments)
+
+
+def _insert_comments(path, comments):
+    """COMMENT lines right after ``CCSDS_OEM_VERS``, where the standard puts the
+    header's comments (the ``oem`` package reads them and writes none)."""
+    text = Path(path).read_text().splitlines(keepends=True)
+    block = "".join(f"COMMENT {c}\n" for c in comments)
+    Path(path).write_text(text[0] + block + "".join(text[1:]))
 
 
 def _checked_states(states):
@@ -141,19 +171,32 @@ def _epochs(epochs, jd2, count):
     return stamps
 
 
-def _message(fields, created, stamps, states):
-    """The ``oem`` package's OrbitEphemerisMessage of one segment."""
+def _message(fields, created, stamps, states, edges):
+    """The ``oem`` package's OrbitEphemerisMessage, one data segment between each pair
+    of consecutive ``edges``."""
     from oem import OrbitEphemerisMessage
     from oem.components import EphemerisSegment, HeaderSection, MetaDataSection
 
     header = HeaderSection({"CCSDS_OEM_VERS": OEM_VERSION, "CREATION_DATE": created,
                             "ORIGINATOR": fields["originator"]})
-    metadata = MetaDataSection({
-        "OBJECT_NAME": fields["object_name"], "OBJECT_ID": fields["object_id"],
-        "CENTER_NAME": CENTER_NAME, "REF_FRAME": REF_FRAME, "TIME_SYSTEM": TIME_SYSTEM,
-        "START_TIME": stamps[0].strftime(EPOCH_FORMAT),
-        "STOP_TIME": stamps[-1].strftime(EPOCH_FORMAT),
-    }, version=OEM_VERSION)
-    columns = (tuple(stamps),) + tuple(tuple(float(v) for v in row) for row in states)
-    segment = EphemerisSegment(metadata, columns, version=OEM_VERSION)
-    return OrbitEphemerisMessage(header, [segment])
+    segments = []
+    for first, last in zip(edges[:-1], edges[1:]):
+        part = slice(first, last + 1)
+        metadata = MetaDataSection({
+            "OBJECT_NAME": fields["object_name"], "OBJECT_ID": fields["object_id"],
+            "CENTER_NAME": CENTER_NAME, "REF_FRAME": REF_FRAME, "TIME_SYSTEM": TIME_SYSTEM,
+            "START_TIME": stamps[first].strftime(EPOCH_FORMAT),
+            "STOP_TIME": stamps[last].strftime(EPOCH_FORMAT),
+            **_interpolation(last - first + 1),
+        }, version=OEM_VERSION)
+        columns = (tuple(stamps[part]),) + tuple(tuple(float(v) for v in row[part])
+                                                 for row in states)
+        segments.append(EphemerisSegment(metadata, columns, version=OEM_VERSION))
+    return OrbitEphemerisMessage(header, segments)
+
+
+def _interpolation(samples):
+    """The interpolation a data segment of ``samples`` states supports: Hermite of
+    :data:`INTERPOLATION_DEGREE`, or of the highest odd degree its samples allow."""
+    degree = min(INTERPOLATION_DEGREE, 2 * samples - 1)
+    return {"INTERPOLATION": INTERPOLATION, "INTERPOLATION_DEGREE": str(degree)}

@@ -475,5 +475,14 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     InputError
         ``segments`` is not an integer >= 1 (before any solve starts).
     """
-    return Solution.of(pipeline.solve(problem, segments=segments, progress=progress,
-                                      samples=samples, polish=polish))
+    return solve_with_nearest(problem, segments, progress, samples, polish)[0]
+
+
+def solve_with_nearest(problem, segments=None, progress=None, samples=16, polish=False):
+    """As :func:`solve`, and also the :class:`Solution` of the nearest feasible flight
+    (the shortest time of flight that flies from the same departure) when the asked
+    one found no point, else None: a whole answer to write beside the failed one."""
+    run = pipeline.solve(problem, segments=segments, progress=progress, samples=samples,
+                         polish=polish)
+    near = run.nearest_feasible
+    return Solution.of(run), None if near is None else Solution.of(near.run)

@@ -16,17 +16,20 @@ from esail_opt.errors import FigureError
 
 #: Every file :func:`write` may put in its folder: the set that a new write replaces
 #: whole (anything else in the folder is the user's and stays).
-SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_polished.csv",
+SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_closed_form.csv",
                   "trajectory.png", "timeline.png", "trajectory.oem")
 
 
-def schedule_csv(sol, polished=False):
-    """The schedule as CSV text, one row per segment (the rows of ``sol.schedule``, or
-    with ``polished`` of ``sol.polish.schedule``), every number to the digit, so that
+def schedule_csv(sol, polished=None):
+    """The schedule as CSV text, one row per segment: the rows of the flight the verdict
+    is about (``sol.polish.schedule`` after a polish, else ``sol.schedule``; ``polished``
+    True or False picks one), every number to the digit, so that
     flying the file reproduces the flight that was verified.  (At 10 significant
     digits a polished 2500-day schedule, flown from the CSV, ended 3.5 m from its
     target where the same schedule at full precision ends 8 mm from it.)  A null of
     the file (a NaN the JSON could not hold) is written as nan."""
+    if polished is None:
+        polished = sol.polished
     schedule = sol.polish.schedule if polished else sol.schedule
     columns = schedule.columns
     buf = io.StringIO()
@@ -38,9 +41,12 @@ def schedule_csv(sol, polished=False):
     return buf.getvalue()
 
 
-def write(sol, out_dir, plots=True):
-    """Write solution.json, schedule.csv (and schedule_polished.csv after a polish),
-    trajectory.oem for a 3-D flight and (with ``plots``) the two PNGs into ``out_dir``,
+def write(sol, out_dir, plots=True, object_name=None, object_id=None):
+    """Write solution.json, schedule.csv, trajectory.oem for a dated 3-D flight and (with
+    ``plots``) the two PNGs into ``out_dir``.  After a polish the schedule and the OEM
+    are the polished flight's, and schedule_closed_form.csv keeps the closed form's.
+    ``object_name`` and ``object_id`` are the OEM's (the problem's name by default).
+    The files are written
     as one set (:func:`esail_opt.app.files.publish`): a reader of the folder sees the
     previous run's files or these, never a mix, and files of the user's own stay.  The
     figures are drawn here, one after the other (:func:`esail_opt.app.plots.write_plots`).
@@ -62,9 +68,9 @@ def write(sol, out_dir, plots=True):
         write_json(stage / names[0], sol.to_json())
         (stage / names[1]).write_text(schedule_csv(sol))
         if sol.polished:
-            names.append("schedule_polished.csv")
-            (stage / names[-1]).write_text(schedule_csv(sol, polished=True))
-        if _write_oem(sol, stage / "trajectory.oem"):
+            names.append("schedule_closed_form.csv")
+            (stage / names[-1]).write_text(schedule_csv(sol, polished=False))
+        if _write_oem(sol, stage / "trajectory.oem", object_name, object_id):
             names.append("trajectory.oem")
         if plots:
             from esail_opt.app import plots as plotting
@@ -77,22 +83,54 @@ def write(sol, out_dir, plots=True):
     return written
 
 
-def _write_oem(sol, path):
-    """The CVODES flight of a 3-D solution as ``trajectory.oem`` (``app.oem``); False,
-    and nothing written, for a planar one, a failed flight, or one whose time does not
-    advance: the last iterate of a solve that found no point can hold a segment of
-    negative duration, and such a flight is no ephemeris."""
-    flight = sol.trajectory_cvodes
+def _write_oem(sol, path, object_name, object_id):
+    """The flight the verdict is about (the polished one after a polish) as
+    ``trajectory.oem`` (``app.oem``), one data segment per schedule segment; False, and
+    nothing written, for a planar or undated one, a failed flight, or one whose time
+    does not advance: the last iterate of a solve that found no point can hold a
+    segment of negative duration, and such a flight is no ephemeris."""
+    polish = sol.polish if sol.polished else None
+    flight = sol.trajectory_polished if polish else sol.trajectory_cvodes
     if flight is None or flight.three_d is None or not sol.dated:
         return False
     days = np.asarray(flight.t_days, float)
     if not np.all(np.diff(days) > 0):
         return False
+    dated = polish or sol
+    epoch = dated.departure_epoch_days
+    jd1 = dates.J2000_JD if epoch is not None else dates.jd_from_iso(dated.departure_date)
+    segments = len(dated.schedule)
+    per = (days.size - 1) // segments
+    breaks = range(per, days.size - 1, per) if per * segments == days.size - 1 else ()
     states = schema.state_from_fields(
-        {k: flight.three_d[k] for k in schema.STATE_KEYS}, "trajectory.cvodes")
-    write_oem(path, sol.problem.name, np.full(days.size, dates.jd_from_iso(
-        sol.departure_date)), states_km_km_s(states), jd2=days)
+        {k: flight.three_d[k] for k in schema.STATE_KEYS}, "trajectory")
+    write_oem(path, object_name or sol.problem.name, np.full(days.size, jd1),
+              states_km_km_s(states), jd2=days + (epoch or 0.0), object_id=object_id,
+              breaks=breaks, comments=_oem_comments(sol, polish))
     return True
+
+
+def _oem_comments(sol, polish):
+    """What the message's reader should know: the model, which flight, its verdict, its
+    miss with the verifier's own error, and the bound it was held to."""
+    check, bounds = (polish.verification, polish.bounds) if polish else (sol.verification,
+                                                                           sol.tolerance)
+    verdict = "verified" if (polish.verified if polish else sol.flight_verified) else "NOT verified"
+    lines = [f"{sol.problem.name}: an E-sail's heliocentric flight, thrust a_c (1 au / r) "
+             "at a pitch and clock angle constant over each segment",
+             "flown by CVODES on the equations of motion in 3-D from the departure state; "
+             + ("the polished schedule (schedule.csv)" if polish else
+                "the closed-form optimum's schedule (schedule.csv)"),
+             f"verdict: {verdict} (exit 0 only when verified)"]
+    if check.target_miss_r_km is not None:
+        lines.append(f"miss at arrival: {check.target_miss_r_km:.6g} km, "
+                     f"{check.target_miss_v_m_s:.6g} m/s from the target; verifier's own "
+                     f"error {check.verifier_error_r_km:.3g} km, "
+                     f"{check.verifier_error_v_m_s:.3g} m/s")
+    lines.append(f"tolerance: {bounds.position_km:.6g} km, {bounds.velocity_m_s:.6g} m/s")
+    lines.append("one data segment per schedule segment: the thrust switches between them, "
+                 "so interpolate within a segment only")
+    return lines
 
 
 def plot(sol):
