@@ -116,6 +116,32 @@ def test_acceptable_level_is_not_converged():
     assert [o.converged for o in Outcome] == [True, False, False, False]
 
 
+def test_a_flight_that_meets_its_bounds_at_ipopts_acceptable_level_is_verified():
+    """The verdict judges the flight: an optimum Ipopt left at its acceptable level whose
+    flight meets the tolerance is verified, its note saying that optimality, not the
+    flight, is unproven; the same point held to a bound its flight misses is not."""
+    from esail_opt.optimisation.outcome import Outcome
+    from esail_opt.optimisation.pipeline import verdict
+    from esail_opt.optimisation.verify import verify
+
+    problem = small_problem(segments=eo.Segments(12, 2))
+    res, _ = solve_problem(problem)
+    acceptable = dataclasses.replace(res, status="Solved_To_Acceptable_Level",
+                                     outcome=Outcome.ACCEPTABLE)
+    check = verify(problem, acceptable)
+    miss_km = check.misses["target_miss_r_km"]
+    assert 0 < miss_km < problem.tolerance.position_km
+    verified, note = verdict(problem, acceptable, check)
+    assert verified and "optimality is not proven" in note
+    strict = dataclasses.replace(problem, tolerance=eo.Tolerance(position_km=miss_km / 2))
+    verified, note = verdict(strict, acceptable, check)
+    assert not verified and "optimality" not in note
+    failed = dataclasses.replace(res, status="Maximum_Iterations_Exceeded",
+                                 outcome=Outcome.FAILED)
+    assert verdict(problem, failed, check) == (False, "NOT verified: Ipopt ended "
+                                               "Maximum_Iterations_Exceeded")
+
+
 def test_small_transfer_converges_and_lands_on_target():
     # 12 segments: with 8 the NLP also has a local optimum at 315.8 d, which Ipopt
     # reaches from the seed with some arc models and not others.

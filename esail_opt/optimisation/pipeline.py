@@ -672,18 +672,30 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         check = controlled.check
     else:
         check = verify(problem, result, samples)
-    verified, note = check.judge(problem)
-    verified = verified and result.converged
-    if not result.converged:
-        note = f"NOT verified: Ipopt ended {result.status}" + (
-            "" if result.outcome is not Outcome.INFEASIBLE else
-            f" from {len(starts) or 1} start(s); no start found a feasible point, which "
-            "does not prove the target unreachable" + _window_hint(problem)
-            + _mesh_hint(result) + _always_on_hint(problem))
+    verified, note = verdict(problem, result, check, starts)
     run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
               error_control=controlled, check=check, verified=verified, note=note,
               sub_arcs_requested=requested)
     return _polished(run, polish, samples, say)
+
+
+def verdict(problem, result, check, starts=()):
+    """(verified, note) of ``result`` flown as ``check``: the flight is judged.  A point
+    Ipopt left at its acceptable level whose flight meets every bound is verified, and
+    the note says that its optimality, not the flight, is unproven; any other point
+    Ipopt did not converge to is not verified, the note saying why."""
+    verified, note = check.judge(problem)
+    if result.outcome is Outcome.ACCEPTABLE and verified:
+        return True, (note + "; Ipopt stopped at its acceptable level, so the flight is "
+                      "verified but its optimality is not proven (another mesh, "
+                      "--segments N, or --polish checks it)")
+    if not result.converged:
+        return False, f"NOT verified: Ipopt ended {result.status}" + (
+            "" if result.outcome is not Outcome.INFEASIBLE else
+            f" from {len(starts) or 1} start(s); no start found a feasible point, which "
+            "does not prove the target unreachable" + _window_hint(problem)
+            + _mesh_hint(result) + _always_on_hint(problem))
+    return verified, note
 
 
 #: Fewer segments than this may be why no start found a point: the note says so.
