@@ -16,8 +16,10 @@ from esail_opt.errors import FigureError
 
 #: Every file :func:`write` may put in its folder: the set that a new write replaces
 #: whole (anything else in the folder is the user's and stays).
+#: ``schedule_polished.csv`` is an older version's name of the polished schedule (now
+#: schedule.csv): listed so that a new write drops it rather than keep it as the user's.
 SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_closed_form.csv",
-                  "trajectory.png", "timeline.png", "trajectory.oem")
+                  "trajectory.png", "timeline.png", "trajectory.oem", "schedule_polished.csv")
 
 
 def schedule_csv(sol, polished=None):
