@@ -155,6 +155,13 @@ def test_a_min_acceleration_solve_with_no_sail_reports_the_shortest_feasible_fli
     assert near["ac_mm_s2_required"] > 0
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith("esail-opt solve: ") and f"{near['tof_days']:.1f} d" in err
+    # That flight is written as a whole answer of its own beside the failed one.
+    assert err.endswith(f"written to {tmp_path / 'out_nearest'}")
+    flown = eo.Solution.load(tmp_path / "out_nearest" / "solution.json")
+    assert flown.verified and flown.tof_days == pytest.approx(near["tof_days"], rel=1e-9)
+    assert flown.ac_mm_s2_required == pytest.approx(near["ac_mm_s2_required"], rel=1e-9)
+    rows = (tmp_path / "out_nearest" / "schedule.csv").read_text().splitlines()
+    assert sum(float(r.split(",")[3]) for r in rows[1:]) == pytest.approx(near["tof_days"])
 
 
 def test_a_longer_flight_whose_seed_escapes_ends_the_walk_without_an_error(monkeypatch):
