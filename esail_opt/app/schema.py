@@ -8,28 +8,8 @@ quantity everywhere in the file, the polish included: lengths and position misse
 (au for radii and semimajor axes), speeds and velocity misses in m/s (km/s for state
 velocities), times in days, angles in degrees.
 
-Version 2 added ``schema_version``, gave the polish's misses and bounds the same keys and
-units as the closed form's (km and m/s, where version 1 used m and mm/s), and made an
-(a, e) target's ``target_miss_r_km`` the larger of |da| and a |de|.  Version 3 added the calendar: the fields under "On the calendar" below, a body's name in
-``problem.departure`` and ``problem.target``, and a body target's
-``relative_speed_km_s`` and ``out_of_plane_km`` in ``verification``.  Version 4
-gave the polish its own ``departure_state`` and calendar fields (a polish may move
-the departure and the a_c), and made ``problem.departure_state`` the state the
-verification flies from (for a body, its ephemeris rather than the NLP's track of it).
-Version 5 added ``classes`` and ``nearest_feasible``, and three dimensions: a
-problem flown in 3-D gives its
-``problem.departure_state``, ``final_state`` and ``verification.cvodes_final_state`` also
-as :data:`STATE_KEYS` (the polar keys are then inside the state's own turning plane),
-its schedule rows a ``clock_deg``, its CVODES samples (``trajectory.cvodes``) the
-:data:`STATE_KEYS` and the osculating ``inclination_deg`` and ``node_deg``, and its
-verification's misses are in space against the body's unprojected state.  Its folder
-also holds ``trajectory.oem``, the CVODES flight as a CCSDS OEM.  Version 6
-gave a target body's ``out_of_plane_km`` one meaning, the body's distance from the
-ecliptic at arrival, as the departure body's is: in a 3-D flight of version 5 it was the
-flight's distance from the body along the ecliptic's normal, which is now
-``normal_miss_km`` (:func:`upgrade` reads a version-5 file so).  Version 7 (this one)
-added ``departure_epoch_days``, the departure's epoch to a fraction of a microsecond
-(a version-6 file reads with none).
+How each version differs from the one before is told in ``schema_changes.md`` beside
+this module.
 
 Top level
 ---------
