@@ -26,7 +26,7 @@ from esail_opt.app import files
 from esail_opt.bodies import lookup
 from esail_opt.bodies.dates import J2000_JD, iso_from_jd
 from esail_opt.errors import InputError, check_range
-from esail_opt.optimisation.guidance import Plan, Retargeting, arrival
+from esail_opt.optimisation.guidance import Plan, Retargeting
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import polar3d_from_cartesian
 from esail_opt.propagation.ensemble import Ensemble
