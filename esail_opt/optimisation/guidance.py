@@ -6,17 +6,15 @@ closed form, flown at the nominal thrust from where it is, meets the target's po
 and velocity at the planned arrival time; then it flies on under the wind as it blows
 until the next waypoint.
 
-The correction is a smooth change of the remaining pitch and clock angles: each angle
-moves by a polynomial in the fraction of the remaining flight time, of as many
-coefficients in all as the target has components (six in three dimensions), so that
-the correction is small, smooth, and determined.  The coefficients come from a damped
-Gauss-Newton solve of the predicted miss, weighted by the tolerance (a miss of one
-tolerance in position weighs as one in velocity), with the Jacobian of the nominal
-flight from the waypoint by central differences, computed once a waypoint and used for
-every flight: a flight's miss is small, and one Newton step from the nominal Jacobian,
-repeated :data:`NEWTON_STEPS` times on each flight's own prediction, converges where a
-correction can reach at all.  This is the same closed form the NLP flies, re-solved for
-the remaining pieces; pitch stays within the problem's bounds.
+The correction is a smooth change of the remaining pitch, clock and asked a_c: each
+moves by a quadratic in the fraction of the remaining flight time (nine coefficients),
+so that the correction is small and smooth.  The coefficients come from Gauss-Newton
+steps on the predicted miss, weighted by the tolerance (a miss of one tolerance in
+position weighs as one in velocity), from the nominal flight's Jacobian by central
+differences (once a waypoint) which each flight then corrects by Broyden's update.
+The asked a_c stays within the sail's (the schedule's, plus any margin) and pitch
+within the problem's bounds: at a minimum-a_c optimum without margin, the direction
+of more thrust is out of reach, and guidance can only steer.
 """
 
 from dataclasses import dataclass
