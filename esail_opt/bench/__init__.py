@@ -17,7 +17,9 @@ Each is the ``run`` of its own module:
 * ``precision``: solve time against verified accuracy for the closed form, RK4
   (``propagation.rk4``) and CVODES segments;
 * ``verifier3d``: the 3-D verifier's flights of polished schedules against heyoka in
-  quadruple precision (an accuracy bench: nothing is timed).
+  quadruple precision (an accuracy bench: nothing is timed);
+* ``stages`` (:mod:`.stages`): where the time of one ``esail-opt solve --polish`` goes,
+  stage by stage, in a fresh process (no baseline: the stages sum to the process).
 
 Their problems are the shipped problem files, loaded by name from the package data
 ``esail_opt.problems`` (``optimisation.problem_file.shipped_problem``), so an installed
@@ -29,7 +31,7 @@ application modules, none of which imports them.
 """
 
 from esail_opt.bench import (lowthrust, polish, porkchop, porkchop3d, precision, propagate,
-                             rockit_baseline, solve_speed, sweep, verifier3d)
+                             rockit_baseline, solve_speed, stages, sweep, verifier3d)
 
 BENCHES = {
     "propagate": propagate.run,
@@ -42,6 +44,7 @@ BENCHES = {
     "porkchop": porkchop.run,
     "verifier3d": verifier3d.run,
     "porkchop3d": porkchop3d.run,
+    "stages": stages.run,
 }
 
 __all__ = ["BENCHES"]

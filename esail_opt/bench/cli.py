@@ -10,7 +10,7 @@ an import running upward.  Errors become one line and an exit status as in
 import argparse
 
 from esail_opt.app.cli import run_command
-from esail_opt.bench import BENCHES
+from esail_opt.bench import BENCHES, stages
 from esail_opt.errors import InputError
 
 PROG = "esail-opt-bench"
@@ -30,6 +30,9 @@ def build_parser():
                         help="output directory (default results/bench)")
     parser.add_argument("--repeats", type=int, default=20,
                         help="timed runs per method (median; default 20)")
+    parser.add_argument("--problem", choices=stages.PROBLEMS, default=stages.PROBLEMS[0],
+                        help="the shipped problem the stages bench solves (default "
+                        f"{stages.PROBLEMS[0]}); the other benches ignore it")
     return parser
 
 
@@ -38,7 +41,8 @@ def _run(args):
         raise InputError(f"repeats = {args.repeats} is outside [1, inf)")
     # A name given twice runs once: each run rewrites the same files.
     for name in dict.fromkeys(args.name):
-        print(f"wrote {BENCHES[name](args.out, args.repeats)}")
+        options = {"problem": args.problem} if name == "stages" else {}
+        print(f"wrote {BENCHES[name](args.out, args.repeats, **options)}")
     return 0
 
 
