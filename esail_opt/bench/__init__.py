@@ -19,7 +19,9 @@ Each is the ``run`` of its own module:
 * ``verifier3d``: the 3-D verifier's flights of polished schedules against heyoka in
   quadruple precision (an accuracy bench: nothing is timed);
 * ``stages`` (:mod:`.stages`): where the time of one ``esail-opt solve --polish`` goes,
-  stage by stage, in a fresh process (no baseline: the stages sum to the process).
+  stage by stage, in a fresh process (no baseline: the stages sum to the process);
+* ``ensemble`` (:mod:`.ensemble`): the flights of ``esail-opt robust`` flown by the
+  closed form, by CVODES and by heyoka, time per flight at each one's stated error.
 
 Their problems are the shipped problem files, loaded by name from the package data
 ``esail_opt.problems`` (``optimisation.problem_file.shipped_problem``), so an installed
@@ -30,8 +32,9 @@ heyoka's Taylor integrator, when the ``bench`` extra is installed.  The benches 
 application modules, none of which imports them.
 """
 
-from esail_opt.bench import (lowthrust, polish, porkchop, porkchop3d, precision, propagate,
-                             rockit_baseline, solve_speed, stages, sweep, verifier3d)
+from esail_opt.bench import (ensemble, lowthrust, polish, porkchop, porkchop3d, precision,
+                             propagate, rockit_baseline, solve_speed, stages, sweep,
+                             verifier3d)
 
 BENCHES = {
     "propagate": propagate.run,
@@ -45,6 +48,7 @@ BENCHES = {
     "verifier3d": verifier3d.run,
     "porkchop3d": porkchop3d.run,
     "stages": stages.run,
+    "ensemble": ensemble.run,
 }
 
 __all__ = ["BENCHES"]

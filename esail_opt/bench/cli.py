@@ -10,7 +10,7 @@ an import running upward.  Errors become one line and an exit status as in
 import argparse
 
 from esail_opt.app.cli import run_command
-from esail_opt.bench import BENCHES, stages
+from esail_opt.bench import BENCHES, ensemble, stages
 from esail_opt.errors import InputError
 
 PROG = "esail-opt-bench"
@@ -20,7 +20,8 @@ EPILOG = ("exit status: 0 every benchmark named ran and wrote its files; 2 bad i
 
 
 def build_parser():
-    """The command's options: benchmark names, ``--out`` and ``--repeats``."""
+    """The command's options: benchmark names, ``--out``, ``--repeats`` and the options
+    of single benches (``--problem``, ``--flights``, ``--solution``)."""
     parser = argparse.ArgumentParser(
         prog=PROG, description="benchmarks, each against a baseline timed in the same run",
         epilog=EPILOG)
@@ -33,16 +34,32 @@ def build_parser():
     parser.add_argument("--problem", choices=stages.PROBLEMS, default=stages.PROBLEMS[0],
                         help="the shipped problem the stages bench solves (default "
                         f"{stages.PROBLEMS[0]}); the other benches ignore it")
+    parser.add_argument("--flights", type=int, default=ensemble.FLIGHTS,
+                        help="flights of the ensemble bench (default "
+                        f"{ensemble.FLIGHTS}); the other benches ignore it")
+    parser.add_argument("--solution", default=ensemble.SOLUTION,
+                        help="the solved rendezvous folder the ensemble bench flies (default "
+                        f"{ensemble.SOLUTION}); the other benches ignore it")
     return parser
+
+
+def _options(name, args):
+    """The options of the bench ``name`` beyond ``out`` and ``repeats``."""
+    if name == "stages":
+        return {"problem": args.problem}
+    if name == "ensemble":
+        return {"flights": args.flights, "solution": args.solution}
+    return {}
 
 
 def _run(args):
     if args.repeats < 1:
         raise InputError(f"repeats = {args.repeats} is outside [1, inf)")
+    if args.flights < 1:
+        raise InputError(f"flights = {args.flights} is outside [1, inf)")
     # A name given twice runs once: each run rewrites the same files.
     for name in dict.fromkeys(args.name):
-        options = {"problem": args.problem} if name == "stages" else {}
-        print(f"wrote {BENCHES[name](args.out, args.repeats, **options)}")
+        print(f"wrote {BENCHES[name](args.out, args.repeats, **_options(name, args))}")
     return 0
 
 

@@ -1,5 +1,6 @@
-"""heyoka's Taylor integrator flying Eqs. 1-2 under a piecewise-constant pitch: the
-strongest integrator the propagation bench sets against the closed form.
+"""heyoka's Taylor integrator flying Eqs. 1-2 under a piecewise-constant pitch, and the
+Cartesian equations in three dimensions under a piecewise-constant pitch and clock: the
+strongest integrator the propagation and ensemble benches set against the closed form.
 
 heyoka is an optional dependency (the ``bench`` extra): :func:`available` says whether
 it imports, and nothing here imports it at module level.
@@ -10,7 +11,10 @@ and of the thrust (a_c R, a_c T), and its instructions are replayed on heyoka's
 expressions (:func:`system`), so heyoka flies the same formula as CVODES, written
 nowhere a second time.  The thrust's two components are heyoka runtime parameters:
 a pitch schedule changes them between arcs without compiling anything again, and
-``physics.thrust.radial_transverse`` turns each arc's pitch into them.
+``physics.thrust.radial_transverse`` turns each arc's pitch into them.  In three
+dimensions (:func:`cartesian_system`) the Cartesian equations
+(``physics.dynamics.rhs_cartesian``) are replayed the same way, with a_c R, a_c T and
+a_c N as the parameters (``physics.thrust.radial_transverse_normal``).
 
 How the arcs are flown: arc by arc, ``propagate_until`` each arc's end time in
 heyoka's batch mode (``taylor_adaptive_batch``, one SIMD lane a case, on the calling
@@ -28,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.physics import dynamics
-from esail_opt.physics.thrust import EXACT, radial_transverse
+from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse_normal
 
 
 def available():
@@ -73,6 +77,33 @@ def system():
     # a_c = 1 with R, T standing for a_c R and a_c T: the same thrust a_c (R, T) / r.
     fun = ca.Function("eqs_1_2", [x, push], [dynamics.rhs(x, 1.0, push[0], push[1])])
     return replay(fun, hy.make_vars("r", "theta", "v_r", "v_theta"))
+
+
+def cartesian_system():
+    """The Cartesian equations in three dimensions (``dynamics.rhs_cartesian``) as heyoka's
+    ODE system.
+
+    Returns
+    -------
+    list of (heyoka.expression, heyoka.expression)
+        (variable, derivative) for x, y, z, vx, vy, vz, in canonical units, with the
+        thrust a_c (r_E / r) (R r_hat + T t_hat + N h_hat) taken from the runtime
+        parameters ``par[0]`` = a_c R, ``par[1]`` = a_c T and ``par[2]`` = a_c N.  The
+        expressions are of no floating-point type: the same system serves doubles and
+        quadruple precision.
+
+    Raises
+    ------
+    NotImplementedError
+        If ``dynamics.rhs_cartesian`` uses an operation this translation does not know.
+    """
+    import heyoka as hy
+
+    y, push = ca.SX.sym("y", 6), ca.SX.sym("push", 3)
+    # a_c = 1 with the pushes standing for a_c R, a_c T and a_c N.
+    fun = ca.Function("cartesian", [y, push],
+                      [dynamics.rhs_cartesian(y, 1.0, *ca.vertsplit(push))])
+    return replay(fun, hy.make_vars("x", "y", "z", "vx", "vy", "vz"))
 
 
 def replay(fun, variables):
@@ -125,6 +156,19 @@ def integrator(tol, batch_size=None):
                                     pars=np.zeros((2, size)))
 
 
+@functools.lru_cache(maxsize=None)
+def cartesian_integrator(tol, batch_size=None):
+    """A heyoka batch integrator of :func:`cartesian_system` in doubles at tolerance
+    ``tol``, compiled once per process, tolerance and ``batch_size`` (as
+    :func:`integrator`); :func:`fly3d` and :func:`fly_prepared` set its state, time and
+    parameters every time."""
+    import heyoka as hy
+
+    size = batch_size or hy.recommended_simd_size()
+    return hy.taylor_adaptive_batch(cartesian_system(), np.zeros((6, size)), tol=tol,
+                                    pars=np.zeros((3, size)))
+
+
 def fly(ta, x0, acs, alphas, durations, coefficients=EXACT):
     """M cases of a piecewise-constant pitch schedule flown on Eqs. 1-2 by heyoka.
 
@@ -151,38 +195,94 @@ def fly(ta, x0, acs, alphas, durations, coefficients=EXACT):
     RuntimeError
         If heyoka stops short of a case's last arc (a non-finite state).
     """
-    lanes = prepare(ta.batch_size, x0, acs, alphas, durations, coefficients)
+    return _flown(ta, prepare(ta.batch_size, x0, acs, alphas, durations, coefficients))
+
+
+def fly3d(ta, y0, acs, alphas, deltas, durations, coefficients=EXACT):
+    """M cases of a piecewise-constant pitch and clock schedule flown on the Cartesian
+    equations by heyoka (:func:`fly` in three dimensions).
+
+    Parameters
+    ----------
+    ta : heyoka.taylor_adaptive_batch
+        From :func:`cartesian_integrator`.
+    y0 : array_like, shape (6,) or (M, 6)
+        Cartesian start states [x, y, z, vx, vy, vz], canonical units.
+    acs, alphas, deltas, durations : array_like, shape (M, N)
+        Characteristic acceleration (canonical, times any throttle and thrust factor),
+        pitch and clock (rad) and duration (TU) of each case's N arcs.
+    coefficients : tuple of float
+        The thrust model's (b1, b2).
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 7, N)
+        Each case's [x, y, z, vx, vy, vz, t] at the end of every arc.
+
+    Raises
+    ------
+    RuntimeError
+        If heyoka stops short of a case's last arc (a non-finite state).
+    """
+    return _flown(ta, prepare3d(ta.batch_size, y0, acs, alphas, deltas, durations,
+                                coefficients))
+
+
+def _flown(ta, lanes):
+    """:func:`fly_prepared` with each arc's end time as a last row, by case:
+    (M, rows + 1, N)."""
     flown = np.concatenate([fly_prepared(ta, lanes), lanes.ends[:, None, :]], axis=1)
     return flown[:, :, :lanes.cases].transpose(2, 1, 0)
 
 
-Lanes = collections.namedtuple("Lanes", "cases starts push_r push_t ends")
+#: Prepared lanes: the number of cases, the start states (rows x lanes), the thrust's
+#: runtime parameters (parameters x N x lanes) and the arcs' end times (N x lanes).
+Lanes = collections.namedtuple("Lanes", "cases starts pushes ends")
 
 
 def prepare(size, x0, acs, alphas, durations, coefficients=EXACT):
     """:func:`fly`'s arguments as its lanes take them, ``size`` cases a block: the
-    start states (4 x lanes), the thrust parameters and the arcs' end times (N x
-    lanes each), the cases padded to whole blocks with the last one."""
-    acs, alphas, durations = (np.atleast_2d(np.asarray(v, float))
-                              for v in (acs, alphas, durations))
-    cases = alphas.shape[0]
+    start states (4 x lanes), the thrust parameters a_c R and a_c T (2 x N x lanes)
+    and the arcs' end times (N x lanes), the cases padded to whole blocks with the
+    last one."""
+    acs, alphas = (np.atleast_2d(np.asarray(v, float)) for v in (acs, alphas))
     R, T = (np.array(v, float).reshape(alphas.shape)
             for v in radial_transverse(ca.DM(alphas), coefficients))
+    return _lanes(size, x0, acs * np.stack([R, T]), durations)
+
+
+def prepare3d(size, y0, acs, alphas, deltas, durations, coefficients=EXACT):
+    """:func:`fly3d`'s arguments as its lanes take them (:func:`prepare` in three
+    dimensions): start states 6 x lanes, thrust parameters a_c R, a_c T and a_c N
+    (3 x N x lanes), end times N x lanes."""
+    acs, alphas, deltas = (np.atleast_2d(np.asarray(v, float)) for v in (acs, alphas, deltas))
+    R, T, N = (np.array(v, float).reshape(alphas.shape)
+               for v in radial_transverse_normal(ca.DM(alphas), ca.DM(deltas), coefficients))
+    return _lanes(size, y0, acs * np.stack([R, T, N]), durations)
+
+
+def _lanes(size, starts, pushes, durations):
+    """Lanes of ``size`` cases a block from start states (rows,) or (M, rows), the
+    thrust's parameters (P, M, N) and durations (N,) or (M, N)."""
+    cases, arcs = pushes.shape[1:]
     lanes = np.r_[np.arange(cases), np.full(-cases % size, cases - 1)]
-    starts = np.broadcast_to(np.asarray(x0, float).reshape(-1, 4), (cases, 4))[lanes].T
-    return Lanes(cases, starts.copy(), (acs * R)[lanes].T.copy(), (acs * T)[lanes].T.copy(),
-                 np.cumsum(durations, axis=1)[lanes].T.copy())
+    starts = np.atleast_2d(np.asarray(starts, float))
+    starts = np.broadcast_to(starts, (cases, starts.shape[1]))[lanes].T
+    ends = np.cumsum(np.broadcast_to(np.asarray(durations, float), (cases, arcs)), axis=1)
+    return Lanes(cases, starts.copy(), pushes[:, lanes].transpose(0, 2, 1).copy(),
+                 ends[lanes].T.copy())
 
 
 def fly_prepared(ta, lanes, steps=True):
-    """The flight of :func:`fly` from its :func:`prepare`'d ``lanes``: the states
-    [r, theta, v_r, v_theta] at every arc's end, shape (N, 4, lanes).
+    """The flight of :func:`fly` or :func:`fly3d` from its prepared ``lanes``: the
+    states at every arc's end, shape (N, rows, lanes) ([r, theta, v_r, v_theta] or
+    [x, y, z, vx, vy, vz]).
 
     ``steps`` False leaves out heyoka's ``propagate_until`` calls and the check of
     their ends (the states are then the starts): what is left is the cost of the loop
     around them from Python."""
     size, ends = ta.batch_size, lanes.ends
-    out = np.empty((ends.shape[0], 4, ends.shape[1]))
+    out = np.empty((ends.shape[0], lanes.starts.shape[0], ends.shape[1]))
     state, pars = ta.state, ta.pars
     for first in range(0, ends.shape[1], size):
         block = slice(first, first + size)
@@ -193,8 +293,7 @@ def fly_prepared(ta, lanes, steps=True):
         shared = (ends[:, block] == ends[:, first:first + 1]).all()
         times = ends[:, first].tolist() if shared else ends[:, block]
         for k in range(ends.shape[0]):
-            pars[0] = lanes.push_r[k, block]
-            pars[1] = lanes.push_t[k, block]
+            pars[:] = lanes.pushes[:, k, block]
             if steps:
                 ta.propagate_until(times[k])
             out[k, :, block] = state

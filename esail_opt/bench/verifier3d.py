@@ -11,7 +11,7 @@ the truth, and whether the error the verifier states covers its judged flight's.
 
 The truth is heyoka's Taylor integrator (the ``bench`` extra) in quadruple precision
 (``real128``, tolerance 1e-30) on the Cartesian equations, replayed from
-``dynamics.rhs_cartesian`` (:func:`esail_opt.bench.taylor.replay`).  Without heyoka the
+``dynamics.rhs_cartesian`` (:func:`esail_opt.bench.taylor.cartesian_system`).  Without heyoka the
 bench reports the flights' gaps and no true errors.
 
 The cases are the shipped 3-D rendezvous problems solved with ``--polish``, the
@@ -25,7 +25,6 @@ import dataclasses
 import sys
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
 import esail_opt as eo
@@ -34,7 +33,6 @@ from esail_opt.bench import taylor
 from esail_opt.optimisation import multistart, pipeline
 from esail_opt.optimisation.problem_file import shipped_problem
 from esail_opt.physics import constants as units
-from esail_opt.physics.dynamics import rhs_cartesian
 from esail_opt.physics.thrust import radial_transverse_normal
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate3d
 
@@ -73,13 +71,9 @@ def truth(y0, acs, alphas, deltas, durations, coefficients):
         return None
     import heyoka as hy
 
-    y, push = ca.SX.sym("y", 6), ca.SX.sym("push", 3)
-    # a_c = 1 with the pushes standing for a_c R, a_c T and a_c N.
-    fun = ca.Function("cartesian", [y, push], [rhs_cartesian(y, 1.0, *ca.vertsplit(push))])
     real = hy.real128
-    ta = hy.taylor_adaptive(taylor.replay(fun, hy.make_vars("x", "y", "z", "vx", "vy", "vz")),
-                            [real(float(v)) for v in y0], fp_type=real,
-                            tol=real(TRUTH_TOLERANCE), pars=[real(0.0)] * 3)
+    ta = hy.taylor_adaptive(taylor.cartesian_system(), [real(float(v)) for v in y0],
+                            fp_type=real, tol=real(TRUTH_TOLERANCE), pars=[real(0.0)] * 3)
     for ac, alpha, delta, duration in zip(acs, alphas, deltas, durations):
         R, T, N = (float(v) for v in radial_transverse_normal(alpha, delta, coefficients))
         ta.pars[:] = [real(ac * R), real(ac * T), real(ac * N)]
