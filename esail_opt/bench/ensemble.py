@@ -184,8 +184,10 @@ def heyoka_flights(plan, acs, repeats, reference, sample):
     -------
     dict
         ``points``: per tolerance, ``seconds_per_flight`` (median CPU seconds of all M
-        at the fastest batch size, over M), ``batch_size``, ``compile_seconds`` (its
-        integrator's), the pilot's seconds per flight at each batch size, and the
+        at the fastest batch size, over M), ``batch_size``, ``build_seconds`` (wall
+        seconds constructing its integrator: heyoka's compile, or a load from heyoka's
+        own disk cache where an earlier process compiled it), the pilot's seconds per
+        flight and build seconds at each batch size, and the
         arrival error against ``reference`` (``error_km``, median and max); and
         ``simd_size``, ``heyoka_version``.
     """
@@ -207,7 +209,7 @@ def heyoka_flights(plan, acs, repeats, reference, sample):
             built = time.perf_counter() - clock
             ready = taylor.prepare3d(size, y0, acs[:pilot], tiled[0][:pilot],
                                      tiled[1][:pilot], plan.durations)
-            by_size[size] = {"compile_seconds": built, "pilot_seconds_per_flight": cpu_seconds(
+            by_size[size] = {"build_seconds": built, "pilot_seconds_per_flight": cpu_seconds(
                 lambda ta=ta, ready=ready: taylor.fly_prepared(ta, ready), 3) / pilot}
         best = min(by_size, key=lambda size: by_size[size]["pilot_seconds_per_flight"])
         ta = taylor.cartesian_integrator(tol, best)
@@ -216,7 +218,7 @@ def heyoka_flights(plan, acs, repeats, reference, sample):
         arrivals = taylor.fly_prepared(ta, ready)[-1, :, :m]
         errors = _distance_km(arrivals[:, sample], reference)
         points.append({"tolerance": tol, "seconds_per_flight": seconds / m, "batch_size": best,
-                       "compile_seconds": by_size[best]["compile_seconds"],
+                       "build_seconds": by_size[best]["build_seconds"],
                        "error_km": _spread(errors), "by_batch_size": by_size})
     return {"points": points, "simd_size": simd, "heyoka_version": heyoka.__version__,
             "timed_runs": runs_of(repeats), "pilot_flights": pilot,
@@ -322,7 +324,7 @@ def measure(flights_count=FLIGHTS, repeats=3, solution=SOLUTION, cvodes_flights=
         "position from CVODES at the stated tolerance on the flights it flew; "
         "corrected: the closed form as robust reports a flight (its departure from the "
         "nominal closed form plus the nominal's CVODES flight); setup_seconds: load, "
-        "pieces, target track, the closed form's first compile and nominal, the nominal's "
+        "pieces, target track, the closed form's first call and nominal, the nominal's "
         "CVODES flight")
     return record
 
