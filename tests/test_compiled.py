@@ -234,10 +234,10 @@ def test_a_failed_compile_of_the_segment_graph_keeps_it_on_compiled_arcs(monkeyp
     _fresh(monkeypatch, shared_cache)
     real = cc._build
 
-    def build(fun, compiler, target, links=()):
+    def build(fun, compiler, target, links=(), *rest):
         if links:
             raise subprocess.CalledProcessError(1, compiler, stderr="ld: out of luck\n")
-        return real(fun, compiler, target, links)
+        return real(fun, compiler, target, links, *rest)
 
     monkeypatch.setattr(cc, "_build", build)
     monkeypatch.setattr(segment_methods, "closed_form_segment",

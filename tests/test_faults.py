@@ -129,7 +129,7 @@ def test_a_cache_without_space_is_not_tried_again(tmp_path, monkeypatch, caplog)
     monkeypatch.setattr(cc, "_loaded", {})
     builds = []
 
-    def full_disk(fun, compiler, target, links=()):
+    def full_disk(fun, compiler, target, links=(), *rest):
         builds.append(target)
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 

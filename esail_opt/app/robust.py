@@ -29,7 +29,7 @@ from esail_opt.errors import InputError, check_range
 from esail_opt.optimisation.guidance import Plan, Retargeting
 from esail_opt.physics import constants as units
 from esail_opt.physics.elements import polar3d_from_cartesian
-from esail_opt.propagation.ensemble import Ensemble
+from esail_opt.propagation.ensemble import CARTESIAN, Ensemble
 from esail_opt.propagation.rectified3d import cartesian_states
 from esail_opt.propagation.simulate import simulate3d
 from esail_opt.propagation.solar_wind import SolarWind
@@ -128,7 +128,7 @@ class Mission:
         nominal = ensemble.fly(start[None], alphas[None], durations, acs[None],
                                deltas=deltas[None])[0]
         flown = _cvodes(start, alphas, deltas, durations, acs)
-        correction = flown - cartesian_states(nominal)[:6]
+        correction = flown - nominal[CARTESIAN]
         return cls(plan, days, track, nominal, correction, J2000_JD + sol.departure_epoch_days,
                    (tol.position_km, tol.velocity_m_s))
 
@@ -164,8 +164,7 @@ class Flights:
 
 
 def _outcome(kind, mission, xs, factors):
-    states = cartesian_states(xs.transpose(1, 0, 2).reshape(9, -1))[:6]
-    states = states.reshape(6, xs.shape[0], -1).transpose(1, 0, 2) + mission.correction
+    states = xs[:, CARTESIAN] + mission.correction
     gap = states - mission.target_track
     distance = units.length_to_km(np.linalg.norm(gap[:, :3], axis=1))
     nearest = np.argmin(distance, axis=1)
@@ -314,7 +313,7 @@ def run(sol, request, progress=lambda text: None):
         checks.append(_check(mission, "guided", gxs[sample], _subset(guided, sample),
                              factors[sample], _controls(controls, sample), mission.tolerance))
     seconds["cvodes_check"] = time.perf_counter() - clock
-    end = mission.correction[:, -1] + cartesian_states(mission.nominal[:, -1:])[:6, 0]
+    end = mission.correction[:, -1] + mission.nominal[CARTESIAN, -1]
     gap = end - mission.target_track[:, -1]
     nominal_miss = (units.length_to_km(np.linalg.norm(gap[:3])),
                     units.speed_to_m_s(np.linalg.norm(gap[3:])))

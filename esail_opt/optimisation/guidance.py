@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esail_opt.propagation.rectified3d import cartesian_states
+from esail_opt.propagation.ensemble import CARTESIAN
 
 #: Gauss-Newton steps a waypoint, each on every flight's own prediction.
 NEWTON_STEPS = 6
@@ -31,8 +31,8 @@ STEP = 1e-5
 
 def arrival(xs):
     """Cartesian [x, y, z, vx, vy, vz] (canonical) of the last state of each 3-D flight
-    in ``xs`` (M, 9, K + 1)."""
-    return cartesian_states(xs[:, :, -1].T)[:6].T
+    in ``xs`` (M, 15, K + 1), as an ensemble flies it."""
+    return xs[:, CARTESIAN, -1]
 
 
 @dataclass(frozen=True)
@@ -188,14 +188,13 @@ class Retargeting:
         controls = Controls.nominal(p, m)
         states = np.tile(p.start, (m, 1))
         out = np.empty((m, self.ensemble.width, k + 1))
-        out[:, :, 0] = states
         first = 0
         for stop in self.waypoints + [k]:
             # Pieces first .. stop - 1 under the wind; the rest of the call is zeros.
             span = np.zeros((m, k))
             span[:, : stop - first] = p.durations[first:stop]
             xs = self._fly(states, controls, first, span, factors)
-            out[:, :, first + 1: stop + 1] = xs[:, :, 1: stop - first + 1]
+            out[:, :, first: stop + 1] = xs[:, :, : stop - first + 1]
             states = out[:, :, stop]
             first = stop
             if first < k:

@@ -15,7 +15,7 @@ Two shapes are batched:
   (:func:`angles_batch_function`, numbers through :func:`arcs_at_angles`), so that arcs
   of different sample counts (Fig. 4 has hundreds) share one call.
 
-``jit`` compiles the batch to C for this process only.  Where the schedule is a plain
+``jit`` compiles the batch to C.  Where the schedule is a plain
 chain of one SX arc (one arc a segment, no extrapolation, arcs not on the disk cache's
 panels: the bench's timed batch), the C is generated here across cases
 (:func:`_vectorised`): every CasADi instruction of the arc becomes one operation on a
@@ -25,16 +25,14 @@ computes four or eight cases at once where CasADi's own code computes one.  Its 
 products, quotients and roots are the scalar code's, rounded alike (fused
 multiply-adds are kept off); only libmvec's sin, cos, log, atan and atan2, within
 4 ulp where the scalar ones are within 1, differ, which moves the ten-year states
-by a few 1e-13 of their size.  Where it does not apply, or its compile fails, the
-mapped Function is compiled by CasADi's own just-in-time compiler.  How that
+by a few 1e-13 of their size; it is compiled in the process that loads it.  How that
 compares with integrators (CVODES, heyoka's Taylor integrator) is measured by
 ``esail-opt-bench propagate``; results/bench/README.md holds the figures.
 
-Why not ``propagation.compiled``'s disk cache: it compiles a
-Function together with its Jacobian and Hessian blocks, which the NLP needs; a timed
-second-order arc (its clock guess and Taylor series inside) has a Hessian far too large
-to compile for a call that is never differentiated, while its forward evaluation alone
-is small enough to compile in the process that flies it.  Without a compiler, or with ``ESAIL_OPT_COMPILE=0``, the
+Where it does not apply, or its compile fails, the mapped Function is compiled through ``propagation.compiled``'s
+disk cache, its value alone (never differentiated, its derivatives would be far
+larger to compile), so a process loads it in milliseconds where compiling it took
+about a second.  Without a compiler, or with ``ESAIL_OPT_COMPILE=0``, the
 Function stays on CasADi's virtual machine.
 """
 
@@ -52,35 +50,21 @@ from esail_opt.propagation import compiled
 from esail_opt.propagation.arcs import PANEL_NODES, ArcModel
 from esail_opt.propagation.rectified import (angles_function, arc_function, flies_native,
                                              rectified_function, timed_arc_function)
-from esail_opt.propagation.rectified3d import STATE, rectified3d_function
+from esail_opt.propagation.rectified3d import STATE, cartesian_function, rectified3d_function
 
 log = logging.getLogger("esail_opt")
 
-#: Flags of the just-in-time compile.  On the bench's batch -O2 and -O3 ran within the
-#: timing noise of -O1 and compiled slower; -march=native, a little faster, is left out
-#: because a compiler that refuses it would leave the batch on the virtual machine.
-JIT_FLAGS = ("-O1",)
-#: Where the compile's source and library live while the batch is loaded: the system's
-#: temporary folder, not the working directory (which may be read-only, or the user's).
+def _native(single, cases):
+    """``single`` (one case) compiled to C, its value alone, through the disk cache, and
+    mapped over ``cases``; on the virtual machine where compiling is off or failed
+    (one warning).  The case is compiled, not the map: the map's C is the same loop
+    over it, and a map's graph, as long as its cases, is slow to hash for the key."""
+    return compiled.compiled(single, with_derivatives=False).map(cases)
+
+
+#: Where the vectorised batch's source and library live while it is loaded: the
+#: system's temporary folder, not the working directory (which may be read-only).
 _JIT_FOLDER = tempfile.gettempdir() + os.sep
-
-
-def _native(fun):
-    """``fun`` compiled to C in this process, or ``fun`` itself on the virtual machine
-    (compiling off, or the compile failed: one warning)."""
-    if not compiled.enabled():
-        return fun
-    symbols = [ca.MX.sym(fun.name_in(k), fun.sparsity_in(k)) for k in range(fun.n_in())]
-    try:
-        return ca.Function(f"{fun.name()}_jit", symbols, fun(*symbols), fun.name_in(),
-                           fun.name_out(), {"jit": True, "compiler": "shell",
-                                            "jit_options": {"flags": list(JIT_FLAGS),
-                                                            "verbose": False,
-                                                            "directory": _JIT_FOLDER}})
-    except RuntimeError as err:
-        log.warning("esail-opt: compiling the batch %s failed (%s); it stays on CasADi's "
-                    "virtual machine", fun.name(), str(err).strip().splitlines()[-1])
-        return fun
 
 
 #: Flags of the compile across cases: -march=native gives the vector width of this CPU
@@ -261,8 +245,8 @@ def _vectorised(arc, segments, cases):
             failure = str(err).strip().splitlines()[-1]
         finally:
             Path(out.name).unlink(missing_ok=True)
-    log.warning("esail-opt: compiling the batch across cases failed (%s); CasADi's own "
-                "compile is used", failure)
+    log.warning("esail-opt: compiling the batch across cases failed (%s); it is compiled "
+                "case by case", failure)
     return None
 
 
@@ -281,12 +265,11 @@ def batch_function(segments, cases, *, samples=1, length_in="theta", coefficient
     """
     single = rectified_function(segments, samples=samples, length_in=length_in,
                                 coefficients=coefficients, model=model)
-    mapped = single.map(cases)
     if not jit:
-        return mapped
+        return single.map(cases)
     arc = _plain_arc(samples, length_in, coefficients, model) if across_cases else None
     fast = None if arc is None else _vectorised(arc, segments, cases)
-    return _native(mapped) if fast is None else fast
+    return _native(single, cases) if fast is None else fast
 
 
 def _rows(values, cases, width, name):
@@ -355,8 +338,8 @@ def angles_batch_function(samples, cases, *, coefficients=EXACT, nodes=PANEL_NOD
     """``rectified.angles_function`` mapped over ``cases``: ``(x0[5 x M], ac[1 x M],
     alpha[1 x M], phis[1 x M (samples + 1)]) -> (states[4 x M samples],
     elapsed[1 x M samples], q3[1 x M samples])``."""
-    mapped = angles_function(samples, coefficients=coefficients, nodes=nodes).map(cases)
-    return _native(mapped) if jit else mapped
+    single = angles_function(samples, coefficients=coefficients, nodes=nodes)
+    return _native(single, cases) if jit else single.map(cases)
 
 
 def arcs_at_angles(x0, ac, alphas, angles, *, coefficients=EXACT, nodes=PANEL_NODES,
@@ -407,14 +390,23 @@ def arcs_at_angles(x0, ac, alphas, angles, *, coefficients=EXACT, nodes=PANEL_NO
 
 @functools.lru_cache(maxsize=None)
 def batch3d_function(segments, cases, *, samples=1, length_in="theta", coefficients=EXACT,
-                     model=ArcModel(), jit=False):
+                     model=ArcModel(), jit=False, cartesian=False):
     """``rectified3d.rectified3d_function`` mapped over ``cases``, laid out as
     :func:`batch_function`: ``(x0[9 x M], ac, alpha, delta, length [1 x M N each]) ->
-    (xs[9 x M N S samples], q3[1 x M N S])``."""
+    (xs[9 x M N S samples], q3[1 x M N S])``; with ``cartesian``, a third output, every
+    sample's Cartesian state and time (7 x M N S samples, as
+    ``rectified3d.cartesian_states``), so that a large ensemble converts in the same
+    compiled call instead of through a map as wide as its samples."""
     single = rectified3d_function(segments, samples=samples, length_in=length_in,
                                   coefficients=coefficients, model=model)
-    mapped = single.map(cases)
-    return _native(mapped) if jit else mapped
+    if cartesian:
+        symbols = [ca.MX.sym(single.name_in(k), single.sparsity_in(k))
+                   for k in range(single.n_in())]
+        xs, q3 = single(*symbols)
+        states = cartesian_function().map(xs.shape[1])(xs)
+        single = ca.Function(f"{single.name()}_cartesian", symbols, [xs, q3, states],
+                             single.name_in(), [*single.name_out(), "cartesian"])
+    return _native(single, cases) if jit else single.map(cases)
 
 
 def propagate_batch3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,

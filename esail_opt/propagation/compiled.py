@@ -86,6 +86,8 @@ FLAGS = ("-O1", "-fPIC")
 BUILD_FLAGS = ("-pipe",)
 #: Raised whenever what is written into a library changes, so old libraries are ignored.
 RECIPE = "segment+jac+adj1+jac_adj1 v2 checksummed"
+#: The same, for a library of the Function's value alone.
+VALUE_RECIPE = "value v1 checksummed"
 #: Suffix of a library's checksum file, written after the library itself.
 CHECKSUM = ".sha256"
 #: Free space a compile needs in the cache (its objects and library are a few MB; the
@@ -140,12 +142,13 @@ def derivatives(fun):
     return [fun, fun.jacobian(), adjoint, adjoint.jacobian()]
 
 
-def _key(fun, identity, links=()):
+def _key(fun, identity, links=(), with_derivatives=True):
     """The library's name: ``fun``'s name and a hash of all that shapes its code, the keys
     of the libraries it calls included (``links``; none for a Function that calls none,
-    whose key is then what it always was)."""
+    whose key is then what it always was), and whether it holds the derivatives."""
     digest = hashlib.sha256()
-    for part in (RECIPE, ca.__version__, identity[1], " ".join(FLAGS), fun.serialize(),
+    recipe = RECIPE if with_derivatives else VALUE_RECIPE
+    for part in (recipe, ca.__version__, identity[1], " ".join(FLAGS), fun.serialize(),
                  *links):
         digest.update(part.encode())
         digest.update(b"\0")
@@ -422,8 +425,9 @@ class _Compilers:
             self.reaper.wait(timeout=5)
 
 
-def _build(fun, compiler, target, links=()):
-    """Generate C for ``fun`` and its derivatives and link them into ``target``.
+def _build(fun, compiler, target, links=(), with_derivatives=True):
+    """Generate C for ``fun`` and its derivatives (unless not ``with_derivatives``) and
+    link them into ``target``.
 
     Each Function is its own translation unit, compiled in parallel (the Hessian block
     is most of the time), and the library is renamed into place only when it is whole,
@@ -437,7 +441,7 @@ def _build(fun, compiler, target, links=()):
                                      prefix=f".build-{os.getpid()}-") as tmp:
         tmp = Path(tmp)
         sources = []
-        for i, f in enumerate(derivatives(fun)):
+        for i, f in enumerate(derivatives(fun) if with_derivatives else [fun]):
             source = tmp / f"part{i}.c"
             gen = ca.CodeGenerator(source.name, {"with_header": False})
             gen.add(f)
@@ -582,7 +586,7 @@ def _record(target):
         return None
 
 
-def compiled(fun, calls=()):
+def compiled(fun, calls=(), with_derivatives=True):
     """``fun`` backed by its cached C library, or ``fun`` itself on the virtual machine.
 
     Parameters
@@ -596,12 +600,16 @@ def compiled(fun, calls=()):
         (each compiled first if it is not yet).  Its library is linked against theirs,
         so their code is not compiled again.  If any of them stays on the virtual
         machine, so does ``fun``.
+    with_derivatives : bool
+        False for a Function that is only evaluated (a batch of flights): its library
+        holds its value alone, which compiles in a fraction of the time.
 
     Returns
     -------
     casadi.Function
         An ``external`` with the same inputs and outputs, whose Jacobian, reverse
-        derivative and Hessian block are compiled too; or ``fun`` when compiling is off
+        derivative and Hessian block are compiled too (with ``with_derivatives``); or
+        ``fun`` when compiling is off
         (``ESAIL_OPT_COMPILE=0``), no C compiler runs, the cache cannot be written (a
         full disk, a read-only folder: not retried on every run), or the compile fails
         (one warning on the ``esail_opt`` logger for all but the first).
@@ -624,7 +632,7 @@ def compiled(fun, calls=()):
         if compiled(callee) is callee:
             return fun  # its callees were reported; nothing to link against
         links.append(_key(callee, identity))
-    key = _key(fun, identity, links)
+    key = _key(fun, identity, links, with_derivatives)
     if key in _loaded:
         return _loaded[key]
     folder = cache_dir()
@@ -635,7 +643,7 @@ def compiled(fun, calls=()):
                  "variant; "
                  "about %d s (cache: %s) ...", fun.name(), 10 if links else 20, folder)
         start = time.perf_counter()
-        _build(fun, identity[0], target, links)
+        _build(fun, identity[0], target, links, with_derivatives)
         log.info("esail-opt: compiled in %.1f s", time.perf_counter() - start)
 
     loaded = _load_or_vm(fun, folder, target, key, build)

@@ -11,46 +11,63 @@ pieces of zero length, which leave a state unchanged to the bit, so one compiled
 function serves every waypoint.
 """
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from esail_opt.propagation.arcs import ArcModel
 from esail_opt.propagation.batch import batch3d_function, batch_function
+from esail_opt.propagation.rectified3d import STATE, cartesian_states
 
 #: Flights per compiled call, however many are flown: one compile (about 0.5 s)
 #: serves the nominal, the guidance's probes and every ensemble, a smaller call being
 #: padded (a call of 1,000 flights of an 80-arc schedule costs about 0.25 s).
 CHUNK = 1000
+#: The rows of a three-dimensional flight's Cartesian state.
+CARTESIAN = slice(STATE, STATE + 6)
 #: One arc a piece: the pieces are already the schedule's arcs.
 PIECE = ArcModel(sub_arcs=1)
 
 
 class Ensemble:
     """The flights of ``pieces`` pieces in three dimensions (``three_d``) or in the
-    plane, ``chunk`` flights a compiled call.
+    plane, ``chunk`` flights a compiled call, calls on ``threads`` threads at once
+    (CasADi releases the interpreter's lock while compiled code runs; each call writes
+    its own flights, so the states are the same on any number of threads).
 
     States are rows [r, theta, v_r, v_theta, t] (canonical units, the in-plane polar
     state and the time), followed in three dimensions by the plane's unit quaternion
-    [qw, qx, qy, qz] (``rectified3d``'s convention).
+    [qw, qx, qy, qz] (``rectified3d``'s convention) and the Cartesian state [x, y, z,
+    vx, vy, vz] in the quaternions' fixed frame (rows :data:`CARTESIAN`), converted in
+    the same compiled call.  A flight may start from a row of either width.
     """
 
-    def __init__(self, pieces, three_d, chunk=CHUNK):
+    def __init__(self, pieces, three_d, chunk=CHUNK, threads=os.cpu_count() or 1):
         self.pieces = pieces
         self.three_d = three_d
         self.chunk = chunk
-        self.width = 9 if three_d else 5
+        self.threads = threads
+        self.polar = STATE if three_d else 5
+        self.width = self.polar + (6 if three_d else 0)
 
     def _function(self, cases):
         if self.three_d:
             return batch3d_function(self.pieces, cases, length_in="time", model=PIECE,
-                                    jit=True)
+                                    jit=True, cartesian=True)
         return batch_function(self.pieces, cases, length_in="time", model=PIECE, jit=True)
+
+    def _with_cartesian(self, starts):
+        if not self.three_d or starts.shape[1] == self.width:
+            return starts
+        return np.column_stack([starts, cartesian_states(starts.T)[:6].T])
 
     def fly(self, starts, alphas, durations, acs, deltas=None):
         """Every flight from its start through its pieces.
 
         Parameters
         ----------
-        starts : array_like, shape (M, 9) or (M, 5)
+        starts : array_like, shape (M, 9), (M, 15) or (M, 5)
             Start states (see the class).
         alphas, deltas : array_like, shape (M, K)
             Pitch and clock of each piece, rad (``deltas`` only in three dimensions).
@@ -65,18 +82,35 @@ class Ensemble:
         numpy.ndarray, shape (M, width, K + 1)
             Each flight's state at its start and at every piece's end.
         """
-        starts = np.atleast_2d(np.asarray(starts, float))
+        starts = self._with_cartesian(np.atleast_2d(np.asarray(starts, float)))
         m, k = starts.shape[0], self.pieces
         rows = [np.broadcast_to(np.asarray(v, float), (m, k))
                 for v in (acs, alphas, *((deltas,) if self.three_d else ()), durations)]
         cases = self.chunk
         fun = self._function(cases)
         out = np.empty((m, self.width, k + 1))
-        for first in range(0, m, cases):
+        out[:, :, 0] = starts
+
+        def call(first):
             take = np.arange(first, first + cases).clip(max=m - 1)  # the last call padded
-            xs, _ = fun(starts[take].T, *(row[take].reshape(1, -1) for row in rows))
-            xs = np.array(xs).reshape(self.width, cases, k).transpose(1, 0, 2)
+            xs, _, *cartesian = fun(starts[take, :self.polar].T,
+                                    *(row[take].reshape(1, -1) for row in rows))
             n = min(cases, m - first)
-            out[first:first + n, :, 0] = starts[first:first + n]
-            out[first:first + n, :, 1:] = xs[:n]
+            out[first:first + n, :self.polar, 1:] = _by_flight(xs, cases, k)[:n]
+            if cartesian:
+                out[first:first + n, CARTESIAN, 1:] = _by_flight(cartesian[0], cases, k)[:n, :6]
+
+        calls = range(0, m, cases)
+        if len(calls) == 1 or self.threads == 1:
+            for first in calls:
+                call(first)
+        else:
+            with ThreadPoolExecutor(min(self.threads, len(calls))) as pool:
+                list(pool.map(call, calls))
         return out
+
+
+def _by_flight(columns, cases, k):
+    """A call's output columns (rows x cases K) as (cases, rows, K)."""
+    columns = np.array(columns)
+    return columns.reshape(columns.shape[0], cases, k).transpose(1, 0, 2)

@@ -275,7 +275,8 @@ def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, sampl
 
 
 @functools.lru_cache(maxsize=None)
-def _cartesian_function():
+def cartesian_function():
+    """[x, y, z, vx, vy, vz, t] of one 3-D state column (see :func:`cartesian_states`)."""
     x = ca.SX.sym("x", STATE)
     return ca.Function("cartesian", [x], [ca.vertcat(cartesian_from_polar3d(x[:4], x[5:]),
                                                       x[4])])
@@ -286,4 +287,4 @@ def cartesian_states(xs):
     :func:`propagate3d` returns), in the fixed frame of the planes' quaternions
     (``elements.cartesian_from_polar3d``); shape (7, K)."""
     xs = np.asarray(xs, float)
-    return np.array(_cartesian_function().map(xs.shape[1])(xs))
+    return np.array(cartesian_function().map(xs.shape[1])(xs))
