@@ -16,7 +16,7 @@ done
 run esail-opt solve problems/earth_mars_coast.py --polish
 run esail-opt solve problems/earth_mars_min_ac.py --polish
 run esail-opt solve problems/earth_mars_min_ac_planar.py --polish
-run esail-opt robust results/earth_mars_min_ac --runs 1000
+run esail-opt robust results/earth_mars_min_ac --runs 1000 --margin 0,0.1,0.5
 for p in earth_mars_low_thrust earth_mars_min_time earth_venus_low_thrust earth_venus_min_time; do
   run esail-opt solve "problems/$p.py" --polish --out "results/${p}_polished"
 done

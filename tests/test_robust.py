@@ -102,12 +102,23 @@ def test_without_wind_every_flight_misses_as_the_verified_nominal_does(earth_mar
 @pytest.mark.slow
 def test_guidance_brings_a_windy_earth_mars_closer_and_cvodes_agrees(earth_mars):
     result = robust.run(earth_mars, robust.Request(runs=40, wind=SolarWind(0.2, 1.0),
-                                                   guide_days=30, margin=0.1, check=2))
+                                                   guide_days=30, margins=(0.1, 0.5), check=2))
     open_p = result.open_loop.percentiles()
-    guided_p = result.guided.percentiles()
+    guided_p, more_p = (k.percentiles() for k in result.guided)
     assert guided_p["p50"]["miss_km"] < open_p["p50"]["miss_km"] / 10
     assert guided_p["p95"]["miss_km"] < open_p["p95"]["miss_km"]
+    # More a_c to spend on the same wind: the corrections reach further.
+    assert more_p["p50"]["miss_km"] < guided_p["p50"]["miss_km"]
+    assert [c["margin"] for c in result.checks] == [None, 0.1, 0.5]
     assert result.verified
+
+
+def test_robust_refuses_a_negative_margin_naming_the_option(capsys, tmp_path):
+    code = cli.main(["robust", str(EARTH_MARS.parent), "--margin", "0.1,-0.2",
+                     "--out", str(tmp_path / "r")])
+    assert code == cli.EXIT_INPUT
+    assert "--margin" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
 
 
 def test_robust_refuses_a_planar_solution_in_one_line(capsys):

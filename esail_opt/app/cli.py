@@ -43,6 +43,11 @@ def _number(text):
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
+def _numbers(text):
+    """argparse type: comma-separated numbers, as :func:`_number` reads each."""
+    return tuple(_number(part) for part in text.split(","))
+
+
 #: eps (Eq. 27, a fraction) above which ``propagate`` warns that its single arc has
 #: left the flight behind.
 EPS_WARNING = 0.10
@@ -687,9 +692,10 @@ def _add_robust(sub):
     p.add_argument("--seed", type=int, default=1, help="seed of the draws (default 1)")
     p.add_argument("--guide-days", type=_number, default=30.0,
                    help="days between re-targetings; 0 flies open loop only (default 30)")
-    p.add_argument("--margin", type=_number, default=0.1,
+    p.add_argument("--margin", type=_numbers, default=(0.1,),
                    help="the sail's a_c above what the schedule asks, a fraction, for the "
-                        "guided flights (default 0.1)")
+                        "guided flights; several, comma-separated, fly one guided kind "
+                        "each (default 0.1)")
     p.add_argument("--check", type=int, default=4,
                    help="flights of each kind flown again on CVODES (default 4)")
     p.add_argument("--out", default=None, help="output folder (default FOLDER_robust)")
@@ -711,7 +717,7 @@ def _run_robust(args):
         raise InputError(f"FOLDER = {args.folder!r} holds no solution.json; give a folder "
                          "`esail-opt solve` wrote")
     request = robust.Request(runs=args.runs, wind=SolarWind(args.sigma, args.corr_days),
-                             seed=args.seed, guide_days=args.guide_days, margin=args.margin,
+                             seed=args.seed, guide_days=args.guide_days, margins=args.margin,
                              check=args.check)
     sol = Solution.load(source)
     out = _out(args) or source.parent.with_name(source.parent.name + "_robust")

@@ -4,8 +4,13 @@ A solved, dated rendezvous in three dimensions is cut into its arcs (the pieces 
 NLP flew), and flown ``runs`` times on the batched closed form, each flight with the
 wind's thrust factor drawn per piece (:class:`~esail_opt.propagation.solar_wind.
 SolarWind`): open loop (the schedule as solved), and guided (re-targeted every
-``guide_days`` from where the flight is, :mod:`esail_opt.optimisation.guidance`), the
-sail then having ``margin`` more a_c than the schedule asks.
+``guide_days`` from where the flight is, :mod:`esail_opt.optimisation.guidance`), once
+for each of the ``margins``: how much more a_c than the schedule asks the sail has for
+guidance to spend.  The same wind blows on every kind, so the guided kinds tell what
+each margin buys.  The margin can also be solved into the schedule: a MinTime problem
+whose ``Sail(throttle=True, throttle_max=1 / (1 + m))`` asks at most that fraction of
+the sail flies with a reserve m at margin 0, and a MinAcceleration answer's a_c times
+(1 + m) is the sail to build.
 
 A flight's miss is the closed form's departure from the nominal closed-form flight,
 added to the nominal's own miss flown on CVODES: the closed form's model error (a few
@@ -17,7 +22,7 @@ closed form said, within :data:`AGREEMENT` of its miss or a tenth of the toleran
 """
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -46,21 +51,26 @@ NAMES = ("robust.csv", "robust.json", "robust.png")
 @dataclass(frozen=True)
 class Request:
     """What to fly: ``runs`` flights a kind, the wind, its seed, the guidance (every
-    ``guide_days``; 0 for none), the sail's a_c ``margin`` over what the schedule asks
-    (a fraction), and ``check`` flights of each kind flown again on CVODES."""
+    ``guide_days``; 0 for none), the sail's a_c ``margins`` over what the schedule asks
+    (fractions: one guided kind each), and ``check`` flights of each kind flown again on
+    CVODES."""
 
     runs: int = 1000
     wind: SolarWind = SolarWind()
     seed: int = 1
     guide_days: float = 30.0
-    margin: float = 0.1
+    margins: tuple = (0.1,)
     check: int = 4
 
     def __post_init__(self):
         check_range("--runs", self.runs, 1, 10 ** 7)
         check_range("--seed", self.seed, 0, 2 ** 63)
         check_range("--guide-days", self.guide_days, 0.0, 1e5, unit="d")
-        check_range("--margin", self.margin, 0.0, 10.0)
+        if not 1 <= len(self.margins) <= 12:
+            raise InputError(f"--margin = {','.join(map(str, self.margins))}: give 1 to 12 "
+                             "margins")
+        for margin in self.margins:
+            check_range("--margin", margin, 0.0, 10.0)
         check_range("--check", self.check, 0, 1000)
 
 
@@ -99,8 +109,12 @@ class Mission:
     departure_jd: float
     tolerance: tuple
 
+    def with_margin(self, margin):
+        """The plan whose sail has ``margin`` (a fraction) more a_c than it asks."""
+        return replace(self.plan, sail_ac=self.plan.sail_ac * (1 + margin))
+
     @classmethod
-    def of(cls, sol, margin=0.0):
+    def of(cls, sol):
         source, polished = _checked(sol)
         pieces = sol.problem.sub_arcs
         rows = source.schedule
@@ -123,7 +137,7 @@ class Mission:
                  tol.velocity_m_s / units.speed_to_m_s(1.0))
         plan = Plan(start, alphas, deltas, durations, acs, track[:, -1], scale,
                     tuple(np.radians(sol.problem.alpha_bounds_deg)),
-                    units.accel_from_mm_s2(required) * (1 + margin))
+                    units.accel_from_mm_s2(required))
         ensemble = Ensemble(alphas.size, True)
         nominal = ensemble.fly(start[None], alphas[None], durations, acs[None],
                                deltas=deltas[None])[0]
@@ -142,9 +156,11 @@ def _cvodes(start, alphas, deltas, durations, acs):
 @dataclass(frozen=True)
 class Flights:
     """One kind of flight's outcome, per flight: arrival misses (km, m/s), closest
-    approach (km) and when (days from departure), and the wind's mean factor."""
+    approach (km) and when (days from departure), and the wind's mean factor; a guided
+    kind's a_c ``margin`` (None open loop)."""
 
     kind: str
+    margin: float | None
     miss_km: np.ndarray
     miss_m_s: np.ndarray
     closest_km: np.ndarray
@@ -163,21 +179,22 @@ class Flights:
         return float(np.mean((self.miss_km <= tolerance[0]) & (self.miss_m_s <= tolerance[1])))
 
 
-def _outcome(kind, mission, xs, factors):
+def _outcome(kind, margin, mission, xs, factors):
     states = xs[:, CARTESIAN] + mission.correction
     gap = states - mission.target_track
     distance = units.length_to_km(np.linalg.norm(gap[:, :3], axis=1))
     nearest = np.argmin(distance, axis=1)
     weights = np.diff(mission.ends_days)
-    return Flights(kind, distance[:, -1], units.speed_to_m_s(np.linalg.norm(gap[:, 3:, -1], axis=1)),
+    return Flights(kind, margin, distance[:, -1], units.speed_to_m_s(np.linalg.norm(gap[:, 3:, -1], axis=1)),
                    distance[np.arange(len(nearest)), nearest], mission.ends_days[nearest],
                    factors @ weights / weights.sum(), states[:, :3], states[:, :, -1])
 
 
-def _check(mission, kind, xs, flights, factors, controls, tolerance):
-    """Each sampled flight's reported miss against its own CVODES flight: (the largest
-    position and velocity disagreements, km and m/s, and whether all agree)."""
-    p = mission.plan
+def _check(mission, flights, factors, controls):
+    """Each of ``flights`` (a sample, flown with ``factors`` and ``controls``; None for
+    the plan's) against its own CVODES flight: the largest position and velocity
+    disagreements, km and m/s, and whether all agree."""
+    p, tolerance = mission.plan, mission.tolerance
     worst_km = worst_m_s = 0.0
     agree = True
     for i in range(len(factors)):
@@ -193,21 +210,23 @@ def _check(mission, kind, xs, flights, factors, controls, tolerance):
                            tolerance[0] / 10)
         agree &= m_s <= max(AGREEMENT * units.speed_to_m_s(np.linalg.norm(miss[3:])),
                             tolerance[1] / 10)
-    return {"kind": kind, "flights": len(factors), "worst_position_km": worst_km,
+    return {"kind": flights.kind, "margin": flights.margin, "flights": len(factors),
+            "worst_position_km": worst_km,
             "worst_velocity_m_s": worst_m_s, "agree": bool(agree)}
 
 
 @dataclass(frozen=True)
 class Robustness:
     """A run's outcome: the request, the mission's name and tolerance, the nominal's
-    CVODES miss, the kinds of flight, the CVODES checks and the seconds each took."""
+    CVODES miss, the kinds of flight (open loop, and guided at each margin), the CVODES
+    checks and the seconds each took."""
 
     name: str
     request: Request
     tolerance: tuple
     nominal_miss: tuple
     open_loop: Flights
-    guided: Flights
+    guided: tuple
     checks: list
     seconds: dict
     departure_jd: float
@@ -218,30 +237,38 @@ class Robustness:
     def verified(self):
         return all(c["agree"] for c in self.checks)
 
+    @property
+    def kinds(self):
+        return (self.open_loop, *self.guided)
+
+    def _outcome(self, flights):
+        return {"percentiles": flights.percentiles(),
+                "within_tolerance": flights.within(self.tolerance),
+                "closest_km_p50": float(np.median(flights.closest_km))}
+
     def record(self):
         r, w = self.request, self.request.wind
-        kinds = [k for k in (self.open_loop, self.guided) if k is not None]
         return {
             "problem": self.name,
             "wind": {"model": "thrust factor: Gauss-Markov, mean 1, per-arc means",
                      "sigma": w.sigma, "corr_days": w.corr_days},
-            "runs": r.runs, "seed": r.seed, "guide_days": r.guide_days, "margin": r.margin,
+            "runs": r.runs, "seed": r.seed, "guide_days": r.guide_days,
             "tolerance": {"position_km": self.tolerance[0], "velocity_m_s": self.tolerance[1]},
             "nominal_miss": {"position_km": self.nominal_miss[0],
                              "velocity_m_s": self.nominal_miss[1]},
-            **{k.kind: {"percentiles": k.percentiles(), "within_tolerance": k.within(self.tolerance),
-                        "closest_km_p50": float(np.median(k.closest_km))} for k in kinds},
+            "open_loop": self._outcome(self.open_loop),
+            "guided": [{"margin": k.margin, **self._outcome(k)} for k in self.guided],
             "cvodes_checks": self.checks, "verified": self.verified,
             "seconds": self.seconds,
         }
 
     def rows(self):
         out = []
-        for k in (self.open_loop, self.guided):
-            if k is None:
-                continue
+        for k in self.kinds:
             for i in range(len(k.miss_km)):
-                out.append({"flight": i, "kind": k.kind, "miss_km": float(k.miss_km[i]),
+                out.append({"flight": i, "kind": k.kind,
+                            "margin": "" if k.margin is None else k.margin,
+                            "miss_km": float(k.miss_km[i]),
                             "miss_m_s": float(k.miss_m_s[i]),
                             "closest_km": float(k.closest_km[i]),
                             "closest_date": iso_from_jd(self.departure_jd + k.closest_days[i]),
@@ -252,19 +279,19 @@ class Robustness:
         lines = [f"{self.name}: {self.request.runs} flights a kind, thrust factor sigma "
                  f"{self.request.wind.sigma:g}, correlation {self.request.wind.corr_days:g} d, "
                  f"seed {self.request.seed}"]
-        for k in (self.open_loop, self.guided):
-            if k is None:
-                continue
+        for k in self.kinds:
             p = k.percentiles()
-            what = ("open loop" if k.kind == "open_loop" else
+            what = ("open loop" if k.margin is None else
                     f"guided every {self.request.guide_days:g} d, a_c margin "
-                    f"{100 * self.request.margin:g} %")
+                    f"{100 * k.margin:g} %")
             lines.append(f"  {what}: miss p50 {p['p50']['miss_km']:.4g} km / "
                          f"{p['p50']['miss_m_s']:.4g} m/s, p95 {p['p95']['miss_km']:.4g} km / "
                          f"{p['p95']['miss_m_s']:.4g} m/s; {100 * k.within(self.tolerance):.1f} % "
                          f"within {self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s")
         for c in self.checks:
-            lines.append(f"  CVODES check, {c['flights']} {c['kind'].replace('_', ' ')} flights: "
+            kind = c["kind"].replace("_", " ") + ("" if c["margin"] is None else
+                                                  f" (margin {100 * c['margin']:g} %)")
+            lines.append(f"  CVODES check, {c['flights']} {kind} flights: "
                          f"largest disagreement {c['worst_position_km']:.3g} km, "
                          f"{c['worst_velocity_m_s']:.3g} m/s"
                          + ("" if c["agree"] else " (NOT within the agreement bound)"))
@@ -284,7 +311,7 @@ def run(sol, request, progress=lambda text: None):
     """Fly ``sol``'s schedule as ``request`` says; a :class:`Robustness`."""
     seconds = {}
     clock = time.perf_counter()
-    mission = Mission.of(sol, request.margin)
+    mission = Mission.of(sol)
     p = mission.plan
     factors = request.wind.factors(np.diff(mission.ends_days), request.runs, request.seed)
     ensemble = Ensemble(p.alphas.size, True)
@@ -295,35 +322,35 @@ def run(sol, request, progress=lambda text: None):
     xs = ensemble.fly(np.tile(p.start, (m, 1)), np.tile(p.alphas, (m, 1)), p.durations,
                       p.acs * factors, deltas=np.tile(p.deltas, (m, 1)))
     seconds["open_loop"] = time.perf_counter() - clock
-    open_loop = _outcome("open_loop", mission, xs, factors)
-    guided, controls = None, None
-    if request.guide_days > 0:
-        progress(f"flying {m} flights guided every {request.guide_days:g} d")
+    sample = np.linspace(0, m - 1, min(request.check, m)).astype(int)
+    open_loop = _outcome("open_loop", None, mission, xs, factors)
+    flown = [(open_loop, None)]
+    for margin in request.margins if request.guide_days > 0 else ():
+        progress(f"flying {m} flights guided every {request.guide_days:g} d, a_c margin "
+                 f"{100 * margin:g} %")
         clock = time.perf_counter()
-        guidance = Retargeting(ensemble, p, waypoints(mission.ends_days, request.guide_days))
+        guidance = Retargeting(ensemble, mission.with_margin(margin),
+                               waypoints(mission.ends_days, request.guide_days))
         gxs, controls = guidance.fly(factors, mission.nominal)
-        seconds["guided"] = time.perf_counter() - clock
-        guided = _outcome("guided", mission, gxs, factors)
+        seconds[f"guided_margin_{margin:g}"] = time.perf_counter() - clock
+        flown.append((_outcome("guided", margin, mission, gxs, factors),
+                      _controls(controls, sample)))
     progress(f"checking {request.check} flights of each kind on CVODES")
     clock = time.perf_counter()
-    sample = np.linspace(0, m - 1, min(request.check, m)).astype(int)
-    checks = [_check(mission, "open_loop", xs[sample], _subset(open_loop, sample),
-                     factors[sample], None, mission.tolerance)]
-    if guided is not None:
-        checks.append(_check(mission, "guided", gxs[sample], _subset(guided, sample),
-                             factors[sample], _controls(controls, sample), mission.tolerance))
+    checks = [_check(mission, _subset(flights, sample), factors[sample], controls)
+              for flights, controls in flown]
     seconds["cvodes_check"] = time.perf_counter() - clock
     end = mission.correction[:, -1] + mission.nominal[CARTESIAN, -1]
     gap = end - mission.target_track[:, -1]
     nominal_miss = (units.length_to_km(np.linalg.norm(gap[:3])),
                     units.speed_to_m_s(np.linalg.norm(gap[3:])))
     return Robustness(sol.problem.name, request, mission.tolerance, nominal_miss, open_loop,
-                      guided, checks, seconds, mission.departure_jd, mission.ends_days,
-                      mission.target_track)
+                      tuple(f for f, _ in flown[1:]), checks, seconds, mission.departure_jd,
+                      mission.ends_days, mission.target_track)
 
 
 def _subset(flights, index):
-    return Flights(flights.kind, *(getattr(flights, f)[index] for f in (
+    return Flights(flights.kind, flights.margin, *(getattr(flights, f)[index] for f in (
         "miss_km", "miss_m_s", "closest_km", "closest_days", "mean_factor", "positions",
         "arrival")))
 
@@ -332,7 +359,7 @@ def _controls(controls, index):
     return type(controls)(controls.alphas[index], controls.deltas[index], controls.acs[index])
 
 
-FIELDS = ("flight", "kind", "miss_km", "miss_m_s", "closest_km", "closest_date", "mean_factor")
+FIELDS = ("flight", "kind", "margin", "miss_km", "miss_m_s", "closest_km", "closest_date", "mean_factor")
 
 
 def write(result, out_dir, plots=True):
@@ -345,14 +372,17 @@ def write(result, out_dir, plots=True):
 def figure(result, flights_drawn=200):
     """Histograms of the arrival misses (position, velocity) of each kind against the
     tolerance, and a cloud of trajectories seen from the ecliptic's north."""
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(13, 4.4), layout="constrained")
     hist_r, hist_v, cloud = fig.subplots(1, 3)
-    kinds = [(k, c) for k, c in ((result.open_loop, "tab:gray"), (result.guided, "tab:blue"))
-             if k is not None]
-    label = {"open_loop": "open loop", "guided": f"guided every {result.request.guide_days:g} d"
-             f" (+{100 * result.request.margin:g} % a_c)"}
+    blues = colormaps["Blues"](np.linspace(0.55, 0.95, max(len(result.guided), 1)))
+    kinds = [(result.open_loop, "tab:gray"), *zip(result.guided, blues)]
+
+    def label(k):
+        return ("open loop" if k.margin is None else
+                f"guided every {result.request.guide_days:g} d (+{100 * k.margin:g} % a_c)")
     for ax, field, bound, unit in ((hist_r, "miss_km", result.tolerance[0], "km"),
                                    (hist_v, "miss_m_s", result.tolerance[1], "m/s")):
         values = np.concatenate([getattr(k, field) for k, _ in kinds])
@@ -360,7 +390,7 @@ def figure(result, flights_drawn=200):
         bins = np.geomspace(low, high * 1.0001, 40) if high > low else 10
         for k, colour in kinds:
             ax.hist(np.maximum(getattr(k, field), low), bins=bins, color=colour, alpha=0.6,
-                    label=label[k.kind])
+                    label=label(k))
         ax.axvline(bound, color="tab:red", lw=1.2, label=f"tolerance {bound:g} {unit}")
         ax.set_xscale("log")
         ax.set_xlabel(f"arrival miss ({unit})")

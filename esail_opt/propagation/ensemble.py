@@ -4,11 +4,11 @@ A Monte Carlo of a schedule flies the same K pieces (each of constant pitch, clo
 a_c) thousands of times, each flight with its own a_c per piece and, under guidance,
 its own angles from some piece on.  :class:`Ensemble` is that: the batched closed form
 of :mod:`.batch` over pieces given in time (the attitude changes on the spacecraft's
-clock, as a flown schedule does), compiled once for K pieces and a fixed number of
-flights a call, with larger ensembles cut into calls of that size.  A flight that
-starts part-way, at a guidance waypoint, flies its remaining pieces first and then
-pieces of zero length, which leave a state unchanged to the bit, so one compiled
-function serves every waypoint.
+clock, as a flown schedule does), compiled once for K pieces, with larger ensembles
+cut into calls of at most ``chunk`` flights.  A flight that starts part-way, at a
+guidance waypoint, flies its remaining pieces first and then pieces of zero length,
+which leave a state unchanged to the bit, so one compiled function serves every
+waypoint.
 """
 
 import os
@@ -20,9 +20,8 @@ from esail_opt.propagation.arcs import ArcModel
 from esail_opt.propagation.batch import batch3d_function, batch_function
 from esail_opt.propagation.rectified3d import STATE, cartesian_states
 
-#: Flights per compiled call, however many are flown: one compile (about 0.5 s)
-#: serves the nominal, the guidance's probes and every ensemble, a smaller call being
-#: padded (a call of 1,000 flights of an 80-arc schedule costs about 0.25 s).
+#: Flights per call at most (a call of 1,000 flights of an 80-arc schedule costs about
+#: 0.25 s), so that a large ensemble's calls share the cores.
 CHUNK = 1000
 #: The rows of a three-dimensional flight's Cartesian state.
 CARTESIAN = slice(STATE, STATE + 6)
@@ -86,13 +85,17 @@ class Ensemble:
         m, k = starts.shape[0], self.pieces
         rows = [np.broadcast_to(np.asarray(v, float), (m, k))
                 for v in (acs, alphas, *((deltas,) if self.three_d else ()), durations)]
-        cases = self.chunk
+        # In three dimensions a call maps one compiled flight, so the flights are cut
+        # into as many calls as there are threads, or more; the planar batch is
+        # compiled across cases for one width, so its calls all have that width, the
+        # last one padded.
+        cases = (min(self.chunk, -(-m // self.threads)) if self.three_d else self.chunk)
         fun = self._function(cases)
         out = np.empty((m, self.width, k + 1))
         out[:, :, 0] = starts
 
         def call(first):
-            take = np.arange(first, first + cases).clip(max=m - 1)  # the last call padded
+            take = np.arange(first, first + cases).clip(max=m - 1)
             xs, _, *cartesian = fun(starts[take, :self.polar].T,
                                     *(row[take].reshape(1, -1) for row in rows))
             n = min(cases, m - first)
