@@ -334,7 +334,7 @@ def run(sol, request, progress=lambda text: None):
         gxs, controls = guidance.fly(factors, mission.nominal)
         seconds[f"guided_margin_{margin:g}"] = time.perf_counter() - clock
         flown.append((_outcome("guided", margin, mission, gxs, factors),
-                      _controls(controls, sample)))
+                      controls.take(sample)))
     progress(f"checking {request.check} flights of each kind on CVODES")
     clock = time.perf_counter()
     checks = [_check(mission, _subset(flights, sample), factors[sample], controls)
@@ -353,10 +353,6 @@ def _subset(flights, index):
     return Flights(flights.kind, flights.margin, *(getattr(flights, f)[index] for f in (
         "miss_km", "miss_m_s", "closest_km", "closest_days", "mean_factor", "positions",
         "arrival")))
-
-
-def _controls(controls, index):
-    return type(controls)(controls.alphas[index], controls.deltas[index], controls.acs[index])
 
 
 FIELDS = ("flight", "kind", "margin", "miss_km", "miss_m_s", "closest_km", "closest_date", "mean_factor")

@@ -11,7 +11,9 @@ moves by a quadratic in the fraction of the remaining flight time (nine coeffici
 so that the correction is small and smooth.  The coefficients come from Gauss-Newton
 steps on the predicted miss, weighted by the tolerance (a miss of one tolerance in
 position weighs as one in velocity), from the nominal flight's Jacobian by central
-differences (once a waypoint) which each flight then corrects by Broyden's update.
+differences (once a waypoint) which each flight then corrects by Broyden's update; a
+flight still predicted to miss takes its own Jacobian and steps again, since far
+from the nominal the nominal's Jacobian can point the wrong way.
 The asked a_c stays within the sail's (the schedule's, plus any margin) and pitch
 within the problem's bounds: at a minimum-a_c optimum without margin, the direction
 of more thrust is out of reach, and guidance can only steer.
@@ -25,6 +27,8 @@ from esail_opt.propagation.ensemble import CARTESIAN
 
 #: Gauss-Newton steps a waypoint, each on every flight's own prediction.
 NEWTON_STEPS = 6
+#: Times a flight still predicted to miss takes its own Jacobian afresh, a waypoint.
+REFRESHES = 1
 #: Step of the central differences of the Jacobian, rad.
 STEP = 1e-5
 
@@ -70,6 +74,15 @@ class Controls:
     @classmethod
     def nominal(cls, plan, flights):
         return cls(*(np.tile(v, (flights, 1)) for v in (plan.alphas, plan.deltas, plan.acs)))
+
+    def take(self, index):
+        """The controls of the flights ``index``."""
+        return Controls(self.alphas[index], self.deltas[index], self.acs[index])
+
+    def repeat(self, times):
+        """Each flight's controls ``times`` times over, in turn."""
+        return Controls(*(np.repeat(v, times, axis=0) for v in (self.alphas, self.deltas,
+                                                                 self.acs)))
 
 
 def _rolled(values, first):
@@ -133,34 +146,30 @@ class Retargeting:
         np.clip(out.acs, 0.0, self.plan.sail_ac, out=out.acs)
         return out
 
-    def _jacobian(self, state, first):
-        """d(weighted arrival)/d(coefficients) (6 x 9) of the nominal from ``state`` at
-        piece ``first``, by central differences."""
-        p = self.plan
-        probes = np.vstack([STEP * np.eye(COEFFICIENTS), -STEP * np.eye(COEFFICIENTS)])
-        controls = self._apply(Controls.nominal(p, len(probes)), first, probes)
-        ends = self._predict(np.tile(state, (len(probes), 1)), controls, first) * p.weights()
-        return ((ends[:COEFFICIENTS] - ends[COEFFICIENTS:]) / (2 * STEP)).T
-
     def _miss(self, states, controls, first, coefficients):
         tried = self._apply(controls, first, coefficients)
         return (self._predict(states, tried, first) - self.plan.target) * self.plan.weights()
 
-    def correct(self, states, controls, first, nominal_state):
-        """``controls`` re-targeted from ``states`` at piece ``first``.
+    def _jacobians(self, states, controls, first, coefficients):
+        """d(weighted arrival)/d(coefficients) (M x 6 x 9) of each flight from its state
+        at piece ``first`` under its controls and ``coefficients``, by central
+        differences (the probes of all flights in one ensemble call)."""
+        probes = np.vstack([STEP * np.eye(COEFFICIENTS), -STEP * np.eye(COEFFICIENTS)])
+        n = len(probes)
+        trial = (coefficients[:, None, :] + probes).reshape(-1, COEFFICIENTS)
+        ends = self._miss(np.repeat(states, n, axis=0), controls.repeat(n), first, trial)
+        ends = ends.reshape(len(states), n, -1)
+        return ((ends[:, :COEFFICIENTS] - ends[:, COEFFICIENTS:]) / (2 * STEP)).transpose(0, 2, 1)
 
-        Gauss-Newton steps from the nominal's Jacobian, which each flight then updates
-        with what its own steps showed (Broyden's rank-one update), so that a flight
-        far from the nominal still converges; a step is kept only where it lowers that
-        flight's predicted miss, and shortened where it did not, so that a miss too
-        large for the remaining flight to remove is left as small as the steps made it.
-        """
-        m = states.shape[0]
-        jac = np.tile(self._jacobian(nominal_state, first), (m, 1, 1))
-        coefficients = np.zeros((m, COEFFICIENTS))
-        miss = self._miss(states, controls, first, coefficients)
+    def _newton(self, states, controls, first, jac, coefficients, miss):
+        """Gauss-Newton steps from ``coefficients`` (whose predicted ``miss`` is given),
+        each flight's Jacobian ``jac`` corrected by Broyden's rank-one update from
+        what its own steps showed; a step is kept only where it lowers that flight's
+        predicted miss, and shortened where it did not.  Returns the coefficients and
+        their misses."""
+        coefficients, miss, jac = coefficients.copy(), miss.copy(), jac.copy()
         size = np.linalg.norm(miss, axis=1)
-        scale = np.ones(m)
+        scale = np.ones(len(states))
         for _ in range(NEWTON_STEPS):
             step = -np.einsum("mij,mj->mi", np.linalg.pinv(jac, rcond=RCOND), miss)
             trial = coefficients + scale[:, None] * step
@@ -175,7 +184,35 @@ class Retargeting:
             coefficients[better], miss[better], size[better] = (
                 trial[better], trial_miss[better], trial_size[better])
             scale = np.where(better, np.minimum(2 * scale, 1.0), scale / 4)
-        self.predicted.append(size)
+        return coefficients, miss
+
+    def correct(self, states, controls, first, nominal_state):
+        """``controls`` re-targeted from ``states`` at piece ``first``.
+
+        Gauss-Newton steps from the nominal's Jacobian, which each flight corrects by
+        Broyden's update (:meth:`_newton`); a flight still predicted to miss by more
+        than its tolerance then takes its own Jacobian, by central differences where
+        it is, and steps again from there: far from the nominal, the nominal's
+        Jacobian can point the wrong way.  A miss too large for the remaining flight
+        to remove is left as small as the steps made it.
+        """
+        m = states.shape[0]
+        zero = np.zeros((1, COEFFICIENTS))
+        nominal = self._jacobians(nominal_state[None], Controls.nominal(self.plan, 1), first,
+                                  zero)
+        coefficients = np.zeros((m, COEFFICIENTS))
+        miss = self._miss(states, controls, first, coefficients)
+        coefficients, miss = self._newton(states, controls, first,
+                                          np.repeat(nominal, m, axis=0), coefficients, miss)
+        for _ in range(REFRESHES):
+            far = np.flatnonzero(np.linalg.norm(miss, axis=1) > 1.0)
+            if not far.size:
+                break
+            own = controls.take(far)
+            jac = self._jacobians(states[far], own, first, coefficients[far])
+            coefficients[far], miss[far] = self._newton(states[far], own, first, jac,
+                                                        coefficients[far], miss[far])
+        self.predicted.append(np.linalg.norm(miss, axis=1))
         return self._apply(controls, first, coefficients)
 
     def fly(self, factors, nominal):
