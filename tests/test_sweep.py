@@ -592,3 +592,33 @@ def test_two_porkchop_cells_fly_from_porkchop_json_alone(tmp_path):
                 zip(solved["schedule"], row["schedule"], strict=True)] == row["schedule"]
         assert solved["problem"]["departure_state"] == row["departure_state"]
         assert (cells / porkchop.cell_folder(row) / "schedule.csv").exists()
+
+
+@pytest.mark.slow
+def test_a_sweep_flies_each_member_under_the_wind_and_its_journal_knows_it(tmp_path):
+    """``--robust``: each verified member of the 3-D Earth-Mars rendezvous is flown under
+    the wind, its row says how (guided below open loop, the CVODES checks agreeing),
+    the figure has the fourth panel, and a journal of it does not resume another
+    sweep."""
+    problem = REPO / "problems" / "earth_mars_min_ac.py"
+    out = tmp_path / "windy"
+    result = sweep.run(problem, "tof_days=650:660:2", workers=1, out_dir=out, robust_runs=12)
+    assert result["failed"] == 0 and result["robust_runs"] == 12
+    for row in result["rows"]:
+        assert row["robust_verified"] is True
+        assert row["robust_guided_p95_km"] < row["robust_open_p95_km"]
+        assert 0.0 <= row["robust_guided_within"] <= 1.0
+    assert len(sweep.figure(result).axes) == 4
+    journal = (out / sweep.JOURNAL).read_text()
+    with pytest.raises(InputError, match="robust_runs is 12, not 0"):
+        sweep.run(problem, "tof_days=650:660:2", workers=1, out_dir=out, resume=True)
+    assert (out / sweep.JOURNAL).read_text() == journal
+
+
+def test_a_windy_sweep_of_a_planar_problem_is_one_line_exit_2(tmp_path, capsys):
+    code = cli.main(["sweep", str(REPO / "problems" / "earth_mars_min_ac_planar.py"),
+                     "--param", "tof_days=650:660:2", "--robust", "10",
+                     "--out", str(tmp_path / "w")])
+    assert code == cli.EXIT_INPUT
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "three-dimensional" in err[0]

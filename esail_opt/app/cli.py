@@ -497,6 +497,10 @@ def _add_sweep(sub):
                    "(needs the dask extra)")
     p.add_argument("--polish", action="store_true",
                    help="also polish every member on the exact Eqs. 1-2 (in time)")
+    p.add_argument("--robust", type=int, default=0, metavar="RUNS",
+                   help="also fly every verified member RUNS times under the varying solar "
+                   "wind, open loop and guided, as `esail-opt robust` does with its defaults "
+                   "(a dated 3-D rendezvous; default 0: none)")
     p.add_argument("--out", default=None,
                    help="output directory (default results/<problem name>_sweep_<NAME>)")
     p.add_argument("--resume", action="store_true",
@@ -563,6 +567,7 @@ def _run_sweep(args):
     result = sweep.run(args.problem_file, args.param, workers=args.workers,
                        scheduler=args.scheduler, polish=args.polish, out_dir=out,
                        resume=args.resume, tol_km=args.tol_km, tol_m_s=args.tol_m_s,
+                       robust_runs=args.robust,
                        progress=lambda row, done, total: _sweep_line(row, done, total, name))
     for path in sweep.write(result, out):
         print(f"wrote {path}")
@@ -760,6 +765,9 @@ def _sweep_line(row, done, total, name):
         if row.get("tof_days_exact") is not None:
             what += (f", exact {row['tof_days_exact']:.3f} d "
                      f"({'verified' if row['exact_verified'] else 'NOT verified'})")
+        if row.get("robust_guided_p95_km") is not None:
+            what += (f", under wind p95 {row['robust_open_p95_km']:.3g} km open loop, "
+                     f"{row['robust_guided_p95_km']:.3g} km guided")
     else:
         what = f"FAILED ({row['error']})"
     seconds = f" in {row['seconds']:.1f} s" if row["seconds"] is not None else ""

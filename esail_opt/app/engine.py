@@ -160,8 +160,8 @@ class Journal:
         The journal file.
     header : dict
         What identifies the scan (``journal``, ``problem``, ``source_sha256``, ``param``,
-        ``values``, ``polish``, ``tolerance``); a journal is resumed only under the same
-        header.
+        ``values``, ``polish``, ``tolerance``, and what else its kind adds); a journal
+        is resumed only under the same header, every key of it.
     kinds : dict
         Field -> kind of the rows (``"int"``, ``"num"``, ``"bool"``, ``"str"``,
         ``"dict"``, ``"list"``, with a trailing ``"?"`` when null is allowed); a row
@@ -302,7 +302,7 @@ class Journal:
         if not isinstance(header, dict) or header.get("journal") != self.header["journal"]:
             raise InputError(f"resume: {self.path} is not a {kind} journal (line 1 is not "
                              "its header); run without --resume to start fresh")
-        for key in ("problem", "source_sha256", "param", "values", "polish", "tolerance"):
+        for key in self.header:
             if header.get(key) != self.header[key]:
                 what = ("the problem file changed since it was written" if key == "source_sha256"
                         else f"its {key} is {_short(header.get(key))}, not "

@@ -80,6 +80,18 @@ def _cartesian(state):
                  [units.speed_from_km_s(c[k]) for k in ("vx_km_s", "vy_km_s", "vz_km_s")]]
 
 
+def check_problem(problem):
+    """InputError unless ``problem`` (a :class:`~esail_opt.optimisation.problem.Problem`)
+    is what a run flies: a dated rendezvous with a body, in three dimensions."""
+    kind = type(problem.target).__name__ if problem.target is not None else None
+    if kind != "BodyRendezvous" or type(problem.departure).__name__ != "BodyDeparture":
+        raise InputError(f"{problem.name}: robust flies a dated rendezvous with a body "
+                         f"(BodyDeparture to BodyRendezvous); this one's target is {kind}")
+    if not problem.three_d():
+        raise InputError(f"{problem.name}: robust flies three-dimensional solutions; "
+                         "solve the problem without planar=True")
+
+
 def _checked(sol):
     """The schedule a run flies, or InputError saying what the solution lacks."""
     target = sol.problem.target

@@ -7,6 +7,11 @@ the scan engine (:mod:`esail_opt.app.engine`) runs them, on a local process pool
 default or on Dask distributed when a scheduler address is given -- the same code path
 either way, so moving a sweep to a cluster changes one option and no numbers.
 
+With ``--robust RUNS``, each verified member of a dated 3-D rendezvous is also flown
+RUNS times under the varying solar wind (:mod:`esail_opt.app.robust`), so a sweep tells
+how a transfer's robustness changes with the parameter, on the same pool or cluster and
+under the same journal.
+
 Each member is independent and returns a plain dict row.  A member that raises, does
 not converge, or converges to a schedule whose CVODES flight misses the problem's
 tolerance is reported in its row (``error`` says why); it never stops the others.  Rows
@@ -32,7 +37,7 @@ from pathlib import Path
 from esail_opt.app import engine, parallel
 from esail_opt.app.files import check_output_dir, csv_text, write_table_set
 from esail_opt.app.parallel import first_line
-from esail_opt.errors import InputError, number_range
+from esail_opt.errors import InputError, check_range, number_range
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,7 +71,9 @@ SWEEPABLE = {
 
 CSV_FIELDS = ("index", "value", "converged", "verified", "status", "tof_days", "objective",
               "target_miss_r_km", "target_miss_v_m_s", "iterations", "tof_days_exact",
-              "exact_verified", "exact_target_miss_km", "seconds", "error")
+              "exact_verified", "exact_target_miss_km", "robust_open_p95_km",
+              "robust_guided_p95_km", "robust_guided_within", "robust_verified", "seconds",
+              "error")
 
 #: What each field of a row holds (:class:`esail_opt.app.engine.Journal` checks a
 #: journal's rows against it; "?": or null).
@@ -74,7 +81,9 @@ ROW_KINDS = {"index": "int", "value": "num", "converged": "bool", "verified": "b
              "status": "str?", "tof_days": "num?", "objective": "num?",
              "target_miss_r_km": "num?", "target_miss_v_m_s": "num?", "iterations": "int?",
              "tof_days_exact": "num?", "exact_verified": "bool?",
-             "exact_target_miss_km": "num?", "seconds": "num?", "error": "str?"}
+             "exact_target_miss_km": "num?", "robust_open_p95_km": "num?",
+             "robust_guided_p95_km": "num?", "robust_guided_within": "num?",
+             "robust_verified": "bool?", "seconds": "num?", "error": "str?"}
 
 #: The journal of finished members, in the sweep's output folder.
 JOURNAL = "sweep.jsonl"
@@ -168,7 +177,7 @@ def _empty_row(index, value):
 
 
 def solve_member(index, name, value, source, filename, polish=False, tol_km=None,
-                 tol_m_s=None):
+                 tol_m_s=None, robust_runs=0):
     """Solve one member of the family and return its row; never raises.
 
     The problem file travels as text so that a worker on another machine (Dask) needs
@@ -191,6 +200,10 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
     tol_km, tol_m_s : float, optional
         Replace the problem's verification bounds (``Problem.with_tolerance``); None
         keeps the problem file's.
+    robust_runs : int
+        With more than 0, a verified member's schedule is also flown that many times
+        under the varying solar wind (:func:`esail_opt.app.robust.run` with its
+        defaults), open loop and guided.
 
     Returns
     -------
@@ -203,7 +216,10 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
         why the member failed, including "not verified: ..." for a converged member
         whose flight missed the tolerance.  With ``polish``: ``tof_days_exact``,
         ``exact_verified`` (the polished schedule flies to within 1 m and 1 mm/s) and
-        ``exact_target_miss_km``; None without.
+        ``exact_target_miss_km``; None without.  With ``robust_runs``: the 95th
+        percentile of the arrival misses open loop and guided (``robust_open_p95_km``,
+        ``robust_guided_p95_km``), the guided flights' fraction within the tolerance
+        and whether the Monte Carlo's CVODES checks agreed (``robust_verified``).
     """
     from esail_opt.app import solution
 
@@ -212,7 +228,10 @@ def solve_member(index, name, value, source, filename, polish=False, tol_km=None
     try:
         problem = engine.load_source(source, filename)
         problem = variant(problem, name, value).with_tolerance(tol_km, tol_m_s)
-        _fill(row, solution.solve(problem, polish=polish))
+        sol = solution.solve(problem, polish=polish)
+        _fill(row, sol)
+        if robust_runs and row["error"] is None:
+            _fly(row, sol, robust_runs)
     except Exception as err:  # a member may fail in any way; its row says how
         row["error"] = first_line(err)
     row["seconds"] = time.perf_counter() - start
@@ -241,6 +260,21 @@ def _fill(row, sol):
         row["error"] = f"not verified: {sol.verification_note.strip().splitlines()[0]}"
 
 
+def _fly(row, sol, runs):
+    """The Monte Carlo of a member's verified schedule into its ``row``."""
+    from esail_opt.app import robust
+
+    flown = robust.run(sol, robust.Request(runs=runs))
+    guided = flown.guided[0]
+    row.update(robust_open_p95_km=flown.open_loop.percentiles()["p95"]["miss_km"],
+               robust_guided_p95_km=guided.percentiles()["p95"]["miss_km"],
+               robust_guided_within=guided.within(flown.tolerance),
+               robust_verified=flown.verified)
+    if not flown.verified:
+        row["error"] = "robust: a flight re-flown on CVODES did not land where the closed " \
+                       "form said"
+
+
 # ---------------------------------------------------------------- the family
 
 
@@ -263,7 +297,8 @@ def default_out_dir(problem_file, param):
 
 
 def run(problem_file, param, workers=None, scheduler=None, progress=None, polish=False,
-        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES):
+        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES,
+        robust_runs=0):
     """Solve the family of ``problem_file`` over ``param`` and return the table.
 
     The members run on the scan engine (:func:`esail_opt.app.engine.run`, whose contract
@@ -284,11 +319,14 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
         Polish every member on the exact Eqs. 1-2 as well (see :func:`solve_member`).
     tol_km, tol_m_s : float, optional
         Verification bounds for every member (default: the problem file's).
+    robust_runs : int
+        Flights of every verified member under the varying solar wind (see
+        :func:`solve_member`); 0 for none.  Only a dated 3-D rendezvous takes it.
 
     Returns
     -------
     dict
-        ``problem``, ``problem_file``, ``param``, ``field``, ``unit``,
+        ``problem``, ``robust_runs``, ``problem_file``, ``param``, ``field``, ``unit``,
         ``objective_meaning``, ``objective_shown_as`` ([factor, unit] of the objective
         column), ``values``, ``executor``, ``wall_seconds``, ``polished``,
         ``tolerance``, ``failed`` (rows with an error), ``rows`` (in grid order),
@@ -308,7 +346,7 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
         The Dask cluster was lost (one line saying what the journal keeps).
     """
     request = _check(problem_file, param, workers, scheduler, retries, resume, out_dir,
-                     polish, tol_km, tol_m_s)
+                     polish, tol_km, tol_m_s, robust_runs)
     outcome = engine.run(_scan(request), out_dir=out_dir, resume=resume,
                          workers=request.workers, scheduler=scheduler, retries=retries,
                          progress=progress)
@@ -335,6 +373,8 @@ class _Request:
     polish : bool
     tol_km, tol_m_s : float or None
         Tolerance overrides, passed on to every member.
+    robust_runs : int
+        Monte Carlo flights of every verified member (0: none).
     """
 
     problem_file: str
@@ -346,22 +386,24 @@ class _Request:
     polish: bool
     tol_km: object
     tol_m_s: object
+    robust_runs: int
 
     def member(self, i):
         """The arguments of :func:`solve_member` after its index, for member ``i``."""
         return (self.name, self.values[i], self.source, Path(self.problem_file).name,
-                self.polish, self.tol_km, self.tol_m_s)
+                self.polish, self.tol_km, self.tol_m_s, self.robust_runs)
 
     def header(self):
         """What identifies this sweep in its journal."""
         return {"journal": "esail-opt sweep", "problem": self.problem.name,
                 "source_sha256": engine.source_digest(self.source), "param": self.name,
                 "values": self.values, "polish": bool(self.polish),
-                "tolerance": dataclasses.asdict(self.problem.tolerance)}
+                "tolerance": dataclasses.asdict(self.problem.tolerance),
+                "robust_runs": self.robust_runs}
 
 
 def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, polish,
-           tol_km, tol_m_s):
+           tol_km, tol_m_s, robust_runs):
     """The request of :func:`run`, checked before anything runs (InputError if bad)."""
     from esail_opt.optimisation.problem_file import load_problem
 
@@ -372,6 +414,10 @@ def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, po
     # is one line at once instead of COUNT identical failed rows.
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check_applicable(problem, name)
+    if check_range("--robust", robust_runs, 0, 10 ** 6):
+        from esail_opt.app.robust import check_problem
+
+        check_problem(problem)
     for value in values:  # a value no problem takes is the command's mistake
         try:
             variant(problem, name, value)
@@ -381,7 +427,7 @@ def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, po
         check_output_dir(out_dir, files=SWEEP_FILES)  # before any member runs: a sweep that cannot be
         # written must not solve first
     return _Request(str(problem_file), name, values, workers, problem,
-                    Path(problem_file).read_text(), polish, tol_km, tol_m_s)
+                    Path(problem_file).read_text(), polish, tol_km, tol_m_s, int(robust_runs))
 
 
 def _failed_row(values, i, message):
@@ -411,6 +457,7 @@ def _result(request, outcome):
     """The table :func:`run` returns."""
     spec = SWEEPABLE[request.name]
     return {"problem": request.problem.name, "problem_file": request.problem_file,
+            "robust_runs": request.robust_runs,
             "param": request.name, "field": spec.path, "unit": spec.unit,
             "objective_meaning": request.problem.objective.meaning,
             # What the objective column's canonical numbers are in a user's units.
@@ -445,24 +492,28 @@ def table_csv(result):
 
 def figure(result, axes=None):
     """Time of flight, objective and verified target miss against the parameter; failed
-    members in red.
+    members in red; with a Monte Carlo (``robust_runs``), a fourth panel of the 95th
+    percentile arrival misses, open loop and guided, against the tolerance.
 
     Parameters
     ----------
     result : dict
         A sweep's table, as :func:`run` returns it.
-    axes : sequence of three matplotlib Axes, optional
-        Where to draw the three panels, top to bottom; by default a new Figure.
+    axes : sequence of matplotlib Axes, optional
+        Where to draw the three panels (four with a Monte Carlo), top to bottom; by
+        default a new Figure.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     fresh = axes is None
+    windy = bool(result.get("robust_runs"))
     if fresh:
         from matplotlib.figure import Figure
 
-        axes = Figure(figsize=(6.4, 8.0)).subplots(3, 1, sharex=True)
+        axes = Figure(figsize=(6.4, 10.4 if windy else 8.0)).subplots(
+            4 if windy else 3, 1, sharex=True)
     factor, unit = result.get("objective_shown_as") or (1.0, "")
     panels = (("tof_days", "time of flight [days]", "linear"),
               ("objective", f"objective [{unit.strip()}]" if unit.strip()
@@ -477,6 +528,8 @@ def figure(result, axes=None):
     axes[0].legend(fontsize=8)
     if result.get("polished"):
         axes[2].legend(fontsize=8)
+    if windy:
+        _wind_panel(axes[3], result)
     axes[-1].set_xlabel(result["param"] + (f" [{result['unit']}]" if result["unit"] else ""))
     rows = result["rows"]
     axes[0].set_title(f"{result['problem']}: sweep of {result['field']} "
@@ -485,6 +538,22 @@ def figure(result, axes=None):
     if fresh:
         fig.tight_layout()
     return fig
+
+
+def _wind_panel(ax, result):
+    """The Monte Carlo's 95th percentile arrival misses of each member, open loop and
+    guided, against the position tolerance."""
+    for key, colour, label in (("robust_open_p95_km", "tab:gray", "open loop"),
+                               ("robust_guided_p95_km", "tab:blue", "guided")):
+        points = [(r["value"], r[key]) for r in result["rows"] if r[key] is not None]
+        if points:
+            ax.plot(*zip(*points), "o-", color=colour, label=f"{label}, p95")
+    ax.axhline(result["tolerance"]["position_km"], color="tab:red", lw=1,
+               label="tolerance")
+    ax.set_yscale("log")
+    ax.set_ylabel(f"arrival miss under wind [km]\n({result['robust_runs']} flights a kind)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
 
 
 #: The polished counterpart of a panel's closed-form column (in the panel's unit).
