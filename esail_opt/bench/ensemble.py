@@ -106,9 +106,8 @@ def closed_form(plan, acs, repeats):
     Returns
     -------
     dict
-        ``seconds_per_flight`` (median CPU seconds of flying all M, over M; the
-        ensemble flies ``chunk`` flights a call, so an M that is not a multiple of it
-        pays for padded flights),
+        ``seconds_per_flight`` (median CPU seconds of flying all M, over M, on one
+        thread, at most ``chunk`` flights a call),
         ``first_call_seconds`` (the ensemble's Function at its call width built again
         in this process: a first call less a warm one, one flight each; a compile, or
         a load from the disk cache where an earlier process compiled it), ``chunk``
@@ -119,7 +118,7 @@ def closed_form(plan, acs, repeats):
     from esail_opt.propagation.rectified3d import STATE, cartesian_states
 
     m, k = acs.shape
-    ensemble = Ensemble(k, True)
+    ensemble = Ensemble(k, True, threads=1)  # one thread, as heyoka and CVODES are timed
 
     def one():
         return ensemble.fly(plan.start[None], plan.alphas[None], plan.durations, acs[:1],
