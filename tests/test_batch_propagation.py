@@ -201,3 +201,22 @@ def test_bench_batch_block_layout(tmp_path):
 
     write_json(path, {"batch": block})
     assert set(json.loads(path.read_text())["batch"]) >= {"cases", "ratio_tight"}
+
+
+def test_a_compiled_3d_batch_of_native_arcs_flies_as_the_mapped_one():
+    """A 3-D batch in theta calls the disk cache's compiled arcs: asked to compile, it
+    is mapped as it is instead of linked without them (which once killed the process
+    with an undefined symbol, so it is flown here in a process of its own)."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np\n"
+            "from esail_opt.propagation.batch import propagate_batch3d\n"
+            "rows = [np.full((3, 4), v) for v in (0.5, 0.3, 0.5)]\n"
+            "x0, q0 = np.array([1.0, 0, 0, 1.0]), np.array([1.0, 0, 0, 0])\n"
+            "a, b = (propagate_batch3d(x0, q0, *rows, 0.1, jit=j)[0] for j in (True, False))\n"
+            "print(a.shape, bool(np.array_equal(a, b)))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["(3,", "9,", "9)", "True"]

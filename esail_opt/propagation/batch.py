@@ -58,7 +58,11 @@ def _native(single, cases):
     """``single`` (one case) compiled to C, its value alone, through the disk cache, and
     mapped over ``cases``; on the virtual machine where compiling is off or failed
     (one warning).  The case is compiled, not the map: the map's C is the same loop
-    over it, and a map's graph, as long as its cases, is slow to hash for the key."""
+    over it, and a map's graph, as long as its cases, is slow to hash for the key.  A
+    case that calls compiled arcs already (``model.native``) is mapped as it is: its
+    C would call their symbols, which its own library cannot find."""
+    if any(f.class_name() == "External" for f in single.find_functions()):
+        return single.map(cases)
     return compiled.compiled(single, with_derivatives=False).map(cases)
 
 
