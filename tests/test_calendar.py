@@ -396,7 +396,7 @@ def test_a_porkchop_writes_its_set_and_resumes_from_its_journal(tmp_path):
 @pytest.mark.slow
 def test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it():
     """A MinAcceleration rendezvous solved alone ends at the least a_c over the turn
-    counts on the body (``multistart.search_classes``): no better at the turn
+    counts on the body (``classes.ClassSearch``): no better at the turn
     counts either side of its own, each solved here from its own seed, nor at the seed's
     own count.  (For the shipped Earth-Venus problem the seed's count needs 3.5 times the
     a_c of the best, which a scan's warm chain found and a lone solve once missed.)"""

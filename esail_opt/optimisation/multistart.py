@@ -27,15 +27,14 @@ optimum become one candidate that remembers every start that found it.
 """
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from esail_opt.errors import InputError, NoStart
-from esail_opt.optimisation.ipopt import (AT_CAP, STOPPED, NLPResult, ipopt_options,
-                                          primal_warm_options, solve_problem)
+from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
+                                          solve_problem)
 from esail_opt.optimisation.nodes import flown_segments
 from esail_opt.optimisation.seed import Guess, guess_alpha, initial_guess, lifted_guess
 
@@ -448,9 +447,9 @@ def lift(problem, result, cap, progress=None):
 
 
 #: A 3-D rendezvous's turn counts are first searched on its projected model
-#: (:func:`search_classes` on :func:`probe_model`), and a class is lifted into 3-D only
+#: (``classes.ClassSearch`` on :func:`probe_model`), and a class is lifted into 3-D only
 #: while its projected objective is within LIFT_RATIO of the best 3-D objective lifted
-#: so far, best projected first (:func:`lift_best`).  Why 1.1: a lifted class's 3-D
+#: so far, best projected first.  Why 1.1: a lifted class's 3-D
 #: objective has not come out below its projected one by more than 0.5 % in any case
 #: looked at (the plane change costs; the unprojected geometry moves it little), so a
 #: class 10 % short in projection is not expected to win in 3-D; a 3-D objective well
@@ -466,105 +465,6 @@ def searches_classes(problem):
     return (problem.tracks_body() and not problem.free_date()
             and not getattr(problem.departure, "free_anomaly", False)
             and (objective.free_acceleration or not objective.fixed_time))
-
-
-class Undecided(Exception):
-    """A class probe that neither converged nor was judged hopeless by its iteration
-    cap (:func:`search_classes` given ``spent``)."""
-
-
-def _probe_class(problem, own, seeds, tried, say, spent, k, start=None):
-    """:func:`search_classes`'s probe of class k, from ``start`` (a second start) if
-    given, else from the class's own seed (of ``seeds``); appended to ``tried`` (and to
-    ``spent``, when given).  Returns (NLPResult, Transcription)."""
-    cap = probe_cap(own.iterations)
-    best = min(r.objective for _, r, _ in tried if r.outcome.found)
-    checkpoint = hopeless_checkpoint(own.iterations, best)
-    say(f"{problem.name}: probing the turn count k = {k}"
-        + ("" if start is None else " again from a second start")
-        + f" ({cap} Ipopt iterations at most unless nearly feasible"
-        + ("" if checkpoint is None else
-           f", stopped at {checkpoint[0]} if hopeless by then") + ")")
-    if start is None:
-        other, other_tr, label = probe_rendezvous_class(problem, k, cap, say, checkpoint,
-                                                        seeds)
-    else:
-        other, other_tr, label = probe_start(problem, start, cap, say, checkpoint)
-    tried.append((label, other, other_tr))
-    if spent is not None:
-        spent.append(other)
-    return other, other_tr
-
-
-def search_classes(problem, result, tr, say, spent=None):
-    """The turn counts k on the target body beside the one ``result`` found, probed
-    (:func:`probe_rendezvous_class`) one turn at a time each way while each does better
-    (:func:`descend_turns`), and the best of them probed from a second start
-    (:func:`second_start`) where another seed winds its count.
-
-    The a_c a MinAcceleration rendezvous needs, or a MinTime one's time of flight, can
-    change by whole factors from one k to the next, and the seed's k is only what a
-    constant pitch happens to wind.  Each probe is capped at :data:`PROBE_FACTOR` times
-    the seed's class's own iterations and stopped when hopeless
-    (:func:`hopeless_checkpoint`).
-
-    Returns [(label, NLPResult, Transcription)] in the order solved, the first
-    ``result``'s own, and the line that says which counts were not solved.  Given
-    ``spent``, each probe's result is appended to it, and one that ends undecided at its
-    cap raises :class:`Undecided` (the projection of a 3-D problem cannot rank the
-    classes then).
-    """
-    # The found solve's own iterations, not the run's (other starts before it included).
-    own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
-    tried = [(f"the seed's class (k = {result.revolutions_k})", own, tr)]
-    # Every class's seed comes from the same constant-pitch flights.
-    seeds = constant_pitch_seeds(probe_model(problem))
-    # A real body's k counts from the turns both bodies made since 2000, so it may be
-    # negative; an idealised body's counts from its phase at departure.
-    real = getattr(problem.target, "body", None) is not None
-
-    probe_class = functools.partial(_probe_class, problem, own, seeds, tried, say, spent)
-
-    def solve_class(k):
-        if k < 0 and not real:
-            return NO_BETTER
-        other, other_tr = probe_class(k)
-        if spent is not None and other.status == AT_CAP:
-            raise Undecided(f"k = {k} ended {other.status} on the projected model")
-        if other.outcome.found:
-            return other, other_tr
-        return NO_BETTER if other.status == STOPPED else None
-
-    best, _ = descend_turns(result.revolutions_k, (result, tr), solve_class,
-                            lambda a, b: a[0].objective < b[0].objective, gaps=1)
-    # One class holds several local optima: the best one is solved from a second start
-    # as well, where another constant pitch winds its count.
-    k = best[0].revolutions_k
-    start = second_start(problem, k, seeds, result.revolutions_k)
-    if start is not None:
-        probe_class(k, start)
-    ks = [r.revolutions_k for _, r, _ in tried]
-    skipped = (f"turn counts k < {min(ks)} and k > {max(ks)}: not solved (each way, the "
-               "search stops at the first count that does no better than the best, or "
-               "at the second in a row with no point)")
-    return tried, skipped
-
-
-def lift_best(projected, lift):
-    """Lift the found results of ``projected`` (optima of a projected model) into 3-D
-    with ``lift(i)``, which returns the lifted objective of ``projected[i]`` (+inf where
-    it found no point): best projected objective first, while each is within
-    :data:`LIFT_RATIO` of the best lifted so far, one per turn count (its best)."""
-    order = sorted((i for i, r in enumerate(projected) if r.outcome.found),
-                   key=lambda i: projected[i].objective)
-    best, done = math.inf, set()
-    for i in order:
-        if projected[i].objective > LIFT_RATIO * best:
-            break
-        if projected[i].revolutions_k in done:
-            continue  # a class's second start: its best projected optimum is lifted
-        done.add(projected[i].revolutions_k)
-        best = min(best, lift(i))
 
 
 def fallback_starts(problem, guess):

@@ -16,6 +16,7 @@ decides what runs next and adds up Ipopt's iterations and seconds over the run.
 """
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 from typing import Optional, Tuple
@@ -25,6 +26,7 @@ import numpy as np
 from esail_opt.errors import InputError, NoStart
 from esail_opt.optimisation import multistart, scan
 from esail_opt.optimisation import polish as polishing
+from esail_opt.optimisation.classes import Candidate, ClassSearch, finish_best_first
 from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, ErrorControl, Round, control_error,
                                                   sub_arcs_within_cap)
 from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
@@ -84,7 +86,7 @@ class ClassTried:
         The class the run returns.
     projected : bool
         Its values are its projected model's: a 3-D run's class not lifted into 3-D
-        (:func:`_lifted`).
+        (``classes.ClassSearch``).
     """
 
     label: str
@@ -98,6 +100,21 @@ class ClassTried:
     verified: Optional[bool] = None
     chosen: bool = False
     projected: bool = False
+
+    @classmethod
+    def of(cls, candidate, iterations, run=None, chosen=False):
+        """The record of a ``classes.Candidate`` that took ``iterations``, with its
+        ``run``'s verdict and values when finished: the error control may move the
+        optimum (a 3-D Vesta intercept's went from 552.2 d to 479.3 d)."""
+        r = candidate.result
+        flown = run is not None and run.result.outcome.found
+        values = run.result if flown else r
+        found = flown or r.outcome.found
+        return cls(candidate.label, r.revolutions_k, r.status, iterations,
+                   values.objective if found else None,
+                   float(sum(values.durations)) if found else None,
+                   values.ac_scale if found else None, r.constraint_violation,
+                   None if run is None else run.verified, chosen, candidate.projected)
 
 
 @dataclass(frozen=True)
@@ -233,11 +250,11 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     """Run the whole pipeline on ``problem``.
 
     A MinTime or MinAcceleration rendezvous at a fixed departure also looks at the turn
-    counts on the body beside the one its seed found (:func:`_classes`) and returns the
-    best one whose flight is verified (``Run.classes`` records each).  A fixed-time
-    problem with a target that no start finds a point for walks its time of flight to
-    the shortest feasible one from the same departure (``Run.nearest_feasible``); the
-    run itself stays not verified.
+    counts on the body beside the one its seed found (``classes.ClassSearch``) and
+    returns the best one whose flight is verified (``Run.classes`` records each).  A
+    fixed-time problem with a target that no start finds a point for walks its time of
+    flight to the shortest feasible one from the same departure
+    (``Run.nearest_feasible``); the run itself stays not verified.
 
     Parameters
     ----------
@@ -274,15 +291,21 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
 def _lone(problem, samples, say, walk=True):
     """The run of :func:`solve` before the polish; ``walk`` False leaves out the walk to
     the shortest feasible flight (:func:`_nearest_feasible`, whose rungs are such
-    runs)."""
-    run, spent = None, []
+    runs).  A 3-D problem's turn counts are searched on its projected model, the best
+    lifted (``classes.ClassSearch``), and in 3-D where that leaves no candidate."""
+    spent = []
     if problem.three_d() and multistart.searches_classes(problem):
-        run = _projected_classes(problem, samples, say, spent)
-    if run is None:
-        run = _solved(problem, samples, say, walk)
-        # The run's Ipopt record covers the projected search it gave up, too.
-        run.result.iterations += sum(r.iterations for r in spent)
-        run.result.solve_seconds += sum(r.solve_seconds for r in spent)
+        search = ClassSearch(problem, seed=functools.partial(_projected_seed, problem, say),
+                             lift=functools.partial(_lift, say), say=say)
+        run = _best_verified(search, samples, say)
+        if run is not None:
+            return run
+        say(f"{problem.name}: no turn count lifted into 3-D converged; searching them in 3-D")
+        spent = search.solves
+    run = _solved(problem, samples, say, walk)
+    # The run's Ipopt record covers the projected search it gave up, too.
+    run.result.iterations += sum(r.iterations for r in spent)
+    run.result.solve_seconds += sum(r.solve_seconds for r in spent)
     return run
 
 
@@ -291,9 +314,8 @@ def _solved(problem, samples, say, walk=True):
     sub_arcs = problem.segments.sub_arcs
     problem, result, tr, starts = _first_solve(problem, say)
     if result.outcome.found and multistart.searches_classes(problem):
-        tried, skipped = _classes(problem, result, tr, say)
-        run = _best_verified(problem, tried, samples, say, starts, sub_arcs)
-        run = dataclasses.replace(run, classes_skipped=skipped)
+        run = _best_verified(ClassSearch(problem, seed=lambda: (problem, result, tr), say=say),
+                             samples, say, starts, sub_arcs)
     else:
         run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
                      sub_arcs_requested=sub_arcs)
@@ -423,134 +445,52 @@ def _per_revolution(problem, result, tr, say):
     return finer, finer_tr
 
 
-def _projected_classes(problem, samples, say, spent):
-    """The run of a 3-D class-searching ``problem`` whose turn counts are searched on
-    its projected model (the seed's solve and :func:`_classes`, hopeless stops
-    included) and lifted into 3-D best first (``multistart.lift_best``); None, for the 3-D
-    search to run instead, when the projection found no point, left a class
-    undecided at its cap, or no lifted class converged in 3-D.  Each solve it made is
-    appended to ``spent``.
-
-    Why: a 3-D iteration costs about twice a projected one, and the classes' ranking
-    barely moves between the two models (Earth-Venus minimum a_c: -20 and -21 swap
-    within 3 %; the others are twice the best or more), while the 3-D search solved
-    every class from constant pitch or lifted it.  An undecided class is the case
-    where the projection is a poor guide: Bennu's k = 5 (6 deg of plane change) does
-    not converge on it within its cap, and is the best class in 3-D."""
+def _projected_seed(problem, say):
+    """The seed's solve of ``problem``'s projected model, the start of its turn-count
+    search: (model, NLPResult, Transcription)."""
     model = multistart.probe_model(problem)
     guess = initial_guess(model)
     model = sub_arcs_within_cap(model, guess, MAX_SUB_ARCS)
     say(f"{problem.name}: searching the turn counts on the projected model "
         f"({model.segments.sub_arcs} sub-arcs), then lifting the best into 3-D")
     result, tr = solve_problem(model, guess=guess, progress=say)
-    spent.append(result)
-    if not result.outcome.found:
-        say(f"{problem.name}: the projected model found no point; solving in 3-D")
-        return None
     result, tr = _per_revolution(model, result, tr, say)
-    spent[-1] = result
-    try:
-        tried, skipped = _classes(model, result, tr, say, spent)
-    except multistart.Undecided as why:
-        say(f"{problem.name}: {why}; searching the turn counts in 3-D instead")
+    return model, result, tr
+
+
+def _lift(say, problem, projected, cap):
+    """A projected class lifted into 3-D (``multistart.lift``, ``cap`` iterations)."""
+    result, tr = multistart.lift(problem, projected.result, cap, say)
+    return Candidate(problem, f"{projected.label}, solved on the projected model and "
+                     "lifted into 3-D", result, tr)
+
+
+def _best_verified(search, samples, say, starts=(), requested=None):
+    """The run of the best solved candidate of ``search`` whose flight is verified, or
+    of the best if none is (None without one); its ``classes`` record each class the
+    search looked at, with the verdicts of those flown."""
+    found = [c for c in search.run() if c.solved]
+    if not found:
         return None
-    problem = dataclasses.replace(problem, segments=model.segments)
-    lifted = _lifted(problem, tried, multistart.probe_cap(tried[0][0].iterations), say)
-    spent[:] = [r for _, r, _ in lifted]
-    if not any(tr is not None and r.outcome.found for _, r, tr in lifted):
-        say(f"{problem.name}: no lifted class converged in 3-D; searching in 3-D instead")
-        return None
-    run = _best_verified(problem, lifted, samples, say, (), problem.segments.sub_arcs)
-    return dataclasses.replace(run, classes_skipped=skipped)
+    # Taken before the finishing makes each result's record the run's.
+    spent = [c.result.iterations for c in search.looked_at]
+    seconds = sum(c.result.solve_seconds for c in search.looked_at)
 
-
-def _lifted(problem, tried, cap, say):
-    """``tried`` (:func:`_classes` on the projected model) with its found classes
-    lifted into 3-D (``multistart.lift``, ``cap`` iterations) as
-    ``multistart.lift_best`` chooses them.  A class not lifted keeps its projected
-    record and result with no transcription: it is not a 3-D candidate."""
-    out = [(dataclasses.replace(c, label=f"{c.label}, on the projected model (not "
-                                          "solved in 3-D)", projected=True), r, None)
-           for c, r, _ in tried]
-
-    def lift(i):
-        record, result, _ = tried[i]
-        say(f"{problem.name}: lifting the turn count k = {result.revolutions_k} into 3-D")
-        lifted, tr = multistart.lift(problem, result, cap, say)
-        out[i] = (_class_record(f"{record.label}, solved on the projected model and "
-                                "lifted into 3-D", lifted), lifted, tr)
-        return lifted.objective if lifted.outcome.found else math.inf
-
-    multistart.lift_best([r for _, r, _ in tried], lift)
-    return out
-
-
-def _class_record(label, result, projected=False):
-    found = result.outcome.found
-    return ClassTried(label, result.revolutions_k, result.status, result.iterations,
-                      result.objective if found else None,
-                      float(sum(result.durations)) if found else None,
-                      result.ac_scale if found else None, result.constraint_violation,
-                      projected=projected)
-
-
-def _classes(problem, result, tr, say, spent=None):
-    """``multistart.search_classes`` from ``result``, each class recorded
-    (:class:`ClassTried`): [(ClassTried, NLPResult, Transcription)] in the order solved,
-    and the line of ``Run.classes_skipped``.  Given ``spent``, each probe is appended to
-    it, and one that ends undecided at its cap raises ``multistart.Undecided``.
-
-    (A warm-started scan drifts to the better k where a lone solve would stay, and the
-    two would then disagree on what the same cell needs:
-    ``test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it``.)"""
-    tried, skipped = multistart.search_classes(problem, result, tr, say, spent)
-    # A 3-D class whose projection found no point was not solved in 3-D.
-    records = [(_class_record(label, r, i > 0 and problem.three_d() and not r.outcome.found),
-                r, t) for i, (label, r, t) in enumerate(tried)]
-    return records, skipped
-
-
-def _best_verified(problem, tried, samples, say, starts, requested):
-    """The run of the best class of ``tried`` (:func:`_classes`) whose flight is verified:
-    the found classes are finished (error control, CVODES) best objective first until
-    one is verified; the best one's run if none is.  Its ``classes`` record each class,
-    with the verdicts of those flown.  A class with no transcription is a record only
-    (:func:`_lifted`: not lifted into 3-D)."""
-    # The first result's record covers the starts before it as well.
-    iterations = tried[0][1].iterations + sum(c.iterations for c, _, _ in tried[1:])
-    seconds = sum(r.solve_seconds for _, r, _ in tried)
-    found = sorted((i for i, (_, r, tr) in enumerate(tried)
-                    if tr is not None and r.outcome.found),
-                   key=lambda i: tried[i][1].objective)
-    runs = {}
-    for i in found:
-        _, result, tr = tried[i]
+    def fly(candidate):
+        result = candidate.result
         # The run's Ipopt record covers every class it solved.
-        result.iterations, result.solve_seconds = iterations, seconds
+        result.iterations, result.solve_seconds = sum(spent), seconds
         if len(found) > 1:
-            say(f"{problem.name}: flying the turn count k = {result.revolutions_k}")
-        runs[i] = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
-                         sub_arcs_requested=requested)
-        if runs[i].verified:
-            break
-    chosen = next((i for i in runs if runs[i].verified), found[0])
-    classes = tuple(dataclasses.replace(_as_flown(c, runs.get(i)), chosen=i == chosen)
-                    for i, (c, _, _) in enumerate(tried))
-    return dataclasses.replace(runs[chosen], classes=classes)
+            say(f"{candidate.problem.name}: flying the turn count k = {result.revolutions_k}")
+        return finish(candidate.problem, result, candidate.transcription, samples=samples,
+                      progress=say, starts=starts, sub_arcs_requested=requested)
 
-
-def _as_flown(record, run):
-    """A class's record with its verdict and, for a class that was finished, the values
-    its run ends with: the error control re-solves, and may move the optimum (a 3-D
-    Vesta intercept's last round went from 552.2 d to 479.3 d), so that the chosen
-    class reads as the answer does."""
-    if run is None:
-        return dataclasses.replace(record, verified=None)
-    r = run.result
-    if not r.outcome.found:
-        return dataclasses.replace(record, verified=run.verified)
-    return dataclasses.replace(record, verified=run.verified, objective=r.objective,
-                               tof=float(sum(r.durations)), ac_scale=r.ac_scale)
+    runs = finish_best_first(found, fly)
+    chosen = next((run for run in runs if run.verified), runs[0])
+    flown = {id(c): run for c, run in zip(found, runs)}
+    classes = tuple(ClassTried.of(c, it, flown.get(id(c)), flown.get(id(c)) is chosen)
+                    for c, it in zip(search.looked_at, spent))
+    return dataclasses.replace(chosen, classes=classes, classes_skipped=search.skipped)
 
 
 def _nearest_feasible(problem, samples, say):

@@ -13,14 +13,8 @@ forward pass every cell that ended worse than a neighbour -- not converged, not
 verified, or a larger objective -- is solved again from that neighbour, the other way
 along the scan, and keeps the better of the two; a cell solved again so passes its new
 optimum on to its neighbours.  A cell no neighbour can start is solved cold from its own
-seed, as a lone solve would; a run's first cell searches its turn counts as a lone
-solve does (in three dimensions on the projected model, lifting the best).  A
-MinAcceleration or MinTime cell also steps through the turn counts on the body beside
-its best while its objective falls, as a lone solve does
-(``multistart.descend_turns``): the best count drifts across a chart, and a warm chain
-would keep its own.  A 3-D cell is also solved from its projected model's optimum in
-its best count, lifted, as a lone solve lifts it: warm from its 3-D neighbour a cell
-can keep to a poorer basin of the same count (:func:`_lifted`).
+seed, as a lone solve would.  A cell's turn counts are searched by the lone solve's
+``classes.ClassSearch``, each count warm from its chain of cells (:func:`_candidates`).
 
 Every cell goes through the error control and the CVODES verification of a lone solve
 (``optimisation.error_control``, ``optimisation.verify``): a scan's cell is verified exactly
@@ -28,6 +22,7 @@ when the same cell solved alone would be.
 """
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -38,6 +33,7 @@ import numpy as np
 from esail_opt.bodies import dates
 from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
+from esail_opt.optimisation.classes import ClassSearch, Ranked, finish_best_first
 from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
                                           solve_transcription)
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error, sub_arcs_within_cap
@@ -81,7 +77,7 @@ def _objective_at(problem, tof_days):
 
 
 @dataclass(frozen=True)
-class Cell:
+class Cell(Ranked):
     """One solved cell: its problem, the closed-form optimum and its judged flight."""
 
     problem: Problem
@@ -101,11 +97,6 @@ class Cell:
     @property
     def solved(self):
         return self.result is not None and self.result.outcome.found
-
-    @property
-    def objective(self):
-        """The objective, or +inf for a cell that did not converge."""
-        return self.result.objective if self.solved else math.inf
 
 
 class CellSolver:
@@ -130,7 +121,7 @@ class CellSolver:
 
     @property
     def projected(self):
-        """The solver of this scan's projected cells (:func:`_lifted`), made on first
+        """The solver of this scan's projected cells (:meth:`from_projected`), made on first
         use: a 3-D scan keeps a chain of them beside its own."""
         if self._projected is None:
             self._projected = CellSolver(self.method)
@@ -193,7 +184,7 @@ class CellSolver:
     def cold(self, problem, k=None, start=None):
         """Solve a cell from its own constant-pitch seed, from turn count ``k``'s seed
         (``multistart.rendezvous_starts``), or from ``start``, an optimum of the
-        class search on the scan's mesh in class ``k`` (:func:`_searched_first`; in
+        class search on the scan's mesh in class ``k`` (:func:`_candidates`; in
         3-D one of the projected model, lifted by ``seed.lifted_guess``).  The
         first cell of a class builds the class's NLP."""
         started = time.perf_counter()
@@ -207,7 +198,8 @@ class CellSolver:
             label += ", from the class search"
             seed = start.as_guess()
         else:
-            seed = initial_guess(problem) if k is None else _class_seed(problem, k)
+            seed = (initial_guess(problem) if k is None
+                    else multistart.rendezvous_starts(problem, [k])[0].guess)
         problem, seed = self._meshed(problem, seed)
         # A lifted optimum is a start Ipopt keeps to: no staging from it.
         result, tr = solve_problem(problem, self.method, options=options,
@@ -275,10 +267,44 @@ class CellSolver:
         there = tr.at(neighbour.problem).constraints(start.w, neighbour.defects)
         return start.objective + float(np.dot(np.ravel(start.lam_g), here - there))
 
+    def in_class(self, problem, chains, k, best=None):
+        """``problem`` solved in count ``k``, warm from its chain's last cell, else cold;
+        ``multistart.NO_BETTER`` where that cell's :meth:`estimate` is at least
+        :data:`LOOK_MARGIN` times ``best``."""
+        estimate = (self.estimate(problem, chains[k])
+                    if best is not None and k in chains else None)
+        if estimate is not None and estimate >= LOOK_MARGIN * best:
+            return multistart.NO_BETTER
+        return self.warm(problem, chains.get(k), f"class {k}") or self.cold(problem, k)
 
-def _class_seed(problem, k):
-    """The rendezvous seed of turn count k (``multistart.rendezvous_starts``)."""
-    return multistart.rendezvous_starts(problem, [k])[0].guess
+    def projected_seed(self, problem):
+        """The seed's solve of ``problem``'s projected model on the scan's mesh, where a
+        first cell's class search starts: (model, NLPResult, Transcription)."""
+        problem, _ = self._meshed(problem, initial_guess(problem))
+        model = multistart.probe_model(problem)
+        return (model, *solve_problem(model, guess=initial_guess(model)))
+
+    def from_projected(self, problem, k):
+        """A 3-D cell solved in count ``k`` from its projected model's optimum (warm
+        from the count's last projected cell, :attr:`projected`), lifted: its own solves
+        start from its 3-D neighbour and stay in that neighbour's basin of the count.
+        The lifted cell, or none where the projected model found no point in that count
+        (or another segment count than the scan's).
+
+        Why: on the 3-D Venus chart of ``results/`` a cell ended 1.4 % above a lone
+        solve of it, and on an Earth-Mercury chart two cells ended 4.8 % and 5.1 %
+        above, each in the same count as the lone solve."""
+        flat = self.projected
+        model = multistart.probe_model(problem)
+        start = flat.warm(model, flat.last.get(k), "projected")
+        if start is None or not start.solved or start.result.revolutions_k != k:
+            start = flat.cold(model, k)
+        # A lift flies the projected segments: the scan's NLP must have as many.
+        if (not start.solved or start.result.revolutions_k != k
+                or start.result.alpha.size != self.segments.count):
+            return []
+        flat.last[k] = start
+        return [self.lifted(problem, start.result) or self.cold(problem, k, start=start.result)]
 
 
 def scan(cells, progress=None, method=None, neighbours=None, explore=False, on_cell=None):
@@ -320,20 +346,20 @@ def scan(cells, progress=None, method=None, neighbours=None, explore=False, on_c
 
 
 def _forward(solver, cells, say, explore, on_cell):
-    """The forward pass: each cell solved warm from the one before it (and from its own
-    classes, :func:`_first_solves`), then settled (:func:`_settle`).  Returns the cells
+    """The forward pass: each cell solved warm from the one before it (and in its own
+    classes, :func:`_candidates`), then settled (:func:`_settle`).  Returns the cells
     and, per cell, the set of revolution classes its solves tried."""
     n = len(cells)
     out = []
     classes = []  # per cell, the revolution classes its solves tried
     chains = {}  # revolution class -> its last cell solved on the scan's NLP
     for i, problem in enumerate(cells):
-        tried = _first_solves(solver, problem, out[-1] if out else None, chains, explore)
-        for c in tried:
+        ranked, made = _candidates(solver, problem, out[-1] if out else None, chains, explore)
+        for c in made:
             if c.on_scan_nlp is not None:
                 chains[c.on_scan_nlp.revolutions_k] = c
-        out.append(_settle(solver, tried))
-        classes.append({c.result.revolutions_k for c in tried if c.result is not None})
+        out.append(_settle(solver, ranked))
+        classes.append({c.result.revolutions_k for c in made if c.result is not None})
         say(_line(i, n, out[-1]))
         on_cell(i, out[-1])
     return out, classes
@@ -385,153 +411,27 @@ def _again(solver, problem, other, j, cell):
     return again if _rank(again) < _rank(cell) else None
 
 
-def _settle(solver, tried):
-    """The cell among a cell's solves: the best closed-form optimum that verifies, the
-    candidates finished (error control and verification) best first until one does."""
-    done = []
-    for cell in sorted(tried, key=lambda c: (not c.solved, c.objective)):
-        done.append(solver.finish(cell))
-        if done[-1].verified:
-            break
-    return min(done, key=_rank)
+def _settle(solver, ranked):
+    """The cell among a cell's solves (``ranked``, best first): the best that verifies,
+    finished (error control and verification) best first until one does."""
+    return min(finish_best_first(ranked, solver.finish), key=_rank)
 
 
-def _first_solves(solver, problem, previous, chains, explore=False):
-    """A cell's solves in the forward pass: warm from the previous cell, and for a body
-    target the classes its own seed favours (for a MinAcceleration cell that the warm
-    start solved, not those), then, for a MinAcceleration or MinTime cell, the classes
-    beside the best while they do better (:func:`_descend`)."""
-    tried = [c for c in [solver.warm(problem, previous, "previous")] if c is not None]
-    if problem.tracks_body():
-        sizing = problem.objective.free_acceleration
-        searched = (previous is None and not explore
-                    and multistart.searches_classes(problem))
-        if searched:
-            tried += _searched_first(solver, problem)
-        if explore or not ((sizing or searched) and any(c.solved for c in tried)):
-            _own_classes(solver, problem, previous, chains, tried, explore)
-        if sizing or not problem.objective.fixed_time:
-            # The best count drifts across a chart (by whole turns over a few months of
-            # departure dates), and a warm chain keeps its own: every cell looks on, as
-            # a lone solve does.  For a MinAcceleration cell that look replaces the own
-            # seed's count, which a lone solve too only starts from (on Venus it needed
-            # three to four times the chain's a_c).  A minimum-time chain that lost its
-            # count kept the seed's: Earth-Mars leaving 2033-08-11 in 3-D took 1,008 d
-            # (k = 17) where the count beside it, as a lone solve finds, takes 715 d.
-            _descend(solver, problem, chains, tried)
-        if problem.three_d() and previous is not None and not explore:
-            tried += _lifted(solver, problem, tried)
-    if not any(c.solved for c in tried):
-        tried.append(solver.cold(problem))
-    return tried
-
-
-def _lifted(solver, problem, tried):
-    """A 3-D cell solved again from its projected model's optimum in the best turn
-    count of ``tried``, lifted into 3-D as a lone solve lifts it: a cell's own solves
-    start from its 3-D neighbour and stay in that neighbour's basin of the count, which
-    a lone solve need not share.  The projected optimum is itself warm from the count's
-    last projected cell (:attr:`CellSolver.projected`), which costs a planar solve of
-    tens of iterations; the projected model is the cell's own, meshed by its own seed,
-    as a lone solve's is.  Returns the lifted cell, or none where the projected model
-    found no point in that count (or another segment count than the scan's).
-
-    Why: on the 3-D Venus chart of ``results/`` a cell ended 1.4 % above a lone solve
-    of it, and on an Earth-Mercury chart two cells ended 4.8 % and 5.1 % above, each in
-    the same count as the lone solve."""
-    best = min((c for c in tried if c.solved), key=lambda c: c.objective, default=None)
-    if best is None:
-        return []
-    k = best.result.revolutions_k
-    flat = solver.projected
-    model = multistart.probe_model(problem)
-    start = flat.warm(model, flat.last.get(k), "projected")
-    if start is None or not start.solved or start.result.revolutions_k != k:
-        start = flat.cold(model, k)
-    # A lift flies the projected segments: the scan's NLP must have as many.
-    if (not start.solved or start.result.revolutions_k != k
-            or start.result.alpha.size != solver.segments.count):
-        return []
-    flat.last[k] = start
-    return [solver.lifted(problem, start.result)
-            or solver.cold(problem, k, start=start.result)]
-
-
-def _searched_first(solver, problem):
-    """A run's first cell, which has no neighbour to start from: its turn counts
-    searched as a lone solve searches them (``multistart.search_classes``, on the
-    projected model in 3-D), and the best of them solved on their classes' NLPs from
-    the search's optima (lifted in 3-D, ``multistart.lift_best``).  Returns those
-    cells; none when the search cannot rank the classes (no point, or a class
-    undecided at its cap), and the cell's counts are then solved from their seeds.
-
-    Why: cold from a count's constant-pitch seed, a first cell can stall in a count far
-    from its best, and the chain then carries that count on.  In the plane, Earth-Mars
-    leaving 2031-09-02 as a job's first cell ended at 975.75 d (k = 16), where a lone
-    solve's search finds 682.2 d (k = 15).  The search ranks the counts as a lone solve
-    does, so the run starts where a lone solve would end."""
-    problem, _ = solver._meshed(problem, initial_guess(problem))
-    model = multistart.probe_model(problem)
-    result, tr = solve_problem(model, guess=initial_guess(model))
-    if not result.outcome.found:
-        return []
-    try:
-        found, _ = multistart.search_classes(model, result, tr, lambda text: None, [])
-    except multistart.Undecided:
-        return []
-    projected = [r for _, r, _ in found]
-    cells = []
-
-    def lift(i):
-        cells.append(solver.cold(problem, projected[i].revolutions_k, start=projected[i]))
-        return cells[-1].objective
-
-    multistart.lift_best(projected, lift)
-    return cells
-
-
-def _own_classes(solver, problem, previous, chains, tried, explore):
-    """The turn count the cell's own seed favours, solved (added to ``tried``): a warm
-    start keeps its neighbour's count on the body, and the seed says which count the
-    cell's geometry favours.  A run's first cell has no neighbour: the counts either
-    side of its seed's are solved as well, so that the run does not start in a poorer
-    class."""
-    own = initial_guess(problem).revolutions_k
-    wanted = [own - 1, own + 1, own] if previous is None or explore else [own]
-    for k in wanted:
-        if k not in {c.result.revolutions_k for c in tried if c.result is not None}:
-            tried.append(solver.warm(problem, chains.get(k), f"class {k}")
-                         or solver.cold(problem, k))
-
-
-def _descend(solver, problem, chains, tried):
-    """For a MinAcceleration or MinTime rendezvous, the turn counts beyond the best one
-    ``tried`` while the objective keeps falling (``multistart.descend_turns``, as a lone
-    solve does), so that a cell ends in the class a lone solve of it would.  Classes the
-    scan has solved before start warm from their last cell, unless their estimated
-    optimum (:meth:`CellSolver.estimate`) is at least :data:`LOOK_MARGIN` times the
-    best found here: they are then taken as no better, unsolved.  The solves made are
-    added to ``tried``."""
-    solved = {c.result.revolutions_k: c for c in tried if c.solved}
-    if not solved:
-        return
-
-    def solve_class(k):
-        if k in solved:
-            return solved[k]
-        if k in chains:
-            estimate = solver.estimate(problem, chains[k])
-            best = min(c.objective for c in tried if c.solved)
-            if estimate is not None and estimate >= LOOK_MARGIN * best:
-                return multistart.NO_BETTER
-        cell = (solver.warm(problem, chains.get(k), f"class {k}")
-                or solver.cold(problem, k))
-        tried.append(cell)
-        return cell if cell.solved else None
-
-    best = min(solved.values(), key=lambda c: c.objective)
-    multistart.descend_turns(best.result.revolutions_k, best, solve_class,
-                             lambda a, b: a.objective < b.objective)
+def _candidates(solver, problem, previous, chains, explore):
+    """A cell's solves, ranked best first and in the order made: warm from the previous
+    cell, then its turn counts (``classes.ClassSearch``), each warm from its chain in
+    ``chains`` or cold; a first cell's searched as a lone solve's (from its counts'
+    seeds, Earth-Mars leaving 2031-09-02 ended at 975.75 d where that finds 682.2 d)."""
+    search = ClassSearch(
+        problem, first=previous is None, explore=explore,
+        seed=functools.partial(solver.projected_seed, problem),
+        lift=lambda on_mesh, projected, cap: solver.cold(
+            on_mesh, projected.result.revolutions_k, start=projected.result),
+        solve_class=functools.partial(solver.in_class, problem, chains),
+        from_projected=functools.partial(solver.from_projected, problem),
+        cold=functools.partial(solver.cold, problem))
+    ranked = search.run([solver.warm(problem, previous, "previous")])
+    return ranked, search.candidates
 
 
 def _spike(i, out, cells, neighbours):
