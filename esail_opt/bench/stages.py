@@ -112,7 +112,8 @@ def instrument(clock):
     """Wrap the package's stage functions with ``clock``'s timers (the modules must be
     imported)."""
     from esail_opt.bodies import lookup
-    from esail_opt.optimisation import error_control, ipopt, pipeline, seed, transcription
+    from esail_opt.optimisation import (error_control, ipopt, multistart, pipeline, seed,
+                                        transcription)
     from esail_opt.optimisation import verify as verify_module
 
     def staged(name):
@@ -147,7 +148,7 @@ def instrument(clock):
         (ipopt.build_solver, staged("nlp_build")),
         (ipopt.solve_transcription, ipopt_call),
         (verify_module.verify, staged("verification")),
-        (pipeline._classes, stepped("probes")), (pipeline._lifted, stepped("lift")),
+        (multistart.probe_start, stepped("probes")), (multistart.lift, stepped("lift")),
         (error_control.control_error, stepped("error control")),
         (pipeline._polish, stepped("polish")),
     ]
