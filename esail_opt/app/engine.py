@@ -302,11 +302,11 @@ class Journal:
         if not isinstance(header, dict) or header.get("journal") != self.header["journal"]:
             raise InputError(f"resume: {self.path} is not a {kind} journal (line 1 is not "
                              "its header); run without --resume to start fresh")
-        for key in self.header:
-            if header.get(key) != self.header[key]:
+        for key in [*self.header, *(k for k in header if k not in self.header)]:
+            if header.get(key) != self.header.get(key):
                 what = ("the problem file changed since it was written" if key == "source_sha256"
                         else f"its {key} is {_short(header.get(key))}, not "
-                             f"{_short(self.header[key])}")
+                             f"{_short(self.header.get(key))}")
                 raise InputError(f"resume: {self.path} belongs to another {kind}: {what}; "
                                  "run without --resume to start fresh")
 

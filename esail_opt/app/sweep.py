@@ -399,7 +399,8 @@ class _Request:
                 "source_sha256": engine.source_digest(self.source), "param": self.name,
                 "values": self.values, "polish": bool(self.polish),
                 "tolerance": dataclasses.asdict(self.problem.tolerance),
-                "robust_runs": self.robust_runs}
+                # Only where flown, so a journal written without it still resumes.
+                **({"robust_runs": self.robust_runs} if self.robust_runs else {})}
 
 
 def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, polish,
