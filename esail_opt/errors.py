@@ -5,14 +5,11 @@ allowed range.  :class:`NoStart` is a valid problem that no start can be flown f
 (exit 1).  :class:`OutputError` is an output folder or file that cannot be
 written (exit 3).  :class:`FigureError` is a figure that could not be drawn while the
 rest of its set was written (exit 4).  :class:`Terminated` is SIGTERM, raised where Python would raise
-KeyboardInterrupt for SIGINT (exit 143); :class:`SignalsHeld` keeps both signals
-waiting while CasADi's C++ runs.  They live in the lowest layer because every layer
-may raise them.
+KeyboardInterrupt for SIGINT (exit 143; :mod:`esail_opt.signals` raises it).  They live
+in the lowest layer because every layer may raise them.
 """
 
 import math
-import signal
-import threading
 import unicodedata
 
 
@@ -58,49 +55,6 @@ class Terminated(KeyboardInterrupt):
     def __init__(self, signum=15):
         super().__init__(signum)
         self.signum = signum
-
-
-class SignalsHeld:
-    """Inside, SIGINT (and SIGTERM, where a Python handler already turns it into an
-    exception: the command line's) is recorded rather than raised; on the way out, the
-    exception it means is raised: KeyboardInterrupt, or :class:`Terminated`.
-
-    For CasADi's C++ (Ipopt, CVODES): it checks Python's signals while it runs, and
-    the KeyboardInterrupt that Python's own handler raises there made the evaluation
-    fail where it stood, so that Ctrl-C during a CVODES flight read as a flight that
-    failed (an unverified solve, exit 1) instead of an interrupt (exit 130).  Held, the
-    signal waits for the C++ call to return.  Only in the main thread, where Python runs
-    its signal handlers; elsewhere it holds nothing.  ``interrupted`` tells a caller
-    that polls (Ipopt's iteration callback) to stop early.
-    """
-
-    def __init__(self):
-        self.signum = None
-        self._saved = {}
-
-    @property
-    def interrupted(self):
-        return self.signum is not None
-
-    def __enter__(self):
-        self.signum = None
-        if threading.current_thread() is threading.main_thread():
-            self._saved[signal.SIGINT] = signal.signal(signal.SIGINT, self._record)
-            if callable(signal.getsignal(signal.SIGTERM)):
-                self._saved[signal.SIGTERM] = signal.signal(signal.SIGTERM, self._record)
-        return self
-
-    def _record(self, signum, frame):
-        self.signum = signum
-
-    def __exit__(self, kind, value, traceback):
-        for signum, handler in self._saved.items():
-            signal.signal(signum, handler)
-        self._saved = {}
-        if self.signum is not None and kind is None:
-            raise (KeyboardInterrupt() if self.signum == signal.SIGINT
-                   else Terminated(self.signum))
-        return False
 
 
 #: Most values one START:STOP:COUNT range may give.

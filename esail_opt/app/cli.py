@@ -13,6 +13,7 @@ import sys
 
 from esail_opt.errors import (FigureError, InputError, NoStart, OutputError, Terminated,
                               number_range)
+from esail_opt.signals import terminate_as_interrupt
 
 EXIT_INPUT = 2
 #: An output that cannot be written (a full disk, a read-only folder): not 1, which
@@ -786,11 +787,6 @@ def _show_library_log():
     logger.propagate = False
 
 
-def _terminate(signum, frame):
-    """SIGTERM handler: stop the way Ctrl-C stops (see :class:`Terminated`)."""
-    raise Terminated(signum)
-
-
 def main(argv=None):
     args = build_parser().parse_args(argv)
     return run_command(f"esail-opt {args.command}", args.run, args)
@@ -822,17 +818,11 @@ def run_command(label, run, args):
         The parsed options, passed to ``run``.
     """
     _show_library_log()
-    import threading
-
     from esail_opt.app.parallel import ClusterLost
 
-    previous = None
-    if (threading.current_thread() is threading.main_thread()
-            and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL):
-        # kill, systemd and batch schedulers send SIGTERM: clean up as for Ctrl-C.
-        previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return run(args)
+        with terminate_as_interrupt():
+            return run(args)
     except (InputError, OutputError, FigureError) as err:
         print(f"{label}: error: {err}", file=sys.stderr)
         return (EXIT_INPUT if isinstance(err, InputError)
@@ -857,9 +847,6 @@ def run_command(label, run, args):
         print(f"\n{label}: {what}; nothing half-done was written",
               file=sys.stderr)
         return 128 + signum
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -26,12 +26,11 @@ import logging
 import os
 import signal
 import tempfile
-import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, wait
 from pathlib import Path
 
-from esail_opt import processes
+from esail_opt import processes, signals
 from esail_opt.errors import InputError
 from esail_opt.propagation.compiled import SAID
 
@@ -314,13 +313,7 @@ class _Runner:
 
     def _abort(self):
         """Stop everything after an interrupt or an error, without waiting for jobs."""
-        # A second Ctrl-C must not cut the cleanup short and leave workers running.
-        # Nor a SIGTERM after a Ctrl-C, or a second SIGTERM.
-        previous = {}
-        if threading.current_thread() is threading.main_thread():
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                previous[signum] = signal.signal(signum, signal.SIG_IGN)
-        try:
+        with signals.ignoring():
             if self.client is None:
                 for future in self.active:
                     future.cancel()
@@ -334,9 +327,6 @@ class _Runner:
             if self.client is not None:
                 with contextlib.suppress(Exception):
                     self.client.close(timeout=2)
-        finally:
-            for signum, handler in previous.items():
-                signal.signal(signum, handler)
 
 
 # ---------------------------------------------------------------- in the workers
@@ -360,7 +350,7 @@ def _worker_init(threads, parent=None, quiet=(), news=None):
     does not repeat what the compile cache said in the parent (``quiet``); and it ends
     when its parent ``parent`` does, however the parent ended."""
     global _NEWS
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signals.leave_interrupt_to_parent()
     _NEWS = news
     os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
     if quiet:

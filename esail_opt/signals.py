@@ -1,0 +1,103 @@
+"""The one place that installs signal handlers.
+
+Ctrl-C (SIGINT) and SIGTERM stop a command the same way (:class:`~esail_opt.errors.
+Terminated` is SIGTERM as a KeyboardInterrupt), and every other module asks this one
+for what it needs: a command turns SIGTERM into that exception
+(:func:`terminate_as_interrupt`); CasADi's C++ runs with both signals held until it
+returns (:class:`SignalsHeld`); a clean-up that must not be cut short ignores them
+(:func:`ignoring`); a pool worker leaves Ctrl-C to its parent (:func:`leave_interrupt_to_parent`).
+Python runs signal handlers in the main thread only, so each of these changes nothing
+in another thread.
+"""
+
+import contextlib
+import signal
+import threading
+
+from esail_opt.errors import Terminated
+
+
+def _main_thread():
+    return threading.current_thread() is threading.main_thread()
+
+
+class SignalsHeld:
+    """Inside, SIGINT (and SIGTERM, where a Python handler already turns it into an
+    exception: the command line's) is recorded rather than raised; on the way out, the
+    exception it means is raised: KeyboardInterrupt, or :class:`Terminated`.
+
+    For CasADi's C++ (Ipopt, CVODES): it checks Python's signals while it runs, and
+    the KeyboardInterrupt that Python's own handler raises there made the evaluation
+    fail where it stood, so that Ctrl-C during a CVODES flight read as a flight that
+    failed (an unverified solve, exit 1) instead of an interrupt (exit 130).  Held, the
+    signal waits for the C++ call to return.  ``interrupted`` tells a caller that polls
+    (Ipopt's iteration callback) to stop early.
+    """
+
+    def __init__(self):
+        self.signum = None
+        self._saved = {}
+
+    @property
+    def interrupted(self):
+        return self.signum is not None
+
+    def __enter__(self):
+        self.signum = None
+        if _main_thread():
+            self._saved[signal.SIGINT] = signal.signal(signal.SIGINT, self._record)
+            if callable(signal.getsignal(signal.SIGTERM)):
+                self._saved[signal.SIGTERM] = signal.signal(signal.SIGTERM, self._record)
+        return self
+
+    def _record(self, signum, frame):
+        self.signum = signum
+
+    def __exit__(self, kind, value, traceback):
+        for signum, handler in self._saved.items():
+            signal.signal(signum, handler)
+        self._saved = {}
+        if self.signum is not None and kind is None:
+            raise (KeyboardInterrupt() if self.signum == signal.SIGINT
+                   else Terminated(self.signum))
+        return False
+
+
+def _terminate(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt():
+    """Inside, SIGTERM (sent by kill, systemd and batch schedulers) raises
+    :class:`Terminated`, so that it cleans up as Ctrl-C does; unless a handler of the
+    caller's own is already installed."""
+    previous = None
+    if _main_thread() and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def ignoring():
+    """Inside, SIGINT and SIGTERM are ignored: a second Ctrl-C, or a SIGTERM after one,
+    must not cut a clean-up short and leave workers running."""
+    previous = {}
+    if _main_thread():
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            previous[signum] = signal.signal(signum, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def leave_interrupt_to_parent():
+    """In a pool worker: ignore SIGINT, so that Ctrl-C in a terminal (sent to the whole
+    process group) reaches only the parent, which decides what stops."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
