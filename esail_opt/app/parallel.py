@@ -32,7 +32,7 @@ from pathlib import Path
 
 from esail_opt import processes, signals
 from esail_opt.errors import InputError
-from esail_opt.propagation.compiled import SAID
+from esail_opt.propagation import compiled
 
 #: Times a job lost with its worker is run again before it is reported failed.
 RETRIES = 2
@@ -353,8 +353,7 @@ def _worker_init(threads, parent=None, quiet=(), news=None):
     signals.leave_interrupt_to_parent()
     _NEWS = news
     os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
-    if quiet:
-        os.environ[SAID] = os.pathsep.join(quiet)
+    compiled.said_already(quiet)
     if parent is not None:
         processes.die_with_parent(parent)
 

@@ -97,9 +97,6 @@ MIN_FREE_BYTES = 64 << 20
 MIN_FREE_INODES = 64
 #: The file that remembers a compile that ran out of space (see ``_unusable``).
 FAILED_MARKER = ".compile-failed"
-#: The environment variable in which a run tells its workers what it has said about
-#: the cache already (:func:`check_cache`): the names, separated by ``os.pathsep``.
-SAID = "ESAIL_OPT_CACHE_SAID"
 #: Values of ESAIL_OPT_COMPILE that force the virtual machine.
 OFF = ("0", "off", "no", "false", "vm")
 
@@ -473,11 +470,19 @@ def _build(fun, compiler, target, links=(), with_derivatives=True):
 
 
 def _said(key):
-    """Whether the line about ``key`` (a compiler, a cache folder) was said already, in
-    this process or by the one that started it (:data:`SAID`); it counts as said now."""
-    before = (key, True) in _loaded or key in os.environ.get(SAID, "").split(os.pathsep)
+    """Whether the line about ``key`` (a compiler, a cache folder) was said already in
+    this process (or, for a worker, by its run: :func:`said_already`); it counts as
+    said now."""
+    before = (key, True) in _loaded
     _loaded[(key, True)] = None
     return before
+
+
+def said_already(keys):
+    """In a run's worker: the lines about ``keys`` (what the run's :func:`check_cache`
+    returned) were said by the run, and are not said again here."""
+    for key in keys:
+        _loaded[(key, True)] = None
 
 
 def _warn_no_compiler(compiler):
@@ -490,7 +495,7 @@ def _warn_no_compiler(compiler):
 
 def check_cache():
     """Say now, once, why nothing will compile (no compiler, an unusable cache), so that
-    a run's workers need not each say it; what was said, for :data:`SAID`.
+    a run's workers need not each say it; what was said, for :func:`said_already`.
 
     Returns
     -------
