@@ -1,11 +1,13 @@
-"""The one place that installs signal handlers.
+"""The one place that sets how signals are handled: handlers and masks.
 
 Ctrl-C (SIGINT) and SIGTERM stop a command the same way (:class:`~esail_opt.errors.
 Terminated` is SIGTERM as a KeyboardInterrupt), and every other module asks this one
 for what it needs: a command turns SIGTERM into that exception
 (:func:`terminate_as_interrupt`); CasADi's C++ runs with both signals held until it
 returns (:class:`SignalsHeld`); a clean-up that must not be cut short ignores them
-(:func:`ignoring`); a pool worker leaves Ctrl-C to its parent (:func:`leave_interrupt_to_parent`).
+(:func:`ignoring`) and one that must not be cut in the middle blocks them until it ends
+(:func:`blocked`); a pool worker leaves Ctrl-C to its parent
+(:func:`leave_interrupt_to_parent`).
 Python runs signal handlers in the main thread only, so each of these changes nothing
 in another thread.
 """
@@ -95,6 +97,21 @@ def ignoring():
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+
+
+@contextlib.contextmanager
+def blocked():
+    """Hold SIGINT and SIGTERM until the block ends (they are delivered then), so that
+    what it does (a swap of folders and its clean-up) is never cut in the middle."""
+    try:
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    except (AttributeError, OSError, ValueError):
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def leave_interrupt_to_parent():

@@ -26,13 +26,12 @@ import json
 import os
 import secrets
 import shutil
-import signal
 import sys
 from pathlib import Path
 
 from esail_opt.app.record import plain
 from esail_opt.errors import InputError, OutputError
-from esail_opt import processes
+from esail_opt import processes, signals
 
 #: Longest file or folder name most file systems take (ext4, xfs, tmpfs), bytes.
 NAME_MAX = 255
@@ -327,22 +326,6 @@ def _carry_over(target, staging, family):
 
 
 @contextlib.contextmanager
-def _signals_held():
-    """Hold SIGINT and SIGTERM until the block ends (they are delivered then), so that
-    a swap and its clean-up are never cut in the middle."""
-    held = {signal.SIGINT, signal.SIGTERM}
-    try:
-        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    except (AttributeError, OSError, ValueError):
-        previous = None
-    try:
-        yield
-    finally:
-        if previous is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-
-
-@contextlib.contextmanager
 def publish(target, family=()):
     """Yield a staging folder for a run's files; on success it becomes ``target``.
 
@@ -388,14 +371,14 @@ def publish(target, family=()):
             yield staging
             _refuse_folders_in_the_way(
                 target, [e.name for e in os.scandir(staging) if e.is_file()])
-            with _signals_held():
+            with signals.blocked():
                 _carry_over(target, staging, family)
                 _fsync_tree(staging)
                 old = _swap_in(staging, target)
         except OSError as err:
             raise _fail(target, err) from None
     finally:
-        with _signals_held():
+        with signals.blocked():
             # After a swap ``old`` holds the old set; before one, staging holds a part.
             for leftover in (old, staging):
                 if leftover is not None and os.path.lexists(leftover) and \
