@@ -4,16 +4,17 @@ Ipopt set-up, problem validation and the ``solve`` command's handling of bad fil
 import dataclasses
 import json
 import math
+import os
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
 import esail_opt as eo
-from conftest import solved_under
 from esail_opt.app import cli
 from esail_opt.errors import InputError, NoStart
-from esail_opt.optimisation import pipeline, seed
+from esail_opt.optimisation import pipeline, seed, transcription
 from esail_opt.optimisation.nodes import flown_segments
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.outcome import Outcome
@@ -397,18 +398,46 @@ def test_a_throttled_sail_whose_full_thrust_seed_escapes_seeds_at_a_lower_thrott
 def test_segment_threads_do_not_change_the_optimum(monkeypatch):
     """The segments evaluated on one thread and on two: the same optimum, in the same
     iterations (each segment depends only on its own inputs)."""
-    results = solved_under(monkeypatch, "ESAIL_OPT_THREADS", ("1", "2"), small_problem())
-    one, two = results["1"], results["2"]
+    results = {}
+    for threads in (1, 2):
+        monkeypatch.setattr(transcription, "_SHARE", threads)
+        assert _map_threads(transcribe(small_problem())) == threads
+        results[threads] = solve_problem(small_problem())[0]
+    one, two = results[1], results[2]
     assert one.status == two.status == "Solve_Succeeded"
     assert one.iterations == two.iterations
     assert two.objective == pytest.approx(one.objective, rel=1e-12)
 
 
-@pytest.mark.parametrize("value", ["0", "two", "-1", "65"])
-def test_a_bad_thread_count_names_the_variable_and_its_range(monkeypatch, value):
-    monkeypatch.setenv("ESAIL_OPT_THREADS", value)
-    with pytest.raises(InputError, match=r"ESAIL_OPT_THREADS = .* \[1, 64\]"):
-        transcribe(small_problem())
+def _map_threads(tr):
+    """Threads of the segment map in the NLP of ``tr``: the thread count of its
+    threaded map, 1 if the map is serial."""
+    g = ca.Function("g", [tr.nlp["x"], tr.nlp["p"]], [tr.nlp["g"]])
+    counts = [g.instruction_MX(k).which_function().info()["n"]
+              for k in range(g.n_instructions()) if g.instruction_id(k) == ca.OP_CALL
+              and g.instruction_MX(k).which_function().class_name() == "ThreadMap"]
+    assert len(counts) <= 1
+    return counts[0] if counts else 1
+
+
+def _worker_map_threads(i):
+    """A pool job: the threads of the segment map of an NLP built in its worker."""
+    return _map_threads(transcribe(small_problem()))
+
+
+def test_a_pool_worker_builds_its_nlps_on_the_share_it_was_given():
+    """A run's pool worker is given its share of the cores by its initialiser, as an
+    argument, and every NLP it builds maps the segments on that many threads: 8 here,
+    one per segment, where a lone solve takes the machine's cores, at most 4."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from esail_opt.app import parallel
+
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=parallel._worker_init, initargs=(8,)) as pool:
+        assert pool.submit(_worker_map_threads, 0).result() == 8
+    assert _map_threads(transcribe(small_problem())) == max(1, min(4, os.cpu_count() or 1))
 
 
 # ------------------------------------------------ the pipeline

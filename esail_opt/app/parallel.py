@@ -32,6 +32,7 @@ from pathlib import Path
 
 from esail_opt import processes, signals
 from esail_opt.errors import InputError
+from esail_opt.optimisation import transcription
 from esail_opt.propagation import compiled
 
 #: Times a job lost with its worker is run again before it is reported failed.
@@ -346,13 +347,14 @@ def tell(item):
 def _worker_init(threads, parent=None, quiet=(), news=None):
     """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
     the whole process group) reaches only the parent, which decides what stops; it
-    evaluates its NLP's segments on its share of the cores (``ESAIL_OPT_THREADS``); it
-    does not repeat what the compile cache said in the parent (``quiet``); and it ends
-    when its parent ``parent`` does, however the parent ended."""
+    evaluates its NLPs' segments on its share of the cores, ``threads``
+    (``transcription.share_cores``); it does not repeat what the compile cache said in
+    the parent (``quiet``); and it ends when its parent ``parent`` does, however the
+    parent ended."""
     global _NEWS
     signals.leave_interrupt_to_parent()
     _NEWS = news
-    os.environ.setdefault("ESAIL_OPT_THREADS", str(threads))
+    transcription.share_cores(threads)
     compiled.said_already(quiet)
     if parent is not None:
         processes.die_with_parent(parent)

@@ -46,24 +46,39 @@ import casadi as ca
 import numpy as np
 
 from esail_opt.bodies import dates, lookup
-from esail_opt.errors import InputError
 from esail_opt.optimisation.nodes import node_cartesian_function
 from esail_opt.optimisation.seed import Guess, initial_guess
 from esail_opt.optimisation.segment_methods import ClosedForm
+
+
+#: This process's share of the cores for the segments (:func:`share_cores`); None until
+#: a run's pool worker is given one.
+_SHARE = None
+
+
+def share_cores(threads):
+    """In a run's pool worker: evaluate the segments of every NLP built in this process
+    on ``threads`` threads, this worker's share of the machine.
+
+    The run that starts the worker passes its share (cores // workers) to the worker's
+    initialiser, which calls this once; the share is the process's, like the worker
+    itself.  A lone solve never calls it and keeps the default of
+    :func:`segment_threads`.
+    """
+    global _SHARE
+    _SHARE = int(threads)
 
 
 def segment_threads():
     """Threads that evaluate the segments and their derivatives (CasADi's threaded map).
 
     Segments are independent of one another given their start nodes, so they split
-    across cores, to the same optimum in the same iterations.  ``ESAIL_OPT_THREADS`` sets the count (the sweep's workers share the cores this way);
-    the default is the machine's cores, at most 4 (as the sweep counts them).
+    across cores, to the same optimum in the same iterations.  In a run's pool worker,
+    the share it was given (:func:`share_cores`); elsewhere the machine's cores, at
+    most 4.
     """
-    text = os.environ.get("ESAIL_OPT_THREADS", "").strip()
-    if text:
-        if not text.isdigit() or not 1 <= int(text) <= 64:
-            raise InputError(f"ESAIL_OPT_THREADS = {text!r} is not a whole number in [1, 64]")
-        return int(text)
+    if _SHARE is not None:
+        return _SHARE
     return max(1, min(4, os.cpu_count() or 1))
 
 
