@@ -102,9 +102,10 @@ TIMELINE_COLUMNS = dict(left=0.067, right=0.987, wspace=0.185)
 #: The timeline's right edge when the pitch panel carries the throttle's own axis.
 TIMELINE_RIGHT_WITH_THROTTLE = 0.944
 #: The timeline's rows, inches: above the first (the two-line title), each panel,
-#: between two rows (a row's x tick labels), and below the last (its tick labels and
-#: the time label); the error-control rounds' strip, under as wide a gap, when drawn.
-TIMELINE_ROWS_IN = dict(title=0.75, panel=1.9, gap=0.31, foot=0.5, rounds=1.6)
+#: between two rows (the rows share the last one's time labels), and below the last
+#: (its tick labels and the time label); the error-control rounds' strip, under a gap
+#: as wide as the foot, when drawn.
+TIMELINE_ROWS_IN = dict(title=0.75, panel=1.9, gap=0.12, foot=0.5, rounds=1.6)
 
 
 #: The resolution the two figures are made and written at: the labels that
@@ -615,8 +616,14 @@ def timeline_figure(solution, axes=None):
         draw(ax, sol)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    for ax in series[-(2 - len(panels) % 2):]:  # the last row
-        ax.set_xlabel(time_label)
+    last_row = series[-(2 - len(panels) % 2):]
+    for ax in series:
+        if ax in last_row:
+            ax.set_xlabel(time_label)
+        else:
+            # The panels share one time axis, read off the last row: dates written under
+            # every row were most of the figure's text to lay out and draw.
+            ax.tick_params(labelbottom=False)
     if rounds:
         _rounds_panel(axes[len(panels)], sol, misses)
     _plain_legend(series[0].legend(fontsize=7))
