@@ -1,10 +1,12 @@
-"""The closed form's SX Functions stored on disk (``propagation.graph_store``): read back
-they are the Functions built, and anything that could make them differ builds anew."""
+"""CasADi Functions stored on disk (``function_store``): the closed form's SX Functions
+(``propagation.graph_store``) and the bodies' splines (``bodies.track``).  Read back they
+are the Functions built, and anything that could make them differ builds anew."""
 
 import inspect
 import logging
 import os
 
+import casadi as ca
 import numpy as np
 
 from esail_opt.physics.thrust import EXACT
@@ -122,3 +124,42 @@ def test_a_graph_failing_its_checksum_is_said_in_one_line(tmp_path, monkeypatch,
     lines = [r.getMessage() for r in caplog.records]
     assert len(builds) == 2
     assert len(lines) == 1 and path.name in lines[0] and "checksum" in lines[0], lines
+
+
+def test_a_stored_spline_is_the_spline_fitted(tmp_path, monkeypatch):
+    """A body track's spline read back from the store (``bodies.track.stored_spline``)
+    gives casadi.interpolant's fit, value and derivatives, to the bit; other samples
+    fit anew into a file of their own."""
+    from esail_opt.bodies import track
+
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    grid = np.linspace(0.0, 3.0, 41)
+    values = np.sin(3 * grid) + grid**2
+    fits = []
+    interpolant = ca.interpolant
+
+    def counted(*args):
+        fits.append(args[0])
+        return interpolant(*args)
+
+    monkeypatch.setattr(track.ca, "interpolant", counted)
+    first = track.stored_spline("probe", grid, values)
+    again = track.stored_spline("probe", grid, values)
+    assert fits == ["probe"]  # the second was read from its file
+    other = track.stored_spline("probe", grid, 2 * values)
+    assert fits == ["probe", "probe"]
+    monkeypatch.setattr(track.ca, "interpolant", interpolant)
+    fitted = ca.interpolant("probe", "bspline", [grid], values)
+    t = ca.MX.sym("t")
+    x = np.linspace(-0.2, 3.2, 301).reshape(1, -1)
+
+    def evaluated(spline):
+        value = spline(t)
+        slope = ca.jacobian(value, t)
+        curvature = ca.jacobian(slope, t)
+        return np.array(ca.Function("f", [t], [value, slope, curvature]).map(x.size)(x))
+
+    for spline in (first, again):
+        np.testing.assert_array_equal(evaluated(spline), evaluated(fitted))
+    np.testing.assert_array_equal(np.array(other(x)), 2 * np.array(fitted(x)))
+    assert len(list((tmp_path / "tracks").glob("*.casadi"))) == 2

@@ -28,6 +28,7 @@ import math
 import casadi as ca
 import numpy as np
 
+from esail_opt import function_store
 from esail_opt.bodies import ephemeris
 from esail_opt.bodies.dates import iso_from_jd, jd_from_tu, tu_from_jd
 from esail_opt.bodies.keplerian import SmallBody
@@ -98,7 +99,7 @@ class Track:
         held = ca.fmin(ca.fmax(t, t_grid[0]), t_grid[-1])
         # One spline of four outputs (the sample index slowest): the same fit of each
         # component as four splines would make, at a fraction of the cost to build.
-        spline = ca.interpolant(self._tag(), "bspline", [t_grid], polar.T.ravel())
+        spline = stored_spline(self._tag(), t_grid, polar.T.ravel())
         self.function = ca.Function("track", [t], [spline(held)], ["t"], ["polar"])
         self.sampled_t_range = (float(t_grid[0]), float(t_grid[-1]))
         self.sampled_jd = jd
@@ -158,6 +159,24 @@ class Track:
         return (f"Track({self.name!r}, {iso_from_jd(self.jd_range[0])} .. "
                 f"{iso_from_jd(self.jd_range[1])}, step {self.step_days:.3g} d, "
                 f"max error {self.max_error_km:.3g} km, {self.max_error_m_s:.3g} m/s)")
+
+
+def stored_spline(name, grid, values):
+    """CasADi's cubic B-spline interpolant ``name`` through ``values`` on ``grid`` (as
+    ``casadi.interpolant(name, "bspline", [grid], values)``), read from the package's
+    cache when the same samples were fitted before (:mod:`esail_opt.function_store`).
+
+    Fitting a track's tens of thousands of samples is most of building it, in every
+    process; the stored spline is the one fitted, number for number.  Its file is named
+    by the samples' bytes, the name and the CasADi version, so other samples or another
+    CasADi fit anew.
+    """
+    grid = np.ascontiguousarray(grid, dtype=float)
+    values = np.ascontiguousarray(values, dtype=float)
+    decided_by = b"\0".join([name.encode(), ca.__version__.encode(), grid.tobytes(),
+                             values.tobytes()])
+    return function_store.kept(function_store.path_of("tracks", name, decided_by),
+                               lambda: ca.interpolant(name, "bspline", [grid], values))
 
 
 def _cartesian(polar):
@@ -273,7 +292,7 @@ class Track3:
         t_grid = tu_from_jd(jd)
         t = ca.MX.sym("t")
         held = ca.fmin(ca.fmax(t, t_grid[0]), t_grid[-1])  # as in Track: no zeros outside
-        z, v_z = (ca.interpolant(f"{planar._tag()}_{label}", "bspline", [t_grid], states[k])(held)
+        z, v_z = (stored_spline(f"{planar._tag()}_{label}", t_grid, states[k])(held)
                   for k, label in ((2, "z"), (5, "v_z")))
         polar = planar.function(t)
         self.cylindrical = ca.Function("track3_cylindrical", [t], [ca.vertcat(polar, z, v_z)],

@@ -69,6 +69,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from esail_opt.function_store import cache_dir
 from esail_opt.processes import alive
 
 try:
@@ -108,14 +109,6 @@ _loaded = {}
 def enabled():
     """Whether compiling is allowed (``ESAIL_OPT_COMPILE`` not set to 0/off)."""
     return os.environ.get("ESAIL_OPT_COMPILE", "1").strip().lower() not in OFF
-
-
-def cache_dir():
-    """The directory the libraries are cached in (see the module's docstring)."""
-    if os.environ.get("ESAIL_OPT_CACHE"):
-        return Path(os.environ["ESAIL_OPT_CACHE"]).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "esail_opt"
 
 
 @functools.lru_cache(maxsize=None)

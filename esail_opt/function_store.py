@@ -1,0 +1,98 @@
+"""CasADi Functions kept on disk, serialised, and read back: the one cache folder of the
+package, and how a Function is written into it and read from it.
+
+Why: some Functions cost a noticeable part of a short solve to build in every process
+(the closed form's arcs, :mod:`esail_opt.propagation.graph_store`; the bodies' splines,
+:mod:`esail_opt.bodies.track`), and a Function read back from its serialised graph is
+the Function built, number for number.  A caller names a stored Function by a hash of
+everything that decides it, so that anything that could make it differ reads another
+file; an old file is simply never read again.
+
+A file holds the SHA-256 of the graph on its first line: one that does not match
+(truncated, damaged) is said in one line, built again and rewritten.  Files are written
+under a temporary name and renamed into place, so parallel workers never read half a
+graph, and they follow the umask, as the compiled libraries do, so that a cache folder
+can be shared.  When the folder cannot be written (a full disk, a read-only folder) the
+Function is built as before; the compiled libraries' warning
+(:mod:`esail_opt.propagation.compiled`) already says the folder is unusable.
+
+``ESAIL_OPT_CACHE`` chooses the folder (default ``$XDG_CACHE_HOME/esail_opt``, else
+``~/.cache/esail_opt``): a user's setting, read where the folder is needed.
+"""
+
+import hashlib
+import logging
+import os
+import uuid
+from pathlib import Path
+
+import casadi as ca
+
+log = logging.getLogger("esail_opt")
+
+
+def cache_dir():
+    """The package's cache folder (see the module's docstring)."""
+    if os.environ.get("ESAIL_OPT_CACHE"):
+        return Path(os.environ["ESAIL_OPT_CACHE"]).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "esail_opt"
+
+
+def path_of(kind, name, decided_by):
+    """Where the Function ``name`` of ``kind`` (a sub-folder: ``graphs``, ``tracks``)
+    is stored, given the bytes or text ``decided_by`` that decide it."""
+    data = decided_by.encode() if isinstance(decided_by, str) else bytes(decided_by)
+    return cache_dir() / kind / f"{name}-{hashlib.sha256(data).hexdigest()[:32]}.casadi"
+
+
+def read(path):
+    """The Function stored at ``path``, or None if it is missing or damaged: a file that
+    does not match its checksum, or does not read back as a Function, is said in one
+    line (it is then built again and rewritten)."""
+    try:
+        checksum, _, text = path.read_text().partition("\n")
+    except OSError:  # missing, or in a folder that cannot be read: nothing stored
+        return None
+    except UnicodeDecodeError:
+        return _damaged(path, "it is not text")
+    if hashlib.sha256(text.encode()).hexdigest() != checksum:
+        return _damaged(path, "its checksum does not match (the file was truncated or "
+                              "changed)")
+    try:
+        return ca.Function.deserialize(text)
+    except RuntimeError:
+        return _damaged(path, "it does not read back as a CasADi Function")
+
+
+def _damaged(path, why):
+    log.warning("esail-opt: the stored CasADi graph %s is damaged: %s; building it again",
+                path.name, why)
+    return None
+
+
+def write(path, fun):
+    """Store ``fun`` at ``path`` atomically; a folder that cannot be written is left
+    alone (the Function was built, and works)."""
+    text = fun.serialize()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
+        try:
+            with open(tmp, "x") as out:
+                out.write(hashlib.sha256(text.encode()).hexdigest() + "\n" + text)
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+    except OSError:
+        pass
+
+
+def kept(path, build):
+    """The Function stored at ``path``, or ``build()``'s, stored there."""
+    fun = read(path)
+    if fun is None:
+        fun = build()
+        write(path, fun)
+    return fun
