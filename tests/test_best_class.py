@@ -18,7 +18,7 @@ import esail_opt as eo
 from esail_opt.app import cli, search
 from esail_opt.app.solution import Solution
 from esail_opt.errors import NoStart
-from esail_opt.optimisation import multistart, pipeline, scan
+from esail_opt.optimisation import edge, multistart, pipeline
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.problem_file import load_problem
 
@@ -175,9 +175,9 @@ def test_a_longer_flight_whose_seed_escapes_ends_the_walk_without_an_error(monke
     def seed(cell):
         raise escaped
 
-    monkeypatch.setattr(pipeline, "initial_guess", seed)
+    monkeypatch.setattr(edge, "initial_guess", seed)
     lines = []
-    assert pipeline.shortest_feasible(problem, lines.append) is None
+    assert pipeline.nearest_feasible(problem, progress=lines.append) is None
     assert any("no seed at 660 d" in line for line in lines), lines
 
 @pytest.mark.slow
@@ -185,7 +185,7 @@ def test_the_shortest_feasible_flight_is_no_longer_than_one_a_minimum_time_solve
     """Earth-Mars leaving 2029-11-03 in 480 d has no sail found.  A minimum-time solve
     with a throttled 3 mm/s^2 sail reaches Mars from that date in some T days, so a
     sail of at most 3 mm/s^2 makes the flight of T days, and the edge of the feasible
-    flights lies at T at the latest (the walk's resolution, scan.EDGE_DAYS, added).
+    flights lies at T at the latest (the walk's resolution, edge.EDGE_DAYS, added).
     When the walk started from single solves at longer flights it reported 603.8 d."""
     def mars(objective, sail):
         return eo.Problem("mars_2029", eo.BodyDeparture("earth", "2029-11-03"), sail,
@@ -197,7 +197,7 @@ def test_the_shortest_feasible_flight_is_no_longer_than_one_a_minimum_time_solve
     assert not sizing.verified
     near = sizing.nearest_feasible
     assert near is not None and near.verified, near
-    assert 480 < near.tof_days <= fastest.tof_days + scan.EDGE_DAYS
+    assert 480 < near.tof_days <= fastest.tof_days + edge.EDGE_DAYS
     assert near.infeasible_tof_days < near.tof_days
 
 @pytest.mark.slow

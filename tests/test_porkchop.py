@@ -19,7 +19,8 @@ import pytest
 
 from esail_opt.app import engine, porkchop
 from esail_opt.errors import InputError
-from esail_opt.optimisation import scan
+from esail_opt.optimisation import edge, scan
+from esail_opt.optimisation.edge import EDGE_DAYS
 from esail_opt.optimisation.problem_file import load_problem
 
 from conftest import PROBLEMS, USER_PROBLEMS
@@ -46,23 +47,23 @@ def _rows(grid, indices):
 
 @pytest.fixture()
 def walks(monkeypatch):
-    """The walk to the edge and the flight of its answer, stubbed: down from a solved
-    cell the walk ends at 640 d with nothing found at 636 d, up from a cell with no
-    point at 700 d with nothing found at 690 d, and its flight verifies at 1.5 times
+    """The walk in the time of flight and the flight of its answer, stubbed: down from a
+    solved cell the walk ends at 640 d with nothing found at 636 d, up from a cell with
+    no point at 700 d with nothing found at 690 d, and its flight verifies at 1.5 times
     the sail's a_c.  Each call is recorded."""
     calls = []
 
-    def walk(problem, progress=None, start=None):
+    def walk(problem, lone, start=None, progress=None):
         calls.append((problem, start))
-        edge, infeasible = (700.0, 690.0) if start is None else (640.0, 636.0)
-        at = scan.at_tof(problem if start is None else start[0], edge)
-        return scan.Edge(at, SimpleNamespace(ac_scale=1.5), None, infeasible, 0)
+        tof, infeasible = (700.0, 690.0) if start is None else (640.0, 636.0)
+        at = edge.at_tof(problem if start is None else start.problem, tof)
+        return at, SimpleNamespace(ac_scale=1.5), None, infeasible, 0
 
     def finish(problem, result, tr=None, samples=16, **kwargs):
         return SimpleNamespace(verified=walks.verifies, problem=problem, result=result)
 
     walks = SimpleNamespace(calls=calls, verifies=True)
-    monkeypatch.setattr(porkchop.pipeline, "shortest_feasible", walk)
+    monkeypatch.setattr(edge, "walk", walk)
     monkeypatch.setattr(porkchop.pipeline, "finish", finish)
     return walks
 
@@ -86,7 +87,7 @@ def test_a_cell_shorter_than_a_verified_flight_of_its_date_has_no_sail(walks):
     assert len(walks.calls) == 2
     (lone, cold), (short, warm) = walks.calls
     assert cold is None and lone.objective.tof_days == 650.0
-    assert short.objective.tof_days == 500.0 and warm[0].objective.tof_days == 650.0
+    assert short.objective.tof_days == 500.0 and warm.problem.objective.tof_days == 650.0
     for i, edge, infeasible in ((0, 700.0, 690.0), (1, 700.0, 690.0), (2, 640.0, 636.0),
                                 (3, 640.0, 636.0)):
         assert by_index[i]["edge_tof_days"] == edge
@@ -476,7 +477,7 @@ def test_the_2035_porkchop_verifies_the_cells_with_a_sail_and_marks_the_others(c
     assert table["verified_cells"] == 2 and table["no_sail_cells"] == 4
     for (date, tof), row in rows.items():
         edge, infeasible = row["edge_tof_days"], row["edge_infeasible_tof_days"]
-        assert infeasible < edge and edge - infeasible <= scan.EDGE_DAYS
+        assert infeasible < edge and edge - infeasible <= EDGE_DAYS
         assert row["edge_ac_mm_s2"] > 0
         if date in INDEPENDENT_EDGE:
             none_at, one_at = INDEPENDENT_EDGE[date]

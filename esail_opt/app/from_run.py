@@ -249,7 +249,7 @@ def _nearest_feasible(near):
     """The shortest feasible flight the walk found, dated as any flight is."""
     if near is None:
         return None
-    flown = near.run
+    flown = near.flight
     dated = calendar(flown.problem, flown.result, flown.check)
     return NearestFeasible(
         departure_date=dated.get("departure_date"), tof_days=near.tof_days,

@@ -36,7 +36,7 @@ from esail_opt.app.files import check_output_dir, csv_text, write_table_set
 from esail_opt.app.parallel import first_line
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import MAX_RANGE_COUNT, InputError, check_range, number_range
-from esail_opt.optimisation import pipeline, scan
+from esail_opt.optimisation import edge, pipeline, scan
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.physics import constants as units
 
@@ -262,17 +262,6 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
     return rows
 
 
-@dataclasses.dataclass(frozen=True)
-class EdgeFound:
-    """The edge of the feasible at one departure date: the shortest time of flight with
-    a verified flight (days), the a_c it needs (mm/s^2, None unless the objective frees
-    it), and the longest time of flight at which no point was found (days)."""
-
-    tof_days: float
-    ac_mm_s2: object
-    infeasible_tof_days: float
-
-
 def mark_no_sail(problems, cells, rows):
     """Mark the rows (in place) of the cells where no sail exists, date by date.
 
@@ -280,7 +269,7 @@ def mark_no_sail(problems, cells, rows):
     one, not a flight that missed) and a verified flight from the same departure date
     needs a longer time of flight than the cell's.  That flight is the edge of the
     feasible, found by one walk per date in the time of flight
-    (:func:`esail_opt.optimisation.pipeline.shortest_feasible`), down from the date's
+    (:func:`esail_opt.optimisation.pipeline.nearest_feasible`), down from the date's
     shortest verified cell to its longest cell with no point below it, warm: the grid
     already brackets the edge there, and the walk narrows it.  A date with no verified
     cell walks up from its longest cell with no point, cold, as a lone solve does.  A
@@ -297,23 +286,25 @@ def mark_no_sail(problems, cells, rows):
         dates_of.setdefault(problem.departure.date, []).append(k)
     for members in dates_of.values():
         lost = [k for k in members if not cells[k].solved]
-        if not lost or not pipeline._walks_tof(problems[lost[0]]):
+        if not lost or not edge.walks(problems[lost[0]]):
             continue
         try:
-            edge = _edge([problems[k] for k in members], [cells[k] for k in members])
+            found = _edge([problems[k] for k in members], [cells[k] for k in members])
         except Exception as err:  # the cells stay failed solves, and say why
             for k in lost:
                 rows[k]["error"] = f"{rows[k]['error']}; no edge: {first_line(err)}"
             continue
-        if edge is None:
+        if found is None:
             continue
+        flight = found.flight
         for k in members:
-            rows[k].update(edge_tof_days=edge.tof_days, edge_ac_mm_s2=edge.ac_mm_s2,
-                           edge_infeasible_tof_days=edge.infeasible_tof_days)
-            if k in lost and _tof(problems[k]) < edge.tof_days:
+            rows[k].update(edge_tof_days=found.tof_days,
+                           edge_ac_mm_s2=_ac_mm_s2(flight.problem, flight.result),
+                           edge_infeasible_tof_days=found.infeasible_tof_days)
+            if k in lost and _tof(problems[k]) < found.tof_days:
                 rows[k].update(no_sail=True, error=(
                     f"no sail: the shortest flight found feasible from this date is "
-                    f"{edge.tof_days:.1f} d (none found at {edge.infeasible_tof_days:.1f} d)"))
+                    f"{found.tof_days:.1f} d (none found at {found.infeasible_tof_days:.1f} d)"))
 
 
 def _tof(problem):
@@ -321,30 +312,18 @@ def _tof(problem):
 
 
 def _edge(problems, cells):
-    """The :class:`EdgeFound` of one date's cells (see :func:`mark_no_sail`), or None."""
+    """The verified ``edge.Edge`` of one date's cells (see :func:`mark_no_sail`), or
+    None: no cell with no point below the shortest verified one, or no verified flight
+    found."""
     verified = [c for c in cells if c.verified]
     shortest = min(verified, key=lambda c: _tof(c.problem), default=None)
     below = [p for p, c in zip(problems, cells) if not c.solved
              and (shortest is None or _tof(p) < _tof(shortest.problem))]
     if not below:
         return None
-    lo = max(below, key=_tof)
-    start = (None if shortest is None
-             else (shortest.problem, shortest.result, shortest.transcription))
-    walk = pipeline.shortest_feasible(lo, start=start)
-    if walk is None:
-        return None  # no verified cell, and none of the longer flights converged
-    # The walk's flight is flown unless it is the verified cell itself (no step below
-    # it converged).
-    if shortest is None or _tof(walk.problem) < _tof(shortest.problem):
-        run = pipeline.finish(walk.problem, walk.result, walk.transcription, samples=1)
-        if run.verified:
-            return EdgeFound(_tof(run.problem), _ac_mm_s2(run.problem, run.result),
-                             walk.infeasible_tof_days)
-        if shortest is None:
-            return None
-    return EdgeFound(_tof(shortest.problem), _ac_mm_s2(shortest.problem, shortest.result),
-                     walk.infeasible_tof_days)
+    found = pipeline.nearest_feasible(max(below, key=_tof), start=shortest, samples=1)
+    # Walked up from a cell with no point, the flight may not verify: no edge then.
+    return found if found is not None and found.verified else None
 
 
 def cell_folder(row):
@@ -363,7 +342,6 @@ def write_cell(cell, row, folder):
     solution's samples.
     """
     from esail_opt.app.solution import Solution
-    from esail_opt.optimisation import pipeline
 
     run = pipeline.finish(cell.problem, cell.result, cell.transcription)
     return Solution.of(run).write(Path(folder) / cell_folder(row), plots=False)

@@ -485,4 +485,4 @@ def solve_with_nearest(problem, segments=None, progress=None, samples=16, polish
     run = pipeline.solve(problem, segments=segments, progress=progress, samples=samples,
                          polish=polish)
     near = run.nearest_feasible
-    return Solution.of(run), None if near is None else Solution.of(near.run)
+    return Solution.of(run), None if near is None else Solution.of(near.flight)

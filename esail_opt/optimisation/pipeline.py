@@ -1,7 +1,7 @@
 """The data path of one run: seed -> closed-form NLP -> Ipopt -> other starts -> the
 turn counts beside the answer's -> error control -> CVODES verification -> polish (or,
-for a fixed time with no point, the walk to the shortest feasible time of flight),
-returned as a typed :class:`Run`.
+for a fixed time with no point, the walk to the shortest feasible time of flight,
+``optimisation.edge``), returned as a typed :class:`Run`.
 
 This is the one module that strings the optimisation stages together; the application
 (``app.solution``, the global search, sweeps) calls :func:`solve` or :func:`finish` and
@@ -23,8 +23,8 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from esail_opt.errors import InputError, NoStart
-from esail_opt.optimisation import multistart, scan
+from esail_opt.errors import InputError
+from esail_opt.optimisation import edge, multistart, scan
 from esail_opt.optimisation import polish as polishing
 from esail_opt.optimisation.classes import Candidate, ClassSearch, finish_best_first
 from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, ErrorControl, Round, control_error,
@@ -37,8 +37,8 @@ from esail_opt.optimisation.seed import initial_guess, split_guess
 from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import Verification, verify, within
 
-__all__ = ["Outcome", "Round", "StartTried", "ClassTried", "NearestFeasible", "PolishRun",
-           "Run", "solve", "finish", "POLISH_TOLERANCE"]
+__all__ = ["Outcome", "Round", "StartTried", "ClassTried", "PolishRun", "Run", "solve",
+           "finish", "nearest_feasible", "POLISH_TOLERANCE"]
 
 #: What a polished schedule must meet (1 m and 1 mm/s), against the target and against
 #: the polished NLP's own final node.
@@ -118,32 +118,6 @@ class ClassTried:
 
 
 @dataclass(frozen=True)
-class NearestFeasible:
-    """The shortest flight found feasible from the same departure, for a fixed-time
-    solve that found no point (``scan.shortest_feasible``, a walk in the time of flight).
-
-    Attributes
-    ----------
-    run : Run
-        That flight, error-controlled and verified as any run is (its problem carries
-        the time of flight, ``problem.objective.tof_days``).
-    infeasible_tof_days : float
-        The longest time of flight the walk found no point at: the edge lies between it
-        and the run's.
-    iterations : int
-        Ipopt iterations the walk spent, its infeasible probes included.
-    """
-
-    run: "Run"
-    infeasible_tof_days: float
-    iterations: int
-
-    @property
-    def tof_days(self):
-        return self.run.problem.objective.tof_days
-
-
-@dataclass(frozen=True)
 class PolishRun:
     """The polish of a run: the optimum re-solved on Eqs. 1-2 in time, and its flight.
 
@@ -217,9 +191,9 @@ class Run:
         looked at, in the order solved (empty for other problems).
     classes_skipped : str
         One line: the classes it did not look at, and why.
-    nearest_feasible : NearestFeasible or None
+    nearest_feasible : edge.Edge or None
         For a fixed-time solve that found no point: the shortest flight found feasible
-        from the same departure.
+        from the same departure (:func:`nearest_feasible`; its ``flight`` is a Run).
     """
 
     problem: Problem
@@ -234,7 +208,7 @@ class Run:
     polish: Optional[PolishRun] = None
     classes: Tuple[ClassTried, ...] = ()
     classes_skipped: str = ""
-    nearest_feasible: Optional[NearestFeasible] = None
+    nearest_feasible: Optional[edge.Edge] = None
 
     @property
     def outcome(self):
@@ -290,7 +264,7 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
 
 def _lone(problem, samples, say, walk=True):
     """The run of :func:`solve` before the polish; ``walk`` False leaves out the walk to
-    the shortest feasible flight (:func:`_nearest_feasible`, whose rungs are such
+    the shortest feasible flight (:func:`nearest_feasible`, whose rungs are such
     runs).  A 3-D problem's turn counts are searched on its projected model, the best
     lifted (``classes.ClassSearch``), and in 3-D where that leaves no candidate."""
     spent = []
@@ -320,9 +294,9 @@ def _solved(problem, samples, say, walk=True):
         run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
                      sub_arcs_requested=sub_arcs)
         run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
-    if walk and not result.outcome.found and _walks_tof(problem):
-        run = dataclasses.replace(run, nearest_feasible=_nearest_feasible(
-            problem, samples, say))
+    if walk and not result.outcome.found and edge.walks(problem):
+        run = dataclasses.replace(run, nearest_feasible=nearest_feasible(
+            problem, samples=samples, progress=say))
     return run
 
 
@@ -369,15 +343,6 @@ def _unsearched(problem):
         return "none: no start found a point to compare the other turn counts with"
     return ("turn counts on the body other than the seed's: not searched for this "
             "objective or departure (esail-opt search solves one per turn count)")
-
-
-def _walks_tof(problem):
-    """Whether a solve that found no point walks the time of flight to the shortest
-    feasible one (``scan.shortest_feasible``): fixed-time problems with a target and a
-    fixed departure."""
-    return (problem.objective.fixed_time and problem.target is not None
-            and not problem.free_date()
-            and not getattr(problem.departure, "free_anomaly", False))
 
 
 def _other_starts(problem, result, tr, say):
@@ -493,77 +458,19 @@ def _best_verified(search, samples, say, starts=(), requested=None):
     return dataclasses.replace(chosen, classes=classes, classes_skipped=search.skipped)
 
 
-def _nearest_feasible(problem, samples, say):
-    """The shortest flight found feasible from ``problem``'s departure
-    (:func:`shortest_feasible`), flown as a run; None when the walk found none."""
-    edge = shortest_feasible(problem, say)
-    if edge is None:
-        return None
-    say(f"{problem.name}: the shortest flight found feasible is "
-        f"{edge.problem.objective.tof_days:.4g} d; error control and verification")
-    run = finish(edge.problem, edge.result, edge.transcription, samples=samples,
-                 progress=say)
-    return NearestFeasible(run, edge.infeasible_tof_days, edge.iterations)
+def nearest_feasible(problem, start=None, samples=16, progress=None):
+    """The edge of the feasible from ``problem``'s departure (``edge.nearest_feasible``:
+    ``problem`` is a fixed-time problem that found no point, ``start`` an optional
+    verified flight at a longer time of flight), its flight flown by :func:`finish`; a
+    rung of its ladder whose seed finds no point is a lone solve without a walk of its
+    own (:func:`_lone`).  An ``edge.Edge``, or None when the walk found none."""
+    return edge.nearest_feasible(problem, _unwalked, finish, start, samples, progress)
 
 
-#: Times of flight at which a fixed-time problem that found no point is solved again, as
-#: multiples of the asked one, until one converges: the walk to the edge starts there.
-LONGER = (1.1, 1.25, 1.5, 2.0)
-
-
-def shortest_feasible(problem, progress=None, start=None):
-    """``scan.shortest_feasible`` of ``problem`` (a fixed-time problem that found no
-    point), from ``start`` or, without one, from the first of :data:`LONGER` multiples
-    of its time of flight at which a solve converges (:func:`_rung`); None when none
-    does."""
-    say = progress or _quiet
-    if start is None:
-        start = _ladder(problem, say)
-        if start is None:
-            return None
-    return scan.shortest_feasible(problem, start, say)
-
-
-def _ladder(problem, say):
-    """The solves (:func:`_rung`) at :data:`LONGER` multiples of ``problem``'s time of
-    flight, up to the first that converges: the ``start`` of
-    ``scan.shortest_feasible``, or None."""
-    asked = problem.objective.tof_days
-    lo, iterations = asked, 0
-    for factor in LONGER:
-        say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
-        try:
-            cell, result, tr, spent = _rung(scan.at_tof(problem, asked * factor), say)
-        except NoStart as why:
-            # The rung's seed cannot be flown (it escapes before the time of flight):
-            # no point there, and a longer rung's seed flies longer still.
-            say(f"{problem.name}: no seed at {asked * factor:.6g} d: {why}")
-            return None
-        iterations += spent
-        if result.outcome.converged:
-            return cell, result, tr, iterations, lo
-        lo = asked * factor
-    return None
-
-
-def _rung(problem, say):
-    """One rung of :func:`_ladder`: a single solve from ``problem``'s seed and, when
-    that finds no point, a lone solve (:func:`_lone`, without a walk of its own):
-    (problem, NLPResult, Transcription, Ipopt iterations of both).  Raises NoStart
-    when the seed cannot be flown.
-
-    Why both: the single solve is cheap, and where it converges the walk has always
-    started from it; where it does not, the lone solve's turn-count search can still
-    find a point, and the walk from a longer rung may stop weeks above the edge."""
-    guess = initial_guess(problem)
-    problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
-    result, tr = solve_problem(problem, guess=guess, progress=say)
-    if result.outcome.converged:
-        return problem, result, tr, result.iterations
-    say(f"{problem.name}: no point from the seed at {problem.objective.tof_days:.6g} d; "
-        "solving it as a lone solve")
-    run = _lone(problem, 1, say, walk=False)
-    return run.problem, run.result, run.transcription, result.iterations + run.result.iterations
+def _unwalked(problem, say):
+    """A lone solve of ``problem`` (:func:`_lone`) without the walk to the edge: a rung
+    of the walk's ladder."""
+    return _lone(problem, 1, say, walk=False)
 
 
 def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
