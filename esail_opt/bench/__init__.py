@@ -8,6 +8,10 @@ Each is the ``run`` of its own module:
 * ``rockit`` (:mod:`.rockit_baseline`): ``esail-opt solve --polish`` against a generic
   RK4 multiple-shooting script of the same transfer written with rockit, whole
   processes side by side;
+* ``pykep`` (:mod:`.pykep_zoh`): ``esail-opt solve --polish`` in three dimensions, with
+  and without its figures, against a pykep 3 zero-order-hold script of the same
+  fixed-date minimum-a_c transfer solved by pygmo's Ipopt, whole processes side by side
+  (skipped, and said so, without pykep, heyoka and pygmo);
 * ``propagate``, ``solve`` (:mod:`.solve_speed`), ``polish``, ``lowthrust`` and
   ``sweep``: each timed against a baseline measured in the same run (:mod:`.timing`
   holds what they share);
@@ -33,8 +37,8 @@ application modules, none of which imports them.
 """
 
 from esail_opt.bench import (ensemble, lowthrust, polish, porkchop, porkchop3d, precision,
-                             propagate, rockit_baseline, solve_speed, stages, sweep,
-                             verifier3d)
+                             propagate, pykep_zoh, rockit_baseline, solve_speed, stages,
+                             sweep, verifier3d)
 
 BENCHES = {
     "propagate": propagate.run,
@@ -43,6 +47,7 @@ BENCHES = {
     "lowthrust": lowthrust.run,
     "sweep": sweep.run,
     "rockit": rockit_baseline.run,
+    "pykep": pykep_zoh.run,
     "precision": precision.run,
     "porkchop": porkchop.run,
     "verifier3d": verifier3d.run,

@@ -1,0 +1,582 @@
+"""``esail-opt-bench pykep``: the main job in three dimensions against a pykep 3
+zero-order-hold script of the same fixed-date transfer, whole processes side by side.
+
+The main job is ``esail-opt solve problems/earth_mars_min_ac.py --polish``, timed twice
+in every round: with ``--no-plots`` and with its figures.  The baseline is what a pykep
+3 user writes for that transfer: pykep's zero-order-hold leg (``pykep.leg.zoh``: the
+segments flown forward from the departure and backward from the arrival by heyoka's
+Taylor integrator, one mismatch where they meet, its gradient from heyoka's
+variational equations), a pygmo problem around it and pygmo's Ipopt.  Both sides solve
+the same problem:
+
+* the departure and the arrival are the DE421 states of the Earth-Moon barycentre at
+  the problem's date and of Mars :data:`PROBLEM`'s time of flight later, both taken from
+  this package's ephemeris layer (``bodies.lookup.ecliptic_state_at``), so both tools
+  aim at the same points;
+* the dynamics are the Sun's gravity and the E-sail's thrust in three dimensions,
+  a_c kappa (r_E / r) (R r_hat + T t_hat + N h_hat) with (R, T, N) of the pitch alpha and
+  the clock delta as ``physics.thrust.radial_transverse_normal`` defines them, written
+  out in heyoka's expressions (:func:`dynamics`); not pykep's own low-thrust model, whose
+  thrust is a free vector;
+* 40 segments, each with its own pitch, clock and throttle, boxed as the problem boxes
+  them, and one a_c for the whole flight, which is the objective.
+
+Decisions, each a choice a pykep user would make:
+
+* the segments are of equal duration, the leg's time grid (the main job's are of equal
+  swept angle, a grid the optimiser moves; both are 40 pieces of constant attitude, so
+  the two optima differ by the grids alone: 7e-5 of a_c here);
+* a_c is a fourth control held equal on every segment (the leg's ``pars[3]``), so that
+  the leg's own control gradients give its derivative (their sum) and the state stays
+  the six Cartesian components;
+* the leg is cut in the middle (:data:`CUT`); pykep's example problems cut at 0.6, and
+  from this guess that cut ran out of iterations;
+* the mismatch rows are given to Ipopt in metres (position) and metres per time unit
+  (velocity; 1 TU = 58.1 days): canonical units times the au.  :data:`IPOPT`'s
+  ``constr_viol_tol`` of 1 cm then holds the flown miss at the arrival to centimetres
+  (:func:`solve` reports it);
+* Ipopt's Hessian is its limited-memory quasi-Newton one (pygmo's problem has no
+  Hessian) with a memory longer than the 121 variables: Ipopt's default of 6 pairs
+  took 2,990 iterations and a minute, 50 pairs 8 s, 150 or more 276 iterations and
+  under 4 s (results/bench/README.md);
+* the guess is a constant attitude: pitch :data:`GUESS_PITCH_DEG`, clock 0, full
+  throttle and the problem's seed a_c.  The solve's time hangs on that pitch, the
+  optimum does not (the a_c of every guess below agree to 1e-9): constant pitches of
+  15 to 30 deg took 250-290 iterations (3.5-5 s of solve), 35 deg 440 (13 s), 40 and
+  45 deg 2,400 and 1,800 (135 s and 100 s; 45 deg is the main job's own seed), and
+  10 deg over five minutes.  The bench takes 20 deg, in the fast band, so that the
+  baseline is timed at its best and not at a guess that would flatter the main job.
+
+pykep 3.0.1 cannot be imported: its wheel lacks the ``trajopt/gym/tops/_tops_*.json``
+data files its ``__init__`` reads, and its compiled core bundles a libheyoka that
+conflicts with heyoka.py's in one process.  The leg is pure Python over heyoka.py, so
+:func:`zoh_class` loads ``pykep/leg/_zoh.py`` by its path inside the installed package,
+over heyoka.py, and nothing else of pykep.
+
+:func:`main` is the baseline's process: it prints one JSON line (a_c, the flown miss,
+Ipopt's record, the schedule, its own import, build and solve times).  pykep, heyoka and
+pygmo are optional (the ``bench`` extra); without them :func:`run` times nothing, says
+the baseline was skipped, and writes ``pykep.json`` saying so.
+"""
+
+import importlib.util
+import json
+import math
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+#: The transfer both sides solve (a shipped problem file).
+PROBLEM = "earth_mars_min_ac"
+#: Where the leg's forward and backward halves meet, as a fraction of its segments.
+CUT = 0.5
+#: Pitch of the constant-attitude guess, deg: in the band where the baseline is fastest
+#: (the module docstring lists the guesses tried).
+GUESS_PITCH_DEG = 20.0
+#: pygmo's Ipopt options (module docstring); the mismatch rows are in metres.
+IPOPT = {"tol": 1e-8, "constr_viol_tol": 0.01, "max_iter": 3000,
+         "hessian_approximation": "limited-memory", "limited_memory_max_history": 200,
+         "print_level": 0, "sb": "yes"}
+#: The packages the baseline needs (pykep for its leg's file only).
+PACKAGES = ("pykep", "heyoka", "pygmo")
+#: The answers the bench compares: a_c within this relative difference counts.
+AC_AGREEMENT = 1e-3
+#: The issue's targets: the baseline's time over the main job's, without and with figures.
+TARGETS = {"ratio_without_figures": 1.5, "ratio_with_figures": 1.0}
+#: Ipopt's return codes as pygmo gives them (``ipopt.get_last_opt_result``).
+_IPOPT_STATUS = {0: "Solve_Succeeded", 1: "Solved_To_Acceptable_Level",
+                 2: "Infeasible_Problem_Detected", 3: "Search_Direction_Becomes_Too_Small",
+                 4: "Diverging_Iterates", 5: "User_Requested_Stop", 6: "Feasible_Point_Found",
+                 -1: "Maximum_Iterations_Exceeded", -2: "Restoration_Failed",
+                 -3: "Error_In_Step_Computation", -4: "Maximum_CpuTime_Exceeded"}
+
+
+def _zoh_path():
+    """Path of ``pykep/leg/_zoh.py`` in the installed pykep, found without importing it
+    (None when pykep is not installed)."""
+    spec = importlib.util.find_spec("pykep")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    return Path(list(spec.submodule_search_locations)[0]) / "leg" / "_zoh.py"
+
+
+def missing():
+    """None if the baseline can run, else the one line that says what is missing and how
+    to get it.  Nothing is imported: pykep's own import fails (module docstring)."""
+    absent = [name for name in PACKAGES if importlib.util.find_spec(name) is None]
+    if absent:
+        return (f"{', '.join(absent)} not installed; the pykep baseline needs pykep 3, "
+                "heyoka and pygmo: pip install 'esail_opt[bench]'")
+    path = _zoh_path()
+    if path is None or not path.is_file():
+        return f"pykep has no zero-order-hold leg at {path}; the baseline needs pykep 3"
+    return None
+
+
+def versions():
+    """The installed versions of :data:`PACKAGES` (None for one that is missing)."""
+    from importlib import metadata
+
+    found = {}
+    for name in PACKAGES:
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            found[name] = None
+    return found
+
+
+def zoh_class():
+    """pykep's ``leg.zoh`` class, its file loaded by path over heyoka.py (module
+    docstring); the module is loaded once a process."""
+    name = "esail_opt_bench_pykep_leg_zoh"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, _zoh_path())
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        sys.modules[name] = module
+    return sys.modules[name].zoh
+
+
+def dynamics(coefficients):
+    """The E-sail in three dimensions as heyoka's ODE system, canonical units (mu = 1,
+    r_E = 1 au).
+
+    State [x, y, z, vx, vy, vz]; runtime parameters ``par[0..3]`` = pitch alpha, clock
+    delta (rad), throttle kappa and a_c.  The thrust is a_c kappa / r (R r_hat +
+    T t_hat + N h_hat) with R = b1 + b2 cos 2 alpha, T = b2 sin 2 alpha cos delta and
+    N = b2 sin 2 alpha sin delta, h_hat = r x v / |r x v| and t_hat = h_hat x r_hat =
+    (r^2 v - (r . v) r) / (|h| r): ``physics.dynamics.rhs_cartesian`` under
+    ``physics.thrust.radial_transverse_normal``, written again here as a pykep user
+    writes it (the tests check the two agree).
+
+    Returns (list of (variable, derivative), the state's variables).
+    """
+    import heyoka as hy
+
+    b1, b2 = coefficients
+    x, y, z, vx, vy, vz = hy.make_vars("x", "y", "z", "vx", "vy", "vz")
+    alpha, delta, kappa, ac = (hy.par[k] for k in range(4))
+    r2 = hy.sum([x**2, y**2, z**2])
+    r = hy.sqrt(r2)
+    rv = hy.sum([x * vx, y * vy, z * vz])
+    hx, hy_, hz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+    h = hy.sqrt(hy.sum([hx**2, hy_**2, hz**2]))
+    push = ac * kappa / r
+    along_r = push * (b1 + b2 * hy.cos(2.0 * alpha)) / r
+    across = b2 * hy.sin(2.0 * alpha)
+    along_t = push * across * hy.cos(delta) / (h * r)
+    along_h = push * across * hy.sin(delta) / h
+    gravity = -1.0 / (r2 * r)
+    rates = [(gravity + along_r) * p + along_t * (v * r2 - p * rv) + along_h * n
+             for p, v, n in ((x, vx, hx), (y, vy, hy_), (z, vz, hz))]
+    variables = [x, y, z, vx, vy, vz]
+    return list(zip(variables, [vx, vy, vz, *rates])), variables
+
+
+def integrators(coefficients):
+    """heyoka's integrator of :func:`dynamics` and its first-order variational one (with
+    respect to the state and the four parameters), as pykep's leg takes them; compact
+    mode, as pykep builds its own.  heyoka keeps their compiled code in its on-disk
+    cache, so only a machine's first process pays the compilation."""
+    import heyoka as hy
+
+    system, variables = dynamics(coefficients)
+    pars = [0.0, 0.0, 1.0, 0.0]
+    ta = hy.taylor_adaptive(system, [1.0, 0.0, 0.0, 0.0, 1.0, 0.0], pars=pars,
+                            compact_mode=True)
+    var = hy.var_ode_sys(system, variables + [hy.par[k] for k in range(4)], 1)
+    return ta, hy.taylor_adaptive(var, pars=pars, compact_mode=True)
+
+
+def transfer(problem):
+    """The fixed-date transfer of ``problem``: a dict of the departure and arrival states
+    (Cartesian, canonical), the time of flight (TU), the segments, the bounds and the
+    thrust coefficients.
+
+    Raises
+    ------
+    ValueError
+        Naming the problem, unless it is a three-dimensional minimum-a_c rendezvous with a
+        body from a body on a fixed date with no excess speed, in equal segments.
+    """
+    import numpy as np
+
+    from esail_opt.bodies import lookup
+    from esail_opt.optimisation.goals import BodyRendezvous, MinAcceleration
+
+    departure = problem.departure
+    if not (problem.three_d() and isinstance(problem.objective, MinAcceleration)
+            and isinstance(problem.target, BodyRendezvous) and not problem.free_date()
+            and getattr(departure, "vinf_km_s", None) == 0.0
+            and problem.segments.count is not None):
+        raise ValueError(f"{problem.name}: the pykep baseline transcribes a minimum-a_c "
+                         "rendezvous in three dimensions from a body on a fixed date, "
+                         "with no excess speed, in a fixed number of segments only")
+    t0, tof = problem.epoch(), problem.fixed_tof()
+    throttle = problem.throttle_bounds() or (1.0, 1.0)
+    return {
+        "start": np.asarray(lookup.ecliptic_state_at(departure.body, t0, "departure.body"),
+                            float),
+        "end": np.asarray(lookup.ecliptic_state_at(problem.target.body, t0 + tof,
+                                                   "target.body"), float),
+        "tof": tof, "segments": int(problem.segments.count),
+        "alpha": problem.alpha_bounds(), "clock": problem.clock_bounds(),
+        "throttle": throttle, "coefficients": tuple(problem.sail.coefficients),
+        "seed_ac": problem.sail.ac,
+    }
+
+
+class Transfer:
+    """pygmo's problem of the transfer (:func:`transfer`) on pykep's zoh leg.
+
+    Decision vector: [a_c] + [alpha_k, delta_k, kappa_k for each segment k].  Fitness:
+    [a_c] + the leg's six mismatch components in metres (module docstring).  The
+    gradient is the leg's (``compute_mc_grad``): its control columns, a_c's summed over
+    the segments.
+    """
+
+    def __init__(self, case, tas, zoh):
+        import numpy as np
+
+        self.case, self.n = case, case["segments"]
+        self.tgrid = np.linspace(0.0, case["tof"], self.n + 1)
+        self.leg = zoh(case["start"].tolist(), [0.0] * (4 * self.n), case["end"].tolist(),
+                       self.tgrid.tolist(), CUT, tas, dim_dynamics=6, dim_controls=4)
+
+    def get_bounds(self):
+        (a_lo, a_hi), (c_lo, c_hi), (k_lo, k_hi) = (self.case[key] for key in
+                                                    ("alpha", "clock", "throttle"))
+        return ([0.0] + [a_lo, c_lo, k_lo] * self.n,
+                [10.0 * self.case["seed_ac"]] + [a_hi, c_hi, k_hi] * self.n)
+
+    def get_nec(self):
+        return 6
+
+    def guess(self):
+        """The constant-attitude guess of the module docstring."""
+        lo, hi = self.case["throttle"]
+        return [self.case["seed_ac"]] + [math.radians(GUESS_PITCH_DEG), 0.0, hi] * self.n
+
+    def _set(self, x):
+        import numpy as np
+
+        controls = np.empty((self.n, 4))
+        controls[:, :3] = np.reshape(x[1:], (self.n, 3))
+        controls[:, 3] = x[0]
+        self.leg.controls = controls.ravel().tolist()
+
+    def fitness(self, x):
+        from esail_opt.physics import constants as units
+
+        self._set(x)
+        return [x[0]] + [d * units.AU for d in self.leg.compute_mismatch_constraints()]
+
+    def has_gradient(self):
+        return True
+
+    def gradient(self, x):
+        import numpy as np
+
+        from esail_opt.physics import constants as units
+
+        self._set(x)
+        _, _, controls, _ = self.leg.compute_mc_grad()
+        controls = np.asarray(controls).reshape(6, self.n, 4) * units.AU
+        grad = np.zeros((7, 1 + 3 * self.n))
+        grad[0, 0] = 1.0
+        grad[1:, 0] = controls[:, :, 3].sum(axis=1)
+        grad[1:, 1:] = controls[:, :, :3].reshape(6, 3 * self.n)
+        return grad.ravel()
+
+    def fly(self, x):
+        """The schedule ``x`` flown forward from the departure over every segment by the
+        leg's integrator; returns the arrival state (Cartesian, canonical)."""
+        ta = self.leg.ta
+        ta.time, ta.state[:] = 0.0, self.case["start"]
+        for k in range(self.n):
+            ta.pars[:4] = [x[1 + 3 * k], x[2 + 3 * k], x[3 + 3 * k], x[0]]
+            ta.propagate_until(self.tgrid[k + 1])
+        return ta.state.copy()
+
+
+def solve(problem):
+    """Solve ``problem``'s transfer with pygmo's Ipopt on pykep's leg.
+
+    Returns a JSON-ready record: ``status`` (Ipopt's), ``converged`` (that status is
+    Solve_Succeeded and the mismatch is within ``constr_viol_tol``), ``fevals`` and
+    ``gevals`` (pygmo's counts; about one gradient an Ipopt iteration), ``ac`` and
+    ``ac_mm_s2``, ``mismatch_m`` (the largest row), ``miss_m`` and ``miss_m_s`` (the
+    schedule flown forward over all segments by heyoka against the arrival state),
+    ``alpha_rad``, ``clock_rad``, ``throttle`` and ``duration_tu``, and ``build_seconds``
+    (the integrators and the leg) and ``solve_seconds``.  A failed solve is returned
+    with its status, not raised.
+    """
+    import numpy as np
+    import pygmo as pg
+
+    from esail_opt.physics import constants as units
+
+    case = transfer(problem)
+    start = time.perf_counter()
+    udp = Transfer(case, integrators(case["coefficients"]), zoh_class())
+    built = time.perf_counter()
+    ipopt = pg.ipopt()
+    for key, value in IPOPT.items():
+        setter = {str: ipopt.set_string_option, int: ipopt.set_integer_option,
+                  float: ipopt.set_numeric_option}[type(value)]
+        setter(key, value)
+    population = pg.population(pg.problem(udp))
+    population.push_back(udp.guess())
+    population = pg.algorithm(ipopt).evolve(population)
+    solved = time.perf_counter()
+    x = np.asarray(population.champion_x, float)
+    rows = np.abs(np.asarray(population.champion_f[1:], float))
+    code = ipopt.get_last_opt_result()
+    status = _IPOPT_STATUS.get(code, f"Ipopt return code {code}")
+    miss = udp.fly(x) - case["end"]
+    return {
+        "status": status,
+        "converged": bool(status == "Solve_Succeeded"
+                          and rows.max() <= IPOPT["constr_viol_tol"]),
+        "fevals": int(population.problem.get_fevals()),
+        "gevals": int(population.problem.get_gevals()),
+        "ac": float(x[0]), "ac_mm_s2": float(x[0] * units.ACC_UNIT_MM_S2),
+        "mismatch_m": float(rows.max()),
+        "miss_m": float(np.linalg.norm(miss[:3]) * units.AU),
+        "miss_m_s": float(units.speed_to_m_s(np.linalg.norm(miss[3:]))),
+        "alpha_rad": x[1::3].tolist(), "clock_rad": x[2::3].tolist(),
+        "throttle": x[3::3].tolist(), "duration_tu": case["tof"] / case["segments"],
+        "build_seconds": built - start, "solve_seconds": solved - built,
+    }
+
+
+def fly(problem, record):
+    """Fly ``record``'s schedule (:func:`solve`) on the package's own 3-D verifier
+    (CVODES on the turning-plane equations at the verifier's tolerance) from the
+    departure; returns its miss from the target in metres and m/s (``cvodes_miss_m``,
+    ``cvodes_miss_m_s``): the baseline judged as the main job's schedule is."""
+    import numpy as np
+
+    from esail_opt.propagation.simulate import VERIFY_TOLERANCE, simulate3d
+
+    case = transfer(problem)
+    n = len(record["alpha_rad"])
+    flown = simulate3d(case["start"], record["alpha_rad"], record["clock_rad"],
+                       np.full(n, record["duration_tu"]), record["ac"],
+                       throttles=record["throttle"], coefficients=case["coefficients"],
+                       tol=VERIFY_TOLERANCE)
+    miss = problem.target.miss3d(flown[:6, -1], flown[6, -1], problem.epoch())
+    return {"cvodes_miss_m": miss["target_miss_r_km"] * 1e3,
+            "cvodes_miss_m_s": miss["target_miss_v_m_s"]}
+
+
+# ------------------------------------------------------------------------- the bench
+
+def _own_process(*args):
+    """A fresh interpreter running :func:`main` (``-m`` would import this module twice:
+    once as a member of the benches' package, which lists it)."""
+    return [sys.executable, "-c", "import sys; from esail_opt.bench.pykep_zoh "
+            "import main; sys.exit(main(sys.argv[1:]))", *args]
+
+
+def _commands(problem_file, out):
+    """The three processes of a round: the main job without and with its figures, and
+    the baseline's script."""
+    script = Path(sys.executable).with_name("esail-opt")
+    main_job = ([str(script)] if script.exists() else
+                [sys.executable, "-c", "from esail_opt.app.cli import console; console()"])
+    solve = main_job + ["solve", str(problem_file), "--polish", "--out"]
+    return {"esail_opt": solve + [str(Path(out) / "no_plots"), "--no-plots"],
+            "esail_opt_figures": solve + [str(Path(out) / "figures")],
+            "pykep": _own_process(PROBLEM)}
+
+
+def _last_line(stdout):
+    """The baseline's JSON record: the last line of its output (Ipopt may print before)."""
+    return json.loads(stdout.strip().splitlines()[-1])
+
+
+def measure(rounds, problem_file, out):
+    """Time ``rounds`` rounds of the three processes, the order turned by one each round
+    (so that each goes first, second and third alike); returns the per-round lists and
+    the last runs' outputs.  One untimed run of each goes first, so that no timed run
+    fills a cache (the main job's compiled arcs, heyoka's compiled integrators, the
+    files' pages) for the runs after it."""
+    from esail_opt.bench.rockit_baseline import _timed
+
+    sides = ("esail_opt", "esail_opt_figures", "pykep")
+    runs = {side: [] for side in sides}
+    outputs = {}
+    print("bench pykep: one untimed run of each ...", flush=True)
+    for command in _commands(problem_file, out).values():
+        _timed(command)
+    for k in range(rounds):
+        commands = _commands(problem_file, out)
+        order = sides[k % 3:] + sides[:k % 3]
+        print(f"bench pykep: round {k + 1}/{rounds} ...", flush=True)
+        for side in order:
+            wall, cpu, status, stdout = _timed(commands[side])
+            runs[side].append({"wall_s": wall, "cpu_s": cpu, "exit_status": status})
+            if side == "pykep" and stdout.strip():
+                own = _last_line(stdout)
+                runs[side][-1].update({key: own[key] for key in
+                                       ("import_seconds", "build_seconds", "solve_seconds")})
+            outputs[side] = stdout
+    return runs, outputs
+
+
+def _ours(folder):
+    """The main job's answer from its polished ``solution.json`` in ``folder``."""
+    polished = json.loads((Path(folder) / "solution.json").read_text())["polish"]
+    check = polished["verification"]
+    return {"ac_mm_s2": polished["ac_mm_s2_required"], "converged": polished["converged"],
+            "miss_m": check["target_miss_r_km"] * 1e3,
+            "miss_m_s": check["target_miss_v_m_s"]}
+
+
+def _median(runs, key):
+    return statistics.median(run[key] for run in runs)
+
+
+def summarise(problem, runs, outputs, out):
+    """The bench's record from :func:`measure`'s runs (see :func:`run`)."""
+    ours = pykep = None
+    if all(run["exit_status"] == 0 for run in runs["esail_opt"]):
+        ours = _ours(Path(out) / "no_plots")
+    if all(run["exit_status"] == 0 for run in runs["pykep"]):
+        record = _last_line(outputs["pykep"])
+        pykep = {key: record[key] for key in ("ac_mm_s2", "miss_m", "miss_m_s", "status",
+                                              "converged", "fevals", "gevals",
+                                              "mismatch_m")}
+        pykep.update(fly(problem, record))
+    agree = None if not (ours and pykep) else abs(pykep["ac_mm_s2"] / ours["ac_mm_s2"] - 1)
+    void = agree is None or agree > AC_AGREEMENT
+    data = {"problem": problem.name, "rounds": len(runs["pykep"]), "versions": versions(),
+            "ipopt_options": IPOPT, "cut": CUT}
+    for side in runs:
+        data[f"{side}_median_wall_s"] = _median(runs[side], "wall_s")
+        data[f"{side}_median_cpu_s"] = _median(runs[side], "cpu_s")
+    for key in ("import_seconds", "build_seconds", "solve_seconds"):
+        data[f"pykep_median_{key[:-8]}_s"] = (_median(runs["pykep"], key) if pykep
+                                              else None)
+    for name, side in (("without_figures", "esail_opt"), ("with_figures", "esail_opt_figures")):
+        paired = [p["wall_s"] / e["wall_s"] for e, p in zip(runs[side], runs["pykep"])]
+        ratio = None if void else statistics.median(paired)
+        data[f"paired_ratios_{name}"] = paired
+        data[f"ratio_{name}"] = ratio
+        data[f"target_{name}_met"] = None if ratio is None else ratio >= TARGETS[f"ratio_{name}"]
+    data.update(targets=TARGETS, ac_relative_difference=agree, ac_agreement_bound=AC_AGREEMENT,
+                comparison_void=void, esail_opt=ours, pykep=pykep, runs=runs)
+    return data
+
+
+def _print(data):
+    from esail_opt.bench.timing import print_table
+
+    if "skipped" in data:
+        print(f"bench pykep: baseline skipped: {data['skipped']}")
+        return
+    ours, pykep = data["esail_opt"] or {}, data["pykep"] or {}
+    nan = float("nan")
+
+    def ratio(name):
+        value = data[f"ratio_{name}"]
+        return "void" if value is None else value
+
+    print_table(f"bench pykep: {data['problem']}, medians of {data['rounds']} rounds", [
+        ("esail-opt solve --polish --no-plots", data["esail_opt_median_wall_s"],
+         f"s wall, a_c {ours.get('ac_mm_s2', nan):.6f} mm/s^2, miss "
+         f"{ours.get('miss_m', nan):.3g} m"),
+        ("esail-opt solve --polish (figures)", data["esail_opt_figures_median_wall_s"],
+         "s wall"),
+        (f"pykep zoh leg, pygmo Ipopt, cut {CUT}", data["pykep_median_wall_s"],
+         f"s wall, a_c {pykep.get('ac_mm_s2', nan):.6f} mm/s^2, miss "
+         f"{pykep.get('miss_m', nan):.3g} m (CVODES {pykep.get('cvodes_miss_m', nan):.3g} m)"),
+        ("  of which imports, build, solve",
+         f"{data['pykep_median_import_s'] or nan:.3g} s,",
+         f"{data['pykep_median_build_s'] or nan:.3g} s, "
+         f"{data['pykep_median_solve_s'] or nan:.3g} s"),
+        ("ratio without figures (paired, pykep / esail-opt)", ratio("without_figures"),
+         f"target {TARGETS['ratio_without_figures']}"),
+        ("ratio with figures (paired)", ratio("with_figures"),
+         f"target {TARGETS['ratio_with_figures']}"),
+        ("load average (1 min) before, after", data["load_average"], ""),
+    ])
+    if data["comparison_void"]:
+        print(f"bench pykep: comparison void: a side failed, or the a_c differ by more "
+              f"than {AC_AGREEMENT:g}")
+
+
+def run(out, repeats):
+    """Time the three whole processes side by side; writes ``pykep.json``, returns its
+    path.
+
+    ``repeats`` rounds (:func:`measure`), wall and CPU time of each process (with its
+    children).  Each ratio is the median over rounds of pykep's wall time over the main
+    job's, without and with figures, and is None (the comparison void) unless every run
+    of both exited 0 and the two a_c agree within :data:`AC_AGREEMENT`.  Both answers are
+    kept: a_c in mm/s^2 and the miss in metres (the main job's from its polished
+    verification; pykep's from its own flight and flown again by CVODES, :func:`fly`).
+
+    Without pykep, heyoka or pygmo nothing is timed: ``pykep.json`` holds
+    ``{"skipped": reason}`` and the bench says it skipped the baseline.
+    """
+    import importlib.resources
+    import os
+
+    from esail_opt.app.files import write_json
+    from esail_opt.optimisation.problem_file import SHIPPED_PACKAGE, shipped_problem
+
+    path = Path(out) / "pykep.json"
+    reason = missing()
+    if reason:
+        data = {"problem": PROBLEM, "skipped": reason, "versions": versions()}
+        _print(data)
+        write_json(path, data)
+        return path
+    problem = shipped_problem(PROBLEM)
+    load = [os.getloadavg()[0]]
+    with importlib.resources.as_file(importlib.resources.files(SHIPPED_PACKAGE)
+                                     / f"{PROBLEM}.py") as problem_file, \
+            tempfile.TemporaryDirectory(prefix="esail_bench_pykep_") as tmp:
+        runs, outputs = measure(repeats, problem_file, tmp)
+        data = summarise(problem, runs, outputs, tmp)
+    data["load_average"] = load + [os.getloadavg()[0]]
+    data["how"] = ("whole processes, the order turned each round; `esail-opt solve "
+                   "PROBLEM.py --polish --out TMP --no-plots`, the same with its figures, "
+                   "and `pykep_zoh.main()` in a fresh interpreter; ratio = median over "
+                   "rounds of pykep's wall time / esail-opt's")
+    _print(data)
+    write_json(path, data)
+    return path
+
+
+def main(argv=None):
+    """The baseline's process: solve ``argv[0]`` (default :data:`PROBLEM`), print one JSON
+    line (:func:`solve`'s record with ``import_seconds``); exit status 0 converged,
+    1 not, 2 the baseline's packages missing."""
+    argv = sys.argv[1:] if argv is None else argv
+    start = time.perf_counter()
+    reason = missing()
+    if reason:
+        print(f"esail_opt.bench.pykep_zoh: {reason}", file=sys.stderr)
+        return 2
+    import heyoka  # noqa: F401  (timed apart: the script's start-up)
+    import pygmo  # noqa: F401
+
+    from esail_opt.optimisation.problem_file import shipped_problem
+
+    zoh_class()
+    problem = shipped_problem(argv[0] if argv else PROBLEM)
+    imported = time.perf_counter()
+    record = solve(problem)
+    record["import_seconds"] = imported - start
+    print(json.dumps(record))
+    return 0 if record["converged"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
