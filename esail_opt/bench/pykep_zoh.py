@@ -29,8 +29,9 @@ Decisions, each a choice a pykep user would make:
 * a_c is a fourth control held equal on every segment (the leg's ``pars[3]``), so that
   the leg's own control gradients give its derivative (their sum) and the state stays
   the six Cartesian components;
-* the leg is cut in the middle (:data:`CUT`); pykep's example problems cut at 0.6, and
-  from this guess that cut ran out of iterations;
+* the leg is cut in the middle (:data:`CUT`); pykep's example problems cut at 0.6,
+  where a first version of this script took over ten times as long or ran out of
+  iterations;
 * the mismatch rows are given to Ipopt in metres (position) and metres per time unit
   (velocity; 1 TU = 58.1 days): canonical units times the au.  :data:`IPOPT`'s
   ``constr_viol_tol`` of 1 cm then holds the flown miss at the arrival to centimetres
@@ -53,8 +54,10 @@ conflicts with heyoka.py's in one process.  The leg is pure Python over heyoka.p
 :func:`zoh_class` loads ``pykep/leg/_zoh.py`` by its path inside the installed package,
 over heyoka.py, and nothing else of pykep.
 
-:func:`main` is the baseline's process: it prints one JSON line (a_c, the flown miss,
-Ipopt's record, the schedule, its own import, build and solve times).  pykep, heyoka and
+:func:`main` is the baseline's process (``python -m esail_opt.bench.pykep_zoh``, or as
+the bench runs it, ``python -c`` calling :func:`main`: ``-m`` imports the module twice
+and Python warns so): it prints one JSON line (a_c, the flown miss, Ipopt's record, the
+schedule, its own import, build and solve times).  pykep, heyoka and
 pygmo are optional (the ``bench`` extra); without them :func:`run` times nothing, says
 the baseline was skipped, and writes ``pykep.json`` saying so.
 """
@@ -257,8 +260,8 @@ class Transfer:
 
     def guess(self):
         """The constant-attitude guess of the module docstring."""
-        lo, hi = self.case["throttle"]
-        return [self.case["seed_ac"]] + [math.radians(GUESS_PITCH_DEG), 0.0, hi] * self.n
+        full = self.case["throttle"][1]
+        return [self.case["seed_ac"]] + [math.radians(GUESS_PITCH_DEG), 0.0, full] * self.n
 
     def _set(self, x):
         import numpy as np
