@@ -9,6 +9,7 @@ and DE421 read through jplephem and rotated to the ecliptic here.
 import dataclasses
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -259,6 +260,31 @@ def test_the_polish_segment3d_flies_the_cartesian_equations_in_the_closed_forms_
     closed = closed_form_segment3d(model=ArcModel(sub_arcs=8))
     other = np.array(closed(start, ac, alpha, delta, end[1] - start[1])[0]).ravel()
     assert np.abs(other - end).max() < 1e-7
+
+
+def test_the_compiled_polish_segment3d_is_the_virtual_machines():
+    """Compiled (the RK4 step with its derivatives, the segment's chain over it), the 3-D
+    polish's segment gives the expanded SX segment's end, Jacobian and Hessian of a
+    weighted end, to rounding."""
+    native = rk4_time_segment3d(4, native=True)
+    if native.class_name() != "External":
+        pytest.skip("no C compiler here: the segment stays on the virtual machine")
+    plain = rk4_time_segment3d(4)
+    quat = np.array([math.cos(0.1), math.sin(0.1), 0.0, 0.0])
+    point = [np.r_[1.0, 0.3, 0.05, 1.02, 0.0, quat], 1.0 / 5.930, math.radians(35.0),
+             math.radians(60.0), 0.4]
+    weights = np.linspace(-1.0, 1.0, 9)
+    x = ca.MX.sym("x", 13)
+    parts = [x[:9], x[9], x[10], x[11], x[12]]
+
+    def derivatives(segment):
+        end = segment(*parts)[0]
+        weighted = ca.dot(ca.DM(weights), end)
+        f = ca.Function("f", [x], [end, ca.jacobian(end, x), ca.hessian(weighted, x)[0]])
+        return [np.array(v) for v in f(np.r_[point[0], point[1:]])]
+
+    for a, b in zip(derivatives(native), derivatives(plain)):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
 
 
 def test_node_from_swept_names_the_state_with_the_given_angle():

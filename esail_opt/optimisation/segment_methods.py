@@ -31,7 +31,7 @@ from esail_opt.propagation import compiled
 from esail_opt.propagation.arcs import ArcModel
 from esail_opt.propagation.rectified import flies_native, piece_function, rectified_function
 from esail_opt.propagation.rectified3d import arc_function3d
-from esail_opt.propagation.rk4 import rk4_segment, rk4_segment3d, rk4_segment_turning
+from esail_opt.propagation.rk4 import rk4_segment, rk4_segment_turning, rk4_step3d
 from esail_opt.propagation.simulate import CHECK_TOLERANCE, segment_integrator
 
 
@@ -73,7 +73,7 @@ class RK4:
         if not problem.three_d():
             return rk4_segment(self.steps, coefficients, self.length_in)
         if self.in_time:
-            return rk4_time_segment3d(self.steps, coefficients)
+            return rk4_time_segment3d(self.steps, coefficients, compiled.enabled())
         return rk4_segment_turning(self.steps, coefficients)
 
 
@@ -247,29 +247,41 @@ def node_from_swept(y, theta, quat_start):
 
 
 @functools.lru_cache(maxsize=None)
-def rk4_time_segment3d(steps, coefficients=EXACT):
+def rk4_time_segment3d(steps, coefficients=EXACT, native=False):
     """The 3-D polish's segment: ``steps`` RK4 steps in time on the Cartesian equations
-    (``rk4.rk4_segment3d`` with the angle swept), between 3-D nodes.
+    (``rk4.rk4_step3d`` with the angle swept), between 3-D nodes.
 
     ``(x0[9], ac, alpha, delta, duration) -> (x1[9], q3[0])``, x = [r, theta, v_r,
     v_theta, t, qw, qx, qy, qz]: the node is turned into its Cartesian state
     (``elements.cartesian_from_polar3d``), flown, and named again by
     :func:`node_from_swept` with theta advanced by the angle swept, so that its ends
     are in the same gauge as the closed form's (:func:`closed_form_segment3d`) and the
-    NLP's continuity rows mean the same thing for both.  SX, expanded; q3 is empty, as
-    for every exact arc.
+    NLP's continuity rows mean the same thing for both.  q3 is empty, as for every
+    exact arc.
+
+    With ``native`` the RK4 step is compiled with its derivatives and the segment's
+    chain of steps compiled over it (``propagation.compiled``), as the closed form's
+    arcs are: on the virtual machine the Hessian of the Lagrangian of these segments
+    was most of the 3-D polish's time.  One step library serves every step count.
+    Otherwise, or where nothing compiles, the segment is SX, expanded.
     """
-    x0 = ca.SX.sym("x0", 9)
-    ac, alpha, delta, duration = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "duration"))
+    step = rk4_step3d(coefficients, "time", swept=True)
+    fast = compiled.compiled(step) if native else step
+    sym = ca.MX if fast is not step else ca.SX
+    x0 = sym.sym("x0", 9)
+    ac, alpha, delta, duration = (sym.sym(n) for n in ("ac", "alpha", "delta", "duration"))
     quat = x0[5:] / ca.norm_2(x0[5:])
-    y0 = ca.vertcat(cartesian_from_polar3d(x0[:4], quat), x0[4], x0[1])
-    y1 = rk4_segment3d(steps, coefficients, "time", swept=True)(y0, ac, alpha, delta,
-                                                                  duration)[0]
-    node = node_from_swept(y1[:6], y1[7], quat)
-    x1 = ca.vertcat(node[:4], y1[6], node[4:])
-    return ca.Function("segment_rk4_time3d", [x0, ac, alpha, delta, duration],
-                       [x1, ca.SX(0, 1)],
-                       ["x0", "ac", "alpha", "delta", "duration"], ["x1", "q3"]).expand()
+    y = ca.vertcat(cartesian_from_polar3d(x0[:4], quat), x0[4], x0[1])
+    for _ in range(int(steps)):
+        y = fast(y, ac, alpha, delta, duration / int(steps))
+    node = node_from_swept(y[:6], y[7], quat)
+    segment = ca.Function("segment_rk4_time3d", [x0, ac, alpha, delta, duration],
+                          [ca.vertcat(node[:4], y[6], node[4:]), sym(0, 1)],
+                          ["x0", "ac", "alpha", "delta", "duration"], ["x1", "q3"],
+                          {"cse": True})
+    if sym is ca.SX:
+        return segment.expand()
+    return compiled.compiled(segment, (step,))
 
 
 @functools.lru_cache(maxsize=None)

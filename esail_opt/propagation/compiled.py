@@ -23,7 +23,9 @@ constraint Jacobian -- is compiled as well, with the arcs left as calls into the
 library (``compiled(segment, calls=(panel,))``): the segment's library is linked
 against the arc's, so gcc sees a few thousand small matrix operations, not the arcs'
 instructions again: one library per sub-arc count and extrapolation setting
-(Linux only: the link uses GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).
+(Linux only: the link uses GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).  The 3-D
+polish's RK4 segments are compiled the same way, a step's library and a chain of steps
+over it (``segment_methods.rk4_time_segment3d``).
 
 The cache is a directory of shared libraries named by a hash of the Function's
 serialised graph, the CasADi version, the compiler's own version line and the flags

@@ -79,25 +79,32 @@ def _classic_step(f, x, h):
 
 
 @functools.lru_cache(maxsize=None)
-def rk4_segment3d(steps, coefficients=EXACT, length_in="theta", swept=False):
+def rk4_segment3d(steps, coefficients=EXACT, length_in="theta"):
     """One segment of constant pitch and clock on the Cartesian equations
     (``dynamics.rhs_cartesian``) by ``steps`` equal classic RK4 steps.
 
     Returns ``(y0[7], ac, alpha, delta, length) -> (y1[7], q3[0])``, SX and expanded,
     y = [x, y, z, vx, vy, vz, t] canonical; ``length`` is the angle the Sun-sail line
     sweeps (rad, ``dynamics.rhs_cartesian_in_theta``) or a duration (TU), as
-    :func:`rk4_segment`'s.  The global error falls like steps^-4.  With ``swept`` (in
-    time only) y has an eighth row, the angle swept (``dynamics.swept_angle_rate``),
-    integrated with the motion: the polish names its 3-D nodes' plane by it.
+    :func:`rk4_segment`'s.  The global error falls like steps^-4.
     """
     if int(steps) != steps or steps < 1:
         raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
     if length_in not in ("theta", "time"):
         raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
+    step = rk4_step3d(coefficients, length_in)
+    return _stepped3d("segment_rk4_3d", step, 7, steps, ("y0", "y1"), "length")
+
+
+@functools.lru_cache(maxsize=None)
+def rk4_step3d(coefficients=EXACT, length_in="theta", swept=False):
+    """One classic RK4 step of :func:`rk4_segment3d`'s equations: ``(y, ac, alpha,
+    delta, h) -> y``, SX, with y and ``length_in`` as there.  With ``swept`` (in time
+    only) y has an eighth row, the angle swept (``dynamics.swept_angle_rate``),
+    integrated with the motion: the 3-D polish names its nodes' plane by it."""
     if swept and length_in != "time":
         raise ValueError("swept = True counts the angle of a segment in time only")
-    rows = 8 if swept else 7
-    y = ca.SX.sym("y", rows)
+    y = ca.SX.sym("y", 8 if swept else 7)
     ac, alpha, delta, h = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "h"))
     R, T, N = radial_transverse_normal(alpha, delta, coefficients)
 
@@ -107,8 +114,8 @@ def rk4_segment3d(steps, coefficients=EXACT, length_in="theta", swept=False):
         rate = [swept_angle_rate(z[:6])] if swept else []
         return ca.vertcat(rhs_cartesian(z[:6], ac, R, T, N), 1, *rate)
 
-    step = ca.Function("rk4_step3d", [y, ac, alpha, delta, h], [_classic_step(f, y, h)])
-    return _stepped3d("segment_rk4_3d", step, rows, steps, ("y0", "y1"), "length")
+    return ca.Function("rk4_step3d" + ("_swept" if swept else ""), [y, ac, alpha, delta, h],
+                       [_classic_step(f, y, h)], {"cse": True})
 
 
 @functools.lru_cache(maxsize=None)
