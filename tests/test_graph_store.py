@@ -163,3 +163,38 @@ def test_a_stored_spline_is_the_spline_fitted(tmp_path, monkeypatch):
         np.testing.assert_array_equal(evaluated(spline), evaluated(fitted))
     np.testing.assert_array_equal(np.array(other(x)), 2 * np.array(fitted(x)))
     assert len(list((tmp_path / "tracks").glob("*.casadi"))) == 2
+
+
+def test_stored_samples_are_the_sources_and_follow_a_changed_source(tmp_path, monkeypatch,
+                                                                     caplog):
+    """A track's samples read back from the store (``bodies.track.stored_samples``) are
+    the source's own numbers; a source that gives other numbers at the spot dates is
+    sampled afresh, as is a damaged file (with one line); other dates get a file of
+    their own."""
+    from esail_opt.bodies import track
+
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    calls = []
+
+    def source(jd, scale=1.0):
+        calls.append(np.size(jd))
+        return scale * np.vstack([np.sin(jd), np.cos(jd)])
+
+    jd = np.linspace(2451545.0, 2452545.0, 101)
+    first = track.stored_samples("probe", source, jd)
+    np.testing.assert_array_equal(first, source(jd))
+    calls.clear()
+    again = track.stored_samples("probe", source, jd)
+    np.testing.assert_array_equal(again, first)
+    assert calls == [3]  # the spot dates only
+    changed = track.stored_samples("probe", lambda at: source(at, 1 + 1e-15), jd)
+    np.testing.assert_array_equal(changed, source(jd, 1 + 1e-15))
+    (path,) = (tmp_path / "tracks").glob("probe-*.npy")
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with caplog.at_level(logging.WARNING, logger="esail_opt"):
+        healed = track.stored_samples("probe", source, jd)
+    np.testing.assert_array_equal(healed, source(jd))
+    assert len(caplog.records) == 1 and "checksum" in caplog.records[0].getMessage()
+    track.stored_samples("probe", source, jd[:50])
+    assert len(list((tmp_path / "tracks").glob("probe-*.npy"))) == 2

@@ -90,7 +90,7 @@ class Track:
             low, high = max(low, span[0]), min(high, span[1])
         count = max(int(math.ceil((high - low) / step_days)), MIN_STEPS) + 1
         jd = np.linspace(low, high, count)
-        polar, _z = source(jd)
+        polar = stored_samples(self._tag(), lambda at: source(at)[0], jd)
         polar[1] = np.unwrap(polar[1])
         t_grid = tu_from_jd(jd)
         t = ca.MX.sym("t")
@@ -149,7 +149,7 @@ class Track:
     def _measure(self, source, jd_grid):
         mids = 0.5 * (jd_grid[:-1] + jd_grid[1:])
         mids = mids[(mids >= self.jd_range[0]) & (mids <= self.jd_range[1])]
-        exact, _z = source(mids)
+        exact = stored_samples(self._tag() + "_mids", lambda at: source(at)[0], mids)
         fitted = np.array(self.function.map(mids.size)(tu_from_jd(mids).reshape(1, -1)))
         dx, dy, dvx, dvy = _cartesian(fitted) - _cartesian(exact)
         self.max_error_km = float(units.length_to_km(np.hypot(dx, dy).max()))
@@ -177,6 +177,35 @@ def stored_spline(name, grid, values):
                              values.tobytes()])
     return function_store.kept(function_store.path_of("tracks", name, decided_by),
                                lambda: ca.interpolant(name, "bspline", [grid], values))
+
+
+#: Dates at which a stored sampling is checked against its source before it is used.
+SPOT_CHECKS = 3
+
+
+def stored_samples(name, source, jd):
+    """``source(jd)`` (an array whose last axis runs over ``jd``), read from the package's
+    cache when the same dates of ``name`` were sampled before (:mod:`esail_opt.function_store`).
+
+    Sampling DE421 over a track's sixty years, and again at the mid-points where its
+    error is measured, is most of what is left of building a track once its spline is
+    stored.  The file is named by ``name`` and the dates' bytes; before it is used the
+    source is asked again at :data:`SPOT_CHECKS` of its dates, spread from the first to
+    the last, and the stored samples are used only if they are those numbers exactly:
+    an ephemeris, a small body's elements or a conversion that changed is sampled
+    afresh.
+    """
+    jd = np.ascontiguousarray(jd, dtype=float)
+    path = function_store.path_of("tracks", name, b"\0".join([name.encode(), jd.tobytes()]),
+                                  suffix=".npy")
+    spots = np.unique(np.linspace(0, jd.size - 1, SPOT_CHECKS).round().astype(int))
+    stored = function_store.read_array(path)
+    if (stored is not None and stored.shape[-1] == jd.size
+            and np.array_equal(stored[..., spots], np.asarray(source(jd[spots]), dtype=float))):
+        return stored
+    samples = np.asarray(source(jd), dtype=float)
+    function_store.write_array(path, samples)
+    return samples
 
 
 def _cartesian(polar):
@@ -288,7 +317,7 @@ class Track3:
         for key in ("name", "jd_range", "t_range", "step_days", "sampled_t_range", "sampled_jd"):
             setattr(self, key, getattr(planar, key))
         jd = planar.sampled_jd
-        states = np.asarray(source(jd), dtype=float)
+        states = stored_samples(f"{planar._tag()}_3d", source, jd)
         t_grid = tu_from_jd(jd)
         t = ca.MX.sym("t")
         held = ca.fmin(ca.fmax(t, t_grid[0]), t_grid[-1])  # as in Track: no zeros outside
@@ -328,7 +357,7 @@ class Track3:
         mids = 0.5 * (jd_grid[:-1] + jd_grid[1:])
         mids = mids[(mids >= self.jd_range[0]) & (mids <= self.jd_range[1])]
         diff = (np.array(self.function.map(mids.size)(tu_from_jd(mids).reshape(1, -1)))
-                - np.asarray(source(mids), dtype=float))
+                - stored_samples(f"{self.planar._tag()}_3d_mids", source, mids))
         self.max_error_km = float(units.length_to_km(np.linalg.norm(diff[:3], axis=0).max()))
         self.max_error_m_s = float(units.speed_to_m_s(np.linalg.norm(diff[3:], axis=0).max()))
 
