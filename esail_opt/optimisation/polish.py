@@ -165,11 +165,12 @@ def rk4_polish_method(problem, x_start, start, steps=RK4_STEPS):
     args = (nodes_from, problem.sail.ac * start.ac_scale * start.throttle[None, :],
             *_controls(start), start.lengths[None, :])
     for count in steps:
-        method = RK4(count, in_time=True)
-        ends = np.array(method.function(problem).map(start.alpha.size)(*args)[0])
+        # Only the count chosen is compiled, by the NLP that flies it.
+        ends = np.array(RK4(count, in_time=True, native=False).function(problem)
+                        .map(start.alpha.size)(*args)[0])
         if np.max(np.abs(_states(problem, start.nodes) - _states(problem, ends))) < STEP_DEFECT:
             break
-    return method
+    return RK4(count, in_time=True)
 
 
 def _final_miss(problem, result):

@@ -61,6 +61,10 @@ class RK4:
 
     steps: int
     in_time: bool = False
+    #: In time in three dimensions (the 3-D polish's), compiled where compiling is on
+    #: (``propagation.compiled``); False keeps the expanded SX segment, for a few
+    #: evaluations that need no library.
+    native: bool = True
 
     serial = False
 
@@ -73,7 +77,8 @@ class RK4:
         if not problem.three_d():
             return rk4_segment(self.steps, coefficients, self.length_in)
         if self.in_time:
-            return rk4_time_segment3d(self.steps, coefficients, compiled.enabled())
+            return rk4_time_segment3d(self.steps, coefficients,
+                                      self.native and compiled.enabled())
         return rk4_segment_turning(self.steps, coefficients)
 
 
