@@ -1,126 +1,18 @@
-"""The schema of ``solution.json``: its version, and what each field holds.
+"""The version of ``solution.json`` and what a reader of the file accepts.
 
-This is the one place the file's layout is written down. Only the records of
-:mod:`esail_opt.app.solution` name these keys, each on its field; the plot, search and
-sweep modules read the typed Solution's fields, named as the keys are except where
-``Solution``'s docstring says otherwise. Units are one per
-quantity everywhere in the file, the polish included: lengths and position misses in km
-(au for radii and semimajor axes), speeds and velocity misses in m/s (km/s for state
-velocities), times in days, angles in degrees.
+A file carries ``schema_version``; :data:`SCHEMA_VERSION` is the one this code writes.
+A version changes when a key is added, removed or changes meaning or unit.  A reader
+accepts the versions of :data:`READABLE`: a key added after a file's version reads as
+absent (None, or empty), and a key whose meaning changed is renamed by :func:`upgrade`
+before the file is read.  Any other version is refused (:func:`check`) rather than
+guessed at.
 
-How each version differs from the one before is told in ``schema_changes.md`` beside
-this module.
-
-Top level
----------
-schema_version : int
-    :data:`SCHEMA_VERSION`.
-problem : object
-    The settings as solved: ``name``, ``description``, ``ac_mm_s2``, ``coefficients``,
-    ``alpha_bounds_deg``, ``segments`` (the count N used), ``segments_per_revolution``,
-    ``sub_arcs`` (what the error control ended with), ``sub_arcs_requested``,
-    ``equal_segments``, ``objective`` (its kind), ``target`` (``kind`` and fields, or
-    null), ``departure`` (``kind`` and fields), ``departure_state``, ``r_min_au``,
-    ``q3_margin``, and ``throttle_bounds`` for a throttled sail.  ``departure_state``
-    is the state the schedule is flown from.
-status, outcome, converged, acceptable : str, str, bool, bool
-    Ipopt's return status of the last solve; its ``Outcome`` (``optimisation.outcome``)
-    as a word, "converged" / "acceptable" / "infeasible" / "failed"; whether that is
-    converged; whether it is acceptable.
-verified, verification_note : bool, str
-    Converged, and the CVODES flight meets ``tolerance`` with the verifier's own error
-    added; one line naming each missed bound.
-tolerance : object
-    ``position_km``, ``velocity_m_s``.
-objective, objective_meaning : float, str
-    The NLP's objective (canonical units) and what it means.
-tof_days, iterations, stages, solve_seconds, constraint_violation, min_q3
-    Time of flight; Ipopt iterations and seconds summed over every solve of the run;
-    each stage's status and iterations; the final constraint violation; the smallest
-    closed-form validity margin q3.
-schedule : list of object
-    Per segment: ``t_days`` and ``theta_deg`` at its start, ``alpha_deg`` in [-90, 90),
-    ``duration_days``, ``dtheta_deg``, ``local_error_km`` (the closed form's position
-    error over the segment against Eqs. 1-2 from the same start node) and, for a
-    throttled sail, ``throttle``.
-final_state : object
-    The NLP's final state: ``r_au``, ``theta_deg``, ``vr_km_s``, ``vtheta_km_s``,
-    ``a_au``, ``e``.
-verification : object
-    The CVODES flight: ``miss_r_km``, ``miss_v_m_s``, ``miss_theta_deg`` against the NLP's
-    final state; ``target_miss_r_km``, ``target_miss_v_m_s`` against the target (an (a, e)
-    target adds ``target_miss_a_km`` and ``target_miss_e``); ``nlp_target_miss_r_km``;
-    ``verifier_error_r_km``, ``verifier_error_v_m_s`` (two CVODES flights at 3e-16 and
-    1e-15 apart; in 3-D, plus the gap to a flight on the Cartesian equations); ``error``; ``cvodes_final_state``, ``cvodes_tof_days``; for a target
-    with an arrival window, ``arrival_outside_window_days`` (0 inside it; a flight more
-    than a second outside is not verified).
-refinement : object
-    The error control's record (the key is older than the stage's name): ``rounds``
-    (per round: sub-arcs, status, iterations, tof and misses; empty when the closed form
-    found no optimum) and ``starts`` (``label``, ``status``, ``iterations`` of each start
-    tried when the first found no optimum).
-trajectory : object
-    ``closed_form`` and ``cvodes`` samples (``r_au``, ``theta_deg``, ``vr_km_s``,
-    ``vtheta_km_s``, ``a_au``, ``e``, ``t_days``), and ``polished`` after a polish.
-
-On the calendar (a BodyDeparture; absent otherwise)
----------------------------------------------------
-departure_date, arrival_date : str
-    ISO 8601, TDB, to the millisecond (``YYYY-MM-DDTHH:MM:SS.sss``, the fraction left
-    out when it is zero); the arrival is the departure plus the NLP's time of flight.
-departure_epoch_days : float
-    The departure's epoch, days since J2000 (2000-01-01T12:00:00 TDB), as solved: to a
-    fraction of a microsecond, where the date is rounded to the millisecond (a
-    planet moves some 35 m in one).  With ``tof_days`` (``polish.tof_days`` for the
-    polished flight) it gives the arrival to the same precision, so that a 1 m
-    polish can be checked from the file.
-departure_body : object
-    ``name``, ``source`` (the ephemeris or the elements), ``out_of_plane_km`` (the body's
-    distance from the ecliptic at departure, which the 2-D model drops), ``vinf_km_s`` and
-    ``vinf_angle_deg`` (from the local horizontal towards radial outward).
-target_body : object
-    For a BodyRendezvous or BodyIntercept: ``name``, ``source``, ``kind``,
-    ``out_of_plane_km`` (the body's distance from the ecliptic at the flown arrival),
-    ``relative_speed_km_s`` of the flight against the body there and, in 3-D,
-    ``normal_miss_km`` (the flight's distance from the body along the ecliptic's
-    normal; also in the verification's misses).
-ac_mm_s2_required : float
-    For a MinAcceleration objective: the characteristic acceleration found, mm/s^2.  A
-    run that found no point (``outcome`` "infeasible" or "failed") gives its last
-    iterate's, which its schedule's throttles are fractions of: no sail is required
-    by it (see ``nearest_feasible``).
-
-Classes and the edge of the feasible (version 5)
-------------------------------------------------
-classes : object
-    ``looked_at``: per turn count k on the target body that the solve looked at (a
-    MinTime or MinAcceleration rendezvous; empty otherwise): ``revolutions_k``,
-    ``label``, ``status``, ``iterations``, ``objective`` (canonical, as the top-level
-    one), ``tof_days``, ``ac_mm_s2_required`` (MinAcceleration), ``constraint_violation``
-    (of its last point), ``verified`` (null when not flown), ``chosen`` and
-    ``projected`` (true when its values are the projected model's: a 3-D run's class
-    that was not solved in 3-D; absent otherwise); and
-    ``not_looked_at``, one line on the classes not solved.
-nearest_feasible : object
-    Only for a fixed-time solve that found no point: ``departure_date`` (null off the
-    calendar), ``tof_days``, ``ac_mm_s2_required``, ``verified``, ``note``,
-    ``infeasible_tof_days`` (the longest time of flight found infeasible: the edge lies
-    between the two) and ``iterations`` (of the walk that found it).
-
-After a polish
---------------
-objective_closed_form, objective_exact, tof_days_exact
-polish : object
-    ``status``, ``converged``, ``outcome``, ``iterations``, ``seconds``,
-    ``constraint_violation``, ``objective``, ``tof_days``, ``bounds`` (``position_km``,
-    ``velocity_m_s``: 1 m and 1 mm/s), ``within_bounds_vs_nlp``,
-    ``within_bounds_vs_target``, ``verified``, ``note``, ``schedule``, ``final_state``,
-    ``verification`` (the keys of the top-level one), and the polished flight's own
-    ``departure_state`` and (as at the top level, where they apply)
-    ``departure_date``, ``arrival_date``, ``departure_body``, ``target_body`` and
-    ``ac_mm_s2_required``: ``schedule`` flown from ``departure_state`` is the flight
-    verified.  The top-level ``verified`` judges the closed form's flight alone; the
-    command's exit status is 0 only when ``polish.verified`` holds too.
+Each key is spelled once, on its field in :mod:`esail_opt.app.solution`.  Units are one
+per quantity everywhere in the file, the polish included: lengths and position misses
+in km (au for radii and semimajor axes), speeds and velocity misses in m/s (km/s for
+state velocities), times in days, angles in degrees.  The layout of the current
+version, and how each version differs from the one before, are in
+``schema_changes.md`` beside this module.
 """
 
 import numpy as np
