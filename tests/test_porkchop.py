@@ -174,7 +174,7 @@ def test_the_journal_keeps_no_sail_and_the_edge_and_reads_old_rows(tmp_path):
     grid, rows = _grid(), _marked_rows()
     header = {"journal": "esail-opt porkchop", "problem": "p", "source_sha256": "x",
               "param": "p", "values": [1.0], "polish": False, "tolerance": {}}
-    journal = engine.Journal(tmp_path / porkchop.JOURNAL, header, porkchop.ROW_KINDS, 6)
+    journal = engine.Journal(tmp_path / porkchop.JOURNAL, header, porkchop.PorkchopRow, 6)
     journal.start({})
     old = dict(rows[5])
     for field in ("no_sail", "edge_tof_days", "edge_infeasible_tof_days", "edge_ac_mm_s2"):
@@ -198,6 +198,33 @@ def test_the_journal_keeps_no_sail_and_the_edge_and_reads_old_rows(tmp_path):
     column = csv_rows[0].split(",").index("no_sail")
     assert [line.split(",")[column] for line in csv_rows[1:]] == \
         ["True", "True", "True", "False", "True", ""]
+
+
+@pytest.mark.parametrize("field, value, why", [
+    ("departure_jd", "2462502.5", "departure_jd = '2462502.5' is not a num"),
+    ("departure_jd", True, "departure_jd = True is not a num"),  # a bool is no number
+    ("verified", None, "verified is missing"),  # not Optional in a porkchop's row
+    ("departure_date", None, "departure_date is missing"),
+    ("departure_state", [1, 2], "departure_state = [1, 2] is not a dict"),
+    ("schedule", {"a": 1}, "schedule = {'a': 1} is not a list"),
+])
+def test_a_journal_row_is_checked_against_its_dataclass(tmp_path, field, value, why):
+    """A porkchop's journal row against :class:`PorkchopRow`'s annotations: one line
+    naming the file, the line and the field."""
+    header = {"journal": "esail-opt porkchop", "problem": "p", "source_sha256": "x",
+              "param": "p", "values": [1.0], "polish": False, "tolerance": {}}
+    path = tmp_path / porkchop.JOURNAL
+    row = dict(_marked_rows()[3], departure_jd=2462503, departure_state={"x": 1.0},
+               schedule=[])
+    journal = engine.Journal(path, header, porkchop.PorkchopRow, 6)
+    path.write_text(json.dumps(header) + "\n" + json.dumps(row) + "\n")
+    assert journal.read(resume=True)[3] == row  # an int fills a float field
+    path.write_text(json.dumps(header) + "\n" + json.dumps({**row, field: value}) + "\n")
+    with pytest.raises(InputError) as err:
+        journal.read(resume=True)
+    message = str(err.value)
+    assert f"{path} line 2 is not a valid row: {why};" in message and "\n" not in message
+
 
 
 def _lines(ax):

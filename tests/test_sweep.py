@@ -36,7 +36,7 @@ NUMBERS = [k for k in sweep.CSV_FIELDS if k != "seconds"]
 
 def _sweep_journal(path, header):
     """The sweep's journal at ``path`` under ``header``, as the sweep's run makes it."""
-    return engine.Journal(path, header, sweep.ROW_KINDS, len(header["values"]),
+    return engine.Journal(path, header, sweep.SweepRow, len(header["values"]),
                           functools.partial(sweep.belongs, header["values"]))
 
 
@@ -493,6 +493,35 @@ class _Unverified:
             target_miss_r_km=1234.5, target_miss_v_m_s=6.5, miss_r_km=None, miss_v_m_s=None,
             error=None)
         self.verification_note = note
+
+
+@pytest.mark.parametrize("field, value, why", [
+    ("tof_days", "300", "tof_days = '300' is not a num"),  # a string for a number
+    ("objective", True, "objective = True is not a num"),  # a bool is not a number
+    ("iterations", False, "iterations = False is not a int"),
+    ("iterations", 12.0, "iterations = 12.0 is not a int"),
+    ("status", 3, "status = 3 is not a str"),
+    ("exact_verified", 1, "exact_verified = 1 is not a bool"),
+    ("converged", None, "converged is missing"),  # null where the field is not Optional
+    ("value", None, "value is missing"),
+])
+def test_a_journal_row_is_checked_against_its_dataclass(tmp_path, field, value, why):
+    """Every field of a journal row against :class:`SweepRow`'s annotation: one line
+    naming the file, the line and the field; an int fills a float field and null an
+    Optional one."""
+    path = tmp_path / sweep.JOURNAL
+    header = {"journal": "esail-opt sweep", "problem": "p", "source_sha256": "abc",
+              "param": "ac_mm_s2", "values": [1.0, 2.0], "polish": False,
+              "tolerance": {"position_km": 1e4, "velocity_m_s": 10.0}}
+    good = {**sweep._empty_row(0, 1), "converged": True, "objective": 3, "seconds": 0.5}
+    path.write_text(json.dumps(header) + "\n" + json.dumps(good) + "\n")
+    assert _sweep_journal(path, header).read(resume=True)[0]["objective"] == 3
+    path.write_text(json.dumps(header) + "\n" + json.dumps({**good, field: value}) + "\n")
+    with pytest.raises(InputError) as err:
+        _sweep_journal(path, header).read(resume=True)
+    message = str(err.value)
+    assert f"{path} line 2 is not a valid row: {why};" in message and "\n" not in message
+
 
 
 def test_converged_but_not_verified_member_fails_in_its_row(tiny, monkeypatch):

@@ -30,6 +30,7 @@ import os
 import re
 import tempfile
 import time
+import typing
 from pathlib import Path
 
 from esail_opt import processes
@@ -128,22 +129,33 @@ def _short(value):
     return repr(value)
 
 
-#: What a row's field may hold, by the kind a scan gives it (``"num?"``: or null).
-_KINDS = {"int": (int,), "num": (int, float), "bool": (bool,), "str": (str,),
-          "dict": (dict,), "list": (list,)}
+#: A field's type as the journal's messages name it (a float field is a "num").
+_NAMES = {float: "num"}
 
 
-def _bad_value(value, kind):
-    """Why ``value`` is not of ``kind`` (a key of :data:`_KINDS`, "?" for nullable),
-    or None."""
+def _why_not(value, hint):
+    """Why the JSON ``value`` cannot fill a field annotated ``hint`` (``int``, ``float``,
+    ``bool``, ``str``, ``dict``, ``list``, or one of them Optional: or null), or None.
+    A bool is not a number; an int fills a float field."""
+    kind = next((t for t in typing.get_args(hint) if t is not type(None)), hint)
     if value is None:
-        return None if kind.endswith("?") else "is missing"
-    types = _KINDS[kind.rstrip("?")]
-    if isinstance(value, bool) and bool not in types:
-        return f"= {value!r} is not a {kind.rstrip('?')}"
-    if not isinstance(value, types):
-        return f"= {_short(value)} is not a {kind.rstrip('?')}"
+        return None if kind is not hint else "is missing"
+    name = _NAMES.get(kind, kind.__name__)
+    if isinstance(value, bool) is not (kind is bool) \
+            or not isinstance(value, (int, float) if kind is float else kind):
+        return f"= {_short(value)} is not a {name}"
     return None
+
+
+def row_dict(row_type, **values):
+    """A row of ``row_type`` as the dict it travels as, every field in declaration order
+    (the CSV's columns and the journal's keys): ``values`` over None."""
+    return {**dict.fromkeys(fields(row_type)), **values}
+
+
+def fields(row_type):
+    """The field names of a row's dataclass, in declaration order."""
+    return tuple(f.name for f in dataclasses.fields(row_type))
 
 
 class Journal:
@@ -162,10 +174,10 @@ class Journal:
         What identifies the scan (``journal``, ``problem``, ``source_sha256``, ``param``,
         ``values``, ``polish``, ``tolerance``, and what else its kind adds); a journal
         is resumed only under the same header, every key of it.
-    kinds : dict
-        Field -> kind of the rows (``"int"``, ``"num"``, ``"bool"``, ``"str"``,
-        ``"dict"``, ``"list"``, with a trailing ``"?"`` when null is allowed); a row
-        read is checked against it.
+    kinds : type
+        The rows' frozen dataclass: a row read is checked against its fields'
+        annotations (:func:`_why_not`) and kept as a dict of its fields, in their
+        order.
     belongs : callable, optional
         ``belongs(index, row)``: whether a row is this grid's (default: its index is
         in ``range(count)``).
@@ -321,13 +333,13 @@ class Journal:
             self._fail(number, f"is not JSON ({err.msg}, column {err.colno})")
         if not isinstance(row, dict):
             self._fail(number, "is not a row (a JSON object)")
-        for field, kind in self.kinds.items():
-            why = _bad_value(row.get(field), kind)
+        for field, hint in typing.get_type_hints(self.kinds).items():
+            why = _why_not(row.get(field), hint)
             if why is not None:
                 self._fail(number, f"is not a valid row: {field} {why}")
         if row.get("verified") and row.get("tof_days") is None:
             self._fail(number, "is not a valid row: verified without a tof_days")
-        return {field: row.get(field) for field in self.kinds}
+        return {field: row.get(field) for field in fields(self.kinds)}
 
 
 # ---------------------------------------------------------------- a run
@@ -343,8 +355,8 @@ class Scan:
         The journal's file name in the output folder (``sweep.jsonl``).
     header : dict
         What identifies the scan in its journal (see :class:`Journal`).
-    kinds : dict
-        Field -> kind of a row (see :class:`Journal`).
+    kinds : type
+        The rows' frozen dataclass (see :class:`Journal`).
     count : int
         The rows of the grid.
     function : callable
@@ -363,7 +375,7 @@ class Scan:
 
     journal_name: str
     header: dict
-    kinds: dict
+    kinds: type
     count: int
     function: object
     jobs: dict

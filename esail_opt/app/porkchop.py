@@ -28,6 +28,7 @@ import dataclasses
 import math
 import os
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -40,28 +41,49 @@ from esail_opt.optimisation import edge, pipeline, scan
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.physics import constants as units
 
-CSV_FIELDS = ("index", "departure_date", "tof_days_grid", "converged", "verified", "no_sail",
-              "status", "departure_jd", "arrival_date", "tof_days", "objective", "objective_unit",
-              "target_miss_r_km", "target_miss_v_m_s", "relative_speed_km_s",
-              "out_of_plane_km", "iterations", "start", "seconds", "error", "edge_tof_days",
-              "edge_infeasible_tof_days", "edge_ac_mm_s2")
-#: What each field of a row holds (checked as a journal is read; "?": or null).
-ROW_KINDS = {"index": "int", "departure_date": "str", "tof_days_grid": "num?",
-             "converged": "bool", "verified": "bool", "status": "str?",
-             # Null in journals written before the edge was walked: not marked.
-             "no_sail": "bool?", "edge_tof_days": "num?", "edge_infeasible_tof_days": "num?",
-             "edge_ac_mm_s2": "num?",
-             "departure_jd": "num", "arrival_date": "str?", "tof_days": "num?",
-             "objective": "num?", "objective_unit": "str?", "target_miss_r_km": "num?",
-             "target_miss_v_m_s": "num?", "relative_speed_km_s": "num?",
-             "out_of_plane_km": "num?", "iterations": "int?", "start": "str?",
-             "seconds": "num?", "error": "str?", "ac_mm_s2_required": "num?",
-             "departure_state": "dict?", "schedule": "list?"}
-#: What a row holds beyond the CSV's columns, in porkchop.json and its journal: the
-#: cell's flight as solution.json gives it (the state its schedule is flown from, the
-#: schedule, and for MinAcceleration the a_c it is flown at), so that a cell can be
-#: flown, or used, without solving it again.
+
+
+@dataclasses.dataclass(frozen=True)
+class PorkchopRow:
+    """A cell's row: its fields, in order, are the journal's and porkchop.json's keys,
+    and their annotations what a journal row is checked against
+    (:class:`esail_opt.app.engine.Journal`).  Rows travel as dicts of these fields."""
+
+    index: int
+    departure_date: str
+    tof_days_grid: Optional[float]
+    converged: bool
+    verified: bool
+    no_sail: Optional[bool]  # null in journals written before the edge was walked
+    status: Optional[str]
+    departure_jd: float
+    arrival_date: Optional[str]
+    tof_days: Optional[float]
+    objective: Optional[float]
+    objective_unit: Optional[str]
+    target_miss_r_km: Optional[float]
+    target_miss_v_m_s: Optional[float]
+    relative_speed_km_s: Optional[float]
+    out_of_plane_km: Optional[float]
+    iterations: Optional[int]
+    start: Optional[str]
+    seconds: Optional[float]
+    error: Optional[str]
+    edge_tof_days: Optional[float]
+    edge_infeasible_tof_days: Optional[float]
+    edge_ac_mm_s2: Optional[float]
+    # Beyond the CSV's columns, in porkchop.json and its journal: the cell's flight as
+    # solution.json gives it (the state its schedule is flown from, the schedule, and
+    # for MinAcceleration the a_c it is flown at), so that a cell can be flown, or
+    # used, without solving it again.
+    ac_mm_s2_required: Optional[float]
+    departure_state: Optional[dict]
+    schedule: Optional[list]
+
+
+#: The flight's fields (see :class:`PorkchopRow`), and the CSV's columns before them.
 FLIGHT_FIELDS = ("ac_mm_s2_required", "departure_state", "schedule")
+CSV_FIELDS = engine.fields(PorkchopRow)[:-len(FLIGHT_FIELDS)]
 JOURNAL = "porkchop.jsonl"
 #: The files a porkchop writes as one set (its journal is kept beside them).
 PORKCHOP_FILES = ("porkchop.csv", "porkchop.json", "porkchop.png")
@@ -189,10 +211,9 @@ def cell_problem(problem, grid, index):
 
 def _row(index, grid, cell=None, error=None):
     jd, tof = grid.cell(index)
-    row = dict.fromkeys(CSV_FIELDS + FLIGHT_FIELDS)
-    row.update(index=index, departure_date=dates.iso_from_jd(jd), departure_jd=jd,
-               tof_days_grid=tof, converged=False, verified=False, no_sail=False,
-               error=error)
+    row = engine.row_dict(PorkchopRow, index=index, departure_date=dates.iso_from_jd(jd),
+                          departure_jd=jd, tof_days_grid=tof, converged=False,
+                          verified=False, no_sail=False, error=error)
     if cell is None:
         return row
     result = cell.result
@@ -442,7 +463,7 @@ def _scan(request):
         return cells, (cells, *common)
 
     return engine.Scan(
-        journal_name=JOURNAL, header=request.header(), kinds=ROW_KINDS,
+        journal_name=JOURNAL, header=request.header(), kinds=PorkchopRow,
         count=int(np.prod(grid.shape)), function=solve_job,
         jobs={j: (job, (job, *common)) for j, job in enumerate(request.jobs)},
         failed_row=lambda i, message: _row(i, grid, error=message), part=part)

@@ -33,6 +33,7 @@ import functools
 import os
 import time
 from pathlib import Path
+from typing import Optional
 
 from esail_opt.app import engine, parallel
 from esail_opt.app.files import check_output_dir, csv_text, write_table_set
@@ -69,21 +70,37 @@ SWEEPABLE = {
     "max_revolutions": Sweepable("max_revolutions", float, "rev"),
 }
 
-CSV_FIELDS = ("index", "value", "converged", "verified", "status", "tof_days", "objective",
-              "target_miss_r_km", "target_miss_v_m_s", "iterations", "tof_days_exact",
-              "exact_verified", "exact_target_miss_km", "robust_open_p95_km",
-              "robust_guided_p95_km", "robust_guided_within", "robust_verified", "seconds",
-              "error")
 
-#: What each field of a row holds (:class:`esail_opt.app.engine.Journal` checks a
-#: journal's rows against it; "?": or null).
-ROW_KINDS = {"index": "int", "value": "num", "converged": "bool", "verified": "bool?",
-             "status": "str?", "tof_days": "num?", "objective": "num?",
-             "target_miss_r_km": "num?", "target_miss_v_m_s": "num?", "iterations": "int?",
-             "tof_days_exact": "num?", "exact_verified": "bool?",
-             "exact_target_miss_km": "num?", "robust_open_p95_km": "num?",
-             "robust_guided_p95_km": "num?", "robust_guided_within": "num?",
-             "robust_verified": "bool?", "seconds": "num?", "error": "str?"}
+@dataclasses.dataclass(frozen=True)
+class SweepRow:
+    """A member's row: its fields, in order, are sweep.csv's columns and the journal's
+    keys, and their annotations what a journal row is checked against
+    (:class:`esail_opt.app.engine.Journal`).  Rows travel as dicts of these fields."""
+
+    index: int
+    value: float
+    converged: bool
+    verified: Optional[bool]
+    status: Optional[str]
+    tof_days: Optional[float]
+    objective: Optional[float]
+    target_miss_r_km: Optional[float]
+    target_miss_v_m_s: Optional[float]
+    iterations: Optional[int]
+    tof_days_exact: Optional[float]
+    exact_verified: Optional[bool]
+    exact_target_miss_km: Optional[float]
+    robust_open_p95_km: Optional[float]
+    robust_guided_p95_km: Optional[float]
+    robust_guided_within: Optional[float]
+    robust_verified: Optional[bool]
+    seconds: Optional[float]
+    error: Optional[str]
+
+
+CSV_FIELDS = engine.fields(SweepRow)
+# The name tests/test_faults.py still builds its journals with.
+ROW_KINDS = SweepRow
 
 #: The journal of finished members, in the sweep's output folder.
 JOURNAL = "sweep.jsonl"
@@ -171,9 +188,7 @@ def variant(problem, name, value):
 
 def _empty_row(index, value):
     """A row with nothing solved yet: every result field None, not converged."""
-    row = dict.fromkeys(CSV_FIELDS)
-    row.update(index=index, value=value, converged=False)
-    return row
+    return engine.row_dict(SweepRow, index=index, value=value, converged=False)
 
 
 def solve_member(index, name, value, source, filename, polish=False, tol_km=None,
@@ -442,7 +457,7 @@ def _scan(request):
     """The sweep as the engine runs it: one job per member."""
     values = request.values
     return engine.Scan(
-        journal_name=JOURNAL, header=request.header(), kinds=ROW_KINDS,
+        journal_name=JOURNAL, header=request.header(), kinds=SweepRow,
         count=len(values), function=solve_member,
         jobs={i: ([i], request.member(i)) for i in range(len(values))},
         failed_row=functools.partial(_failed_row, values),
