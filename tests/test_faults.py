@@ -30,7 +30,7 @@ from conftest import PROBLEMS, REPO, TINY_PROBLEM as TINY
 
 def _journal(path, header):
     """The sweep's journal at ``path`` under ``header``, as the sweep's run makes it."""
-    return engine.Journal(path, header, sweep.ROW_KINDS, len(header["values"]),
+    return engine.Journal(path, header, sweep.SweepRow, len(header["values"]),
                           functools.partial(sweep.belongs, header["values"]))
 
 
@@ -683,7 +683,7 @@ def test_a_verified_row_told_before_its_job_ends_is_journaled_and_kept(tmp_path)
         return {**sweep._empty_row(i, HEADER["values"][i]), "converged": True,
                 "tof_days": 300.0, **fields}
 
-    scan = engine.Scan(journal_name=sweep.JOURNAL, header=HEADER, kinds=sweep.ROW_KINDS,
+    scan = engine.Scan(journal_name=sweep.JOURNAL, header=HEADER, row_type=sweep.SweepRow,
                        count=3, function=None, jobs={0: ([0, 1], ()), 1: ([2], ())},
                        failed_row=lambda i, message: row(i, error=message))
     rows = engine._Rows(scan, {}, journal, progress=None)

@@ -94,6 +94,16 @@ def source_digest(source):
     return hashlib.sha256(source.encode()).hexdigest()
 
 
+def header(kind, problem, source, param, values, polish=False, **more):
+    """What identifies a scan of ``kind`` (``"sweep"``) in its journal: ``journal``,
+    ``problem``, ``source_sha256``, ``param``, ``values``, ``polish``, ``tolerance``,
+    then ``more``, in that order (see :class:`Journal`)."""
+    return {"journal": f"esail-opt {kind}", "problem": problem.name,
+            "source_sha256": source_digest(source), "param": param, "values": values,
+            "polish": bool(polish), "tolerance": dataclasses.asdict(problem.tolerance),
+            **more}
+
+
 # ---------------------------------------------------------------- a member's problem
 
 
@@ -129,10 +139,6 @@ def _short(value):
     return repr(value)
 
 
-#: A field's type as the journal's messages name it (a float field is a "num").
-_NAMES = {float: "num"}
-
-
 def _why_not(value, hint):
     """Why the JSON ``value`` cannot fill a field annotated ``hint`` (``int``, ``float``,
     ``bool``, ``str``, ``dict``, ``list``, or one of them Optional: or null), or None.
@@ -140,17 +146,11 @@ def _why_not(value, hint):
     kind = next((t for t in typing.get_args(hint) if t is not type(None)), hint)
     if value is None:
         return None if kind is not hint else "is missing"
-    name = _NAMES.get(kind, kind.__name__)
+    name = "num" if kind is float else kind.__name__  # as the messages have always said
     if isinstance(value, bool) is not (kind is bool) \
             or not isinstance(value, (int, float) if kind is float else kind):
         return f"= {_short(value)} is not a {name}"
     return None
-
-
-def row_dict(row_type, **values):
-    """A row of ``row_type`` as the dict it travels as, every field in declaration order
-    (the CSV's columns and the journal's keys): ``values`` over None."""
-    return {**dict.fromkeys(fields(row_type)), **values}
 
 
 def fields(row_type):
@@ -174,7 +174,7 @@ class Journal:
         What identifies the scan (``journal``, ``problem``, ``source_sha256``, ``param``,
         ``values``, ``polish``, ``tolerance``, and what else its kind adds); a journal
         is resumed only under the same header, every key of it.
-    kinds : type
+    row_type : type
         The rows' frozen dataclass: a row read is checked against its fields'
         annotations (:func:`_why_not`) and kept as a dict of its fields, in their
         order.
@@ -185,9 +185,9 @@ class Journal:
         Rows the grid has.
     """
 
-    def __init__(self, path, header, kinds, count, belongs=None):
+    def __init__(self, path, header, row_type, count, belongs=None):
         self.path = Path(path)
-        self.header, self.kinds, self.count = header, kinds, count
+        self.header, self.row_type, self.count = header, row_type, count
         self.belongs = belongs or (lambda i, row: True)
         self.fresh = False  # started afresh, and no row written yet
 
@@ -333,13 +333,13 @@ class Journal:
             self._fail(number, f"is not JSON ({err.msg}, column {err.colno})")
         if not isinstance(row, dict):
             self._fail(number, "is not a row (a JSON object)")
-        for field, hint in typing.get_type_hints(self.kinds).items():
+        for field, hint in typing.get_type_hints(self.row_type).items():
             why = _why_not(row.get(field), hint)
             if why is not None:
                 self._fail(number, f"is not a valid row: {field} {why}")
         if row.get("verified") and row.get("tof_days") is None:
             self._fail(number, "is not a valid row: verified without a tof_days")
-        return {field: row.get(field) for field in fields(self.kinds)}
+        return {field: row.get(field) for field in fields(self.row_type)}
 
 
 # ---------------------------------------------------------------- a run
@@ -355,7 +355,7 @@ class Scan:
         The journal's file name in the output folder (``sweep.jsonl``).
     header : dict
         What identifies the scan in its journal (see :class:`Journal`).
-    kinds : type
+    row_type : type
         The rows' frozen dataclass (see :class:`Journal`).
     count : int
         The rows of the grid.
@@ -375,7 +375,7 @@ class Scan:
 
     journal_name: str
     header: dict
-    kinds: type
+    row_type: type
     count: int
     function: object
     jobs: dict
@@ -398,7 +398,7 @@ class Scan:
         """Its journal in ``out_dir``, or None without a folder."""
         if out_dir is None:
             return None
-        return Journal(Path(out_dir) / self.journal_name, self.header, self.kinds,
+        return Journal(Path(out_dir) / self.journal_name, self.header, self.row_type,
                        self.count, self.belongs)
 
 

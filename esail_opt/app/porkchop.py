@@ -211,9 +211,10 @@ def cell_problem(problem, grid, index):
 
 def _row(index, grid, cell=None, error=None):
     jd, tof = grid.cell(index)
-    row = engine.row_dict(PorkchopRow, index=index, departure_date=dates.iso_from_jd(jd),
-                          departure_jd=jd, tof_days_grid=tof, converged=False,
-                          verified=False, no_sail=False, error=error)
+    row = dict.fromkeys(engine.fields(PorkchopRow))
+    row.update(index=index, departure_date=dates.iso_from_jd(jd), departure_jd=jd,
+               tof_days_grid=tof, converged=False, verified=False, no_sail=False,
+               error=error)
     if cell is None:
         return row
     result = cell.result
@@ -417,14 +418,6 @@ class _Request:
     tol_m_s: object
     cells_out: object = None
 
-    def header(self):
-        """What identifies this porkchop in its journal."""
-        grid = self.grid
-        return {"journal": "esail-opt porkchop", "problem": self.problem.name,
-                "source_sha256": engine.source_digest(self.source), "param": self.param,
-                "values": [float(v) for v in grid.departures] + list(grid.tofs or []),
-                "polish": False, "tolerance": dataclasses.asdict(self.problem.tolerance)}
-
 
 def _request(problem_file, depart, tof, workers, scheduler, retries, resume, out_dir,
              tol_km, tol_m_s, cells_out=None):
@@ -463,7 +456,9 @@ def _scan(request):
         return cells, (cells, *common)
 
     return engine.Scan(
-        journal_name=JOURNAL, header=request.header(), kinds=PorkchopRow,
+        journal_name=JOURNAL, row_type=PorkchopRow,
+        header=engine.header("porkchop", request.problem, request.source, request.param,
+                             [float(v) for v in grid.departures] + list(grid.tofs or [])),
         count=int(np.prod(grid.shape)), function=solve_job,
         jobs={j: (job, (job, *common)) for j, job in enumerate(request.jobs)},
         failed_row=lambda i, message: _row(i, grid, error=message), part=part)

@@ -99,8 +99,6 @@ class SweepRow:
 
 
 CSV_FIELDS = engine.fields(SweepRow)
-# The name tests/test_faults.py still builds its journals with.
-ROW_KINDS = SweepRow
 
 #: The journal of finished members, in the sweep's output folder.
 JOURNAL = "sweep.jsonl"
@@ -188,7 +186,7 @@ def variant(problem, name, value):
 
 def _empty_row(index, value):
     """A row with nothing solved yet: every result field None, not converged."""
-    return engine.row_dict(SweepRow, index=index, value=value, converged=False)
+    return {**dict.fromkeys(CSV_FIELDS), "index": index, "value": value, "converged": False}
 
 
 def solve_member(index, name, value, source, filename, polish=False, tol_km=None,
@@ -408,15 +406,6 @@ class _Request:
         return (self.name, self.values[i], self.source, Path(self.problem_file).name,
                 self.polish, self.tol_km, self.tol_m_s, self.robust_runs)
 
-    def header(self):
-        """What identifies this sweep in its journal."""
-        return {"journal": "esail-opt sweep", "problem": self.problem.name,
-                "source_sha256": engine.source_digest(self.source), "param": self.name,
-                "values": self.values, "polish": bool(self.polish),
-                "tolerance": dataclasses.asdict(self.problem.tolerance),
-                # Only where flown, so a journal written without it still resumes.
-                **({"robust_runs": self.robust_runs} if self.robust_runs else {})}
-
 
 def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, polish,
            tol_km, tol_m_s, robust_runs):
@@ -446,21 +435,18 @@ def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, po
                     Path(problem_file).read_text(), polish, tol_km, tol_m_s, int(robust_runs))
 
 
-def _failed_row(values, i, message):
-    """The row of member ``i`` whose worker did not return one."""
-    row = _empty_row(i, values[i])
-    row["error"] = message
-    return row
-
-
 def _scan(request):
     """The sweep as the engine runs it: one job per member."""
     values = request.values
+    # robust_runs only where flown, so a journal written without it still resumes.
+    robust = {"robust_runs": request.robust_runs} if request.robust_runs else {}
     return engine.Scan(
-        journal_name=JOURNAL, header=request.header(), kinds=SweepRow,
+        journal_name=JOURNAL, row_type=SweepRow,
+        header=engine.header("sweep", request.problem, request.source, request.name, values,
+                             request.polish, **robust),
         count=len(values), function=solve_member,
         jobs={i: ([i], request.member(i)) for i in range(len(values))},
-        failed_row=functools.partial(_failed_row, values),
+        failed_row=lambda i, message: {**_empty_row(i, values[i]), "error": message},
         belongs=functools.partial(belongs, values))
 
 
