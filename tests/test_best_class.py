@@ -91,7 +91,7 @@ def test_the_summary_names_each_start_of_a_count_and_what_was_not_flown():
     chosen start first and the other as another start, and a class with a point that
     was not flown says so (its ``verified`` is None), as a projected one does."""
     from esail_opt.app.report import _class_lines
-    from esail_opt.app.solution import ClassLooked
+    from esail_opt.app.solution_parts import ClassLooked
 
     def looked(k, tof, verified, chosen, projected=False):
         return ClassLooked(revolutions_k=k, label="", status="Solve_Succeeded", iterations=9,

@@ -1,5 +1,5 @@
 """A pipeline :class:`~esail_opt.optimisation.pipeline.Run` in the boundary's units: the
-:class:`~esail_opt.app.solution.Solution` it is written down as.
+:class:`~esail_opt.app.solution.Solution`'s fields it is written down as.
 
 Canonical units become the file's (au, km/s, km, m/s, days, degrees), the problem's
 parts their kind and fields, the dates ISO 8601 (TDB).  Nothing here solves or flies:
@@ -12,9 +12,9 @@ import math
 import numpy as np
 
 from esail_opt.app import schema
-from esail_opt.app.solution import (Bounds, ClassLooked, DepartureBody, Flight,
-                                    NearestFeasible, Part, Polish, Samples, Schedule,
-                                    Segment, Settings, Solution, Stage, State, TargetBody)
+from esail_opt.app.solution_parts import (Bounds, ClassLooked, DepartureBody, Flight,
+                                          NearestFeasible, Part, Polish, Samples, Schedule,
+                                          Segment, Settings, Stage, State, TargetBody)
 from esail_opt.bodies import dates, lookup
 from esail_opt.optimisation.pipeline import Outcome
 from esail_opt.optimisation.nodes import node_cartesian
@@ -285,11 +285,10 @@ def _closed_form_fields(run):
         **calendar(problem, result, check))
 
 
-def solution_of(run):
-    """The :class:`Solution` of a pipeline Run."""
-    return Solution(
-        schema_version=schema.SCHEMA_VERSION, **_closed_form_fields(run),
-        **_polish_fields(run),
-        classes=tuple(_class_looked(run.problem, c) for c in run.classes),
-        classes_skipped=run.classes_skipped,
-        nearest_feasible=_nearest_feasible(run.nearest_feasible))
+def solution_fields(run):
+    """The keyword arguments of the :class:`~esail_opt.app.solution.Solution` of a
+    pipeline Run, but its schema version."""
+    return dict(**_closed_form_fields(run), **_polish_fields(run),
+                classes=tuple(_class_looked(run.problem, c) for c in run.classes),
+                classes_skipped=run.classes_skipped,
+                nearest_feasible=_nearest_feasible(run.nearest_feasible))

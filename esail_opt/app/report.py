@@ -77,7 +77,7 @@ def _class_lines(sol):
 
 
 def nearest_feasible_line(n):
-    """One line on a :class:`~esail_opt.app.solution.NearestFeasible`: its date, time of
+    """One line on a :class:`~esail_opt.app.solution_parts.NearestFeasible`: its date, time of
     flight and a_c."""
     date = "" if n.departure_date is None else f" departing {n.departure_date}"
     return (f"the shortest flight found feasible{date} takes {n.tof_days:.1f} d at a_c "
