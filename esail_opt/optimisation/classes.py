@@ -8,14 +8,17 @@ best first until one verifies (:func:`finish_best_first`).
 
 import dataclasses
 import math
+import threading
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-from esail_opt.optimisation import multistart
+import casadi as ca
+
+from esail_opt.optimisation import ipopt, multistart
 from esail_opt.optimisation.ipopt import AT_CAP, STOPPED, NLPResult
 from esail_opt.optimisation.problem import Problem
 from esail_opt.optimisation.seed import initial_guess
-from esail_opt.optimisation.transcription import Transcription
+from esail_opt.optimisation.transcription import Transcription, segment_threads
 
 __all__ = ["Candidate", "ClassSearch", "Ranked", "Undecided", "finish_best_first"]
 
@@ -168,7 +171,9 @@ class ClassSearch:
         whole factors from one k to the next, and the seed's k is only what a constant
         pitch winds.  Each probe is capped (``multistart.probe_cap``) and stopped when
         hopeless (``multistart.hopeless_checkpoint``); with a lift, one that ends at its
-        cap, neither converged nor hopeless, raises :class:`Undecided`."""
+        cap, neither converged nor hopeless, raises :class:`Undecided`.  Where two cores
+        allow (:func:`_runs_ahead`), the count above the seed's is probed in a thread
+        while the search goes down (:class:`_Ahead`), to the same candidates."""
         # The found solve's own iterations, not the run's (other starts before it).
         own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
         searched = [Candidate(model, f"the seed's class (k = {result.revolutions_k})", own, tr)]
@@ -179,20 +184,41 @@ class ClassSearch:
         real = getattr(model.target, "body", None) is not None
         cap = multistart.probe_cap(own.iterations)
 
-        def probe(k, start=None):
-            best = min(c.result.objective for c in searched if c.result.outcome.found)
-            checkpoint = multistart.hopeless_checkpoint(own.iterations, best)
-            self.say(f"{model.name}: probing the turn count k = {k}"
-                     + ("" if start is None else " again from a second start")
-                     + f" ({cap} Ipopt iterations at most unless nearly feasible"
+        k0 = result.revolutions_k
+        ahead = []  # the probe of k0 + 1, run in a thread while the search goes down
+
+        def line(k, checkpoint, how=""):
+            self.say(f"{model.name}: probing the turn count k = {k}{how}"
+                     f" ({cap} Ipopt iterations at most unless nearly feasible"
                      + ("" if checkpoint is None else
                         f", stopped at {checkpoint[0]} if hopeless by then") + ")")
-            if start is None:
-                other, other_tr, label = multistart.probe_rendezvous_class(
-                    model, k, cap, self.say, checkpoint, seeds)
+
+        def probe_class(k, checkpoint):
+            return multistart.probe_rendezvous_class(model, k, cap, self.say, checkpoint,
+                                                     seeds)
+
+        def best_found():
+            return min(c.result.objective for c in list(searched) if c.result.outcome.found)
+
+        def probe(k, start=None):
+            checkpoint = multistart.hopeless_checkpoint(own.iterations, best_found())
+            made = None
+            if start is not None:
+                line(k, checkpoint, " again from a second start")
+                made = multistart.probe_start(model, start, cap, self.say, checkpoint)
+            elif ahead and ahead[0].k == k:
+                made = ahead.pop().result(checkpoint)
+                if made is None:
+                    line(k, checkpoint, " again: the best found since would have stopped "
+                                        "it sooner")
             else:
-                other, other_tr, label = multistart.probe_start(model, start, cap, self.say,
-                                                                checkpoint)
+                line(k, checkpoint)
+                if k == k0 - 1 and _runs_ahead() and (real or k0 + 1 >= 0):
+                    line(k0 + 1, checkpoint, " alongside")
+                    ahead.append(_Ahead(k0 + 1, probe_class, own.iterations, best_found))
+            if made is None:
+                made = probe_class(k, checkpoint)
+            other, other_tr, label = made
             searched.append(Candidate(model, label, other, other_tr,
                                       model.three_d() and not other.outcome.found))
             if self.lift is not None:
@@ -209,8 +235,13 @@ class ClassSearch:
                 return searched[-1]
             return multistart.NO_BETTER if other.status == STOPPED else None
 
-        best, _ = multistart.descend_turns(result.revolutions_k, searched[0], solve_class,
-                                           lambda a, b: a.objective < b.objective, gaps=1)
+        try:
+            best, _ = multistart.descend_turns(k0, searched[0], solve_class,
+                                               lambda a, b: a.objective < b.objective,
+                                               gaps=1)
+        finally:
+            for left in ahead:  # the search ended before it reached k0 + 1
+                left.call_off()
         # One count holds several local optima: the best one is solved from a second
         # start as well, where another constant pitch winds its count.
         k = best.result.revolutions_k
@@ -247,6 +278,76 @@ class ClassSearch:
         best = min(solved.values(), key=lambda c: c.objective)
         multistart.descend_turns(best.result.revolutions_k, best, solve_class,
                                  lambda a, b: a.objective < b.objective)
+
+
+def _runs_ahead():
+    """Whether a class probe may run in a thread beside the search's: with two cores
+    or more for this process, and a CasADi whose symbolics are thread-safe (Ipopt then
+    runs without Python's lock, so two probes take the time of one)."""
+    return (segment_threads() > 1
+            and "CASADI_WITH_THREADSAFE_SYMBOLICS" in ca.CasadiMeta.compiler_flags())
+
+
+class _Ahead:
+    """The probe of count ``k``, ``probe(k, checkpoint)``, started in a thread of its
+    own while the search goes down; its hopeless test (``multistart.hopeless_checkpoint``
+    after a solve of ``iterations``) judges it against ``best()``, the best found so far
+    when its checkpoint comes.
+
+    The search asks for it when its turn comes (:meth:`result`), with the checkpoint it
+    has then, whose best may be lower still.  A hopeless test only stops more against a
+    lower best, so the probe run ahead is the one the search would have made unless, at
+    a checkpoint it passed, the test would now have stopped it; that is checked on the
+    objective and violation it had there, and such a probe is called off and made
+    again.  So the search's candidates, and their order, are those of probing one count
+    after another.
+    """
+
+    def __init__(self, k, probe, iterations, best):
+        self.k, self.seen = k, []  # (objective, violation, stopped) at each checkpoint
+        self._stop, self._made = threading.Event(), {}
+        start = multistart.hopeless_checkpoint(iterations, best())
+
+        def test(objective, violation):
+            now = multistart.hopeless_checkpoint(iterations, best())
+            stopped = now is not None and bool(now[1](objective, violation))
+            self.seen.append((objective, violation, stopped))
+            return stopped
+
+        def run():
+            ipopt.STOP.set(self._stop)  # this thread's own Ipopt runs only
+            try:
+                self._made["value"] = probe(k, None if start is None else (start[0], test))
+            except BaseException as err:  # raised where the search asks for it
+                self._made["error"] = err
+
+        self._thread = threading.Thread(target=run, name=f"esail_opt probe k = {k}")
+        self._thread.start()
+
+    def result(self, checkpoint):
+        """The probe's (NLPResult, Transcription, label), or None if ``checkpoint``
+        would have stopped it where it went on (it is then called off)."""
+        def stale():
+            return checkpoint is not None and any(
+                checkpoint[1](objective, violation) and not stopped
+                for objective, violation, stopped in list(self.seen))
+
+        if stale():
+            self.call_off()
+            return None
+        try:
+            self._thread.join()
+        except BaseException:  # Ctrl-C or SIGTERM while waiting: stop it too
+            self.call_off()
+            raise
+        if "error" in self._made:
+            raise self._made["error"]
+        return None if stale() else self._made["value"]
+
+    def call_off(self):
+        """Stop the probe at its next Ipopt iteration, and wait for its thread."""
+        self._stop.set()
+        self._thread.join()
 
 
 def finish_best_first(ranked, finish):

@@ -5,6 +5,7 @@ Every result carries Ipopt's ``return_status`` and its :class:`~.outcome.Outcome
 also true for an acceptable level, so it is never read).
 """
 
+import contextvars
 import dataclasses
 import time
 from dataclasses import dataclass
@@ -148,6 +149,10 @@ STOPPED = "User_Requested_Stop"
 #: decided its class.
 AT_CAP = "Maximum_Iterations_Exceeded"
 
+#: A ``threading.Event`` that stops, at their next iteration, the Ipopt runs started in
+#: this context (a thread's own): how a probe run in a thread of its own is called off
+#: (``classes.ClassSearch``).  None: only a signal stops them.
+STOP = contextvars.ContextVar("esail_opt_ipopt_stop", default=None)
 #: Times a solve whose clocks reached their box is taken on from them wrapped
 #: (:func:`solve_transcription`).
 CLOCK_RESTARTS = 3
@@ -175,6 +180,7 @@ class _Monitor(ca.Callback):
         self.iteration = 0
         self.last = time.monotonic()
         self.held = SignalsHeld()
+        self.stop = STOP.get()
         self.construct("monitor", {})
 
     def get_n_in(self):
@@ -212,7 +218,8 @@ class _Monitor(ca.Callback):
         give_up = False
         if self.checkpoint is not None and self.iteration == self.checkpoint[0]:
             give_up = bool(self.checkpoint[1](float(args[1]), self._violation(args)))
-        return [1 if self.held.interrupted or give_up else 0]
+        called_off = self.stop is not None and self.stop.is_set()
+        return [1 if self.held.interrupted or give_up or called_off else 0]
 
     def __enter__(self):
         self.held.__enter__()
