@@ -5,7 +5,7 @@ allowed range.  :class:`NoStart` is a valid problem that no start can be flown f
 (exit 1).  :class:`OutputError` is an output folder or file that cannot be
 written (exit 3).  :class:`FigureError` is a figure that could not be drawn while the
 rest of its set was written (exit 4).  :class:`Terminated` is SIGTERM, raised where Python would raise
-KeyboardInterrupt for SIGINT (exit 143; :mod:`esail_opt.signals` raises it).  They live
+KeyboardInterrupt for SIGINT (exit 143; :mod:`esail_opt.runtime.signals` raises it).  They live
 in the lowest layer because every layer may raise them.
 """
 

@@ -197,7 +197,7 @@ def test_bench_batch_block_layout(tmp_path):
     tight = next(p for p in block["cvodes_points"] if p["tolerance"] == 1e-12)
     assert tight["median_final_error_km"] < 1.0
     path = tmp_path / "batch.json"
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     write_json(path, {"batch": block})
     assert set(json.loads(path.read_text())["batch"]) >= {"cases", "ratio_tight"}

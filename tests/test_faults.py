@@ -22,7 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from esail_opt.app import cli, engine, files, parallel, sweep
+from esail_opt.app import cli, engine, sweep
+from esail_opt.runtime import files, pool
 from esail_opt.errors import InputError, OutputError
 
 from conftest import PROBLEMS, REPO, TINY_PROBLEM as TINY
@@ -385,16 +386,16 @@ def test_a_dask_client_closed_mid_run_ends_the_run_as_cluster_lost(tmp_path):
         def submit(self, *args):
             raise RuntimeError("Client is closed. Can't send update-graph message.")
 
-    runner = parallel._Runner(print, {0: ()}, None, None, 1, ClosedClient(), 0,
+    runner = pool._Runner(print, {0: ()}, None, None, 1, ClosedClient(), 0,
                               "tcp://127.0.0.1:1")
-    with pytest.raises(parallel.ClusterLost, match="lost the Dask scheduler"):
+    with pytest.raises(pool.ClusterLost, match="lost the Dask scheduler"):
         runner._submit([0], str(tmp_path))
 
 
 def _tells_twice(i):
     """A pool job that tells two items before it returns (a scan's forward pass)."""
-    parallel.tell(("first", i))
-    parallel.tell(("second", i))
+    pool.tell(("first", i))
+    pool.tell(("second", i))
     return ("result", i)
 
 
@@ -402,7 +403,7 @@ def test_a_pool_job_tells_its_news_before_its_result():
     """What a local pool's job tells reaches ``on_news`` in order, before its result;
     outside a pool, telling is nothing."""
     heard = []
-    parallel.run(_tells_twice, {0: (), 1: ()}, lambda i, value: heard.append(value),
+    pool.run(_tells_twice, {0: (), 1: ()}, lambda i, value: heard.append(value),
                  lambda i, message: heard.append(("failed", message)), workers=1,
                  on_news=heard.append)
     assert sorted(heard) == sorted((what, i) for i in (0, 1)
@@ -492,7 +493,8 @@ def test_outputs_follow_the_umask(tmp_path):
     code = textwrap.dedent(f"""
         import os
         os.umask(0o027)
-        from esail_opt.app.files import publish, write_json, atomic_path
+        from esail_opt.app.outputs import write_json
+        from esail_opt.runtime.files import atomic_path, publish
         with publish({str(tmp_path / 'out')!r}) as stage:
             write_json(stage / "a.json", {{"x": 1}})
             (stage / "b.csv").write_text("b")
@@ -507,7 +509,7 @@ def test_outputs_follow_the_umask(tmp_path):
 
 WRITER = textwrap.dedent("""
     import sys, time
-    from esail_opt.app.files import publish
+    from esail_opt.runtime.files import publish
     target, run_id = sys.argv[1], sys.argv[2]
     print("start", flush=True)
     with publish(target, family=[f"part{i}.txt" for i in range(8)]) as stage:
@@ -730,8 +732,8 @@ def test_the_command_returns_mains_status(tmp_path):
 def test_a_killed_runs_scratch_folder_is_removed_by_the_next_run(tmp_path):
     """SIGKILL leaves a sweep's scratch folder behind; the next run removes it, and
     leaves those of live runs and folders it cannot attribute alone."""
-    from esail_opt import processes
-    from esail_opt.app.parallel import SCRATCH_PREFIX
+    from esail_opt.runtime import processes
+    from esail_opt.runtime.pool import SCRATCH_PREFIX
 
     ended = subprocess.Popen([sys.executable, "-c", "pass"])
     ended.wait()  # a pid that no longer exists

@@ -17,7 +17,7 @@ import sys
 import pytest
 
 import esail_opt as eo
-from esail_opt.app import files
+from esail_opt.runtime import files
 from esail_opt.errors import InputError
 from esail_opt.optimisation.problem_file import load_problem
 

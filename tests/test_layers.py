@@ -2,7 +2,8 @@
 
 Every module of the package is parsed (not imported), and every ``import`` in it,
 at the top or inside a function, is checked against the layer order:
-errors and processes, physics, bodies, propagation, optimisation, app, bench.
+errors and the runtime floor (processes, signals, files, the pool, the cache),
+physics, bodies, propagation, optimisation, app, bench.
 """
 
 import ast
@@ -13,7 +14,7 @@ from conftest import REPO
 
 PACKAGE = REPO / "esail_opt"
 #: Layer of each part of the package, lowest first.
-LAYERS = {"errors": 0, "processes": 0, "physics": 1, "bodies": 2, "propagation": 3,
+LAYERS = {"errors": 0, "runtime": 0, "physics": 1, "bodies": 2, "propagation": 3,
           "optimisation": 4, "app": 5, "bench": 6}
 
 

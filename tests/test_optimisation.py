@@ -432,11 +432,13 @@ def test_a_pool_worker_builds_its_nlps_on_the_share_it_was_given():
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    from esail_opt.app import parallel
+    from esail_opt.app import engine
+    from esail_opt.runtime import pool
 
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=parallel._worker_init, initargs=(8,)) as pool:
-        assert pool.submit(_worker_map_threads, 0).result() == 8
+                             initializer=pool._worker_init,
+                             initargs=(8, None, (engine.worker_setup, ((),)))) as workers:
+        assert workers.submit(_worker_map_threads, 0).result() == 8
     assert _map_threads(transcribe(small_problem())) == max(1, min(4, os.cpu_count() or 1))
 
 

@@ -1,7 +1,6 @@
 """The solar wind as it blows: the thrust factor's law, the Monte Carlo of a schedule,
 and guidance, against answers computed apart from them."""
 
-import json
 import math
 from pathlib import Path
 

@@ -22,7 +22,8 @@ import time
 import numpy as np
 import pytest
 
-from esail_opt.app import cli, engine, parallel, sweep
+from esail_opt.app import cli, engine, sweep
+from esail_opt.runtime import pool
 from esail_opt.errors import InputError
 
 from conftest import REPO, TINY_PROBLEM
@@ -61,16 +62,16 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
                      "--out", str(out)]) == 0
     err = capsys.readouterr().err
     assert len([line for line in err.splitlines() if line.startswith("esail-opt sweep: [")]) == 3
-    pool = json.loads((out / "sweep.json").read_text())
+    pooled = json.loads((out / "sweep.json").read_text())
     assert (out / "sweep.png").stat().st_size > 10_000
     csv_lines = (out / "sweep.csv").read_text().splitlines()
     assert csv_lines[0].startswith("index,ac_mm_s2,converged,verified,status,tof_days")
     assert len(csv_lines) == 1 + len(GRID)
 
     # Rows in grid order whatever finished first.
-    assert [row["value"] for row in pool["rows"]] == GRID
-    others = pool["rows"]
-    assert pool["failed"] == 0
+    assert [row["value"] for row in pooled["rows"]] == GRID
+    others = pooled["rows"]
+    assert pooled["failed"] == 0
     for row in others:
         assert row["converged"] and row["error"] is None
         assert row["status"] == "Solve_Succeeded"
@@ -79,7 +80,7 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
         assert 400 < row["tof_days"] < 1200
         assert row["target_miss_r_km"] is not None and math.isfinite(row["target_miss_r_km"])
     # The objective panel in days: a minimum-time objective is then the time of flight.
-    panel = sweep.figure(pool).axes[1]
+    panel = sweep.figure(pooled).axes[1]
     assert panel.get_ylabel() == "objective [d]"
     assert np.allclose(panel.get_lines()[0].get_ydata(), [r["tof_days"] for r in others],
                        rtol=1e-9)
@@ -89,7 +90,7 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
                       dashboard_address=None) as cluster:
         dask = sweep.run(tiny, PARAM, scheduler=cluster.scheduler_address)
     assert dask["executor"].startswith("dask")
-    assert _numbers(dask["rows"]) == _numbers(pool["rows"])
+    assert _numbers(dask["rows"]) == _numbers(pooled["rows"])
 
     # And the same numbers as solving that member here, with no executor at all.
     import esail_opt as eo
@@ -98,8 +99,8 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
     problem = load_problem(tiny)
     direct = eo.solve(dataclasses.replace(problem, sail=dataclasses.replace(problem.sail,
                                                                             ac_mm_s2=1.0)))
-    assert pool["rows"][1]["tof_days"] == direct["tof_days"]
-    assert pool["rows"][1]["objective"] == direct["objective"]
+    assert pooled["rows"][1]["tof_days"] == direct["tof_days"]
+    assert pooled["rows"][1]["objective"] == direct["objective"]
 
 
 def test_variant_maps_names_to_fields(tiny):
@@ -325,7 +326,7 @@ def test_member_lost_every_time_gets_its_own_row(venus, tmp_path, monkeypatch):
     own row (not journaled, so --resume would try it again); the other member converges."""
     path, _ = venus
     # Submitted by name, so the spawned workers import this test module to run it.
-    monkeypatch.setattr(parallel, "_pool_member", _crashing_pool_member)
+    monkeypatch.setattr(pool, "_pool_member", _crashing_pool_member)
     out = tmp_path / "out"
     result = sweep.run(path, "ac_mm_s2=0.5:1:2", workers=1, out_dir=out, retries=2)
     first, second = result["rows"]

@@ -13,7 +13,7 @@ import sys
 
 from esail_opt.errors import (FigureError, InputError, NoStart, OutputError, Terminated,
                               number_range)
-from esail_opt.signals import terminate_as_interrupt
+from esail_opt.runtime.signals import terminate_as_interrupt
 
 EXIT_INPUT = 2
 #: An output that cannot be written (a full disk, a read-only folder): not 1, which
@@ -112,7 +112,7 @@ def _add_propagate(sub):
 
 def _run_propagate(args):
     from esail_opt.app import propagate
-    from esail_opt.app.files import check_output_file
+    from esail_opt.runtime.files import check_output_file
 
     values = {field: _value_or_range(option, getattr(args, option))
               for field, option in propagate.GRID_FIELDS.items()}
@@ -130,7 +130,7 @@ def _run_propagate(args):
 
 def _run_propagate_one(args, case):
     from esail_opt.app import propagate
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     print(f"propagating {args.years:g} years at alpha = {case.alpha_deg:g} deg "
           f"({args.method}) ...", file=sys.stderr)
@@ -160,7 +160,8 @@ def _run_propagate_grid(args, values):
     from pathlib import Path
 
     from esail_opt.app import propagate
-    from esail_opt.app.files import atomic_path, save_figure, write_json
+    from esail_opt.app.outputs import save_figure, write_json
+    from esail_opt.runtime.files import atomic_path
 
     if args.method != "both":
         raise InputError(f"method = {args.method!r} with ranges: a grid flies both; "
@@ -212,7 +213,7 @@ class _FigureNames:
 
 
 def _run_reproduce(args):
-    from esail_opt.app.files import check_output_dir
+    from esail_opt.runtime.files import check_output_dir
 
     out = check_output_dir(_out(args))  # before the figure's work
     progress = progress_printer("reproduce")
@@ -307,7 +308,7 @@ def _run_solve(args):
     from pathlib import Path
 
     from esail_opt.app import report, solution
-    from esail_opt.app.files import check_output_dir
+    from esail_opt.runtime.files import check_output_dir
     from esail_opt.app.solution_files import SOLUTION_FILES
 
     problem = _load(args)
@@ -446,7 +447,7 @@ def _run_search(args):
     from pathlib import Path
 
     from esail_opt.app import search
-    from esail_opt.app.files import check_output_dir
+    from esail_opt.runtime.files import check_output_dir
 
     out = _out(args)
     problem = _load(args)
@@ -617,7 +618,7 @@ def _run_porkchop(args):
     from pathlib import Path
 
     from esail_opt.app import porkchop
-    from esail_opt.app.files import check_output_dir
+    from esail_opt.runtime.files import check_output_dir
     from esail_opt.optimisation.problem_file import load_problem
 
     out = _out(args) or Path("results") / f"{load_problem(args.problem_file).name}_porkchop"
@@ -713,7 +714,7 @@ def _run_robust(args):
     from pathlib import Path
 
     from esail_opt.app import robust
-    from esail_opt.app.files import check_output_dir
+    from esail_opt.runtime.files import check_output_dir
     from esail_opt.app.solution import Solution
     from esail_opt.propagation.solar_wind import SolarWind
 
@@ -818,7 +819,7 @@ def run_command(label, run, args):
         The parsed options, passed to ``run``.
     """
     _show_library_log()
-    from esail_opt.app.parallel import ClusterLost
+    from esail_opt.runtime.pool import ClusterLost
 
     try:
         with terminate_as_interrupt():

@@ -2,7 +2,7 @@
 
 A sweep (:mod:`esail_opt.app.sweep`) and a porkchop (:mod:`esail_opt.app.porkchop`)
 only describe their members and their outputs, as a :class:`Scan`; this module runs
-them.  The members' jobs run on :mod:`esail_opt.app.parallel` (a local process pool or
+them.  The members' jobs run on :mod:`esail_opt.runtime.pool` (a local process pool or
 Dask, the retries of lost workers, the stop on Ctrl-C or SIGTERM), and every row that
 ends is appended at once to the scan's journal in its output folder, so that
 ``--resume`` runs only the rows the journal lacks.
@@ -33,11 +33,12 @@ import time
 import typing
 from pathlib import Path
 
-from esail_opt import processes
-from esail_opt.app import parallel
-from esail_opt.app.files import atomic_path
+from esail_opt.runtime import processes
+from esail_opt.runtime import pool
+from esail_opt.runtime.files import atomic_path
 from esail_opt.app.record import plain
 from esail_opt.errors import InputError, OutputError
+from esail_opt.optimisation import transcription
 from esail_opt.propagation import compiled
 
 #: Most local worker processes a scan takes (``--workers``).
@@ -47,6 +48,14 @@ MEMBER_PREFIX = "esail_member_"
 
 
 # ---------------------------------------------------------------- the options
+
+
+def worker_setup(cores, quiet):
+    """How a local pool's worker computes (the pool's ``setup``): its NLPs' segments
+    on its share of the cores (``transcription.share_cores``), and without repeating
+    what the compile cache said in the parent (``quiet``)."""
+    transcription.share_cores(cores)
+    compiled.said_already(quiet)
 
 
 def check_workers(workers):
@@ -420,7 +429,7 @@ class Outcome:
 
 class _Rows:
     """The scan's rows, filled in as its jobs end, each journaled at once, and reported
-    as soon as a job tells of them (:func:`esail_opt.app.parallel.tell`).  A verified
+    as soon as a job tells of them (:func:`esail_opt.runtime.pool.tell`).  A verified
     row a job tells of is journaled at once too, so that an interrupted job keeps it;
     the job's end replaces it."""
 
@@ -477,7 +486,7 @@ class _Rows:
 
 
 def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
-        retries=parallel.RETRIES, progress=None):
+        retries=pool.RETRIES, progress=None):
     """Run the jobs of ``scan`` that the journal lacks; their rows, journaled.
 
     ``out_dir`` is the journal's folder (already checked; None keeps no journal);
@@ -493,7 +502,7 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
     InputError
         A journal ``resume`` cannot continue, or an unreachable scheduler: before the
         journal changes.
-    esail_opt.app.parallel.ClusterLost
+    esail_opt.runtime.pool.ClusterLost
         The Dask cluster was lost (one line saying what the journal keeps).
     KeyboardInterrupt
         After stopping the workers; the journal holds every row that ended.
@@ -505,18 +514,18 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
     executor = (f"dask distributed at {scheduler}" if scheduler is not None
                 else f"process pool, {workers} worker{'' if workers == 1 else 's'}")
     start = time.perf_counter()
-    with parallel.session(scheduler) as client:
+    with pool.session(scheduler) as client:
         if journal is not None:
             journal.start(kept)  # the run is accepted: only now does the journal change
         # Said once here, not once per worker.
         quiet = compiled.check_cache() if client is None else ()
         try:
-            lost = parallel.run(scan.function, {j: job[1] for j, job in todo.items()},
-                                rows.finished, rows.unfinished, workers=workers,
-                                client=client, address=scheduler, retries=retries,
-                                quiet=quiet, on_news=rows.news)
-        except parallel.ClusterLost as err:
-            raise parallel.ClusterLost(f"{err}; {_kept(rows, journal)}") from None
+            lost = pool.run(scan.function, {j: job[1] for j, job in todo.items()},
+                            rows.finished, rows.unfinished, workers=workers,
+                            client=client, address=scheduler, retries=retries,
+                            setup=(worker_setup, (quiet,)), on_news=rows.news)
+        except pool.ClusterLost as err:
+            raise pool.ClusterLost(f"{err}; {_kept(rows, journal)}") from None
         except KeyboardInterrupt:
             if journal is not None:  # said before the command's own "interrupted" line
                 logging.getLogger("esail_opt").warning("esail-opt: %s", _kept(rows, journal))

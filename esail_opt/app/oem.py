@@ -27,7 +27,7 @@ Decisions:
 - **Comments.**  ``COMMENT`` lines after the version line say what was flown and how
   well: the reader of the message alone learns the model, the verdict and the miss.
 - **Whole or nothing.**  The file is written under a temporary name beside ``path`` and
-  renamed onto it (:func:`esail_opt.app.files.atomic_path`): a reader sees the old file
+  renamed onto it (:func:`esail_opt.runtime.files.atomic_path`): a reader sees the old file
   or the new one.
 
 The ``oem`` package (and the astropy it reads times with) is imported on first use, not
@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from esail_opt.app.files import atomic_path
+from esail_opt.runtime.files import atomic_path
 from esail_opt.bodies.dates import jd_from_iso
 from esail_opt.bodies.ephemeris import icrf_from_ecliptic
 from esail_opt.errors import InputError

@@ -43,7 +43,9 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import LogFormatterSciNotation
 
-from esail_opt.app.files import atomic_path, figure_bytes
+from esail_opt.app.outputs import figure_bytes
+
+from esail_opt.runtime.files import atomic_path
 from esail_opt.physics import thrust
 
 

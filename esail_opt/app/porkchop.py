@@ -32,9 +32,11 @@ from typing import Optional
 
 import numpy as np
 
-from esail_opt.app import engine, parallel
-from esail_opt.app.files import check_output_dir, csv_text, write_table_set
-from esail_opt.app.parallel import first_line
+from esail_opt.app import engine
+from esail_opt.app.outputs import csv_text, write_table_set
+from esail_opt.runtime.files import check_output_dir
+from esail_opt.runtime import pool
+from esail_opt.runtime.pool import first_line
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import MAX_RANGE_COUNT, InputError, check_range, number_range
 from esail_opt.optimisation import edge, pipeline, scan
@@ -270,7 +272,7 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
         # Each cell is told of as the forward pass ends it (the progress line); the
         # rows returned, after the repair pass, are the ones journaled.
         cells = scan.scan(problems, neighbours=grid.neighbours(indices),
-                          on_cell=lambda k, cell: parallel.tell(_row(indices[k], grid, cell)))
+                          on_cell=lambda k, cell: pool.tell(_row(indices[k], grid, cell)))
         rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
     except Exception as err:  # the job's cells all say why
         return [_row(i, grid, error=first_line(err)) for i in indices]
@@ -384,7 +386,7 @@ def check(problem, grid):
 
 
 def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=None,
-        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES,
+        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=pool.RETRIES,
         cells_out=None):
     """Scan ``problem_file`` over ``depart`` (and ``tof``) on the scan engine
     (:func:`esail_opt.app.engine.run`); the table as a dict.  With ``cells_out`` (a
@@ -699,7 +701,7 @@ def _arrival_lines(ax):
 
 def write(result, out_dir, plots=True):
     """porkchop.csv, porkchop.json and (with ``plots``) porkchop.png in ``out_dir``, as one
-    set (:func:`~esail_opt.app.files.write_table_set`); the journal stays beside them.
+    set (:func:`~esail_opt.app.outputs.write_table_set`); the journal stays beside them.
     Returns the paths."""
     return write_table_set(out_dir, PORKCHOP_FILES, table_csv(result), result,
                            figure(result) if plots else None)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from esail_opt.app.files import save_figure, write_json
+from esail_opt.app.outputs import save_figure, write_json
 from esail_opt.app.plots import axes_or_new
 from esail_opt.app.propagate import FixedAttitudeCase, eps_over_swept_angles
 from esail_opt.physics import constants as units

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from esail_opt.app import files
+from esail_opt.app import outputs
 from esail_opt.bodies import lookup
 from esail_opt.bodies.dates import J2000_JD, iso_from_jd
 from esail_opt.errors import InputError, check_range
@@ -373,7 +373,7 @@ FIELDS = ("flight", "kind", "margin", "miss_km", "miss_m_s", "closest_km", "clos
 def write(result, out_dir, plots=True):
     """The run's table, record and figure written into ``out_dir`` as one set."""
     fig = figure(result) if plots else None
-    return files.write_table_set(out_dir, NAMES, files.csv_text(result.rows(), FIELDS),
+    return outputs.write_table_set(out_dir, NAMES, outputs.csv_text(result.rows(), FIELDS),
                                  result.record(), fig)
 
 

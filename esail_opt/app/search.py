@@ -14,7 +14,9 @@ then the others on the closed-form time. It writes
 
 from pathlib import Path
 
-from esail_opt.app.files import csv_text, publish, save_figure, write_json
+from esail_opt.app.outputs import csv_text, save_figure, write_json
+
+from esail_opt.runtime.files import publish
 from esail_opt.app.record import plain
 from esail_opt.app.solution import Solution
 from esail_opt.errors import FigureError
@@ -209,7 +211,7 @@ SEARCH_FILES = SEARCH_TABLES + ("best",)
 
 def write(data, solutions, out_dir, plots=True):
     """Write search.json, search.csv, search.png and best/ (the best optimum's
-    solution files) into ``out_dir`` as one set (:func:`~esail_opt.app.files.publish`);
+    solution files) into ``out_dir`` as one set (:func:`~esail_opt.runtime.files.publish`);
     without ``plots``, every file but the figures.  Returns the paths written.
     OutputError if the folder cannot be written; FigureError, after the set is written,
     if a figure of best/ could not be drawn."""

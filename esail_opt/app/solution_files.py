@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from esail_opt.app import schema
-from esail_opt.app.files import publish, write_json
+from esail_opt.app.outputs import write_json
+from esail_opt.runtime.files import publish
 from esail_opt.app.oem import states_km_km_s, write_oem
 from esail_opt.bodies import dates
 from esail_opt.errors import FigureError
@@ -49,7 +50,7 @@ def write(sol, out_dir, plots=True, object_name=None, object_id=None):
     are the polished flight's, and schedule_closed_form.csv keeps the closed form's.
     ``object_name`` and ``object_id`` are the OEM's (the problem's name by default).
     The files are written
-    as one set (:func:`esail_opt.app.files.publish`): a reader of the folder sees the
+    as one set (:func:`esail_opt.runtime.files.publish`): a reader of the folder sees the
     previous run's files or these, never a mix, and files of the user's own stay.  The
     figures are drawn here, one after the other (:func:`esail_opt.app.plots.write_plots`).
 

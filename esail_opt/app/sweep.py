@@ -35,9 +35,11 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from esail_opt.app import engine, parallel
-from esail_opt.app.files import check_output_dir, csv_text, write_table_set
-from esail_opt.app.parallel import first_line
+from esail_opt.app import engine
+from esail_opt.app.outputs import csv_text, write_table_set
+from esail_opt.runtime.files import check_output_dir
+from esail_opt.runtime import pool
+from esail_opt.runtime.pool import first_line
 from esail_opt.errors import InputError, check_range, number_range
 
 
@@ -310,7 +312,7 @@ def default_out_dir(problem_file, param):
 
 
 def run(problem_file, param, workers=None, scheduler=None, progress=None, polish=False,
-        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=parallel.RETRIES,
+        out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=pool.RETRIES,
         robust_runs=0):
     """Solve the family of ``problem_file`` over ``param`` and return the table.
 
@@ -355,7 +357,7 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
         before the journal changes.
     OutputError
         ``out_dir`` cannot be created or written (before any solve).
-    esail_opt.app.parallel.ClusterLost
+    esail_opt.runtime.pool.ClusterLost
         The Dask cluster was lost (one line saying what the journal keeps).
     """
     request = _check(problem_file, param, workers, scheduler, retries, resume, out_dir,
@@ -610,6 +612,6 @@ SWEEP_FILES = ("sweep.csv", "sweep.json", "sweep.png")
 
 def write(result, out_dir):
     """Write sweep.csv, sweep.json and sweep.png into ``out_dir`` as one set
-    (:func:`~esail_opt.app.files.write_table_set`); the journal stays beside them.
+    (:func:`~esail_opt.app.outputs.write_table_set`); the journal stays beside them.
     OutputError if the folder cannot be written."""
     return write_table_set(out_dir, SWEEP_FILES, table_csv(result), result, figure(result))

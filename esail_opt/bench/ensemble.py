@@ -391,7 +391,7 @@ def _print(record):
 def run(out, repeats, flights=FLIGHTS, solution=SOLUTION):
     """Measure the bench (:func:`measure`, ``flights`` flights of ``solution``), print
     its table and write ``ensemble.json`` under ``out`` (atomically); returns its path."""
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     record = measure(flights, repeats, solution)
     _print(record)

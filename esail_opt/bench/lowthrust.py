@@ -179,7 +179,7 @@ def run(out, repeats):
     the module's own DOP853 re-integration; a time of flight is reported with the
     verified miss of the target beside it.  Returns the path written.
     """
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     problem = equal_lengths(shipped_problem(PROBLEM))
     reference = EARTH_MARS_LOW_REFERENCE

@@ -122,7 +122,7 @@ def run(out, repeats):
     None when either side failed.
     Returns the path written.
     """
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     solved = []
     for name in PROBLEMS:

@@ -18,7 +18,7 @@ cell are its wall time over its verified cells.
 import dataclasses
 import time
 
-from esail_opt.app.files import write_json
+from esail_opt.app.outputs import write_json
 from esail_opt.app.porkchop import Grid, cell_problem
 from esail_opt.bench.timing import print_table
 from esail_opt.bodies import dates

@@ -444,7 +444,7 @@ def run(out, repeats):
     the closed form's.  Writes ``<out>/precision.json`` and ``<out>/precision.png``.
     One progress line per point goes to stderr.  Returns the JSON's path.
     """
-    from esail_opt.app.files import save_figure, write_json
+    from esail_opt.app.outputs import save_figure, write_json
 
     runs = runs_of(repeats)
     _warm_up()

@@ -657,7 +657,7 @@ def run(out, repeats, grid=None):
     """
     import numpy as np
 
-    from esail_opt.app.files import save_figure, write_json
+    from esail_opt.app.outputs import save_figure, write_json
 
     functions = _functions()
     seconds = {name: median_seconds(lambda f=f, a=a: f(*a), repeats)

@@ -530,7 +530,7 @@ def run(out, repeats):
     import importlib.resources
     import os
 
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
     from esail_opt.optimisation.problem_file import SHIPPED_PACKAGE, shipped_problem
 
     path = Path(out) / "pykep.json"

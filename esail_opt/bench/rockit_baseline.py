@@ -345,7 +345,7 @@ def run(out, repeats):
     import importlib.resources
     import os
 
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
     from esail_opt.errors import InputError
     from esail_opt.optimisation.problem_file import SHIPPED_PACKAGE, shipped_problem
 

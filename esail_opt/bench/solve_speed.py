@@ -52,7 +52,7 @@ def run(out, repeats):
     ``ratio`` is cvodes_seconds / closed_form_seconds.  The top-level keys are the first
     problem's; ``cases`` holds all.  Returns the path written.
     """
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     solved = [_solve_case(shipped_problem(name), repeats) for name in PROBLEMS]
     keys = ("closed_form_seconds", "cvodes_seconds", "closed_form_iterations",

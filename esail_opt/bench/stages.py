@@ -164,7 +164,7 @@ def child(problem_name, out_dir, plots=True):
         # What `esail-opt solve` imports before it solves (app.cli, then _run_solve's).
         import esail_opt.app.cli  # noqa: F401
         from esail_opt.app import report, solution  # noqa: F401
-        from esail_opt.app.files import check_output_dir  # noqa: F401
+        from esail_opt.runtime.files import check_output_dir  # noqa: F401
         from esail_opt.optimisation.problem_file import shipped_problem
     instrument(clock)
     with clock.stage("load"):
@@ -237,7 +237,7 @@ def run(out, repeats=1, problem=PROBLEMS[0]):
     """Time the stages of one solve (:func:`measure`, with figures); print them and
     write ``stages.json`` (``stages_planar.json`` for the planar twin) under ``out``.
     One process is one sample: ``repeats`` is not used.  Returns the path written."""
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     record = measure(problem)
     _print(record)

@@ -60,7 +60,7 @@ def run(out, repeats):
     alike.  Whether the two pools return the same numbers is recorded as well.  Returns
     the path written.
     """
-    from esail_opt.app.files import write_json
+    from esail_opt.app.outputs import write_json
 
     runs = runs_of(repeats)
     # Two workers can only help if two CPUs are free: the load is recorded so that a

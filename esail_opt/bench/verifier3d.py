@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import esail_opt as eo
-from esail_opt.app.files import write_json
+from esail_opt.app.outputs import write_json
 from esail_opt.bench import taylor
 from esail_opt.optimisation import multistart, pipeline
 from esail_opt.optimisation.problem_file import shipped_problem

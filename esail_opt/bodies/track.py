@@ -28,7 +28,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from esail_opt import function_store
+from esail_opt.runtime import function_store
 from esail_opt.bodies import ephemeris
 from esail_opt.bodies.dates import iso_from_jd, jd_from_tu, tu_from_jd
 from esail_opt.bodies.keplerian import SmallBody
@@ -164,7 +164,7 @@ class Track:
 def stored_spline(name, grid, values):
     """CasADi's cubic B-spline interpolant ``name`` through ``values`` on ``grid`` (as
     ``casadi.interpolant(name, "bspline", [grid], values)``), read from the package's
-    cache when the same samples were fitted before (:mod:`esail_opt.function_store`).
+    cache when the same samples were fitted before (:mod:`esail_opt.runtime.function_store`).
 
     Fitting a track's tens of thousands of samples is most of building it, in every
     process; the stored spline is the one fitted, number for number.  Its file is named
@@ -185,7 +185,7 @@ SPOT_CHECKS = 3
 
 def stored_samples(name, source, jd):
     """``source(jd)`` (an array whose last axis runs over ``jd``), read from the package's
-    cache when the same dates of ``name`` were sampled before (:mod:`esail_opt.function_store`).
+    cache when the same dates of ``name`` were sampled before (:mod:`esail_opt.runtime.function_store`).
 
     Sampling DE421 over a track's sixty years, and again at the mid-points where its
     error is measured, is most of what is left of building a track once its spline is

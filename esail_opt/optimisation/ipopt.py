@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from esail_opt.signals import SignalsHeld
+from esail_opt.runtime.signals import SignalsHeld
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import CLOCK_ROOM
 from esail_opt.optimisation.seed import Guess, initial_guess
@@ -165,7 +165,7 @@ class _Monitor(ca.Callback):
 
     Ipopt runs in C++, where Python's KeyboardInterrupt cannot reach it; CasADi's own
     check stopped only the running solve and the next stage went on from there.  So
-    while a solve runs the signal is held (:class:`~esail_opt.signals.SignalsHeld`), the
+    while a solve runs the signal is held (:class:`~esail_opt.runtime.signals.SignalsHeld`), the
     callback asks Ipopt to stop at the next iteration, and leaving ``with monitor``
     raises KeyboardInterrupt (or Terminated) once Ipopt has returned.
     """

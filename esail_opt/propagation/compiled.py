@@ -71,8 +71,8 @@ from pathlib import Path
 
 import casadi as ca
 
-from esail_opt.function_store import cache_dir
-from esail_opt.processes import alive
+from esail_opt.runtime.function_store import cache_dir
+from esail_opt.runtime.processes import alive
 
 try:
     import fcntl

@@ -9,7 +9,7 @@ A stored graph is named by a hash of what decides it: the builder's name and key
 arguments, the CasADi version, and the source of every module the closed form's
 formulas live in (:data:`SOURCES`).  Any edit to those modules therefore names new
 graphs.  How a graph is kept on disk, and what happens to a damaged one or a folder that
-cannot be written, is :mod:`esail_opt.function_store`'s (a ``graphs`` folder in the
+cannot be written, is :mod:`esail_opt.runtime.function_store`'s (a ``graphs`` folder in the
 package's cache).
 """
 
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from esail_opt import function_store
+from esail_opt.runtime import function_store
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 #: The modules whose code builds the stored graphs: every formula of the closed form,

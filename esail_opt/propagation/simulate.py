@@ -16,7 +16,7 @@ import os
 import casadi as ca
 import numpy as np
 
-from esail_opt.signals import SignalsHeld
+from esail_opt.runtime.signals import SignalsHeld
 from esail_opt.physics.dynamics import (rhs, rhs_cartesian, rhs_in_theta, rhs_turning,
                                         swept_angle_rate)
 from esail_opt.physics.elements import cartesian_from_polar3d, polar3d_from_cartesian

@@ -1,4 +1,4 @@
-"""Writing outputs: files whole or not at all, folders as one set, checked before a solve.
+"""Publishing files: files whole or not at all, folders as one set, checked before a solve.
 
 Three mechanisms, used by every command that writes a folder (``solve``, ``search``,
 ``sweep``, and any scan built on them):
@@ -18,20 +18,16 @@ Files and folders are created with mode 0666/0777 less the umask, as ``open`` an
 """
 
 import contextlib
-import csv
 import ctypes
 import errno
-import io
-import json
 import os
 import secrets
 import shutil
 import sys
 from pathlib import Path
 
-from esail_opt.app.record import plain
 from esail_opt.errors import InputError, OutputError
-from esail_opt import processes, signals
+from esail_opt.runtime import processes, signals
 
 #: Longest file or folder name most file systems take (ext4, xfs, tmpfs), bytes.
 NAME_MAX = 255
@@ -428,74 +424,3 @@ def atomic_path(path):
     finally:
         if os.path.lexists(tmp):
             os.unlink(tmp)
-
-
-def write_json(path, data):
-    """Write ``data`` as indented JSON, atomically: numpy numbers as Python ones, NaN
-    and infinity as null (``record.plain``), so that the JSON stays standard."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(plain(data), indent=1, allow_nan=False) + "\n")
-
-
-#: zlib's level for the PNGs written: the fastest, since matplotlib's default (6) spent
-#: about a quarter of a solve's figure time encoding, for files about 10 % smaller.
-PNG_COMPRESS_LEVEL = 1
-
-
-def figure_bytes(fig, fmt="png", dpi=150):
-    """The file of a :class:`matplotlib.figure.Figure` in format ``fmt``, drawn and
-    encoded by matplotlib's own ``savefig``, as bytes.
-
-    Drawing is kept apart from writing: an error here is the figure's (see
-    :func:`esail_opt.app.plots.write_plots`), one while writing is the disk's.  A PNG
-    is compressed at zlib's fastest level (:data:`PNG_COMPRESS_LEVEL`).
-    """
-    buffer = io.BytesIO()
-    options = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
-    fig.savefig(buffer, format=fmt, dpi=dpi, **options)
-    return buffer.getvalue()
-
-
-def save_figure(fig, path, dpi=150):
-    """Save a :class:`matplotlib.figure.Figure` atomically, in the format of ``path``'s
-    suffix (PNG without one).
-
-    The figure is made without pyplot, so nothing else holds it and there is
-    nothing to close.
-    """
-    data = figure_bytes(fig, Path(path).suffix.lstrip(".") or "png", dpi)
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
-
-
-def csv_text(rows, fields, digits=10):
-    """The dicts ``rows`` as CSV text under a header of ``fields``: None as an empty
-    cell, floats to ``digits`` significant digits (None: as Python writes them)."""
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: ("" if row[k] is None else f"{row[k]:.{digits}g}"
-                             if digits and isinstance(row[k], float) else row[k])
-                         for k in fields})
-    return buf.getvalue()
-
-
-def write_table_set(out_dir, names, csv_text, data, fig):
-    """A scan's table, record and picture (``names``: the CSV, JSON and PNG file names)
-    written into ``out_dir`` as one set (:func:`publish`); without a picture (``fig``
-    None), the first two.  Returns their paths.
-
-    Raises
-    ------
-    OutputError
-        The folder cannot be written (one line; the old set stays as it was).
-    """
-    out = Path(out_dir)
-    names_written = names if fig is not None else names[:2]
-    with publish(out, family=names) as stage:
-        (stage / names[0]).write_text(csv_text)
-        write_json(stage / names[1], data)
-        if fig is not None:
-            save_figure(fig, stage / names[2])
-    return [out / name for name in names_written]

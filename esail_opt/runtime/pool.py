@@ -30,10 +30,8 @@ import time
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, wait
 from pathlib import Path
 
-from esail_opt import processes, signals
+from esail_opt.runtime import processes, signals
 from esail_opt.errors import InputError
-from esail_opt.optimisation import transcription
-from esail_opt.propagation import compiled
 
 #: Times a job lost with its worker is run again before it is reported failed.
 RETRIES = 2
@@ -64,7 +62,7 @@ def first_line(err):
 
 
 def run(function, jobs, on_result, on_failure, workers=1, client=None, address=None,
-        retries=RETRIES, quiet=(), on_news=None):
+        retries=RETRIES, setup=None, on_news=None):
     """Run ``function(i, *jobs[i])`` for every job, reporting each as it ends.
 
     Parameters
@@ -86,10 +84,11 @@ def run(function, jobs, on_result, on_failure, workers=1, client=None, address=N
         The client's scheduler address, for the lines that name it.
     retries : int
         Times a job lost with its worker is run again.
-    quiet : sequence of str
-        What the compile cache has already said in this process
-        (:func:`esail_opt.propagation.compiled.check_cache`), which the local workers
-        then do not say again.
+    setup : tuple, optional
+        ``(function, args)``: each local worker calls ``function(cores, *args)`` once
+        as it starts, ``cores`` its share of the machine's cores (a module-level
+        function, pickled by name).  How a worker computes is the caller's to set;
+        this floor knows nothing of it.
     on_news : callable, optional
         ``on_news(item)`` for each item a local pool's job sent with :func:`tell`, in
         the order sent and before that job's result.
@@ -108,7 +107,7 @@ def run(function, jobs, on_result, on_failure, workers=1, client=None, address=N
         After stopping the workers (:class:`~esail_opt.errors.Terminated` for SIGTERM).
     """
     runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
-                     address, quiet, on_news)
+                     address, setup, on_news)
     runner.run()
     return {i: (n, runner.causes[i]) for i, n in sorted(runner.losses.items())}
 
@@ -149,9 +148,9 @@ class _Runner:
     """
 
     def __init__(self, function, jobs, on_result, on_failure, workers, client, retries,
-                 address=None, quiet=(), on_news=None):
+                 address=None, setup=None, on_news=None):
         self.function, self.jobs = function, jobs
-        self.quiet = tuple(quiet)
+        self.setup = setup
         self.address = address
         self.unhealthy = {}  # what is wrong with the cluster -> since when (monotonic)
         self.on_result, self.on_failure, self.on_news = on_result, on_failure, on_news
@@ -199,7 +198,7 @@ class _Runner:
                 # A queue per round: a worker killed while writing to it can leave
                 # its lock held, and that round's pool is gone with it.
                 self.news = _news_queue() if self.on_news is not None else None
-                self.executor = _new_pool(self.workers, self.quiet, self.news)
+                self.executor = _new_pool(self.workers, self.setup, self.news)
         submitted = []
         try:
             for i in todo:
@@ -344,18 +343,17 @@ def tell(item):
         _NEWS.put(item)
 
 
-def _worker_init(threads, parent=None, quiet=(), news=None):
+def _worker_init(cores, parent=None, setup=None, news=None):
     """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
-    the whole process group) reaches only the parent, which decides what stops; it
-    evaluates its NLPs' segments on its share of the cores, ``threads``
-    (``transcription.share_cores``); it does not repeat what the compile cache said in
-    the parent (``quiet``); and it ends when its parent ``parent`` does, however the
-    parent ended."""
+    the whole process group) reaches only the parent, which decides what stops; it runs
+    the caller's ``setup`` on its share of the cores, ``cores``; and it ends when its
+    parent ``parent`` does, however the parent ended."""
     global _NEWS
     signals.leave_interrupt_to_parent()
     _NEWS = news
-    transcription.share_cores(threads)
-    compiled.said_already(quiet)
+    if setup is not None:
+        function, args = setup
+        function(cores, *args)
     if parent is not None:
         processes.die_with_parent(parent)
 
@@ -447,7 +445,7 @@ def _news_queue():
     return multiprocessing.get_context("spawn").SimpleQueue()
 
 
-def _new_pool(workers, quiet=(), news=None):
+def _new_pool(workers, setup=None, news=None):
     """A fresh local process pool whose workers ignore SIGINT and tell on ``news``."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
@@ -458,7 +456,7 @@ def _new_pool(workers, quiet=(), news=None):
     return ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_worker_init,
-                               initargs=(max(1, cores // workers), os.getpid(), tuple(quiet),
+                               initargs=(max(1, cores // workers), os.getpid(), setup,
                                          news))
 
 
