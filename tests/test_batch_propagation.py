@@ -9,11 +9,12 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from esail_opt.app.cli import main
-from esail_opt.app.propagate import GRID_COLUMNS, FixedAttitudeCase, eps_over_swept_angle
+from esail_opt.app.propagate import GRID_COLUMNS
 from esail_opt.bench import propagate as bench
 from esail_opt.physics import constants as units
 from esail_opt.propagation.arcs import FIRST_ORDER, PANEL_NODES, ArcModel
 from esail_opt.propagation.batch import arcs_at_angles, propagate_batch
+from esail_opt.propagation.fixed_attitude import FixedAttitudeCase, eps_over_swept_angle
 from esail_opt.propagation.rectified import propagate
 
 

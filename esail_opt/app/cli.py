@@ -112,6 +112,7 @@ def _add_propagate(sub):
 
 def _run_propagate(args):
     from esail_opt.app import propagate
+    from esail_opt.propagation import fixed_attitude
     from esail_opt.runtime.files import check_output_file
 
     values = {field: _value_or_range(option, getattr(args, option))
@@ -122,7 +123,7 @@ def _run_propagate(args):
         raise InputError(f"samples = {args.samples} is outside [1, inf)")
     if any(":" in getattr(args, option) for option in propagate.GRID_FIELDS.values()):
         return _run_propagate_grid(args, values)
-    case = propagate.FixedAttitudeCase(
+    case = fixed_attitude.FixedAttitudeCase(
         a0_au=values["a0_au"][0], e0=values["e0"][0], nu0_deg=values["nu0_deg"][0],
         ac_mm_s2=values["ac_mm_s2"][0], alpha_deg=values["alpha_deg"][0], years=args.years)
     return _run_propagate_one(args, case)

@@ -15,11 +15,11 @@ import numpy as np
 
 from esail_opt.app.outputs import save_figure, write_json
 from esail_opt.app.plots import axes_or_new
-from esail_opt.app.propagate import FixedAttitudeCase, eps_over_swept_angles
 from esail_opt.physics import constants as units
 from esail_opt.physics.closed_form import theta_max_circular
 from esail_opt.physics.elements import ac_tilde
 from esail_opt.physics.thrust import EXACT, radial_transverse
+from esail_opt.propagation.fixed_attitude import FixedAttitudeCase, eps_over_swept_angles
 
 #: The maps' grid: 5 deg in pitch (so +/-45 deg is on it) and 0.005 mm/s^2 in a_c.
 ALPHA_DEG = np.linspace(-90, 90, 37)
