@@ -143,7 +143,12 @@ def _checked_states(states):
 
 
 def _epochs(epochs, jd2, count):
-    """The epochs as an astropy Time array (TDB, two-part Julian dates), checked."""
+    """The epochs (TDB, two-part Julian dates), checked, as the message's text of each,
+    rounded to the microsecond by astropy's Time.
+
+    They reach the ``oem`` package as naive datetimes read back from that text, which
+    its writer formats to the same text: the library takes a datetime as an epoch, and
+    formatting hundreds of astropy Time scalars one by one cost most of the writing."""
     from astropy.time import Time
 
     if isinstance(epochs, str):
@@ -164,11 +169,11 @@ def _epochs(epochs, jd2, count):
     second = np.broadcast_to(extra, first.shape)
     if not (np.all(np.isfinite(first)) and np.all(np.isfinite(second))):
         raise InputError("oem.epochs holds a date that is not finite")
-    stamps = Time(first, second, format="jd", scale="tdb", precision=6)
-    text = stamps.strftime(EPOCH_FORMAT)
+    text = list(Time(first, second, format="jd", scale="tdb", precision=6)
+                .strftime(EPOCH_FORMAT))
     if count > 1 and not all(a < b for a, b in zip(text[:-1], text[1:])):
         raise InputError("oem.epochs must increase strictly, by at least a microsecond")
-    return stamps
+    return [_dt.datetime.fromisoformat(t) for t in text]
 
 
 def _message(fields, created, stamps, states, edges):
