@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 
 from esail_opt.app import cli, engine, sweep
+from esail_opt.runtime.journal import Journal
 from esail_opt.runtime import files, pool
 from esail_opt.errors import InputError, OutputError
 
@@ -31,8 +32,8 @@ from conftest import PROBLEMS, REPO, TINY_PROBLEM as TINY
 
 def _journal(path, header):
     """The sweep's journal at ``path`` under ``header``, as the sweep's run makes it."""
-    return engine.Journal(path, header, sweep.SweepRow, len(header["values"]),
-                          functools.partial(sweep.belongs, header["values"]))
+    return Journal(path, header, sweep.SweepRow, len(header["values"]),
+                   functools.partial(sweep.belongs, header["values"]), engine.invalid_row)
 
 
 

@@ -22,6 +22,7 @@ from esail_opt.errors import InputError
 from esail_opt.optimisation import edge, scan
 from esail_opt.optimisation.edge import EDGE_DAYS
 from esail_opt.optimisation.problem_file import load_problem
+from esail_opt.runtime.journal import Journal
 
 from conftest import PROBLEMS, USER_PROBLEMS
 
@@ -174,7 +175,8 @@ def test_the_journal_keeps_no_sail_and_the_edge_and_reads_old_rows(tmp_path):
     grid, rows = _grid(), _marked_rows()
     header = {"journal": "esail-opt porkchop", "problem": "p", "source_sha256": "x",
               "param": "p", "values": [1.0], "polish": False, "tolerance": {}}
-    journal = engine.Journal(tmp_path / porkchop.JOURNAL, header, porkchop.PorkchopRow, 6)
+    journal = Journal(tmp_path / porkchop.JOURNAL, header, porkchop.PorkchopRow, 6,
+                      invalid=engine.invalid_row)
     journal.start({})
     old = dict(rows[5])
     for field in ("no_sail", "edge_tof_days", "edge_infeasible_tof_days", "edge_ac_mm_s2"):
@@ -216,7 +218,7 @@ def test_a_journal_row_is_checked_against_its_dataclass(tmp_path, field, value, 
     path = tmp_path / porkchop.JOURNAL
     row = dict(_marked_rows()[3], departure_jd=2462503, departure_state={"x": 1.0},
                schedule=[])
-    journal = engine.Journal(path, header, porkchop.PorkchopRow, 6)
+    journal = Journal(path, header, porkchop.PorkchopRow, 6, invalid=engine.invalid_row)
     path.write_text(json.dumps(header) + "\n" + json.dumps(row) + "\n")
     assert journal.read(resume=True)[3] == row  # an int fills a float field
     path.write_text(json.dumps(header) + "\n" + json.dumps({**row, field: value}) + "\n")

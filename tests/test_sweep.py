@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from esail_opt.app import cli, engine, sweep
+from esail_opt.runtime.journal import Journal
 from esail_opt.runtime import pool
 from esail_opt.errors import InputError
 
@@ -37,8 +38,8 @@ NUMBERS = [k for k in sweep.CSV_FIELDS if k != "seconds"]
 
 def _sweep_journal(path, header):
     """The sweep's journal at ``path`` under ``header``, as the sweep's run makes it."""
-    return engine.Journal(path, header, sweep.SweepRow, len(header["values"]),
-                          functools.partial(sweep.belongs, header["values"]))
+    return Journal(path, header, sweep.SweepRow, len(header["values"]),
+                   functools.partial(sweep.belongs, header["values"]), engine.invalid_row)
 
 
 

@@ -4,8 +4,8 @@ A sweep (:mod:`esail_opt.app.sweep`) and a porkchop (:mod:`esail_opt.app.porkcho
 only describe their members and their outputs, as a :class:`Scan`; this module runs
 them.  The members' jobs run on :mod:`esail_opt.runtime.pool` (a local process pool or
 Dask, the retries of lost workers, the stop on Ctrl-C or SIGTERM), and every row that
-ends is appended at once to the scan's journal in its output folder, so that
-``--resume`` runs only the rows the journal lacks.
+ends is appended at once to the scan's journal (:mod:`esail_opt.runtime.journal`) in
+its output folder, so that ``--resume`` runs only the rows the journal lacks.
 
 Contract of a run (:func:`run`):
 
@@ -20,24 +20,19 @@ Contract of a run (:func:`run`):
   the next member and at the end of the run.
 """
 
-import contextlib
 import dataclasses
-import errno
 import hashlib
-import json
 import logging
 import os
 import re
 import tempfile
 import time
-import typing
 from pathlib import Path
 
-from esail_opt.runtime import processes
-from esail_opt.runtime import pool
-from esail_opt.runtime.files import atomic_path
 from esail_opt.app.record import plain
-from esail_opt.errors import InputError, OutputError
+from esail_opt.errors import InputError
+from esail_opt.runtime import pool, processes
+from esail_opt.runtime.journal import Journal
 from esail_opt.optimisation import transcription
 from esail_opt.propagation import compiled
 
@@ -103,10 +98,18 @@ def source_digest(source):
     return hashlib.sha256(source.encode()).hexdigest()
 
 
+def invalid_row(row):
+    """What the journal refuses in a row whose fields have their types: a verified row
+    has a time of flight."""
+    if row.get("verified") and row.get("tof_days") is None:
+        return "verified without a tof_days"
+    return None
+
+
 def header(kind, problem, source, param, values, polish=False, **more):
     """What identifies a scan of ``kind`` (``"sweep"``) in its journal: ``journal``,
     ``problem``, ``source_sha256``, ``param``, ``values``, ``polish``, ``tolerance``,
-    then ``more``, in that order (see :class:`Journal`)."""
+    then ``more``, in that order (see :class:`~esail_opt.runtime.journal.Journal`)."""
     return {"journal": f"esail-opt {kind}", "problem": problem.name,
             "source_sha256": source_digest(source), "param": param, "values": values,
             "polish": bool(polish), "tolerance": dataclasses.asdict(problem.tolerance),
@@ -138,219 +141,6 @@ def remove_orphans():
     processes.remove_dead(tempfile.gettempdir(), MEMBER_PREFIX)
 
 
-# ---------------------------------------------------------------- the journal
-
-
-def _short(value):
-    """A one-line, bounded repr for a journal mismatch message."""
-    if isinstance(value, list) and len(value) > 6:
-        return f"[{', '.join(map(repr, value[:3]))}, ..., {value[-1]!r}] ({len(value)} values)"
-    return repr(value)
-
-
-def _why_not(value, hint):
-    """Why the JSON ``value`` cannot fill a field annotated ``hint`` (``int``, ``float``,
-    ``bool``, ``str``, ``dict``, ``list``, or one of them Optional: or null), or None.
-    A bool is not a number; an int fills a float field."""
-    kind = next((t for t in typing.get_args(hint) if t is not type(None)), hint)
-    if value is None:
-        return None if kind is not hint else "is missing"
-    name = "num" if kind is float else kind.__name__  # as the messages have always said
-    if isinstance(value, bool) is not (kind is bool) \
-            or not isinstance(value, (int, float) if kind is float else kind):
-        return f"= {_short(value)} is not a {name}"
-    return None
-
-
-def fields(row_type):
-    """The field names of a row's dataclass, in declaration order."""
-    return tuple(f.name for f in dataclasses.fields(row_type))
-
-
-class Journal:
-    """A scan's record on disk: a header line, then one JSON row per finished row; of
-    two rows of one index, the later holds (a job's end replaces a row it told of).
-
-    Each row is one ``write`` of one whole line to a file opened for appending,
-    followed by ``fsync``: a crash or a kill leaves at most a torn last line, which
-    :meth:`read` ignores and :meth:`start` cuts off; every row before it is on disk.
-
-    Parameters
-    ----------
-    path : Path
-        The journal file.
-    header : dict
-        What identifies the scan (``journal``, ``problem``, ``source_sha256``, ``param``,
-        ``values``, ``polish``, ``tolerance``, and what else its kind adds); a journal
-        is resumed only under the same header, every key of it.
-    row_type : type
-        The rows' frozen dataclass: a row read is checked against its fields'
-        annotations (:func:`_why_not`) and kept as a dict of its fields, in their
-        order.
-    belongs : callable, optional
-        ``belongs(index, row)``: whether a row is this grid's (default: its index is
-        in ``range(count)``).
-    count : int
-        Rows the grid has.
-    """
-
-    def __init__(self, path, header, row_type, count, belongs=None):
-        self.path = Path(path)
-        self.header, self.row_type, self.count = header, row_type, count
-        self.belongs = belongs or (lambda i, row: True)
-        self.fresh = False  # started afresh, and no row written yet
-
-    def read(self, resume):
-        """With ``resume``, the rows the journal holds (index -> row); changes nothing.
-
-        Raises
-        ------
-        InputError
-            With ``resume``: the journal is not this kind's, belongs to another scan,
-            or a whole line of it is not UTF-8 JSON or not a valid row (one line naming
-            the file and the line).
-        """
-        if not resume or not self.path.exists():
-            return {}
-        lines = self._lines()
-        self._check_header(lines)
-        kept = {}
-        for number, line in lines[1:]:
-            if line.strip():
-                row = self._row(number, line)
-                i = row["index"]
-                if 0 <= i < self.count and self.belongs(i, row):
-                    kept[i] = row  # a later row of a cell replaces an earlier one
-        return kept
-
-    def start(self, kept):
-        """Make the journal ready for appending, once the run is accepted: with rows
-        ``kept``, cut a torn last line off.  Without, the old journal is replaced by
-        this one's header only with the first row (:meth:`append`) or at the run's end
-        (:meth:`close`): a fresh run stopped before either leaves the old scan's
-        journal, which its outputs beside it match, to be resumed."""
-        self.fresh = not kept
-        if kept:
-            raw = self.path.read_bytes()
-            whole = raw.rfind(b"\n") + 1
-            if whole < len(raw):
-                with open(self.path, "r+b") as handle:
-                    handle.truncate(whole)
-                    os.fsync(handle.fileno())
-
-    def close(self):
-        """At a run's end: a fresh journal that no row reached is written (its header),
-        so that it, not the old scan's, sits beside the run's outputs."""
-        if self.fresh:
-            self._replace()
-
-    def _replace(self, row=None):
-        # The header replaces any old journal whole, so a stale row is never read as
-        # this scan's.
-        with atomic_path(self.path) as tmp:
-            tmp.write_text(self._line(self.header) + ("" if row is None else self._line(row)))
-            with open(tmp, "rb") as handle:
-                os.fsync(handle.fileno())
-        self.fresh = False
-
-    def open(self, resume):
-        """:meth:`read`, then :meth:`start`: the rows kept."""
-        kept = self.read(resume)
-        self.start(kept)
-        return kept
-
-    def append(self, row):
-        """Add one finished row, on disk before returning.
-
-        A write that fails part-way (a full disk) is cut back off the file, so the
-        journal never keeps half a line that the next row would be glued to.
-
-        Raises
-        ------
-        OutputError
-            The row could not be written (one line; the journal is as it was).
-        """
-        if self.fresh:
-            try:
-                self._replace(row)
-            except OSError as err:
-                raise OutputError(f"cannot write the journal {str(self.path)!r}: "
-                                  f"{os.strerror(err.errno) if err.errno else err}") from None
-            return
-        data = self._line(row).encode()
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
-        try:
-            size = os.fstat(fd).st_size
-            try:
-                written = os.write(fd, data)
-                if written != len(data):
-                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-                os.fsync(fd)
-            except OSError as err:
-                with contextlib.suppress(OSError):
-                    os.ftruncate(fd, size)
-                raise OutputError(f"cannot append to the journal {str(self.path)!r}: "
-                                  f"{os.strerror(err.errno) if err.errno else err}") from None
-        finally:
-            os.close(fd)
-
-    @staticmethod
-    def _line(obj):
-        return json.dumps(plain(obj), allow_nan=False) + "\n"
-
-    def _fail(self, number, why):
-        raise InputError(f"resume: {self.path} line {number} {why}; delete that line, or "
-                         "run without --resume to start fresh")
-
-    def _lines(self):
-        """The journal's whole lines as (number, text); a torn last line is left out."""
-        raw = self.path.read_bytes()
-        lines = []
-        for number, chunk in enumerate(raw[:raw.rfind(b"\n") + 1].split(b"\n")[:-1],
-                                       start=1):
-            try:
-                lines.append((number, chunk.decode("utf-8")))
-            except UnicodeDecodeError as err:
-                self._fail(number, f"is not UTF-8 (byte {err.start + 1})")
-        return lines
-
-    def _check_header(self, lines):
-        try:
-            header = json.loads(lines[0][1]) if lines else None
-        except json.JSONDecodeError:
-            header = None
-        kind = self.header["journal"].split()[-1]  # "sweep" or "porkchop"
-        if not isinstance(header, dict) or header.get("journal") != self.header["journal"]:
-            raise InputError(f"resume: {self.path} is not a {kind} journal (line 1 is not "
-                             "its header); run without --resume to start fresh")
-        for key in [*self.header, *(k for k in header if k not in self.header)]:
-            if header.get(key) != self.header.get(key):
-                what = ("the problem file changed since it was written" if key == "source_sha256"
-                        else f"its {key} is {_short(header.get(key))}, not "
-                             f"{_short(self.header.get(key))}")
-                raise InputError(f"resume: {self.path} belongs to another {kind}: {what}; "
-                                 "run without --resume to start fresh")
-
-    def _row(self, number, line):
-        """The row of journal line ``number``, every field checked (InputError)."""
-        def constant(name):  # NaN and Infinity: never written, so never accepted
-            self._fail(number, f"holds {name}, which is not a number")
-
-        try:
-            row = json.loads(line, parse_constant=constant)
-        except json.JSONDecodeError as err:
-            self._fail(number, f"is not JSON ({err.msg}, column {err.colno})")
-        if not isinstance(row, dict):
-            self._fail(number, "is not a row (a JSON object)")
-        for field, hint in typing.get_type_hints(self.row_type).items():
-            why = _why_not(row.get(field), hint)
-            if why is not None:
-                self._fail(number, f"is not a valid row: {field} {why}")
-        if row.get("verified") and row.get("tof_days") is None:
-            self._fail(number, "is not a valid row: verified without a tof_days")
-        return {field: row.get(field) for field in fields(self.row_type)}
-
-
 # ---------------------------------------------------------------- a run
 
 
@@ -363,9 +153,9 @@ class Scan:
     journal_name : str
         The journal's file name in the output folder (``sweep.jsonl``).
     header : dict
-        What identifies the scan in its journal (see :class:`Journal`).
+        What identifies the scan in its journal (see :class:`~esail_opt.runtime.journal.Journal`).
     row_type : type
-        The rows' frozen dataclass (see :class:`Journal`).
+        The rows' frozen dataclass (see :class:`~esail_opt.runtime.journal.Journal`).
     count : int
         The rows of the grid.
     function : callable
@@ -407,8 +197,8 @@ class Scan:
         """Its journal in ``out_dir``, or None without a folder."""
         if out_dir is None:
             return None
-        return Journal(Path(out_dir) / self.journal_name, self.header, self.row_type,
-                       self.count, self.belongs)
+        return Journal(Path(out_dir) / self.journal_name, plain(self.header), self.row_type,
+                       self.count, self.belongs, invalid_row)
 
 
 @dataclasses.dataclass
@@ -454,7 +244,7 @@ class _Rows:
             return
         self.told[i] = row
         if self.journal is not None and row.get("verified"):
-            self.journal.append(row)
+            self.journal.append(plain(row))
             self.journaled.add(i)
             self.early.add(i)
         self._report(row)
@@ -463,7 +253,7 @@ class _Rows:
         for row in value if isinstance(value, list) else [value]:
             i = row["index"]
             if self.journal is not None and not (i in self.early and self.told[i] == row):
-                self.journal.append(row)
+                self.journal.append(plain(row))
                 self.journaled.add(i)
             self._end(i, row)
 

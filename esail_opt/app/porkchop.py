@@ -36,6 +36,7 @@ from esail_opt.app import engine
 from esail_opt.app.outputs import csv_text, write_table_set
 from esail_opt.runtime.files import check_output_dir
 from esail_opt.runtime import pool
+from esail_opt.runtime.journal import fields
 from esail_opt.runtime.pool import first_line
 from esail_opt.bodies import dates, lookup
 from esail_opt.errors import MAX_RANGE_COUNT, InputError, check_range, number_range
@@ -49,7 +50,7 @@ from esail_opt.physics import constants as units
 class PorkchopRow:
     """A cell's row: its fields, in order, are the journal's and porkchop.json's keys,
     and their annotations what a journal row is checked against
-    (:class:`esail_opt.app.engine.Journal`).  Rows travel as dicts of these fields."""
+    (:class:`esail_opt.runtime.journal.Journal`).  Rows travel as dicts of these fields."""
 
     index: int
     departure_date: str
@@ -85,7 +86,7 @@ class PorkchopRow:
 
 #: The flight's fields (see :class:`PorkchopRow`), and the CSV's columns before them.
 FLIGHT_FIELDS = ("ac_mm_s2_required", "departure_state", "schedule")
-CSV_FIELDS = engine.fields(PorkchopRow)[:-len(FLIGHT_FIELDS)]
+CSV_FIELDS = fields(PorkchopRow)[:-len(FLIGHT_FIELDS)]
 JOURNAL = "porkchop.jsonl"
 #: The files a porkchop writes as one set (its journal is kept beside them).
 PORKCHOP_FILES = ("porkchop.csv", "porkchop.json", "porkchop.png")
@@ -213,7 +214,7 @@ def cell_problem(problem, grid, index):
 
 def _row(index, grid, cell=None, error=None):
     jd, tof = grid.cell(index)
-    row = dict.fromkeys(engine.fields(PorkchopRow))
+    row = dict.fromkeys(fields(PorkchopRow))
     row.update(index=index, departure_date=dates.iso_from_jd(jd), departure_jd=jd,
                tof_days_grid=tof, converged=False, verified=False, no_sail=False,
                error=error)

@@ -39,6 +39,7 @@ from esail_opt.app import engine
 from esail_opt.app.outputs import csv_text, write_table_set
 from esail_opt.runtime.files import check_output_dir
 from esail_opt.runtime import pool
+from esail_opt.runtime.journal import fields
 from esail_opt.runtime.pool import first_line
 from esail_opt.errors import InputError, check_range, number_range
 
@@ -77,7 +78,7 @@ SWEEPABLE = {
 class SweepRow:
     """A member's row: its fields, in order, are sweep.csv's columns and the journal's
     keys, and their annotations what a journal row is checked against
-    (:class:`esail_opt.app.engine.Journal`).  Rows travel as dicts of these fields."""
+    (:class:`esail_opt.runtime.journal.Journal`).  Rows travel as dicts of these fields."""
 
     index: int
     value: float
@@ -100,7 +101,7 @@ class SweepRow:
     error: Optional[str]
 
 
-CSV_FIELDS = engine.fields(SweepRow)
+CSV_FIELDS = fields(SweepRow)
 
 #: The journal of finished members, in the sweep's output folder.
 JOURNAL = "sweep.jsonl"

@@ -5,6 +5,7 @@ keep files, and nothing of the physics.
 - :mod:`~esail_opt.runtime.processes`: whether a process is alive, and children that
   end with their parent;
 - :mod:`~esail_opt.runtime.files`: files and folders published whole or not at all;
+- :mod:`~esail_opt.runtime.journal`: a scan's rows on disk as they end, and read back;
 - :mod:`~esail_opt.runtime.pool`: independent jobs on a process pool or Dask,
   surviving lost workers;
 - :mod:`~esail_opt.runtime.function_store`: the package's cache of CasADi Functions
