@@ -719,15 +719,32 @@ def test_a_problem_file_that_exits_is_an_input_error(tmp_path, call):
 # ---------------------------------------------------------------- the process's end
 
 
-def test_the_command_returns_mains_status(tmp_path):
-    """``esail-opt`` (``cli.console``) returns what the run returned."""
-    script = ("import sys; from esail_opt.app import cli; "
-              f"sys.argv = ['esail-opt', 'solve', {str(tmp_path / 'missing.py')!r}]; "
-              "print(cli.console())")
-    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         env=_env(), timeout=120)
-    assert run.stdout.split() == ["2"]
-    assert "missing.py" in run.stderr
+def _console(tmp_path, *argv):
+    """``cli.console`` on ``argv`` in a process of its own, its output on pipes; a line
+    printed after it would say it returned."""
+    script = ("import atexit, sys; from esail_opt.app import cli; "
+              "atexit.register(lambda: sys.stderr.write('exit handler ran\\n')); "
+              f"sys.argv = ['esail-opt', *{list(argv)!r}]; "
+              "cli.console(); print('console returned')")
+    return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env=_env(), timeout=120, cwd=tmp_path)
+
+
+def test_the_process_ends_with_mains_status_and_its_output_whole(tmp_path):
+    """``esail-opt`` (``cli.console``) ends the process with the run's status, after the
+    exit handlers, and with what the command printed on a pipe flushed."""
+    failed = _console(tmp_path, "solve", str(tmp_path / "missing.py"))
+    assert failed.returncode == 2
+    assert "missing.py" in failed.stderr and "exit handler ran" in failed.stderr
+    assert "console returned" not in failed.stdout
+    out = tmp_path / "flight.json"
+    flown = _console(tmp_path, "propagate", "--ac", "1", "--alpha", "30", "--years", "0.1",
+                     "--method", "closed-form", "--out", str(out))
+    assert flown.returncode == 0, flown.stderr
+    lines = flown.stdout.splitlines()
+    assert len(lines) == 2 and lines[0].startswith("closed_form  end: t = 36.5")
+    assert lines[1] == f"wrote {out}"
+    assert json.loads(out.read_text())["closed_form"]["t_days"]
 
 
 def test_a_killed_runs_scratch_folder_is_removed_by_the_next_run(tmp_path):

@@ -6,8 +6,11 @@ for every exit status.
 """
 
 import argparse
+import atexit
+import contextlib
 import errno
 import logging
+import os
 import signal
 import sys
 
@@ -797,8 +800,19 @@ def main(argv=None):
 def console():
     """The ``esail-opt`` command: :func:`main` on ``sys.argv`` (with one BLAS thread
     unless the environment says otherwise, as every use of the package: see
-    ``esail_opt/__init__.py``)."""
-    return main()
+    ``esail_opt/__init__.py``), then the process ends at once with its exit status.
+
+    Once the command has returned, its files are closed and in place; what is left is
+    Python's teardown, object by object, of CasADi's graphs, the compiled libraries
+    and matplotlib's figures: 0.07 s of an Earth-Mars solve, 0.14 s with its figures,
+    that change nothing on disk.  The exit handlers still run (logging's flush among
+    them), and so do the streams' flushes."""
+    code = main()
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing to say
+            stream.flush()
+    os._exit(0 if code is None else code)
 
 
 def run_command(label, run, args):
