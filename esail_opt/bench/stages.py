@@ -194,6 +194,8 @@ spec = importlib.util.spec_from_file_location("esail_stages_child", sys.argv[1])
 module = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(module)
 module.child(sys.argv[2], sys.argv[3], sys.argv[4] == "plots")
+from esail_opt.app.cli import end_process
+end_process(0)  # as the command ends
 """
 
 
