@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from esail_opt.app.robust import AGREEMENT
+from esail_opt.optimisation.robustness import AGREEMENT
 from esail_opt.bench import ensemble
 
 SOLUTION = REPO / "results" / "earth_mars_min_ac"

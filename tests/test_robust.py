@@ -9,6 +9,7 @@ import pytest
 
 from esail_opt.app import cli, robust
 from esail_opt.app.solution import Solution
+from esail_opt.optimisation import robustness
 from esail_opt.physics import constants as units
 from esail_opt.propagation.ensemble import Ensemble
 from esail_opt.propagation.solar_wind import SolarWind
@@ -76,6 +77,24 @@ def test_the_spread_of_a_raising_grows_with_sigma_as_gauss_equation_says():
         expected = raise_nominal * math.sqrt(_integral_variance(sigma, tau, days.sum())) / days.sum()
         assert np.std(u) == pytest.approx(expected, rel=0.05)
         assert np.mean(u) == pytest.approx(u0, abs=3 * expected / math.sqrt(4000) + 1e-6)
+
+
+def test_guidance_retargets_at_the_first_piece_starting_at_each_multiple_of_its_period():
+    ends = np.array([0.0, 10.0, 20.0, 35.0, 50.0, 70.0])
+    # Pieces start on days 0, 10, 20, 35, 50; the multiples of 15 before day 50 are
+    # 15, 30 and 45, first met by the pieces starting on days 20, 35 and 50.
+    assert robustness.waypoints(ends, 15.0) == [2, 3, 4]
+    assert robustness.waypoints(ends, 0.0) == []
+
+
+def test_the_schedule_is_the_solution_s_arcs_cut_into_its_pieces(earth_mars):
+    s = robust.schedule(earth_mars)
+    source = earth_mars.polish if earth_mars.polished else earth_mars
+    pieces = earth_mars.problem.sub_arcs
+    assert s.alphas.size == s.deltas.size == s.acs.size == len(source.schedule) * pieces
+    days = units.time_to_days(s.durations).sum()
+    assert days == pytest.approx(sum(r.duration_days for r in source.schedule), rel=1e-12)
+    assert np.all(s.acs <= s.sail_ac * (1 + 1e-15))
 
 
 @pytest.fixture(scope="module")

@@ -72,15 +72,16 @@ CHECK_TOLERANCE = 1e-15
 def load(folder=SOLUTION):
     """The solution in ``folder`` and its pieces as robust flies them
     (``app.robust.Mission``, no a_c margin); :class:`InputError` when there is none."""
-    from esail_opt.app.robust import Mission
+    from esail_opt.app.robust import schedule
     from esail_opt.app.solution import Solution
+    from esail_opt.optimisation.robustness import Mission
 
     source = Path(folder) / "solution.json"
     if not source.is_file():
         raise InputError(f"solution = {str(folder)!r} holds no solution.json; run the bench "
                          "from the repository's root or give a folder `esail-opt solve` wrote")
     sol = Solution.load(source)
-    return sol, Mission.of(sol)
+    return sol, Mission.of(schedule(sol))
 
 
 def flights(mission, count, seed=SEED, wind=None):
@@ -283,7 +284,7 @@ def measure(flights_count=FLIGHTS, repeats=3, solution=SOLUTION, cvodes_flights=
             seed=SEED):
     """The bench's record (see the module): the case, each method's time per flight and
     accuracy, and the ratios of their times to the closed form's."""
-    from esail_opt.app.robust import AGREEMENT
+    from esail_opt.optimisation.robustness import AGREEMENT
     from esail_opt.propagation.simulate import TOLERANCE
     from esail_opt.propagation.solar_wind import SolarWind
 

@@ -1,0 +1,312 @@
+"""A solved schedule flown many times under a varying solar wind, open loop and guided.
+
+The schedule comes as pieces (:class:`Schedule`, canonical arrays: the caller cuts a
+solution into them and converts its units) and is flown ``runs`` times on the batched
+closed form, each flight with the wind's thrust factor drawn per piece
+(:class:`~esail_opt.propagation.solar_wind.SolarWind`): open loop (the schedule as
+solved), and guided (re-targeted every ``guide_days`` from where the flight is,
+:mod:`esail_opt.optimisation.guidance`), once for each of the ``margins``: how much
+more a_c than the schedule asks the sail has for guidance to spend.  The same wind
+blows on every kind, so the guided kinds tell what each margin buys.  The margin can
+also be solved into the schedule: a MinTime problem whose
+``Sail(throttle=True, throttle_max=1 / (1 + m))`` asks at most that fraction of the
+sail flies with a reserve m at margin 0, and a MinAcceleration answer's a_c times
+(1 + m) is the sail to build.
+
+A flight's miss is the closed form's departure from the nominal closed-form flight,
+added to the nominal's own miss flown on CVODES: the closed form's model error (a few
+thousand km over a two-year transfer) is common to all flights and is taken out by
+the nominal's CVODES flight, while the closed form carries the differences.  That this
+holds is checked, not assumed: ``check`` flights of each kind are flown on CVODES with
+their own wind and angles, and the run is verified only if every one lands where the
+closed form said, within :data:`AGREEMENT` of its miss or a tenth of the tolerance.
+
+Misses and tolerances are in km and m/s, the units the outcome is reported in; every
+other quantity is canonical.
+"""
+
+import time
+from dataclasses import dataclass, replace
+
+import casadi as ca
+import numpy as np
+
+from esail_opt.bodies import lookup
+from esail_opt.bodies.dates import J2000_JD
+from esail_opt.optimisation.guidance import Plan, Retargeting
+from esail_opt.physics import constants as units
+from esail_opt.physics.elements import polar3d_from_cartesian
+from esail_opt.propagation.ensemble import CARTESIAN, Ensemble
+from esail_opt.propagation.rectified3d import cartesian_states
+from esail_opt.propagation.simulate import simulate3d
+
+#: A sampled flight agrees with CVODES when its miss is within this fraction of the
+#: CVODES miss, or within a tenth of the problem's tolerance.
+AGREEMENT = 0.02
+#: Percentiles reported, per cent.
+PERCENTILES = (50, 90, 95, 99)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """A solved, dated rendezvous in three dimensions as pieces, canonical units: pitch
+    and clock (rad), durations (TU) and the a_c each asks (throttle included), per
+    piece; the sail's full a_c ``sail_ac``; the departure's Cartesian state (six
+    components) at ``departure_epoch_days`` (days from J2000); the ``target`` body (as
+    :func:`~esail_opt.bodies.lookup.resolve` gives it), met in position and velocity
+    at the end within ``tolerance`` (km, m/s); pitch within ``alpha_bounds`` (rad).
+    ``name`` names it in the outcome."""
+
+    name: str
+    alphas: np.ndarray
+    deltas: np.ndarray
+    durations: np.ndarray
+    acs: np.ndarray
+    sail_ac: float
+    departure: np.ndarray
+    departure_epoch_days: float
+    target: object
+    tolerance: tuple
+    alpha_bounds: tuple
+
+
+@dataclass(frozen=True)
+class Mission:
+    """A schedule ready to fly: the plan, when its pieces end (days from departure),
+    the target's states there, and the nominal's closed-form and CVODES flights (the
+    CVODES one as the correction added to every closed-form flight)."""
+
+    plan: Plan
+    ends_days: np.ndarray
+    target_track: np.ndarray
+    nominal: np.ndarray
+    correction: np.ndarray
+    departure_jd: float
+    tolerance: tuple
+
+    def with_margin(self, margin):
+        """The plan whose sail has ``margin`` (a fraction) more a_c than it asks."""
+        return replace(self.plan, sail_ac=self.plan.sail_ac * (1 + margin))
+
+    @classmethod
+    def of(cls, schedule):
+        s = schedule
+        x0, quat = polar3d_from_cartesian(ca.DM(s.departure))
+        start = np.r_[np.array(x0).ravel(), 0.0, np.array(quat).ravel()]
+        days = np.r_[0.0, np.cumsum(units.time_to_days(s.durations))]
+        track = lookup.ecliptic_state(s.target, np.full(days.size, J2000_JD), "target",
+                                     s.departure_epoch_days + days)
+        scale = (s.tolerance[0] / units.length_to_km(1.0),
+                 s.tolerance[1] / units.speed_to_m_s(1.0))
+        plan = Plan(start, s.alphas, s.deltas, s.durations, s.acs, track[:, -1], scale,
+                    s.alpha_bounds, s.sail_ac)
+        ensemble = Ensemble(s.alphas.size, True)
+        nominal = ensemble.fly(start[None], s.alphas[None], s.durations, s.acs[None],
+                               deltas=s.deltas[None])[0]
+        flown = _cvodes(start, s.alphas, s.deltas, s.durations, s.acs)
+        correction = flown - nominal[CARTESIAN]
+        return cls(plan, days, track, nominal, correction, J2000_JD + s.departure_epoch_days,
+                   tuple(s.tolerance))
+
+
+def _cvodes(start, alphas, deltas, durations, acs):
+    """The Cartesian states (6, K + 1) of one flight of the pieces on CVODES."""
+    y0 = cartesian_states(start[:, None])[:6, 0]
+    return simulate3d(y0, alphas, deltas, durations, 1.0, throttles=acs)[:6]
+
+
+@dataclass(frozen=True)
+class Flights:
+    """One kind of flight's outcome, per flight: arrival misses (km, m/s), closest
+    approach (km) and when (days from departure), and the wind's mean factor; a guided
+    kind's a_c ``margin`` (None open loop)."""
+
+    kind: str
+    margin: float | None
+    miss_km: np.ndarray
+    miss_m_s: np.ndarray
+    closest_km: np.ndarray
+    closest_days: np.ndarray
+    mean_factor: np.ndarray
+    positions: np.ndarray  # (M, 3, K + 1), au, corrected as the misses are
+    arrival: np.ndarray  # (M, 6), canonical, corrected as the misses are
+
+    def percentiles(self):
+        return {f"p{q}": {"miss_km": float(np.percentile(self.miss_km, q)),
+                          "miss_m_s": float(np.percentile(self.miss_m_s, q))}
+                for q in PERCENTILES}
+
+    def within(self, tolerance):
+        """The fraction of flights within both bounds."""
+        return float(np.mean((self.miss_km <= tolerance[0]) & (self.miss_m_s <= tolerance[1])))
+
+    def take(self, index):
+        """The flights ``index``."""
+        return Flights(self.kind, self.margin, *(getattr(self, f)[index] for f in (
+            "miss_km", "miss_m_s", "closest_km", "closest_days", "mean_factor", "positions",
+            "arrival")))
+
+
+def _outcome(kind, margin, mission, xs, factors):
+    states = xs[:, CARTESIAN] + mission.correction
+    gap = states - mission.target_track
+    distance = units.length_to_km(np.linalg.norm(gap[:, :3], axis=1))
+    nearest = np.argmin(distance, axis=1)
+    weights = np.diff(mission.ends_days)
+    return Flights(kind, margin, distance[:, -1], units.speed_to_m_s(np.linalg.norm(gap[:, 3:, -1], axis=1)),
+                   distance[np.arange(len(nearest)), nearest], mission.ends_days[nearest],
+                   factors @ weights / weights.sum(), states[:, :3], states[:, :, -1])
+
+
+def _check(mission, flights, factors, controls):
+    """Each of ``flights`` (a sample, flown with ``factors`` and ``controls``; None for
+    the plan's) against its own CVODES flight: the largest position and velocity
+    disagreements, km and m/s, and whether all agree."""
+    p, tolerance = mission.plan, mission.tolerance
+    worst_km = worst_m_s = 0.0
+    agree = True
+    for i in range(len(factors)):
+        alphas, deltas, acs = ((controls.alphas[i], controls.deltas[i], controls.acs[i])
+                               if controls is not None else (p.alphas, p.deltas, p.acs))
+        end = _cvodes(p.start, alphas, deltas, p.durations, acs * factors[i])[:, -1]
+        miss = end - mission.target_track[:, -1]
+        wrong = end - flights.arrival[i]
+        km = units.length_to_km(np.linalg.norm(wrong[:3]))
+        m_s = units.speed_to_m_s(np.linalg.norm(wrong[3:]))
+        worst_km, worst_m_s = max(worst_km, km), max(worst_m_s, m_s)
+        agree &= km <= max(AGREEMENT * units.length_to_km(np.linalg.norm(miss[:3])),
+                           tolerance[0] / 10)
+        agree &= m_s <= max(AGREEMENT * units.speed_to_m_s(np.linalg.norm(miss[3:])),
+                            tolerance[1] / 10)
+    return {"kind": flights.kind, "margin": flights.margin, "flights": len(factors),
+            "worst_position_km": worst_km,
+            "worst_velocity_m_s": worst_m_s, "agree": bool(agree)}
+
+
+@dataclass(frozen=True)
+class Robustness:
+    """A run's outcome: the request, the schedule's name and tolerance, the nominal's
+    CVODES miss, the kinds of flight (open loop, and guided at each margin), the CVODES
+    checks and the seconds each took, and the mission's dates and target track."""
+
+    name: str
+    request: object
+    tolerance: tuple
+    nominal_miss: tuple
+    open_loop: Flights
+    guided: tuple
+    checks: list
+    seconds: dict
+    departure_jd: float
+    ends_days: np.ndarray
+    target_track: np.ndarray
+
+    @property
+    def verified(self):
+        return all(c["agree"] for c in self.checks)
+
+    @property
+    def kinds(self):
+        return (self.open_loop, *self.guided)
+
+    def _outcome(self, flights):
+        return {"percentiles": flights.percentiles(),
+                "within_tolerance": flights.within(self.tolerance),
+                "closest_km_p50": float(np.median(flights.closest_km))}
+
+    def record(self):
+        """The outcome as data: every number but the per-flight ones."""
+        r, w = self.request, self.request.wind
+        return {
+            "problem": self.name,
+            "wind": {"model": "thrust factor: Gauss-Markov, mean 1, per-arc means",
+                     "sigma": w.sigma, "corr_days": w.corr_days},
+            "runs": r.runs, "seed": r.seed, "guide_days": r.guide_days,
+            "tolerance": {"position_km": self.tolerance[0], "velocity_m_s": self.tolerance[1]},
+            "nominal_miss": {"position_km": self.nominal_miss[0],
+                             "velocity_m_s": self.nominal_miss[1]},
+            "open_loop": self._outcome(self.open_loop),
+            "guided": [{"margin": k.margin, **self._outcome(k)} for k in self.guided],
+            "cvodes_checks": self.checks, "verified": self.verified,
+            "seconds": self.seconds,
+        }
+
+    def summary(self):
+        lines = [f"{self.name}: {self.request.runs} flights a kind, thrust factor sigma "
+                 f"{self.request.wind.sigma:g}, correlation {self.request.wind.corr_days:g} d, "
+                 f"seed {self.request.seed}"]
+        for k in self.kinds:
+            p = k.percentiles()
+            what = ("open loop" if k.margin is None else
+                    f"guided every {self.request.guide_days:g} d, a_c margin "
+                    f"{100 * k.margin:g} %")
+            lines.append(f"  {what}: miss p50 {p['p50']['miss_km']:.4g} km / "
+                         f"{p['p50']['miss_m_s']:.4g} m/s, p95 {p['p95']['miss_km']:.4g} km / "
+                         f"{p['p95']['miss_m_s']:.4g} m/s; {100 * k.within(self.tolerance):.1f} % "
+                         f"within {self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s")
+        for c in self.checks:
+            kind = c["kind"].replace("_", " ") + ("" if c["margin"] is None else
+                                                  f" (margin {100 * c['margin']:g} %)")
+            lines.append(f"  CVODES check, {c['flights']} {kind} flights: "
+                         f"largest disagreement {c['worst_position_km']:.3g} km, "
+                         f"{c['worst_velocity_m_s']:.3g} m/s"
+                         + ("" if c["agree"] else " (NOT within the agreement bound)"))
+        return "\n".join(lines)
+
+
+def waypoints(ends_days, every):
+    """The pieces at which guidance re-targets: the first piece starting at or after
+    each multiple of ``every`` days (none for ``every`` 0)."""
+    if every <= 0:
+        return []
+    starts = ends_days[:-1]
+    return sorted(set(np.searchsorted(starts, np.arange(every, starts[-1], every)).tolist()))
+
+
+def run(schedule, request, progress=lambda text: None):
+    """Fly ``schedule`` (a :class:`Schedule`) as ``request`` says; a :class:`Robustness`.
+
+    ``request`` has the fields ``runs``, ``wind`` (a
+    :class:`~esail_opt.propagation.solar_wind.SolarWind`), ``seed``, ``guide_days``
+    (0 flies open loop only), ``margins`` and ``check``, already checked by the caller.
+    The draws depend on the seed alone, so a request repeats its numbers.  ``check``
+    flights of each kind, evenly spread over the runs, are flown again on CVODES.
+    """
+    seconds = {}
+    clock = time.perf_counter()
+    mission = Mission.of(schedule)
+    p = mission.plan
+    factors = request.wind.factors(np.diff(mission.ends_days), request.runs, request.seed)
+    ensemble = Ensemble(p.alphas.size, True)
+    seconds["setup"] = time.perf_counter() - clock
+    progress(f"flying {request.runs} flights open loop")
+    clock = time.perf_counter()
+    m = request.runs
+    xs = ensemble.fly(np.tile(p.start, (m, 1)), np.tile(p.alphas, (m, 1)), p.durations,
+                      p.acs * factors, deltas=np.tile(p.deltas, (m, 1)))
+    seconds["open_loop"] = time.perf_counter() - clock
+    sample = np.linspace(0, m - 1, min(request.check, m)).astype(int)
+    open_loop = _outcome("open_loop", None, mission, xs, factors)
+    flown = [(open_loop, None)]
+    for margin in request.margins if request.guide_days > 0 else ():
+        progress(f"flying {m} flights guided every {request.guide_days:g} d, a_c margin "
+                 f"{100 * margin:g} %")
+        clock = time.perf_counter()
+        guidance = Retargeting(ensemble, mission.with_margin(margin),
+                               waypoints(mission.ends_days, request.guide_days))
+        gxs, controls = guidance.fly(factors, mission.nominal)
+        seconds[f"guided_margin_{margin:g}"] = time.perf_counter() - clock
+        flown.append((_outcome("guided", margin, mission, gxs, factors),
+                      controls.take(sample)))
+    progress(f"checking {request.check} flights of each kind on CVODES")
+    clock = time.perf_counter()
+    checks = [_check(mission, flights.take(sample), factors[sample], controls)
+              for flights, controls in flown]
+    seconds["cvodes_check"] = time.perf_counter() - clock
+    end = mission.correction[:, -1] + mission.nominal[CARTESIAN, -1]
+    gap = end - mission.target_track[:, -1]
+    nominal_miss = (units.length_to_km(np.linalg.norm(gap[:3])),
+                    units.speed_to_m_s(np.linalg.norm(gap[3:])))
+    return Robustness(schedule.name, request, mission.tolerance, nominal_miss, open_loop,
+                      tuple(f for f, _ in flown[1:]), checks, seconds, mission.departure_jd,
+                      mission.ends_days, mission.target_track)
