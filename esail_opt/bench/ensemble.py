@@ -2,8 +2,9 @@
 flown by the closed form, by CVODES and by heyoka, timed per flight at a stated error.
 
 The case is the shipped 3-D rendezvous ``results/earth_mars_min_ac`` cut into its
-pieces as ``esail-opt robust`` cuts it (``app.robust.Mission.of``: start state,
-pitch, clock, duration and a_c per piece).  M flights of it are drawn as robust
+pieces as ``esail-opt robust`` cuts it (``app.robust.schedule``, then
+``optimisation.robustness.Mission.of``: start state, pitch, clock, duration and a_c per
+piece).  M flights of it are drawn as robust
 draws them: one thrust-factor set per flight (``SolarWind().factors`` over the
 pieces' durations, seed :data:`SEED`), each piece's a_c times its factor.  The same
 M flights are flown three ways, open loop:
@@ -34,7 +35,7 @@ thousand km on this transfer that is nearly the same in every flight, and robust
 takes it out with the nominal's CVODES flight; so the closed form is also judged as
 robust uses it (``corrected``: its flight minus its nominal, plus the nominal's
 CVODES flight), against the flight's own departure from the nominal on CVODES (the
-``deviation``, whose fraction robust's checks bound by ``robust.AGREEMENT``).  How far
+``deviation``, whose fraction robust's checks bound by ``robustness.AGREEMENT``).  How far
 CVODES at 1e-12 itself is from the truth is measured on one flight against CVODES at
 ``simulate.VERIFY_TOLERANCE``, and heyoka's flight is checked on the same flight
 against that one (:data:`CHECK_TOLERANCE`): the two fly different equations (turning
@@ -71,7 +72,8 @@ CHECK_TOLERANCE = 1e-15
 
 def load(folder=SOLUTION):
     """The solution in ``folder`` and its pieces as robust flies them
-    (``app.robust.Mission``, no a_c margin); :class:`InputError` when there is none."""
+    (``optimisation.robustness.Mission``, no a_c margin); :class:`InputError` when there
+    is none."""
     from esail_opt.app.robust import schedule
     from esail_opt.app.solution import Solution
     from esail_opt.optimisation.robustness import Mission
