@@ -198,3 +198,39 @@ def test_stored_samples_are_the_sources_and_follow_a_changed_source(tmp_path, mo
     assert len(caplog.records) == 1 and "checksum" in caplog.records[0].getMessage()
     track.stored_samples("probe", source, jd[:50])
     assert len(list((tmp_path / "tracks").glob("probe-*.npy"))) == 2
+
+
+def test_stored_errors_are_the_measured_ones_and_follow_other_samples(tmp_path, monkeypatch):
+    """A track's largest errors read back from the store (``bodies.track.stored_errors``)
+    are the ones measured; other samples, or exact states that changed, are measured
+    afresh; a real track built twice has the same errors, the second time from the
+    store."""
+    from esail_opt.bodies import track
+
+    monkeypatch.setenv("ESAIL_OPT_CACHE", str(tmp_path))
+    measured = []
+
+    def measure(value):
+        def run():
+            measured.append(value)
+            return value, value / 1e4
+        return run
+
+    grid, exact = np.linspace(0.0, 1.0, 11), np.arange(22.0).reshape(2, 11)
+    assert track.stored_errors("probe_error", (grid, exact), measure(0.5)) == (0.5, 5e-5)
+    assert track.stored_errors("probe_error", (grid, exact), measure(9.0)) == (0.5, 5e-5)
+    assert measured == [0.5]
+    assert track.stored_errors("probe_error", (grid, exact + 1e-15 * exact),
+                               measure(0.7)) == (0.7, 7e-5)
+    assert track.stored_errors("probe_error", (grid[:-1], exact), measure(0.8))[0] == 0.8
+    assert measured == [0.5, 0.7, 0.8]
+
+    built = track.track_of("mars", 2461000.5, 2461400.5)
+    assert list((tmp_path / "tracks").glob("track_mars_error-*.npy"))
+    calls = []
+    monkeypatch.setattr(track, "_cartesian", lambda polar: calls.append(1) or polar)
+    again = track.track_of("mars", 2461000.5, 2461400.5)
+    assert calls == []  # not measured again: read back
+    assert (again.max_error_km, again.max_error_m_s) == (built.max_error_km,
+                                                         built.max_error_m_s)
+    assert 0 < built.max_error_km < track.TARGET_ERROR_KM
