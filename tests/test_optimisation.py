@@ -513,3 +513,24 @@ def test_rounds_that_never_meet_the_tolerance_answer_with_the_closest_flight():
     kept = next(r for r in controlled.history if r.target_miss_r_km == min(flown))
     assert controlled.result.objective == kept.objective
     assert controlled.problem.segments.sub_arcs == kept.sub_arcs
+
+
+def test_a_result_after_earlier_solves_counts_their_work_and_changes_none():
+    """``NLPResult.after``: a new result whose record covers the earlier solves too
+    (iterations and seconds added, stages in the order run); its inputs unchanged."""
+    from esail_opt.optimisation.ipopt import NLPResult
+    from esail_opt.optimisation.outcome import Outcome
+
+    def result(iterations, seconds, stages):
+        empty = np.zeros(0)
+        return NLPResult("Solve_Succeeded", Outcome.CONVERGED, 1.0, iterations, seconds,
+                         empty, empty, empty, empty, empty, empty, 0.0, 0.0, stages=stages)
+
+    first, second = result(10, 0.5, [("a", 10)]), result(3, 0.25, [("b", 3)])
+    last = result(7, 1.0, [("c", 7)])
+    combined = last.after(first, second)
+    assert (combined.iterations, combined.solve_seconds) == (20, 1.75)
+    assert combined.stages == [("a", 10), ("b", 3), ("c", 7)]
+    assert last.after(first, stages=False).stages == [("c", 7)]
+    assert (last.iterations, last.solve_seconds, last.stages) == (7, 1.0, [("c", 7)])
+    assert first.stages == [("a", 10)] and second.iterations == 3

@@ -89,6 +89,17 @@ class NLPResult:
     def converged(self):
         return self.outcome.converged
 
+    def after(self, *earlier, stages=True):
+        """This result, its record made to cover the solves ``earlier`` (in the order
+        they ran) before it: their iterations and seconds added, and (with ``stages``)
+        their stages put before its own.  A new result; none of them changes."""
+        more = {"stages": [s for r in (*earlier, self) for s in (r.stages or [])]} \
+            if stages else {}
+        return dataclasses.replace(
+            self, iterations=self.iterations + sum(r.iterations for r in earlier),
+            solve_seconds=self.solve_seconds + sum(r.solve_seconds for r in earlier),
+            **more)
+
     def as_guess(self, durations=False):
         """A start for another NLP (any mesh or segment kind) at this optimum; with
         ``durations`` its lengths are the segment durations (an NLP in time)."""
@@ -391,8 +402,4 @@ def solve_problem(problem, method=None, options=None, guess=None, progress=None,
             guess = first.as_guess()
     tr = transcribe(problem, method, guess)
     result = solve_transcription(tr, options, progress=progress, checkpoint=checkpoint)
-    if first is not None:
-        result.iterations += first.iterations
-        result.solve_seconds += first.solve_seconds
-        result.stages = first.stages + result.stages
-    return result, tr
+    return (result if first is None else result.after(first)), tr

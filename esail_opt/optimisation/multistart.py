@@ -360,16 +360,8 @@ def probe(problem, guess, cap, progress=None, checkpoint=None, staged=True):
         more, tr = solve_problem(problem, guess=result.as_guess(), progress=progress,
                                  staged=False,
                                  options=primal_warm_options(ipopt_options()))
-        _add_cost(more, result)
-        result = more
+        result = more.after(result)
     return result, tr
-
-
-def _add_cost(result, before):
-    """``result``'s Ipopt record made to cover the solve ``before`` it as well."""
-    result.iterations += before.iterations
-    result.solve_seconds += before.solve_seconds
-    result.stages = before.stages + result.stages
 
 
 def probe_model(problem):
@@ -442,8 +434,7 @@ def lift(problem, result, cap, progress=None):
     (NLPResult, Transcription), the result's Ipopt record covering ``result`` too."""
     lifted, tr = probe(problem, lifted_guess(problem, result.as_guess()), cap, progress,
                        staged=False)
-    _add_cost(lifted, result)
-    return lifted, tr
+    return lifted.after(result), tr
 
 
 #: A 3-D rendezvous's turn counts are first searched on its projected model

@@ -278,9 +278,7 @@ def _lone(problem, samples, say, walk=True):
         spent = search.solves
     run = _solved(problem, samples, say, walk)
     # The run's Ipopt record covers the projected search it gave up, too.
-    run.result.iterations += sum(r.iterations for r in spent)
-    run.result.solve_seconds += sum(r.solve_seconds for r in spent)
-    return run
+    return dataclasses.replace(run, result=run.result.after(*spent, stages=False))
 
 
 def _solved(problem, samples, say, walk=True):

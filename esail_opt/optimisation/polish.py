@@ -260,8 +260,7 @@ def _corrected(problem, tr, method, exact, opts, max_rounds):
     lands on the NLP's final node and the bodies (at most ``max_rounds``).  Returns
     (result, transcription, landed); the result's stages and iterations cover every
     round."""
-    stages, iterations = list(exact.stages), exact.iterations
-    solver, landed = None, False
+    rounds, solver, landed = [], None, False
     for round_ in range(max_rounds + 1):
         if not exact.outcome.found:
             break
@@ -274,11 +273,10 @@ def _corrected(problem, tr, method, exact, opts, max_rounds):
             break  # an arc CVODES cannot fly: the fallback tries other arcs
         tr = _on_ephemeris(tr, problem, exact)
         solver = solver or build_solver(tr, opts, warm=True)
+        rounds.append(exact)
         exact = solve_transcription(tr, defects=defects, warm=exact, solver=solver)
-        stages += exact.stages
-        iterations += exact.iterations
-    exact.stages, exact.iterations = stages, iterations
-    return exact, tr, landed
+    # The seconds summed here give way to the polish's own wall time (polish).
+    return exact.after(*rounds), tr, landed
 
 
 def _first_solve(problem, result, start, schedule, steps, opts):
@@ -354,8 +352,5 @@ def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS
         # and the k = 1 rendezvous converged to a schedule whose flight missed by 1.4e6
         # km.  CVODES arcs are slower but steadier.
         again, tr = _fallback(problem, result, start, opts, steps, max_rounds)
-        again.stages = exact.stages + again.stages
-        again.iterations += exact.iterations
-        exact = again
-    exact.solve_seconds = time.perf_counter() - started
-    return exact, tr
+        exact = again.after(exact)
+    return dataclasses.replace(exact, solve_seconds=time.perf_counter() - started), tr
