@@ -202,7 +202,7 @@ class Scan:
 
 
 @dataclasses.dataclass
-class Outcome:
+class ScanRun:
     """What a scan's run gave: ``rows`` in grid order, the indices ``resumed`` from the
     journal and ``solved`` in this run (in finishing order), ``lost`` (job index ->
     (losses, cause)), the run's ``seconds``, its ``executor`` in words and the
@@ -285,7 +285,7 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
     :func:`check_scheduler`), ``retries`` the times a job lost with its worker runs
     again, and ``progress(row, done, total)`` is called as each row ends (or as its job
     tells of it, and again at the job's end if that changed it).  Returns an
-    :class:`Outcome`.
+    :class:`ScanRun`.
 
     Raises
     ------
@@ -325,7 +325,7 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
                 remove_orphans()
         if journal is not None:
             journal.close()
-    return Outcome(rows.rows, rows.resumed, rows.solved, lost,
+    return ScanRun(rows.rows, rows.resumed, rows.solved, lost,
                    time.perf_counter() - start, executor,
                    None if journal is None else journal.path)
 
