@@ -21,6 +21,15 @@ holds is checked, not assumed: ``check`` flights of each kind are flown on CVODE
 their own wind and angles, and the run is verified only if every one lands where the
 closed form said, within :data:`AGREEMENT` of its miss or a tenth of the tolerance.
 
+The outcome's statistics are of a sample of ``runs`` flights, and each comes with the
+interval that holds the whole population's value with :data:`CONFIDENCE`: a
+percentile between two of the sample's order statistics (distribution-free, exact
+binomial coverage; None where the sample is too small to bound it), the fraction
+within tolerance by Wilson's score interval.  They say how far another seed's numbers
+may fall.  A guided flight's miss is sensitive to the schedule's last digits (guidance
+takes discrete steps), so a run after a rounding-level change of the schedule differs
+by about a sampling error: outcomes are compared through these intervals.
+
 Misses and tolerances are in km and m/s, the units the outcome is reported in; every
 other quantity is canonical.
 """
@@ -30,6 +39,7 @@ from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
+from scipy.stats import binom, norm
 
 from esail_opt.bodies import lookup
 from esail_opt.bodies.dates import J2000_JD
@@ -45,6 +55,34 @@ from esail_opt.propagation.simulate import simulate3d
 AGREEMENT = 0.02
 #: Percentiles reported, per cent.
 PERCENTILES = (50, 90, 95, 99)
+#: Confidence of the intervals around the sampled statistics.
+CONFIDENCE = 0.95
+
+
+def percentile_interval(values, q, confidence=CONFIDENCE):
+    """The interval [x_(r), x_(s)] of the sorted sample ``values`` that holds the
+    population's ``q``-th percentile with probability at least ``confidence``, whatever
+    the distribution: the number of draws below that percentile is binomial (n, q/100),
+    and r and s cut off at most (1 - confidence) / 2 of it on each side.  None where
+    the sample is too small for such an order statistic on a side."""
+    x = np.sort(np.asarray(values, dtype=float))
+    n, p, tail = x.size, q / 100, (1 - confidence) / 2
+    r = int(binom.ppf(tail, n, p))  # P(fewer than r draws below) <= tail
+    s = int(binom.ppf(1 - tail, n, p)) + 1  # P(s or more draws below) <= tail
+    if r < 1 or s > n or binom.cdf(r - 1, n, p) > tail:
+        return None
+    return float(x[r - 1]), float(x[s - 1])
+
+
+def fraction_interval(successes, n, confidence=CONFIDENCE):
+    """Wilson's score interval of a fraction ``successes`` of ``n`` draws."""
+    z = float(norm.ppf(0.5 + confidence / 2))
+    share, z2 = successes / n, z * z / n
+    centre = (share + z2 / 2) / (1 + z2)
+    half = z / (1 + z2) * np.sqrt(share * (1 - share) / n + z2 / (4 * n))
+    # At none or all of the draws an end is exactly 0 or 1, which rounding would miss.
+    return (0.0 if successes == 0 else float(centre - half),
+            1.0 if successes == n else float(centre + half))
 
 
 @dataclass(frozen=True)
@@ -132,13 +170,25 @@ class Flights:
     arrival: np.ndarray  # (M, 6), canonical, corrected as the misses are
 
     def percentiles(self):
+        """Each of :data:`PERCENTILES` of the misses, and its interval (``*_interval``,
+        :func:`percentile_interval`)."""
         return {f"p{q}": {"miss_km": float(np.percentile(self.miss_km, q)),
-                          "miss_m_s": float(np.percentile(self.miss_m_s, q))}
+                          "miss_m_s": float(np.percentile(self.miss_m_s, q)),
+                          "miss_km_interval": percentile_interval(self.miss_km, q),
+                          "miss_m_s_interval": percentile_interval(self.miss_m_s, q)}
                 for q in PERCENTILES}
 
     def within(self, tolerance):
         """The fraction of flights within both bounds."""
-        return float(np.mean((self.miss_km <= tolerance[0]) & (self.miss_m_s <= tolerance[1])))
+        return float(np.mean(self._inside(tolerance)))
+
+    def within_interval(self, tolerance):
+        """The interval of :meth:`within` (:func:`fraction_interval`)."""
+        inside = self._inside(tolerance)
+        return fraction_interval(int(inside.sum()), inside.size)
+
+    def _inside(self, tolerance):
+        return (self.miss_km <= tolerance[0]) & (self.miss_m_s <= tolerance[1])
 
     def take(self, index):
         """The flights ``index``."""
@@ -212,6 +262,7 @@ class Robustness:
     def _outcome(self, flights):
         return {"percentiles": flights.percentiles(),
                 "within_tolerance": flights.within(self.tolerance),
+                "within_tolerance_interval": flights.within_interval(self.tolerance),
                 "closest_km_p50": float(np.median(flights.closest_km))}
 
     def record(self):
@@ -234,16 +285,21 @@ class Robustness:
     def summary(self):
         lines = [f"{self.name}: {self.request.runs} flights a kind, thrust factor sigma "
                  f"{self.request.wind.sigma:g}, correlation {self.request.wind.corr_days:g} d, "
-                 f"seed {self.request.seed}"]
+                 f"seed {self.request.seed}; [{100 * CONFIDENCE:g} % intervals of the "
+                 "population's values]"]
         for k in self.kinds:
             p = k.percentiles()
             what = ("open loop" if k.margin is None else
                     f"guided every {self.request.guide_days:g} d, a_c margin "
                     f"{100 * k.margin:g} %")
-            lines.append(f"  {what}: miss p50 {p['p50']['miss_km']:.4g} km / "
-                         f"{p['p50']['miss_m_s']:.4g} m/s, p95 {p['p95']['miss_km']:.4g} km / "
+            low, high = k.within_interval(self.tolerance)
+            lines.append(f"  {what}: miss p50 {p['p50']['miss_km']:.4g} km "
+                         f"{_bracket(p['p50']['miss_km_interval'])} / "
+                         f"{p['p50']['miss_m_s']:.4g} m/s, p95 {p['p95']['miss_km']:.4g} km "
+                         f"{_bracket(p['p95']['miss_km_interval'])} / "
                          f"{p['p95']['miss_m_s']:.4g} m/s; {100 * k.within(self.tolerance):.1f} % "
-                         f"within {self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s")
+                         f"[{100 * low:.1f}-{100 * high:.1f} %] within "
+                         f"{self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s")
         for c in self.checks:
             kind = c["kind"].replace("_", " ") + ("" if c["margin"] is None else
                                                   f" (margin {100 * c['margin']:g} %)")
@@ -252,6 +308,11 @@ class Robustness:
                          f"{c['worst_velocity_m_s']:.3g} m/s"
                          + ("" if c["agree"] else " (NOT within the agreement bound)"))
         return "\n".join(lines)
+
+
+def _bracket(interval):
+    return "[too few flights to bound]" if interval is None else \
+        f"[{interval[0]:.3g}-{interval[1]:.3g}]"
 
 
 def waypoints(ends_days, every):
