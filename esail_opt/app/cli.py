@@ -691,8 +691,9 @@ def _add_robust(sub):
         "correlation time CORR_DAYS): open loop, and guided (re-targeted every GUIDE_DAYS "
         "from where the flight is, the sail having MARGIN more a_c than the schedule "
         "asks).  CHECK flights of each kind are flown again on CVODES.  Writes robust.csv "
-        "(each flight's miss and closest approach), robust.json (percentiles, the "
-        "fraction within the tolerance, the checks) and robust.png into "
+        "(each flight's miss and closest approach), robust.json (percentiles and the "
+        "fraction within the tolerance, each with its 95 % interval, the checks) and "
+        "robust.png into "
         "FOLDER_robust.  Exit status 0 when every checked flight lands where the closed "
         "form said; 1 otherwise; 2 for bad input; 3 when the folder cannot be written.")
     p.add_argument("folder", metavar="FOLDER", help="a solve's output folder (solution.json)")
