@@ -225,6 +225,29 @@ def test_a_flight_that_goes_back_in_time_is_published_without_an_oem(tmp_path):
     assert "trajectory.oem" in {p.name for p in sol.write(tmp_path / "ahead", plots=False)}
 
 
+def test_an_intercepts_oem_says_its_position_miss_alone(tmp_path):
+    """An intercept meets the body's position at any relative speed: it has no velocity
+    miss, and its OEM's comments give the position miss and bound alone (a verified
+    Ceres fly-by on 8 segments once failed to write its files over that missing miss)."""
+    import esail_opt as eo
+    from esail_opt.app.solution import solve
+
+    problem = eo.Problem(name="ceres_flyby",
+                         departure=eo.BodyDeparture(body="earth", date="2034-02-10"),
+                         sail=eo.Sail(ac_mm_s2=1.5),
+                         segments=eo.Segments(count=8, sub_arcs=4, equal=False),
+                         objective=eo.MinTime(), target=eo.BodyIntercept(body=eo.CERES))
+    sol = solve(problem)
+    assert sol.verified and sol.verification.target_miss_v_m_s is None
+    sol.write(tmp_path, plots=False)
+    comments = [line for line in (tmp_path / "trajectory.oem").read_text().splitlines()
+                if line.startswith("COMMENT")]
+    miss = sol.verification.target_miss_r_km
+    assert f"COMMENT miss at arrival: {miss:.6g} km (an intercept, at any relative " \
+           "speed) from the target; verifier's own error" in "\n".join(comments)
+    assert f"COMMENT tolerance: {sol.tolerance.position_km:.6g} km" in comments
+
+
 @pytest.mark.slow
 def test_a_polished_flights_oem_is_that_flight_and_meets_mars(tmp_path):
     """After ``--polish`` trajectory.oem is the polished flight: read back and

@@ -125,12 +125,16 @@ def _oem_comments(sol, polish):
              + ("the polished schedule (schedule.csv)" if polish else
                 "the closed-form optimum's schedule (schedule.csv)"),
              f"verdict: {verdict} (exit 0 only when verified)"]
+    # An intercept meets the body's position only: it has no velocity miss.
+    intercept = check.target_miss_v_m_s is None
     if check.target_miss_r_km is not None:
-        lines.append(f"miss at arrival: {check.target_miss_r_km:.6g} km, "
-                     f"{check.target_miss_v_m_s:.6g} m/s from the target; verifier's own "
-                     f"error {check.verifier_error_r_km:.3g} km, "
+        lines.append(f"miss at arrival: {check.target_miss_r_km:.6g} km"
+                     + (" (an intercept, at any relative speed)" if intercept else
+                        f", {check.target_miss_v_m_s:.6g} m/s") + " from the target; "
+                     f"verifier's own error {check.verifier_error_r_km:.3g} km, "
                      f"{check.verifier_error_v_m_s:.3g} m/s")
-    lines.append(f"tolerance: {bounds.position_km:.6g} km, {bounds.velocity_m_s:.6g} m/s")
+    lines.append(f"tolerance: {bounds.position_km:.6g} km"
+                 + ("" if intercept else f", {bounds.velocity_m_s:.6g} m/s"))
     lines.append("one data segment per schedule segment: the thrust switches between them, "
                  "so interpolate within a segment only")
     return lines
