@@ -164,6 +164,7 @@ AT_CAP = "Maximum_Iterations_Exceeded"
 #: this context (a thread's own): how a probe run in a thread of its own is called off
 #: (``classes.ClassSearch``).  None: only a signal stops them.
 STOP = contextvars.ContextVar("esail_opt_ipopt_stop", default=None)
+
 #: Times a solve whose clocks reached their box is taken on from them wrapped
 #: (:func:`solve_transcription`).
 CLOCK_RESTARTS = 3
