@@ -17,7 +17,7 @@ from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error
 from esail_opt.optimisation.segment_methods import arc_model
 from esail_opt.optimisation.error_control import sub_arcs_within_cap
 from esail_opt.optimisation.seed import initial_guess
-from esail_opt.optimisation.verify import verify
+from esail_opt.optimisation.verify import sampled
 from esail_opt.physics.constants import accel_from_mm_s2
 from esail_opt.propagation.arcs import FIRST_ORDER, ArcModel
 from esail_opt.propagation.rectified import propagate, rectified_function
@@ -105,16 +105,16 @@ def test_closed_form_curve_ends_on_the_nlp_nodes(path):
     # The planar curve: a real body's problem is flown in its ecliptic projection here
     # (the 3-D nodes carry the plane's orientation too; tests/test_optimisation3d.py).
     problem, result, defects = _solved(dataclasses.replace(load_problem(path), planar=True))
-    check = verify(problem, result, samples=SAMPLES, defects=defects)
+    curve = sampled(problem, result, defects, SAMPLES).closed_form
     sub = problem.segments.sub_arcs
     per_segment = sub * max(1, SAMPLES // sub)
     n = result.alpha.size
-    assert check.closed_form.shape == (5, 1 + n * per_segment)
-    ends = check.closed_form[:, per_segment::per_segment]
+    assert curve.shape == (5, 1 + n * per_segment)
+    ends = curve[:, per_segment::per_segment]
     gap = np.abs(ends - result.nodes)
     assert np.all(gap <= 1e-9 * np.maximum(np.abs(result.nodes), 1.0)), gap.max(axis=1)
     # The curve starts where the NLP departs.
-    np.testing.assert_array_equal(check.closed_form[:4, 0], result.x_start)
+    np.testing.assert_array_equal(curve[:4, 0], result.x_start)
     # A check that can fail: the paper's single first-order arc over the segment that
     # thrusts longest (what the curve showed before) misses the NLP's node by far more.
     kappa = np.asarray(result.throttle, float)

@@ -454,7 +454,7 @@ def test_a_run_that_found_nothing_is_neither_error_controlled_nor_polished():
     problem = small_problem()
     result, tr_ = solve_problem(problem, options=ipopt_options(max_iter=1), staged=False)
     assert result.outcome is Outcome.FAILED and not result.outcome.found
-    run = pipeline.finish(problem, result, tr_, samples=2, polish=True)
+    run = pipeline.finish(problem, result, tr_, polish=True)
     assert run.error_control is None and run.polish is not None and not run.polish.ran
     assert not run.verified and run.note.startswith("NOT verified: Ipopt ended ")
     assert run.polish.note == f"NOT polished: the closed-form solve ended {result.status}"

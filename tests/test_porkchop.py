@@ -60,7 +60,7 @@ def walks(monkeypatch):
         at = edge.at_tof(problem if start is None else start.problem, tof)
         return at, SimpleNamespace(ac_scale=1.5), None, infeasible, 0
 
-    def finish(problem, result, tr=None, samples=16, **kwargs):
+    def finish(problem, result, tr=None, **kwargs):
         return SimpleNamespace(verified=walks.verifies, problem=problem, result=result)
 
     walks = SimpleNamespace(calls=calls, verifies=True)

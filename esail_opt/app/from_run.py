@@ -218,19 +218,23 @@ def _polish(problem, polished):
         **calendar(problem, exact, polished.check))
 
 
-def _polish_fields(run):
-    """The Solution's fields of the polish (none without one)."""
+def _polish_fields(run, drawn):
+    """The Solution's fields of the polish (none without one), its flight ``drawn``."""
     polished = run.polish
     if polished is None:
         return {}
     out = {"polish": _polish(run.problem, polished)}
     if polished.ran:
-        exact, check = polished.result, polished.check
+        exact = polished.result
         out.update(objective_closed_form=polished.closed_form_objective,
                    objective_exact=exact.objective, tof_days_exact=_tof_days(exact),
-                   trajectory_polished=(None if check.error else
-                                        samples(check.cvodes, getattr(check, "cartesian", None))))
+                   trajectory_polished=_trajectory(drawn))
     return out
+
+
+def _trajectory(drawn):
+    """The CVODES samples of a ``verify.Sampled`` (None when CVODES failed)."""
+    return None if drawn.cvodes is None else samples(drawn.cvodes, drawn.cartesian)
 
 
 def _class_looked(problem, c):
@@ -258,8 +262,9 @@ def _nearest_feasible(near):
         infeasible_tof_days=near.infeasible_tof_days, iterations=near.iterations)
 
 
-def _closed_form_fields(run):
-    """The Solution's fields of the closed-form solve, its flight and its record."""
+def _closed_form_fields(run, drawn):
+    """The Solution's fields of the closed-form solve, its flight (``drawn``) and its
+    record."""
     problem, result, check = run.problem, run.result, run.check
     controlled = run.error_control
     return dict(
@@ -279,16 +284,16 @@ def _closed_form_fields(run):
         final_state=_final_state(result), verification=_flight(check),
         rounds=() if controlled is None else tuple(controlled.history),
         starts=tuple(run.starts),
-        trajectory_closed_form=samples(check.closed_form),
-        trajectory_cvodes=(samples(check.cvodes, getattr(check, "cartesian", None))
-                           if check.error is None else None),
+        trajectory_closed_form=samples(drawn.closed_form),
+        trajectory_cvodes=_trajectory(drawn),
         **calendar(problem, result, check))
 
 
-def solution_fields(run):
+def solution_fields(run, drawn, drawn_polish=None):
     """The keyword arguments of the :class:`~esail_opt.app.solution.Solution` of a
-    pipeline Run, but its schema version."""
-    return dict(**_closed_form_fields(run), **_polish_fields(run),
+    pipeline Run, but its schema version: ``drawn`` is the run's schedule drawn for the
+    files and figures (``verify.sampled``), ``drawn_polish`` the polished one's."""
+    return dict(**_closed_form_fields(run, drawn), **_polish_fields(run, drawn_polish),
                 classes=tuple(_class_looked(run.problem, c) for c in run.classes),
                 classes_skipped=run.classes_skipped,
                 nearest_feasible=_nearest_feasible(run.nearest_feasible))

@@ -346,7 +346,7 @@ def _edge(problems, cells):
              and (shortest is None or _tof(p) < _tof(shortest.problem))]
     if not below:
         return None
-    found = pipeline.nearest_feasible(max(below, key=_tof), start=shortest, samples=1)
+    found = pipeline.nearest_feasible(max(below, key=_tof), start=shortest)
     # Walked up from a cell with no point, the flight may not verify: no edge then.
     return found if found is not None and found.verified else None
 

@@ -32,6 +32,7 @@ from esail_opt.app.solution_parts import (Bounds, ClassLooked, DepartureBody, Fl
 from esail_opt.errors import InputError
 from esail_opt.optimisation import pipeline
 from esail_opt.optimisation.pipeline import Outcome, Round, StartTried
+from esail_opt.optimisation.verify import sampled
 
 
 def _not_polished(sol, value):
@@ -123,8 +124,14 @@ class Solution(Record):
 
     @classmethod
     def of(cls, run):
-        """The Solution of a pipeline :class:`~esail_opt.optimisation.pipeline.Run`."""
-        return cls(schema_version=schema.SCHEMA_VERSION, **from_run.solution_fields(run))
+        """The Solution of a pipeline :class:`~esail_opt.optimisation.pipeline.Run`, its
+        schedules drawn for the files and figures (``verify.sampled``): the closed form's
+        with the defects it was solved with, and the polish's."""
+        defects = None if run.error_control is None else run.error_control.defects
+        polished = run.polish
+        return cls(schema_version=schema.SCHEMA_VERSION, **from_run.solution_fields(
+            run, sampled(run.problem, run.result, defects),
+            sampled(run.problem, polished.result) if polished and polished.ran else None))
 
     @classmethod
     def from_json(cls, data, source="solution.json"):
@@ -163,7 +170,7 @@ class Solution(Record):
     summary = __str__ = report.summary
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False):
+def solve(problem, segments=None, progress=None, polish=False):
     """Solve ``problem`` through the whole pipeline
     (:func:`esail_opt.optimisation.pipeline.solve`, whose parameters these are) and
     return its :class:`Solution`.
@@ -173,14 +180,13 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
     InputError
         ``segments`` is not an integer >= 1 (before any solve starts).
     """
-    return solve_with_nearest(problem, segments, progress, samples, polish)[0]
+    return solve_with_nearest(problem, segments, progress, polish)[0]
 
 
-def solve_with_nearest(problem, segments=None, progress=None, samples=16, polish=False):
+def solve_with_nearest(problem, segments=None, progress=None, polish=False):
     """As :func:`solve`, and also the :class:`Solution` of the nearest feasible flight
     (the shortest time of flight that flies from the same departure) when the asked
     one found no point, else None: a whole answer to write beside the failed one."""
-    run = pipeline.solve(problem, segments=segments, progress=progress, samples=samples,
-                         polish=polish)
+    run = pipeline.solve(problem, segments=segments, progress=progress, polish=polish)
     near = run.nearest_feasible
     return Solution.of(run), None if near is None else Solution.of(near.flight)

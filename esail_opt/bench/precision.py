@@ -343,7 +343,7 @@ def run_point(problem, method, runs):
         detail = (f", {result.iterations} it, tof "
                   f"{units.time_to_days(float(sum(result.durations))):.2f} d")
         if result.converged:
-            check = verify(problem, result, samples=1)
+            check = verify(problem, result)
             if check.error is not None:
                 status = check.error
             else:

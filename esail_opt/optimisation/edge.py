@@ -88,7 +88,7 @@ def at_tof(problem, tof_days):
                                                                       tof_days=tof_days))
 
 
-def nearest_feasible(problem, lone, fly, start=None, samples=16, progress=None):
+def nearest_feasible(problem, lone, fly, start=None, progress=None):
     """The :class:`Edge` from ``problem``'s departure, or None when the walk found no
     time of flight at which the closed form converges.
 
@@ -100,7 +100,7 @@ def nearest_feasible(problem, lone, fly, start=None, samples=16, progress=None):
         ``lone(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk of
         its own, for a rung of the ladder whose single solve found no point.
     fly : callable
-        ``fly(problem, result, transcription, samples=, progress=)`` -> ``pipeline.Run``:
+        ``fly(problem, result, transcription, progress=)`` -> ``pipeline.Run``:
         the error control and the verification of the walk's flight
         (``pipeline.finish``).
     start : optional
@@ -108,9 +108,6 @@ def nearest_feasible(problem, lone, fly, start=None, samples=16, progress=None):
         ``problem``, ``result`` and ``transcription`` (a porkchop's verified cell of the
         date): the walk starts from it instead of the ladder, and it stays the edge
         when the walk finds nothing shorter, or the shorter flight does not verify.
-    samples : int
-        Flight samples per segment of the walk's flight (its verdict does not depend
-        on them).
     progress : callable, optional
         ``progress(text)``: one line per solve.
 
@@ -129,7 +126,7 @@ def nearest_feasible(problem, lone, fly, start=None, samples=16, progress=None):
         return Edge(start, infeasible, iterations)  # no step below the start converged
     say(f"{problem.name}: the shortest flight found feasible is "
         f"{cell.objective.tof_days:.4g} d; error control and verification")
-    run = fly(cell, result, tr, samples=samples, progress=say)
+    run = fly(cell, result, tr, progress=say)
     if start is not None and not run.verified:
         return Edge(start, infeasible, iterations)
     return Edge(run, infeasible, iterations)

@@ -140,8 +140,7 @@ class ErrorControl:
         Per segment, the closed form's position error against Eqs. 1-2 over that
         segment from its own start node, km (NaN where a segment could not be flown).
     check : Verification
-        The last round's verification of ``result`` (with ``samples`` per segment, and
-        its closed-form curve drawn with the defects it was solved with).
+        The last round's verification of ``result``.
     defects : numpy.ndarray or None
         The defects the final ``result`` was solved with (None: none).
     """
@@ -252,7 +251,7 @@ def _flown_miss(problem, check):
 
 
 def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
-                  defects=None, samples=1):
+                  defects=None):
     """Correct and re-mesh a closed-form optimum until its flight meets
     ``problem.tolerance`` (the rounds of this module's docstring): an
     :class:`ErrorControl`.
@@ -276,10 +275,6 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
     defects : numpy.ndarray, optional
         The 5 x N defects ``result`` was solved with (a scan carries a neighbour's), so
         that :attr:`ErrorControl.defects` says what the final result was solved with.
-    samples : int
-        Flight samples per segment of each round's verification (``verify``); the last
-        one, :attr:`ErrorControl.check`, is the run's verification, so a caller that
-        plots it asks for its plots' samples here rather than flying the result again.
     """
     say, fresh = progress or (lambda text: None), tr is None
     if fresh:  # a new NLP scales its variables anew: the first correction starts cold
@@ -288,7 +283,7 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
     local_km = np.full(result.alpha.size, np.nan)  # until a round flies every segment
     started = time.perf_counter()
     for rnd in range(max_rounds + 1):
-        check, exact, plain, local_km = _judge(problem, result, samples, applied, local_km, say)
+        check, exact, plain, local_km = _judge(problem, result, local_km, say)
         history.append(_row(rnd, problem, result, check, local_km, time.perf_counter() - started))
         miss = _said_miss(rnd, problem, check, say)
         if not result.outcome.found and found is not None:
@@ -344,12 +339,12 @@ def _said_miss(rnd, problem, check, say):
     return miss
 
 
-def _judge(problem, result, samples, applied, local_km, say):
-    """One round's flights of ``result``: its verification (``verify``, with the
-    defects ``applied``) and every segment flown from its own start node.  Returns
+def _judge(problem, result, local_km, say):
+    """One round's flights of ``result``: its verification (``verify``) and every
+    segment flown from its own start node.  Returns
     (check, exact ends, model ends, local errors in km); the ends are None, and the
     local errors those of the last round, when a segment cannot be flown on Eqs. 1-2."""
-    check = verify(problem, result, samples=samples, defects=applied)
+    check = verify(problem, result)
     try:
         exact, plain = segment_ends(problem, result)
     except SimulationError as err:

@@ -220,7 +220,7 @@ def _quiet(text):
     """The progress callback of a caller that wants none."""
 
 
-def solve(problem, segments=None, progress=None, samples=16, polish=False):
+def solve(problem, segments=None, progress=None, polish=False):
     """Run the whole pipeline on ``problem``.
 
     A MinTime or MinAcceleration rendezvous at a fixed departure also looks at the turn
@@ -237,8 +237,6 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
         Override the problem's number of control segments N (>= 1).
     progress : callable, optional
         ``progress(text)`` is called at each stage and every few seconds of Ipopt.
-    samples : int
-        Flight samples per segment for the plots (the verdicts do not depend on them).
     polish : bool
         Then polish the optimum (``optimisation.polish``) and verify that schedule too.
 
@@ -258,11 +256,10 @@ def solve(problem, segments=None, progress=None, samples=16, polish=False):
             raise InputError(f"segments = {segments!r} is outside [1, inf)")
         problem = problem.with_segments(segments)
     say = progress or _quiet
-    run = _lone(problem, samples, say)
-    return _polished(run, polish, samples, say)
+    return _polished(_lone(problem, say), polish, say)
 
 
-def _lone(problem, samples, say, walk=True):
+def _lone(problem, say, walk=True):
     """The run of :func:`solve` before the polish; ``walk`` False leaves out the walk to
     the shortest feasible flight (:func:`nearest_feasible`, whose rungs are such
     runs).  A 3-D problem's turn counts are searched on its projected model, the best
@@ -271,30 +268,30 @@ def _lone(problem, samples, say, walk=True):
     if problem.three_d() and multistart.searches_classes(problem):
         search = ClassSearch(problem, seed=functools.partial(_projected_seed, problem, say),
                              lift=functools.partial(_lift, say), say=say)
-        run = _best_verified(search, samples, say)
+        run = _best_verified(search, say)
         if run is not None:
             return run
         say(f"{problem.name}: no turn count lifted into 3-D converged; searching them in 3-D")
         spent = search.solves
-    run = _solved(problem, samples, say, walk)
+    run = _solved(problem, say, walk)
     # The run's Ipopt record covers the projected search it gave up, too.
     return dataclasses.replace(run, result=run.result.after(*spent, stages=False))
 
 
-def _solved(problem, samples, say, walk=True):
+def _solved(problem, say, walk=True):
     """The run of :func:`_lone` on ``problem``'s own model."""
     sub_arcs = problem.segments.sub_arcs
     problem, result, tr, starts = _first_solve(problem, say)
     if result.outcome.found and multistart.searches_classes(problem):
         run = _best_verified(ClassSearch(problem, seed=lambda: (problem, result, tr), say=say),
-                             samples, say, starts, sub_arcs)
+                             say, starts, sub_arcs)
     else:
-        run = finish(problem, result, tr, samples=samples, progress=say, starts=starts,
+        run = finish(problem, result, tr, progress=say, starts=starts,
                      sub_arcs_requested=sub_arcs)
         run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
     if walk and not result.outcome.found and edge.walks(problem):
         run = dataclasses.replace(run, nearest_feasible=nearest_feasible(
-            problem, samples=samples, progress=say))
+            problem, progress=say))
     return run
 
 
@@ -428,7 +425,7 @@ def _lift(say, problem, projected, cap):
                      "lifted into 3-D", result, tr)
 
 
-def _best_verified(search, samples, say, starts=(), requested=None):
+def _best_verified(search, say, starts=(), requested=None):
     """The run of the best solved candidate of ``search`` whose flight is verified, or
     of the best if none is (None without one); its ``classes`` record each class the
     search looked at, with the verdicts of those flown."""
@@ -445,8 +442,8 @@ def _best_verified(search, samples, say, starts=(), requested=None):
         result.iterations, result.solve_seconds = sum(spent), seconds
         if len(found) > 1:
             say(f"{candidate.problem.name}: flying the turn count k = {result.revolutions_k}")
-        return finish(candidate.problem, result, candidate.transcription, samples=samples,
-                      progress=say, starts=starts, sub_arcs_requested=requested)
+        return finish(candidate.problem, result, candidate.transcription, progress=say,
+                      starts=starts, sub_arcs_requested=requested)
 
     runs = finish_best_first(found, fly)
     chosen = next((run for run in runs if run.verified), runs[0])
@@ -456,22 +453,22 @@ def _best_verified(search, samples, say, starts=(), requested=None):
     return dataclasses.replace(chosen, classes=classes, classes_skipped=search.skipped)
 
 
-def nearest_feasible(problem, start=None, samples=16, progress=None):
+def nearest_feasible(problem, start=None, progress=None):
     """The edge of the feasible from ``problem``'s departure (``edge.nearest_feasible``:
     ``problem`` is a fixed-time problem that found no point, ``start`` an optional
     verified flight at a longer time of flight), its flight flown by :func:`finish`; a
     rung of its ladder whose seed finds no point is a lone solve without a walk of its
     own (:func:`_lone`).  An ``edge.Edge``, or None when the walk found none."""
-    return edge.nearest_feasible(problem, _unwalked, finish, start, samples, progress)
+    return edge.nearest_feasible(problem, _unwalked, finish, start, progress)
 
 
 def _unwalked(problem, say):
     """A lone solve of ``problem`` (:func:`_lone`) without the walk to the edge: a rung
     of the walk's ladder."""
-    return _lone(problem, 1, say, walk=False)
+    return _lone(problem, say, walk=False)
 
 
-def finish(problem, result, tr=None, samples=16, polish=False, progress=None, starts=(),
+def finish(problem, result, tr=None, polish=False, progress=None, starts=(),
            sub_arcs_requested=None):
     """The stages after a closed-form optimum is found: error control, CVODES
     verification and, with ``polish``, the polish.
@@ -489,7 +486,7 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         ``result``'s NLP: the error control re-solves it warm; without it a new one is
         built.  Either way the error control and the polish keep ``result``'s revolution
         class.
-    samples, polish, progress
+    polish, progress
         As for :func:`solve`.
     starts : sequence of StartTried
         The starts tried before this one.
@@ -507,8 +504,8 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
     if result.outcome.found:
         # A class other than the first solve's may fly more turns on the same mesh.
         result, tr = _per_revolution(problem, result, tr, say)
-        # Its last round's verification is the run's: flown with the plots' samples.
-        controlled = control_error(problem, result, tr, say, samples=samples)
+        # Its last round's verification is the run's.
+        controlled = control_error(problem, result, tr, say)
         # The run's Ipopt record covers the first solve and every round after it.
         iterations = result.iterations + sum(r.iterations for r in controlled.history[1:])
         seconds = result.solve_seconds + controlled.history[-1].seconds
@@ -516,12 +513,12 @@ def finish(problem, result, tr=None, samples=16, polish=False, progress=None, st
         result.iterations, result.solve_seconds = iterations, seconds
         check = controlled.check
     else:
-        check = verify(problem, result, samples)
+        check = verify(problem, result)
     verified, note = verdict(problem, result, check, starts)
     run = Run(problem=problem, result=result, transcription=tr, starts=tuple(starts),
               error_control=controlled, check=check, verified=verified, note=note,
               sub_arcs_requested=requested)
-    return _polished(run, polish, samples, say)
+    return _polished(run, polish, say)
 
 
 def verdict(problem, result, check, starts=()):
@@ -586,14 +583,14 @@ def _always_on_hint(problem):
             "an orbit at a high a_c may need")
 
 
-def _polished(run, polish, samples, say):
+def _polished(run, polish, say):
     """``run`` with its polish, when asked for."""
     if not polish:
         return run
-    return dataclasses.replace(run, polish=_polish(run.problem, run.result, samples, say))
+    return dataclasses.replace(run, polish=_polish(run.problem, run.result, say))
 
 
-def _polish(problem, result, samples, say):
+def _polish(problem, result, say):
     """Polish ``result`` and judge the polished flight against :data:`POLISH_TOLERANCE`."""
     # A closed form that found no optimum has nothing worth polishing.
     if not result.outcome.found:
@@ -605,7 +602,7 @@ def _polish(problem, result, samples, say):
     exact, _ = polishing.polish(problem, result)
     say(f"{problem.name}: polish {exact.status} after {exact.iterations} iterations; "
         "verifying on CVODES")
-    check = verify(problem, exact, samples)
+    check = verify(problem, exact)
     within_all, note = check.judge(problem, POLISH_TOLERANCE, against_nlp=True)
     verified = exact.converged and within_all
     if not exact.converged:

@@ -157,7 +157,7 @@ class CellSolver:
             problem, result, tr = (controlled.problem, controlled.result,
                                    controlled.transcription)
         check = (controlled.check if controlled is not None
-                 else verify(problem, result, samples=1))
+                 else verify(problem, result))
         verified, note = check.judge(problem)
         verified = verified and result.converged
         if not result.converged:

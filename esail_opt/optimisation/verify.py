@@ -33,6 +33,9 @@ from esail_opt.propagation.rectified3d import propagate3d
 from esail_opt.propagation.simulate import (CHECK_TOLERANCE, VERIFY_TOLERANCE, simulate,
                                             simulate3d)
 
+#: Flight samples per segment of the files and figures.
+SAMPLES = 16
+
 
 def target_miss(target, x, t, t0=0.0):
     """Miss of polar state ``x`` at time ``t`` (TU) after a departure at epoch ``t0``
@@ -44,14 +47,16 @@ def target_miss(target, x, t, t0=0.0):
 
 @dataclass
 class Verification:
-    """CVODES flight of the schedule and its misses (boundary units in the dict)."""
+    """The CVODES flight a verdict is made on, and its misses (boundary units in the dict).
 
-    cvodes: np.ndarray  # 5 x M samples [r, theta, vr, vt, t]
-    closed_form: np.ndarray  # 5 x M samples of the NLP's closed form, from its nodes
+    ``cvodes`` holds [r, theta, v_r, v_theta, t] at the departure and at each segment's
+    end; in three dimensions it is a view of ``cartesian``, the flight's
+    [x, y, z, vx, vy, vz, t] at the same instants (ecliptic of J2000, canonical).  Both are
+    placeholders of NaN when CVODES failed (``error`` says why)."""
+
+    cvodes: np.ndarray
     misses: dict
     error: Optional[str] = None
-    # In three dimensions: the flight's 7 x M Cartesian samples [x, y, z, vx, vy, vz, t]
-    # (ecliptic of J2000, canonical), of which ``cvodes`` is a polar view for the plots.
     cartesian: Optional[np.ndarray] = None
 
     def judge(self, problem, tolerance=None, against_nlp=False):
@@ -161,7 +166,7 @@ def judge(problem, misses, error, tolerance, against_nlp=False):
     return True, f"verified: {flight} is within " + ", and within ".join(held)
 
 
-def closed_form_curve(problem, result, samples=16, defects=None):
+def closed_form_curve(problem, result, samples=SAMPLES, defects=None):
     """The closed form the NLP solved, sampled: 5 x (1 + N S m) states, S sub-arcs and
     m = max(1, samples // S) samples per sub-arc, so that column k S m is node k.
 
@@ -174,8 +179,7 @@ def closed_form_curve(problem, result, samples=16, defects=None):
     """
     model = arc_model(problem)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
-    kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
-             else np.asarray(result.throttle, float))
+    kappa = _throttles(result)
     per_sub = max(1, samples // model.sub_arcs)
     first = start_node(result.x_start)
     starts = np.column_stack([first, result.nodes[:, :-1]])
@@ -199,79 +203,87 @@ def closed_form_curve(problem, result, samples=16, defects=None):
     return np.column_stack(pieces)
 
 
-def verify(problem, result, samples=16, defects=None):
-    """Fly ``result``'s schedule with CVODES, and draw the closed form the NLP solved.
+def verify(problem, result):
+    """Fly ``result``'s schedule with CVODES and measure its misses: a
+    :class:`Verification`.
 
-    Parameters
-    ----------
-    problem : Problem
-        As solved (its sub-arcs and extrapolation set the closed form's arcs).
-    result : NLPResult
-        Its ``x_start``, ``alpha``, ``durations``, ``lengths``, ``nodes`` and
-        ``throttle`` (kappa per segment; None is full thrust) define the schedule.
-    samples : int
-        Output points per segment (time-equal for CVODES, theta-equal per sub-arc for
-        the closed form, :func:`closed_form_curve`); only the plots use them.
-    defects : numpy.ndarray, optional
-        The 5 x N segment defects ``result`` was solved with (``refine.Refinement``'s
-        ``defects``), for the closed-form curve.
-
-    Returns
-    -------
-    Verification
+    ``problem`` is as solved; ``result`` (an ``NLPResult``) gives the schedule: its
+    ``x_start``, ``alpha`` (and ``delta`` in 3-D), ``durations``, ``nodes`` and
+    ``throttle`` (kappa per segment; None is full thrust).  The flight is kept at the
+    departure and each segment's end: a verdict never depends on how densely a flight
+    is drawn (:func:`sampled` draws it).
     """
     if getattr(result, "delta", None) is not None:
-        return verify3d(problem, result, samples, defects)
+        return verify3d(problem, result)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     # CVODES flies from the exact departure (a body's ephemeris, not the NLP's track).
     x0_exact = problem.start_state(result)
-    kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
-             else np.asarray(result.throttle, float))
-    closed = closed_form_curve(problem, result, samples, defects)
-    error = None
+    kappa = _throttles(result)
     try:
         flown = simulate(x0_exact, result.alpha, result.durations, ac, throttles=kappa,
-                         samples=samples, length_in="time", coefficients=coeff,
-                         tol=VERIFY_TOLERANCE)
+                         length_in="time", coefficients=coeff, tol=VERIFY_TOLERANCE)
         check = simulate(x0_exact, result.alpha, result.durations, ac, throttles=kappa,
                          length_in="time", coefficients=coeff, tol=CHECK_TOLERANCE)
     except Exception as err:  # CVODES gave up (e.g. an escaping orbit): report, do not hide
-        error = f"CVODES failed: {err}"
-        flown = np.full((5, 1), np.nan)
+        return Verification(np.full((5, 1), np.nan), _failed(), f"CVODES failed: {err}")
     xf_nlp = result.nodes[:4, -1]
     xf_cv = flown[:4, -1]
-    if error is None:
-        dr, dv, dth = state_miss(xf_cv, xf_nlp)
-        misses = {"miss_r_km": dr, "miss_v_m_s": dv, "miss_theta_deg": dth}
-        err_r, err_v, _ = state_miss(check[:4, -1], xf_cv)
-        misses.update(verifier_error_r_km=err_r, verifier_error_v_m_s=err_v)
-        misses.update(target_miss(problem.target, xf_cv, flown[4, -1], result.epoch))
-        _add_window_miss(misses, problem.target, result.epoch, flown[4, -1])
-        nlp_target = target_miss(problem.target, xf_nlp, float(np.sum(result.durations)),
-                                 result.epoch)
-        misses["nlp_target_miss_r_km"] = nlp_target["target_miss_r_km"]
-    else:
-        misses = {"miss_r_km": None, "miss_v_m_s": None, "miss_theta_deg": None,
-                  "target_miss_r_km": None, "target_miss_v_m_s": None,
-                  "verifier_error_r_km": None, "verifier_error_v_m_s": None}
-    return Verification(flown, closed, misses, error)
+    dr, dv, dth = state_miss(xf_cv, xf_nlp)
+    misses = {"miss_r_km": dr, "miss_v_m_s": dv, "miss_theta_deg": dth}
+    err_r, err_v, _ = state_miss(check[:4, -1], xf_cv)
+    misses.update(verifier_error_r_km=err_r, verifier_error_v_m_s=err_v)
+    misses.update(target_miss(problem.target, xf_cv, flown[4, -1], result.epoch))
+    _add_window_miss(misses, problem.target, result.epoch, flown[4, -1])
+    nlp_target = target_miss(problem.target, xf_nlp, float(np.sum(result.durations)),
+                             result.epoch)
+    misses["nlp_target_miss_r_km"] = nlp_target["target_miss_r_km"]
+    return Verification(flown, misses)
+
+
+def _throttles(result):
+    """kappa per segment (ones for a sail always on)."""
+    return (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
+            else np.asarray(result.throttle, float))
+
+
+def _failed():
+    """The misses of a flight CVODES could not finish: all unknown."""
+    return {k: None for k in ("miss_r_km", "miss_v_m_s", "miss_theta_deg",
+                              "target_miss_r_km", "target_miss_v_m_s",
+                              "verifier_error_r_km", "verifier_error_v_m_s")}
 
 
 def polar_view(flight, x_start):
     """A 3-D flight's Cartesian samples (7 x M) as [r, theta, v_r, v_theta, t] for the
     plots: theta is the angle swept, unwrapped from the departure's own theta (the
-    8-row ``x_start``), v_theta = |r x v| / r.  A view, not a model: nothing here is
-    flown."""
+    8-row ``x_start``), v_theta = |r x v| / r.  The samples must lie less than half a
+    turn apart.  A view, not a model: nothing here is flown."""
     pos, vel = flight[:3], flight[3:6]
     r = np.linalg.norm(pos, axis=0)
     h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
     cos = np.clip(np.sum(pos[:, 1:] * pos[:, :-1], axis=0) / (r[1:] * r[:-1]), -1, 1)
-    # Samples are a small part of a turn apart, so each step's angle is below pi.
     theta = float(x_start[1]) + np.r_[0.0, np.cumsum(np.arccos(cos))]
     return np.vstack([r, theta, np.sum(pos * vel, axis=0) / r, h / r, flight[6]])
 
 
-def verify3d(problem, result, samples=16, defects=None):
+def _node_view(flight, result):
+    """A 3-D flight's Cartesian states at the departure and each segment's end (7 x
+    (N + 1)) as [r, theta, v_r, v_theta, t]: theta is the NLP's own there plus the signed
+    angle from its node's position to the flight's about the node's angular momentum,
+    so it holds however far apart the segment ends lie."""
+    nodes = np.column_stack([start_node(result.x_start), result.nodes])
+    pos, vel = flight[:3], flight[3:6]
+    r = np.linalg.norm(pos, axis=0)
+    h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
+    node = np.column_stack([node_cartesian(n) for n in nodes.T])
+    axis = np.cross(node[:3].T, node[3:6].T).T
+    axis /= np.linalg.norm(axis, axis=0)
+    turn = np.arctan2(np.sum(np.cross(node[:3].T, pos.T).T * axis, axis=0),
+                      np.sum(node[:3] * pos, axis=0))
+    return np.vstack([r, nodes[1] + turn, np.sum(pos * vel, axis=0) / r, h / r, flight[6]])
+
+
+def verify3d(problem, result):
     """:func:`verify` in three dimensions: the schedule of pitch and clock angles flown
     by CVODES (``simulate.simulate3d``, in time, the NLP's durations) from the exact 3-D
     departure (``Problem.start_state``), and its final state held, in Cartesian
@@ -285,33 +297,21 @@ def verify3d(problem, result, samples=16, defects=None):
     each other's integration errors, as two flights of one form do (THEORY.md §5.5), and
     a fault in the decomposition can only make a verdict harder to earn."""
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
-    y0 = problem.start_state(result)
-    kappa = (np.ones(result.alpha.size) if getattr(result, "throttle", None) is None
-             else np.asarray(result.throttle, float))
-    closed = closed_form_curve(problem, result, samples, defects)
-    args = (y0, result.alpha, result.delta, result.durations, ac)
+    args = (problem.start_state(result), result.alpha, result.delta, result.durations, ac)
+    kappa = _throttles(result)
     try:
         judged = simulate3d(*args, throttles=kappa, length_in="time", coefficients=coeff,
                             tol=VERIFY_TOLERANCE)
-        # The figures' samples are a flight of their own: CVODES stopping at each sample
-        # moves a Cartesian flight's end by as much as the verifier's own error, and the
-        # verdict (and the polish, which lands on this flight) must not depend on them.
-        flown = judged if samples <= 1 else simulate3d(
-            *args, throttles=kappa, samples=samples, length_in="time",
-            coefficients=coeff, tol=VERIFY_TOLERANCE)
         check = simulate3d(*args, throttles=kappa, length_in="time", coefficients=coeff,
                            tol=CHECK_TOLERANCE)
         cartesian = simulate3d(*args, throttles=kappa, length_in="time",
                                coefficients=coeff, tol=VERIFY_TOLERANCE, form="cartesian")
     except Exception as err:  # CVODES gave up: report, do not hide
-        misses = {k: None for k in ("miss_r_km", "miss_v_m_s", "miss_theta_deg",
-                                    "target_miss_r_km", "target_miss_v_m_s",
-                                    "verifier_error_r_km", "verifier_error_v_m_s")}
-        return Verification(np.full((5, 1), np.nan), closed, misses,
-                            f"CVODES failed: {err}", np.full((7, 1), np.nan))
+        return Verification(np.full((5, 1), np.nan), _failed(), f"CVODES failed: {err}",
+                            np.full((7, 1), np.nan))
     yf = judged[:6, -1]
     dr, dv = cartesian_miss(yf, node_cartesian(result.nodes[:, -1]))
-    view = polar_view(flown, result.x_start)
+    view = _node_view(judged, result)
     misses = {"miss_r_km": dr, "miss_v_m_s": dv,
               "miss_theta_deg": float(np.degrees(view[1, -1] - result.nodes[1, -1]))}
     (tol_r, tol_v), (form_r, form_v) = (cartesian_miss(other[:6, -1], yf)
@@ -328,7 +328,41 @@ def verify3d(problem, result, samples=16, defects=None):
         # An orbit target (or none) holds r, v_r and h only: the plane's polar view is exact.
         misses.update(target_miss(problem.target, view[:4, -1], tf, result.epoch))
     _add_window_miss(misses, problem.target, result.epoch, tf)
-    return Verification(view, closed, misses, None, flown)
+    return Verification(view, misses, None, judged)
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """A schedule drawn for the files and figures: the closed form the NLP solved
+    (``closed_form``, 5 x M, :func:`closed_form_curve`) and its CVODES flight
+    (``cvodes``, 5 x M, None when CVODES failed; in 3-D a view of ``cartesian``, 7 x M)."""
+
+    closed_form: np.ndarray
+    cvodes: Optional[np.ndarray]
+    cartesian: Optional[np.ndarray] = None
+
+
+def sampled(problem, result, defects=None, samples=SAMPLES):
+    """``result``'s schedule drawn with ``samples`` points a segment (a :class:`Sampled`):
+    the closed form flown from the NLP's nodes with ``defects``, and CVODES from the exact
+    departure at the verdict's tolerance.  A flight of its own, apart from the verdict's:
+    stopping CVODES at each sample moves a flight's end by as much as the verifier's own
+    error, and a verdict must not depend on how densely it is drawn."""
+    closed = closed_form_curve(problem, result, samples, defects)
+    ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
+    kappa, y0 = _throttles(result), problem.start_state(result)
+    try:
+        if getattr(result, "delta", None) is None:
+            return Sampled(closed, simulate(y0, result.alpha, result.durations, ac,
+                                            throttles=kappa, samples=samples,
+                                            length_in="time", coefficients=coeff,
+                                            tol=VERIFY_TOLERANCE))
+        flown = simulate3d(y0, result.alpha, result.delta, result.durations, ac,
+                           throttles=kappa, samples=samples, length_in="time",
+                           coefficients=coeff, tol=VERIFY_TOLERANCE)
+    except Exception:  # the verdict's flight says why
+        return Sampled(closed, None)
+    return Sampled(closed, polar_view(flown, result.x_start), flown)
 
 
 def _add_window_miss(misses, target, epoch, tof):
