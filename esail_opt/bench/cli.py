@@ -1,10 +1,9 @@
 """The ``esail-opt-bench`` command: run benchmarks by name.
 
-The benchmarks are the top layer, above the application, so they have their own command
-(a ``[project.scripts]`` entry, also ``python -m esail_opt.bench``) rather than a
-subcommand of ``esail-opt``: the application's command line would have to import them,
-an import running upward.  Errors become one line and an exit status as in
-``esail-opt`` (:func:`esail_opt.app.cli.run_command`).
+The benchmarks are the top layer, so they have their own command (also ``python -m
+esail_opt.bench``) rather than a subcommand of ``esail-opt``, whose import of them would
+run upward.  Errors become one line and an exit status as in ``esail-opt``
+(:func:`esail_opt.app.cli.run_command`).
 """
 
 import argparse

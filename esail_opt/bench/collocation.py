@@ -8,95 +8,35 @@ Run it as a module, naming the JSON file to write (the tests read theirs from
     python -m esail_opt.bench.collocation --out collocation_min_time.json earth_mars  # a subset
 
 A subset run keeps the other cases already in the file.  ``esail-opt-bench lowthrust``
-times this module's path to one optimum (``esail_opt.bench.lowthrust``).
+times this module's path to one optimum (:mod:`.lowthrust`).
 
-Why this exists
----------------
-The project's optimiser flies piecewise-constant pitch arcs on a closed form.
-To test it we need optima computed by a method that shares nothing with it except the
-physical model: here the pitch alpha_n(t) is a *continuous* function of time, the
-dynamics are the exact Eqs. 1-2 (``esail_opt.physics.dynamics.rhs`` with the thrust
-factors of ``esail_opt.physics.thrust.radial_transverse``, exact b1 = 3/4, b2 = 1/4), and
-nothing from ``esail_opt.propagation`` or ``esail_opt.optimisation`` is used.  A
-piecewise-constant pitch schedule is a special case of an unrestricted pitch history, so
-the global continuous optimum is a lower bound (up to discretisation error) on the time of
-any piecewise-constant schedule flown on Eqs. 1-2.
+It shares nothing with the optimiser but the physical model (``physics.dynamics.rhs``,
+exact b1 = 3/4, b2 = 1/4; nothing from ``propagation`` or ``optimisation``).  The pitch
+alpha(t) is continuous, so the optimum bounds from below (up to discretisation error) the
+time of any piecewise-constant schedule flown on Eqs. 1-2.
 
-The problem
------------
-Canonical units (au, mu = 1, TU = sqrt(au^3/mu)).  State x = [r, theta, v_r, v_theta].
-Start: circular orbit at 1 au, x(0) = [1, 0, 0, 1] (theta0 = 0: with a circular start the
-departure angle is irrelevant).  End: r = R, v_r = 0, v_theta = sqrt(1/R) at t = tf,
-theta(tf) free -- or, for a rendezvous case (``phase_deg`` and ``k`` in CASES), on the body:
-theta(tf) = phase + tf R^-3/2 + 2 pi k, one more equality (no revolution windows then: k
-fixes the class), and the verification adds the along-track miss to the body.  The sail is always on with characteristic acceleration a_c; the only
-control is the pitch alpha_n in [-90, 90] deg.  Minimise tf.
+Problem: canonical units (au, mu = 1, TU), x = [r, theta, v_r, v_theta], from the circular
+x(0) = [1, 0, 0, 1] to r = R, v_r = 0, v_theta = sqrt(1/R) at t = tf with theta(tf) free --
+or, for a rendezvous case (``phase_deg`` and ``k`` in CASES), theta(tf) = phase +
+tf R^-3/2 + 2 pi k (no revolution windows then: k fixes the class).  The sail is always
+on at a_c; minimise tf.  Eq. 2 gives the exact bound :func:`tof_lower_bound`.
 
-Transcription
--------------
-* Time is normalised, t = tf * tau with tau in [0, 1] cut into N equal intervals, so the
-  free final time is a single scalar decision variable multiplying the dynamics.
-* Inside each interval the state is the cubic polynomial through the interval's start
-  point and its three Legendre-Gauss-Radau (Radau IIA) points c = (0.155, 0.645, 1).
-  Collocation enforces the ODE at the three Radau points:
-      sum_m D[j, m] x_m = (tf / N) f(x_j, alpha_j),    j = 1..3,
-  with D the derivative matrix of the Lagrange basis on (0, c1, c2, c3).  This is the
-  3-stage Radau IIA scheme: order 5 for the states, so halving the step cuts the error in
-  tf by ~32 and the mesh refinement study converges quickly.  Since c3 = 1, the last
-  collocation point of an interval *is* the first point of the next one; the states live
-  on one grid of 3N + 1 points and continuity is built in.
-* The control is a decision variable at every collocation point (3N values).  For
-  re-integration it is turned into a continuous function of time: in each interval the
-  cubic Lagrange polynomial through the values at (0, c1, c2, 1), the value at 0 being the
-  previous interval's end value (for the first interval the quadratic through its three
-  collocation values is extrapolated to t = 0).  So alpha(t) is continuous, piecewise cubic.
-* All boundary conditions are variable bounds (fixed start state, target r, v_r, v_theta),
-  so the only equality constraints are the collocation defects, written as
-  N sum_m D[j, m] x_m - tf f so that their size does not shrink with the interval length.
-* Ipopt (MUMPS, exact Hessian from casadi) solves the NLP.
+Transcription: tau = t / tf in [0, 1] cut into N equal intervals; in each, the state is the
+cubic through the start and the three Radau IIA points c = (0.155, 0.645, 1) (order 5:
+halving the step cuts the error in tf by ~32).  As c3 = 1 the states live on one grid of
+3N + 1 points, continuity built in.  The pitch is a decision variable at each collocation
+point, flown as the continuous piecewise cubic of :data:`CONTROL_DESCRIPTION`.  Boundary
+conditions are variable bounds, so the only equalities are the defects.  Ipopt with MUMPS.
 
-Multimodality and globalisation
--------------------------------
-Minimum-time transfers have local optima that differ in the number of revolutions, and
-Ipopt converges to the one whose basin holds the guess.  Each case is therefore solved
-from a set of starts:
-  (a) forward integrations of Eqs. 1-2 at constant pitch (|alpha| from 20 to 55 deg, the
-      sign raising or lowering the orbit) stopped when r first reaches the target radius;
-  (b) synthetic spirals of k revolutions (r linear in time, circular speed, theta from the
-      local circular rate), k spread around the revolution count of the time lower bound;
-  (c) revolution windows: theta(tf) boxed into [2 pi k, 2 pi (k + 1)] for k from one
-      below to two above the revolution counts found, then the box released.
-All converged solutions are clustered by (tf, revolutions) into candidate optima; each is
-re-solved on the reporting mesh N (>= 60 intervals per shortest orbital period, >= 200
-intervals) and re-integrated (see Verification).  Ipopt occasionally stops at KKT points
-of the discrete problem where the pitch at a single collocation point is an outlier (seen:
-0 deg among neighbours near 51 deg); the collocation equations are satisfied, but the
-control does not fly when re-integrated (misses of thousands of km).  Candidates that miss
-the target by more than 100 km or 0.1 m/s are reported as rejected, never chosen, and
-re-meshing starts from a median-filtered control so that such outliers do not propagate.
-The best verified optimum is re-solved on 2N intervals (the refinement study) and the 2N
-solution is the reported one.
+Globalisation: minimum-time transfers have local optima that differ in revolutions, so each
+case is solved from constant-pitch integrations, k-revolution spirals (:func:`starts`) and
+revolution windows; the distinct optima are re-solved on the reporting mesh N and verified
+(a discrete optimum that does not fly is rejected), and the best is re-solved on 2N, the
+reported solution.
 
-The pitch variable is not boxed to [-90, 90] deg.  Eqs. 3-4 depend on 2 alpha only:
-(R, T) runs round a circle of radius 1/4 about (3/4, 0), and alpha_n = +90 and -90 deg
-give the same thrust.  The optimal thrust direction does pass the inner point (1/2, 0) in
-both 1 mm/s^2 transfers (alpha_n goes through -90 and reappears at +90 deg, a jump in
-alpha_n but not in the thrust); in a box that jump is a discontinuity the polynomial
-control cannot follow.  So alpha is a free real number and alpha_n is alpha wrapped into
-[-90, 90) deg.
-
-An exact lower bound checks everything: Eq. 2 gives d(r v_theta)/dt = a_c T(alpha) with
-|T| <= 1/4, so tf >= |sqrt(R) - 1| / (a_c / 4).
-
-Verification
-------------
-The optimum's control (continuous piecewise-cubic interpolant above) is re-integrated on
-Eqs. 1-2 with scipy's DOP853 at rtol = atol = 1e-12, interval by interval (the control is
-smooth inside an interval, only C0 across), and the final state is compared with the
-target orbit (radius miss in km, velocity miss in m/s).  Local optimality in Pontryagin's
-sense is checked point by point from Ipopt's multipliers (see
-``minimum_principle_alignment``): the pitch must maximise lam_v . (R, T) at every
-collocation point.
+Verification (:func:`verify`): the control is re-integrated on Eqs. 1-2 with DOP853 at
+rtol = atol = 1e-12 and the miss to the target reported; Pontryagin's principle is checked
+from Ipopt's multipliers (:func:`minimum_principle_alignment`).
 """
 
 import argparse
@@ -128,9 +68,8 @@ CASES = {
 }
 R0_AU = 1.0
 
-# Mesh density: intervals per shortest orbital period met on the way (the period at
-# min(r0, R)).  The multistart search runs on a coarser mesh than the reported solutions;
-# Radau IIA is accurate enough there to tell basins apart and rank them.
+# Intervals per shortest orbital period on the way (at min(r0, R)).  The search mesh is
+# coarser: Radau IIA there still tells basins apart and ranks them.
 INTERVALS_PER_REV_SEARCH = 20
 INTERVALS_PER_REV_REPORT = 60
 MIN_INTERVALS_SEARCH = 24
@@ -165,8 +104,7 @@ DIFF = np.array([[BASIS[m].deriv()(c) for m in range(DEGREE + 1)] for c in RADAU
 EXTRAP0 = np.array([b(0.0) for b in _lagrange_basis(RADAU)])
 
 
-# The model: Eqs. 1-2 and Eqs. 3-4 from the package, wrapped once in a casadi Function
-# so that both the NLP (symbolically) and the verification (numerically) use it.
+# Eqs. 1-4 from the package, one casadi Function for the NLP and the verification alike.
 _x = ca.SX.sym("x", 4)
 _alpha = ca.SX.sym("alpha")
 _ac = ca.SX.sym("ac")
@@ -195,21 +133,17 @@ def intervals_for(tf, rf, per_rev, minimum):
     return max(minimum, int(math.ceil(per_rev * tf / shortest_period(rf))))
 
 
-# ----------------------------------------------------------------------------------------
-# The NLP
-# ----------------------------------------------------------------------------------------
+# ------------------------------------------------------------------ the NLP
 def _interval_defects(N, ac):
     """One interval's collocation defects as a Function ``(states 4 x 4, controls 1 x 3,
-    tf) -> 4 x 3``, to be mapped over all intervals: the NLP graph stays small and
-    casadi builds the sparse derivatives interval by interval."""
+    tf) -> 4 x 3``, mapped over the intervals so that the NLP graph stays small."""
     blk = ca.SX.sym("blk", 4, DEGREE + 1)
     ublk = ca.SX.sym("ublk", 1, DEGREE)
     s = ca.SX.sym("s")  # tf, shared
     defects = []
     for j in range(DEGREE):
-        # blk @ D[j] is dx/d(local interval time), i.e. dx/dtau / N; the ODE in tau is
-        # dx/dtau = tf f.  Written as N (blk @ D[j]) - tf f the defect is O(tf), not
-        # O(tf / N), so Ipopt's absolute tolerance means the same on every mesh.
+        # N (blk @ D[j]) - tf f is O(tf), not O(tf / N): Ipopt's absolute tolerance
+        # means the same on every mesh.
         slope = ca.mtimes(blk, ca.DM(DIFF[j, :]))
         defects.append(N * slope - s * F_RHS(blk[:, j + 1], ublk[j], ac))
     return ca.Function("interval", [blk, ublk, s], [ca.horzcat(*defects)])
@@ -226,8 +160,8 @@ def _ipopt_options(print_level, max_cpu_seconds):
         "ipopt.acceptable_tol": 1e-8,
         "ipopt.acceptable_iter": 10,
         "ipopt.max_iter": 3000,
-        # A few starts far from any optimum (or boxed into an infeasible revolution
-        # window) grind on without end; they are not worth it, other starts cover them.
+        # Starts far from any optimum (or boxed into an infeasible window) grind on;
+        # other starts cover them.
         "ipopt.max_cpu_time": max_cpu_seconds,
     }
 
@@ -241,14 +175,10 @@ def _box(N, rf):
     lbz[:, 0] = ubz[:, 0] = [R0_AU, 0.0, 0.0, 1.0]  # circular 1 au, theta0 = 0
     tgt = target_state(rf)
     lbz[[0, 2, 3], -1] = ubz[[0, 2, 3], -1] = tgt  # circular target, theta free
-    # The pitch variable is left (almost) free, not boxed to [-90, 90] deg: Eqs. 3-4
-    # depend on 2 alpha only, so (R, T) runs round a circle of radius 1/4 about
-    # (3/4, 0) and alpha_n = +90 deg and -90 deg are the same thrust vector.  An
-    # optimal thrust direction that passes the inner point (1/2, 0) of that circle is
-    # smooth in the unwrapped angle but jumps from +90 to -90 deg in alpha_n; with a box
-    # the collocation could only follow it with a discontinuity that the polynomial
-    # control cannot represent (it did: chattering, spurious "optima").  The physical
-    # pitch is the unwrapped value wrapped into [-90, 90) deg.
+    # The pitch is not boxed to [-90, 90] deg: Eqs. 3-4 depend on 2 alpha only, so an
+    # optimal thrust passing the inner point (1/2, 0) of the (R, T) circle is smooth in
+    # the unwrapped angle but jumps from +90 to -90 deg in alpha_n, which the polynomial
+    # control cannot follow.  The physical pitch is the value wrapped into [-90, 90) deg.
     span = 2.0 * math.pi
     return (np.concatenate([lbz.ravel(order="F"), np.full(DEGREE * N, -span), [1e-2]]),
             np.concatenate([ubz.ravel(order="F"), np.full(DEGREE * N, span), [500.0]]))
@@ -259,8 +189,8 @@ class Transcription:
 
     Decision vector: states Z (4 x (3N+1), column-major), controls A (3N), tf.
     Grid point 3k + j (j = 0..3) of interval k sits at tau = (k + NODES[j]) / N.
-    ``max_cpu_seconds`` caps each Ipopt solve: the multistart gives up on a start that
-    grinds, a timing may lift the cap so that a slow solve is measured, not cut short.
+    ``max_cpu_seconds`` caps each Ipopt solve (a timing may lift it so that a slow solve
+    is measured, not cut short).
     """
 
     def __init__(self, N, ac, rf, print_level=0, rendezvous=None,
@@ -279,8 +209,7 @@ class Transcription:
         self.nw = w.numel()
         g = ca.vec(g)
         if rendezvous is not None:
-            # Meet the body: theta(tf) = phi0 + n tf + 2 pi k, the body on its circular
-            # orbit of radius rf (r, v_r and v_theta are already the target's).
+            # Meet the body on its circular orbit: theta(tf) = phi0 + n tf + 2 pi k.
             phi0, k = rendezvous
             g = ca.vertcat(g, Z[1, -1] - (phi0 + tf * rf ** -1.5 + 2 * math.pi * k))
         self.solver = ca.nlpsol("radau_min_time", "ipopt", {"x": w, "f": tf, "g": g},
@@ -304,8 +233,8 @@ class Transcription:
     def solve(self, guess, theta_window=None):
         """``guess`` is a callable tau -> (state 4 x n, alpha n) plus ``guess.tf``.
 
-        ``theta_window`` = (lo, hi) optionally boxes the final theta: a way to force the
-        solver into a given revolution count (the caller releases it afterwards).
+        ``theta_window`` = (lo, hi) (rad) optionally boxes the final theta, forcing a
+        revolution count.  Returns a dict: tf, Z, A, N, lam_v, status, ok, ...
         """
         tau = self.tau_grid()
         Z0, A0 = guess(tau)
@@ -319,8 +248,7 @@ class Transcription:
         sol = self.solver(x0=w0, lbx=lbx, ubx=ubx, lbg=0.0, ubg=0.0)
         stats = self.solver.stats()
         tf, Z, A = self.unpack(sol["x"])
-        # Multipliers of the v_r and v_theta defects at each collocation point (the NLP
-        # costates, g being 4 x 3N stored column by column).
+        # Multipliers of the v_r and v_theta defects (g is 4 x 3N, column by column).
         lam = np.asarray(sol["lam_g"]).ravel()[:4 * DEGREE * self.N].reshape(
             (4, DEGREE * self.N), order="F")
         return {
@@ -333,9 +261,7 @@ class Transcription:
         }
 
 
-# ----------------------------------------------------------------------------------------
-# Initial guesses
-# ----------------------------------------------------------------------------------------
+# ------------------------------------------------------------------ initial guesses
 class Guess:
     """A trajectory guess on normalised time: call with tau -> (Z, alpha)."""
 
@@ -371,7 +297,6 @@ def constant_pitch_guess(ac, rf, alpha_deg):
 def spiral_guess(ac, rf, revolutions):
     """A k-revolution spiral: r linear in time, circular speed, theta from the local rate."""
     sign = 1.0 if rf > R0_AU else -1.0
-    # tf such that theta(tf) = 2 pi k with theta' = r^-3/2 and r linear in t.
     s = np.linspace(0.0, 1.0, 2001)
     r_s = R0_AU + (rf - R0_AU) * s
     mean_rate = np.trapezoid(r_s**-1.5, s)
@@ -379,7 +304,6 @@ def spiral_guess(ac, rf, revolutions):
 
     def fn(tau):
         r = R0_AU + (rf - R0_AU) * tau
-        # theta(tau) = tf * integral of r^-1.5 d tau (closed form for linear r)
         if abs(rf - R0_AU) > 0:
             theta = tf * (-2.0) * (r**-0.5 - R0_AU**-0.5) / (rf - R0_AU)
         else:
@@ -394,10 +318,8 @@ def solution_guess(sol, label="previous solution"):
     """Re-use a solution on another mesh: linear interpolation on normalised time."""
     tau_src = np.concatenate([[0.0], ((np.arange(sol["N"])[:, None] + RADAU[None, :])
                                        / sol["N"]).ravel()])
-    # A 5-point running median removes isolated outliers of the pitch.  Ipopt sometimes
-    # stops at KKT points of the discrete problem with the pitch at a single collocation
-    # point far off its neighbours; such a control does not fly when re-integrated.
-    # Re-solving from the filtered control usually lands on the genuine optimum nearby.
+    # A 5-point running median removes a lone outlying pitch (a discrete KKT point that
+    # does not fly), so the re-solve lands on the genuine optimum nearby.
     alpha_src = control_at_points(sol["A"])
     padded = np.pad(alpha_src, 2, mode="edge")
     alpha_src = np.median(np.lib.stride_tricks.sliding_window_view(padded, 5), axis=1)
@@ -408,16 +330,13 @@ def solution_guess(sol, label="previous solution"):
     return Guess(sol["tf"], fn, label)
 
 
-# ----------------------------------------------------------------------------------------
-# Control interpolation and verification
-# ----------------------------------------------------------------------------------------
+# ------------------------------------------------------------------ control and verification
 def control_at_points(A):
     """Continuous representative of the control on all 3N + 1 grid points.
 
-    Only 2 alpha matters (Eqs. 3-4), so Ipopt is free to return alpha + pi at a point (it
-    does, now and then: the collocation equations cannot tell).  Unwrapping with period pi
-    gives the continuous representative that the interpolating polynomials need.  The
-    value at t = 0 is extrapolated from interval 0's collocation values.
+    Only 2 alpha matters (Eqs. 3-4), so Ipopt may return alpha + pi at a point; unwrapping
+    with period pi gives the continuous values the polynomials need.  The value at t = 0
+    is extrapolated from interval 0's collocation values.  Radians.
     """
     A = np.unwrap(np.asarray(A).ravel(), period=math.pi)
     alpha = np.concatenate([[EXTRAP0 @ A[:DEGREE]], A])
@@ -431,10 +350,9 @@ def minimum_principle_alignment(sol):
     With casadi's Lagrangian tf + lam' g and defects N D x - tf f, lam plays the role of
     minus the costate, and Pontryagin's principle (minimise H over alpha) becomes:
     maximise lam_v . (R, T)(alpha).  (R, T) - (3/4, 0) = (cos 2a, sin 2a) / 4, so at the
-    maximiser (cos 2a, sin 2a) is parallel to lam_v: the cosine is +1 at every point.  A
-    discrete optimum with any point clearly below +1 violates the minimum principle there
-    (the spurious optima do: -0.23 at the outlier point of one).  Returns (min, max) over
-    the collocation points.
+    maximiser (cos 2a, sin 2a) is parallel to lam_v: the cosine is +1 at every point, and
+    a point clearly below violates the principle.  Returns (min, max) over the collocation
+    points.
     """
     a = np.asarray(sol["A"]).ravel()
     lam = sol["lam_v"]
@@ -443,10 +361,8 @@ def minimum_principle_alignment(sol):
 
 
 def verify(sol, ac, rf, rendezvous=None):
-    """Re-integrate Eqs. 1-2 with the continuous piecewise-cubic control.
-
-    Interval by interval so that DOP853 never steps across the kink (C0 only) of the
-    control; rtol = atol = 1e-12.
+    """Re-integrate Eqs. 1-2 with the continuous piecewise-cubic control, interval by
+    interval so that DOP853 never steps across its kinks; the misses in km and m/s.
     """
     N, tf = sol["N"], sol["tf"]
     alpha_pts = control_at_points(sol["A"])
@@ -473,8 +389,7 @@ def verify(sol, ac, rf, rendezvous=None):
         "miss_v_r_m_s": abs(x[2] - tgt[1]) * m_s,
         "miss_v_theta_m_s": abs(x[3] - tgt[2]) * m_s,
         "miss_v_m_s": dv * m_s,
-        # along-track disagreement with the collocated end point (theta is free for the
-        # target, but it measures the transcription's own accuracy)
+        # theta is free, but its drift measures the transcription's own accuracy
         "theta_vs_collocation_km": abs(x[1] - colloc_end[1]) * x[0] * km,
         "rtol": 1e-12, "atol": 1e-12, "integrator": "scipy solve_ivp DOP853",
         "rhs_evaluations": int(nfev),
@@ -483,14 +398,11 @@ def verify(sol, ac, rf, rendezvous=None):
     if rendezvous is not None:
         phi0, k = rendezvous
         body = phi0 + tf * rf ** -1.5 + 2 * math.pi * k
-        # Along-track distance to the body at arrival (r, v_r, v_theta are checked above).
         out["miss_body_km"] = abs(x[1] - body) * x[0] * km
     return out
 
 
-# ----------------------------------------------------------------------------------------
-# Driver
-# ----------------------------------------------------------------------------------------
+# ------------------------------------------------------------------ driver
 def revolutions(sol):
     return float(sol["Z"][1, -1] / (2.0 * math.pi))
 
@@ -526,9 +438,8 @@ def log(msg):
     print(f"[{time.strftime('%H:%M:%S')}] {msg}", flush=True)
 
 
-# A converged NLP point whose control, re-integrated, misses the target by more than this
-# is a spurious optimum of the discrete problem (seen now and then on coarse meshes), not a
-# trajectory: it is reported but never chosen.  Genuine optima miss by metres to a few km.
+# A converged point whose control, re-integrated, misses by more is a spurious optimum of
+# the discrete problem: reported, never chosen.  Genuine optima miss by metres to a few km.
 FLY_MISS_KM = 100.0
 FLY_MISS_M_S = 0.1
 
@@ -546,14 +457,8 @@ def miss_summary(ver):
 
 def _search(ac, rf, rv):
     """Step 1: every start on the search mesh (sized for the longest guess), then the
-    revolution windows.
-
-    Returns
-    -------
-    tuple
-        (runs, windows): the free solves, each with its ``start`` label, and the
-        record of each window solve.
-    """
+    revolution windows.  Returns (runs, windows): the free solves, each with its
+    ``start`` label, and the record of each window solve."""
     guesses = starts(ac, rf)
     n_search = intervals_for(max(g.tf for g in guesses), rf,
                              INTERVALS_PER_REV_SEARCH, MIN_INTERVALS_SEARCH)
@@ -577,10 +482,9 @@ def _revolution_windows(search, runs, ac, rf, record):
     """Force theta_f into [2 pi k, 2 pi (k + 1)] from the matching spiral, then release
     the box (the released solve goes to ``record``).
 
-    Free solves only visit the basins the unconstrained guesses lead to; this visits each
-    revolution count on purpose, from one below the fewest found to two above the most
-    found (far fewer revolutions are infeasible: the angular momentum gain needs time).
-    Returns the record of each boxed solve.
+    This visits each revolution count from one below the fewest found to two above the
+    most (far fewer are infeasible: the angular momentum gain needs time).  Returns the
+    record of each boxed solve.
     """
     free_revs = [revolutions(s) for s in runs if s["ok"]] or [0.0, 1.0]
     k_lo = max(0, int(math.floor(min(free_revs))) - 1)
@@ -604,14 +508,8 @@ def _revolution_windows(search, runs, ac, rf, record):
 
 
 def _verified_optima(optima, ac, rf, rv):
-    """Step 2: every distinct local optimum on the reporting mesh N (sized for that
-    optimum), each verified by re-integration: a discrete optimum that does not fly is
-    an artefact of the transcription, not a local optimum of the transfer.
-
-    Returns
-    -------
-    tuple
-        (refined, rejected): the re-solved optima that fly, and those that do not.
+    """Step 2: every distinct local optimum re-solved on the reporting mesh N (sized for
+    it) and verified.  Returns (refined, rejected): those that fly, and those that do not.
     """
     refined, rejected = [], []
     for o in optima:
@@ -703,7 +601,6 @@ def run_case(name, spec):
         raise RuntimeError(f"{name}: no optimum survived verification")
     best = refined[0]
 
-    # 3. Refinement study: the best on N and on 2N intervals (halved step).
     n = best["N"]
     fine = Transcription(2 * n, ac, rf, rendezvous=rv).solve(solution_guess(best))
     if not fine["ok"]:
@@ -760,7 +657,7 @@ def main(argv=None):
             "module's docstring.")
         data["units"] = ("tof in days (1 day = 86400 s), radii in au, canonical velocities in "
                          "sqrt(mu/au); TU_DAYS = %.10f" % units.TU_DAYS)
-        # Written after every case, so that an interrupted run keeps what it finished.
+        # After every case: an interrupted run keeps what it finished.
         args.out.write_text(json.dumps(data, indent=1) + "\n")
     log(f"done in {time.perf_counter() - t0:.0f} s -> {args.out}")
 

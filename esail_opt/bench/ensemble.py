@@ -1,46 +1,22 @@
 """``esail-opt-bench ensemble``: the flights of a Monte Carlo run (``esail-opt robust``)
 flown by the closed form, by CVODES and by heyoka, timed per flight at a stated error.
 
-The case is the shipped 3-D rendezvous ``results/earth_mars_min_ac`` cut into its
-pieces as ``esail-opt robust`` cuts it (``app.robust.schedule``, then
-``optimisation.robustness.Mission.of``: start state, pitch, clock, duration and a_c per
-piece).  M flights of it are drawn as robust
-draws them: one thrust-factor set per flight (``SolarWind().factors`` over the
-pieces' durations, seed :data:`SEED`), each piece's a_c times its factor.  The same
-M flights are flown three ways, open loop:
+The case is the shipped 3-D rendezvous :data:`SOLUTION` cut into pieces as robust cuts it
+(``app.robust.schedule``, ``optimisation.robustness.Mission.of``); M flights are drawn as
+robust draws them (one ``SolarWind().factors`` set per flight, seed :data:`SEED`) and
+flown open loop three ways: the closed form (``propagation.ensemble.Ensemble.fly``, every
+flight; its first call in a process timed apart), CVODES at 1e-12 (``simulate3d``, on
+:data:`CVODES_FLIGHTS` flights evenly spread) and heyoka (:mod:`.taylor`, every flight,
+at each of :data:`HEYOKA_TOLERANCES` and its fastest batch size; skipped without it).
+Times are CPU seconds of this process per flight, each method on one thread.
 
-* the closed form, ``propagation.ensemble.Ensemble.fly`` (robust's own flights):
-  every flight, timed from arguments already built to the states it returns; the
-  extra time of its first call in a process (compiling its Function, or loading it
-  from the disk cache an earlier process filled) is timed apart
-  (``first_call_seconds``);
-* CVODES at 1e-12 on the turning-plane equations (``simulate.simulate3d`` with the
-  arguments robust's CVODES checks give it), one flight a call, on
-  :data:`CVODES_FLIGHTS` flights evenly spread over the M, its time per flight
-  the mean over them;
-* heyoka's Taylor integrator on the Cartesian equations (``bench.taylor.fly3d``, the
-  ``bench`` extra; said to be skipped without it): every flight, SIMD lanes of one
-  batch integrator on one thread, arc by arc with the thrust's parameters set per
-  arc and lane, at each of :data:`HEYOKA_TOLERANCES`, each at its fastest batch
-  size of :data:`HEYOKA_LANES` (chosen on :data:`PILOT_FLIGHTS` flights).
-
-Every time is CPU time of this process (each method runs on one thread), per flight:
-for the closed form and heyoka the median (``bench.propagate.cpu_seconds``) over
-``timing.runs_of(repeats)`` runs of the whole ensemble, over M; for CVODES its sample's
-flights, each flown once, over their number.
-
-Accuracy is measured against CVODES at 1e-12 on the flights CVODES flew: the distance
-between arrival positions, km.  The closed form carries a model error of a few
-thousand km on this transfer that is nearly the same in every flight, and robust
-takes it out with the nominal's CVODES flight; so the closed form is also judged as
-robust uses it (``corrected``: its flight minus its nominal, plus the nominal's
-CVODES flight), against the flight's own departure from the nominal on CVODES (the
-``deviation``, whose fraction robust's checks bound by ``robustness.AGREEMENT``).  How far
-CVODES at 1e-12 itself is from the truth is measured on one flight against CVODES at
-``simulate.VERIFY_TOLERANCE``, and heyoka's flight is checked on the same flight
-against that one (:data:`CHECK_TOLERANCE`): the two fly different equations (turning
-plane, Cartesian) with different integrators, so their agreement checks the thrust
-written in heyoka's expressions.
+Errors are arrival distances (km) from CVODES at 1e-12 on the flights it flew.  The closed
+form's model error (a few thousand km here, nearly the same in every flight) is what robust
+takes out with the nominal's CVODES flight, so it is also judged ``corrected`` as robust
+uses it, against the flight's ``deviation`` from the nominal (bounded by
+``robustness.AGREEMENT``).  :func:`check_flight` measures CVODES at 1e-12 and heyoka
+themselves against CVODES at ``simulate.VERIFY_TOLERANCE`` on one flight: two equations and
+two integrators, so their agreement checks the thrust written in heyoka's expressions.
 """
 
 import time
@@ -61,8 +37,8 @@ SEED = 1
 #: Flights CVODES flies (evenly spread over the ensemble): its time per flight and the
 #: reference of every error.
 CVODES_FLIGHTS = 20
-#: heyoka's tolerances, loosest first, and its batch sizes as multiples of its
-#: recommended SIMD width, the fastest on the pilot flights counting at each tolerance.
+#: heyoka's tolerances, loosest first, and its batch sizes as multiples of its SIMD
+#: width; the fastest on the pilot flights counts at each tolerance.
 HEYOKA_TOLERANCES = (1e-3, 1e-6, 1e-9, 1e-12)
 HEYOKA_LANES = (1, 2, 4, 8)
 PILOT_FLIGHTS = 512
@@ -104,18 +80,10 @@ def start_cartesian(plan):
 
 
 def closed_form(plan, acs, repeats):
-    """The flights ``acs`` (M, K) on ``Ensemble.fly``.
-
-    Returns
-    -------
-    dict
-        ``seconds_per_flight`` (median CPU seconds of flying all M, over M, on one
-        thread, at most ``chunk`` flights a call),
-        ``first_call_seconds`` (the ensemble's Function at its call width built again
-        in this process: a first call less a warm one, one flight each; a compile, or
-        a load from the disk cache where an earlier process compiled it), ``chunk``
-        (flights per compiled call) and ``arrivals`` (6, M), Cartesian, canonical.
-    """
+    """The flights ``acs`` (M, K) on ``Ensemble.fly``: ``seconds_per_flight`` (median CPU
+    seconds of all M, over M, one thread), ``first_call_seconds`` (a fresh first call
+    less a warm one: a compile or a disk-cache load), ``chunk`` (flights per compiled
+    call) and ``arrivals`` (6, M), Cartesian, canonical."""
     from esail_opt.propagation import batch
     from esail_opt.propagation.ensemble import Ensemble
     from esail_opt.propagation.rectified3d import STATE, cartesian_states
@@ -127,8 +95,7 @@ def closed_form(plan, acs, repeats):
         return ensemble.fly(plan.start[None], plan.alphas[None], plan.durations, acs[:1],
                             deltas=plan.deltas[None])
 
-    # The built Function is kept per process (``batch.batch3d_function``): clear it to
-    # time what a fresh process's first call pays beyond the call itself.
+    # Cleared so that the first call pays what a fresh process's does.
     batch.batch3d_function.cache_clear()
     clock = time.perf_counter()
     start = one()[0, :, 0]  # the start as a state row of the ensemble's own width
@@ -152,14 +119,9 @@ def _wall(fn):
 def cvodes(plan, acs, tol=None):
     """The flights ``acs`` (S, K) on CVODES one by one, as robust's checks fly them
     (``simulate.simulate3d`` of the plan's start, angles and durations, ``ac`` 1 and the
-    flight's a_c as throttles) at ``tol`` (default ``simulate.TOLERANCE``).
-
-    Returns
-    -------
-    dict
-        ``seconds_per_flight`` (CPU seconds of all S flights, over S) and ``arrivals``
-        (6, S), Cartesian, canonical.
-    """
+    flight's a_c as throttles) at ``tol`` (default ``simulate.TOLERANCE``):
+    ``seconds_per_flight`` (CPU seconds of all S, over S) and ``arrivals`` (6, S),
+    Cartesian, canonical."""
     from esail_opt.propagation.simulate import TOLERANCE, simulate3d
 
     y0 = start_cartesian(plan)
@@ -175,23 +137,14 @@ def cvodes(plan, acs, tol=None):
 
 def heyoka_flights(plan, acs, repeats, reference, sample):
     """The flights ``acs`` (M, K) by heyoka at each of :data:`HEYOKA_TOLERANCES`, or
-    ``{"skipped": reason}`` without heyoka.
+    ``{"skipped": reason}`` without heyoka.  ``reference`` (6, S) is CVODES's arrivals of
+    the flights ``sample`` (indices into the M).
 
-    Parameters
-    ----------
-    reference : numpy.ndarray, shape (6, S)
-        CVODES's arrivals of the flights ``sample`` (indices into the M).
-
-    Returns
-    -------
-    dict
-        ``points``: per tolerance, ``seconds_per_flight`` (median CPU seconds of all M
-        at the fastest batch size, over M), ``batch_size``, ``build_seconds`` (wall
-        seconds constructing its integrator: heyoka's compile, or a load from heyoka's
-        own disk cache where an earlier process compiled it), the pilot's seconds per
-        flight and build seconds at each batch size, and the
-        arrival error against ``reference`` (``error_km``, median and max); and
-        ``simd_size``, ``heyoka_version``.
+    Returns ``points``: per tolerance, ``seconds_per_flight`` (median CPU seconds of all M
+    at the fastest batch size, over M), ``batch_size``, ``build_seconds`` (wall seconds
+    to construct the integrator: a compile or a disk-cache load), the pilot's figures per
+    batch size and ``error_km`` against ``reference`` (median, max); and ``simd_size``,
+    ``heyoka_version``.
     """
     if not taylor.available():
         return {"skipped": "heyoka is not installed (pip install 'esail_opt[bench]')"}

@@ -12,11 +12,10 @@ from esail_opt.optimisation.problem_file import shipped_problem
 
 #: The shipped problem this bench solves.
 PROBLEM = "earth_mars_low_thrust"
-#: The collocation optimum of that transfer, the entry ``earth_mars_low`` of the
-#: repository's ``tests/reference/collocation_min_time.json`` (written by
-#: ``python -m esail_opt.bench.collocation``; ``runtime_seconds`` is its whole multistart
-#: and refinement).  Carried here because an installed package has no ``tests/``;
-#: ``tests/test_bench_problems.py`` checks these numbers against that entry.
+#: The collocation optimum of that transfer, the entry ``earth_mars_low`` of
+#: ``tests/reference/collocation_min_time.json`` (``runtime_seconds``: its whole
+#: multistart), carried here as an installed package has no ``tests/``;
+#: ``tests/test_bench_problems.py`` checks them against that entry.
 EARTH_MARS_LOW_REFERENCE = {
     "ac_mm_s2": 0.1,
     "rf_au": 1.524,
@@ -28,8 +27,8 @@ EARTH_MARS_LOW_REFERENCE = {
 
 #: Constant pitch of the collocation's start, deg: the same as the shooting NLPs' seed.
 GUESS_DEG = 45.0
-#: CPU cap of each timed collocation solve, s: high enough never to cut one short (the
-#: collocation module's own multistart cap of 30 s would).
+#: CPU cap of each timed collocation solve, s: never cuts one short (the multistart's
+#: 30 s would).
 NO_CPU_CAP = 1e5
 #: The JSON's ``how``: what each time covers.
 HOW = ("wall time of solver construction + Ipopt solve (MUMPS, exact Hessian) on one "
@@ -72,18 +71,10 @@ def _shooting(problem, runs):
 
 
 def _collocation_solve(seed, ac, radius):
-    """The collocation's path to its answer, from one start, timed.
-
-    Search mesh (sized by the collocation module for the seed's time of flight), then
-    the reporting mesh sized for that solution, then twice it (the module's refinement
-    study, whose fine solution is the stored reference), each warm-started from the last
-    through ``solution_guess``.  Every stage's NLP construction counts.
-
-    Returns
-    -------
-    tuple
-        (fine solution dict, per-stage [{"intervals", "iterations", "status",
-        "seconds"}], total seconds).
+    """The collocation's path to its answer from one start, timed: search mesh, reporting
+    mesh, twice it (the stored reference's meshes), each warm-started from the last and
+    its NLP construction counted.  Returns (fine solution dict, per-stage
+    [{"intervals", "iterations", "status", "seconds"}], total seconds).
     """
     from esail_opt.bench import collocation as colloc
 
@@ -160,24 +151,16 @@ def run(out, repeats):
     * CVODES-arc multiple shooting: the same NLP, N, initial guess and Ipopt options,
       each segment one CVODES integration of Eqs. 1-2 in theta at 1e-12 with CasADi's
       sensitivities (``segment_methods.CVODES``);
-    * the collocation reference (:mod:`esail_opt.bench.collocation`) along its own path
-      from one start (:func:`_collocation_solve`): the constant-pitch +45 deg flight
-      (the shooting seed's pitch) solved on the search mesh, re-solved on the reporting
-      mesh and on twice it, the meshes of the stored reference
-      (:data:`EARTH_MARS_LOW_REFERENCE`).  Its multistart over other starts is not
-      timed (it only guards against other basins; ``reference_multistart_seconds`` is
-      its stored total).  A single cold solve straight on the fine mesh is no
-      substitute: it took 227 iterations and stopped at a discrete KKT point
-      whose control misses the target by 11,000 km when flown (3335.53 d), the artefact
-      the collocation module's docstring describes.
+    * the collocation reference (:mod:`.collocation`) along its own path from the
+      constant-pitch +45 deg start (:func:`_collocation_solve`).  Its multistart is not
+      timed (it only guards against other basins); a single cold solve on the fine mesh
+      is no substitute, as it stops at a discrete KKT point that does not fly.
 
-    Each time is wall time of solver construction plus the Ipopt solve (all three
-    collocation stages), the median of ``min(repeats, 3)`` runs per method.  The seeds
-    (timed and recorded separately) and the shooting NLP's MX graph (milliseconds) are
-    built outside the timing.  Every result is verified: the shooting schedules are
-    flown on Eqs. 1-2 by CVODES (``optimisation.verify``), the collocation control by
-    the module's own DOP853 re-integration; a time of flight is reported with the
-    verified miss of the target beside it.  Returns the path written.
+    Each time is wall time of solver construction plus the Ipopt solve, the median of
+    ``runs_of(repeats)`` runs per method; the seeds (timed apart) and the shooting NLP's
+    MX graph are built outside it.  Every time of flight is reported with the verified
+    target miss beside it (CVODES for the shooting schedules, DOP853 for the collocation
+    control).  Returns the path written.
     """
     from esail_opt.app.outputs import write_json
 

@@ -10,8 +10,8 @@ from esail_opt.optimisation.problem_file import shipped_problem
 
 #: Shipped problems of the polish benchmark, with their own N and sub-arcs.
 PROBLEMS = ("earth_venus_min_time", "earth_mars_min_time")
-#: Ipopt iteration budget of the cold start: a fifth of the solve's default, and four
-#: times what the warm polish needs, so that a cold start that stalls is seen as such.
+#: Ipopt iteration budget of the cold start: four times what the warm polish needs, so
+#: that a cold start that stalls is seen as such.
 COLD_MAX_ITER = 1000
 
 
@@ -105,22 +105,13 @@ def _print(case):
 def run(out, repeats):
     """Warm (closed form, then polish) against cold exact shooting; writes ``polish.json``.
 
-    For each problem in :data:`PROBLEMS` (their own N and sub-arcs, free or equal
-    segments as shipped) both paths start from the same constant-pitch seed
-    (``seed.initial_guess``):
-
-    * warm: the closed-form NLP (``solve_problem``: equal lengths, then free), then
-      the polish on CVODES arcs in time warm-started from it;
-    * cold: the polish's own NLP (CVODES arcs in time, same Ipopt options, at most
-      :data:`COLD_MAX_ITER` iterations) started directly from the seed, its nodes flown
-      by CVODES so continuity holds at the start.
-
-    Success means Ipopt converged (Solve_Succeeded) and the schedule flown on CVODES
-    reaches the target within 1 m and 1 mm/s.  Wall times cover building and solving
-    (and, for the cold start, flying its seed); one run each (``repeats`` is not
-    used: a cold start takes minutes).  ``ratio`` is cold_seconds / warm_seconds, or
-    None when either side failed.
-    Returns the path written.
+    For each of :data:`PROBLEMS`, as shipped, both paths start from the same seed
+    (``seed.initial_guess``): warm is the closed-form NLP (``solve_problem``) then the
+    polish; cold is the polish's own NLP (at most :data:`COLD_MAX_ITER` iterations)
+    from the seed, its nodes flown by CVODES so that continuity holds at the start.
+    Success and ``ratio`` as in :func:`_flown_success` and :func:`ratio`.  Wall times of
+    building and solving; one run each (``repeats`` is unused: a cold start takes
+    minutes).  Returns the path written.
     """
     from esail_opt.app.outputs import write_json
 

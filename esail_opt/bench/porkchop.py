@@ -10,9 +10,8 @@ The scan is a patch of the sail designer's porkchop of the shipped :data:`PROBLE
 * every cell built and solved cold from the problem's own seed, as a script calling
   ``eo.solve`` once per cell would.
 
-All three run in this process, one after another, on one core's worth of work (no
-pool), so their seconds compare.  Only verified cells count: each method's seconds per
-cell are its wall time over its verified cells.
+All three run in this process, one after another, on one core (no pool), so their seconds
+compare; each method's seconds per cell are its wall time over its verified cells.
 """
 
 import dataclasses
@@ -28,8 +27,7 @@ from esail_opt.optimisation.segment_methods import RK4
 
 #: The shipped problem whose porkchop this bench scans.
 PROBLEM = "earth_venus_min_ac_planar"
-#: A patch of the shipped porkchop at 20-day spacing in both dates and flight times, as
-#: fine as an analyst's chart would be.
+#: A patch of the shipped porkchop at 20-day spacing in both dates and flight times.
 DEPARTURES = ("2031-01-01", "2031-04-11", 6)
 TOFS_DAYS = (700.0, 760.0, 4)
 #: RK4 steps a segment to choose from: the fewest whose first cell verifies, so that RK4
@@ -66,10 +64,9 @@ def _rebuild(rows):
 
 
 def _warm_up(problem):
-    """One untimed closed-form solve of ``problem``, finished: the process's one-time
-    costs (the bodies' smooth tracks, the segment Functions) are then paid before any
-    method is timed.  The scan, timed first, otherwise paid them for all three; RK4's
-    are paid by :func:`_rk4_steps`'s trial solves."""
+    """One untimed closed-form solve of ``problem``, finished, so that the process's
+    one-time costs (the bodies' smooth tracks, the segment Functions) do not fall on the
+    scan timed first; RK4's are paid by :func:`_rk4_steps`'s trial solves."""
     solver = scan.CellSolver()
     solver.finish(solver.cold(problem))
 

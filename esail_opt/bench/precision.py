@@ -1,27 +1,13 @@
 """Work-precision benchmark: solve time against verified accuracy, per method.
 
-Integrators are compared by the work each needs to reach a given accuracy, not at one
-setting each: a method that is fast at a coarse setting may need a fine, slow one to be
-as accurate as another.  Here the "work" is the wall time of a whole
-``solve_problem`` call (seed, NLP construction, Ipopt) and the "precision" is how far the
-optimised schedule, flown on the full Eqs. 1-2 by CVODES (``optimisation.verify``), ends
-from the target orbit: ``target_miss_r_km``.  Each method is run at several settings,
-its points form a curve, and the curves are read at fixed misses (1e6, 1e5 and 1e4 km)
-by :func:`seconds_at_miss`.
-
-The methods (a list of :class:`Method`; another entry is one more line in a case's
-``methods``):
-
-* ``closed_form``: the package's closed-form multiple shooting (rectified second-order
-  arcs) at several segment counts and sub-arc counts;
-* ``rk4``: the same NLP with each segment integrated by classic RK4 in theta
-  (``propagation.rk4.rk4_segment``) at several segment counts and steps per segment;
-* ``cvodes``: the same NLP with each segment one CVODES integration at 1e-12
-  (``segment_methods.CVODES``), at one or two segment counts (it is slow).
-
-Every NLP has equal segment lengths (one Ipopt solve from the constant-pitch seed, as the
-other benchmarks time it) and the same Ipopt options; only the segment Function and the
-setting differ.
+Methods are compared by the work each needs to reach a given accuracy, not at one setting
+each: a method fast at a coarse setting may need a slow one to be as accurate.  The work
+is the wall time of a whole ``solve_problem`` (seed, NLP construction, Ipopt); the
+precision is ``target_miss_r_km`` of the schedule flown on Eqs. 1-2 by CVODES
+(``optimisation.verify``).  Each method's settings form a curve, read at the misses of
+:data:`MISSES_KM` by :func:`seconds_at_miss`.  The methods (:class:`Method`) are the
+closed form (also with the error control's correction), RK4 segments and CVODES segments,
+each NLP with equal segment lengths and the same Ipopt options.
 """
 
 import dataclasses
@@ -46,20 +32,12 @@ REPORTED = ("closed_form", "rk4", "cvodes")
 
 @dataclass(frozen=True)
 class Method:
-    """One method at one setting.
-
-    Attributes
-    ----------
-    name : str
-        The method's name; points of the same name form one curve.
-    settings : dict
-        What is recorded with the point: ``segments`` (N, or None when a per-revolution
-        rule sets it: the solved N is recorded then) and ``steps`` (sub-arcs of the
-        closed form, RK4 steps per segment, None for an adaptive integrator); other keys
-        only label the progress line.
-    solve : callable
-        ``solve(problem) -> NLPResult``: everything that is timed.  ``problem`` is the
-        case's problem with equal segment lengths; the callable applies its own setting.
+    """One method at one setting.  Points of the same ``name`` form one curve.
+    ``settings`` is recorded with the point: ``segments`` (N, or None when set per
+    revolution: the solved N is recorded then) and ``steps`` (closed-form sub-arcs, RK4
+    steps per segment, None for an adaptive integrator); other keys only label the
+    progress line.  ``solve(problem) -> NLPResult`` is everything timed; it applies its
+    own setting to the case's equal-length problem.
     """
 
     name: str
@@ -69,14 +47,8 @@ class Method:
 
 @dataclass(frozen=True)
 class Case:
-    """A problem and the methods and settings run on it.
-
-    Attributes
-    ----------
-    problem : Problem
-        Solved with equal segment lengths whatever its own setting (:func:`run_case`).
-    methods : tuple of Method
-    """
+    """A problem (solved with equal segment lengths whatever its own setting) and the
+    :class:`Method` tuple run on it."""
 
     problem: object
     methods: tuple
@@ -144,10 +116,8 @@ def rk4(segments=None, steps=1, per_revolution=None):
 
 def cvodes(segments=None, per_revolution=None):
     """The same NLP with each segment one CVODES integration (1e-12) of Eqs. 1-2 in theta.
-
     Its q3 rows are constants, so one row per segment keeps the NLP smallest; the
-    problem keeps its sub-arcs, which only shape the seed (the same seed as RK4's).
-    """
+    sub-arcs kept only shape the seed (the same as RK4's)."""
 
     def solve(problem):
         from esail_opt.optimisation.ipopt import solve_problem
@@ -165,24 +135,15 @@ PROBLEMS = ("earth_mars_min_time", "earth_mars_low_thrust")
 
 
 def cases():
-    """The two transfers of :data:`PROBLEMS`, loaded from the shipped files, with their
-    methods and settings.
+    """The two transfers of :data:`PROBLEMS` with their methods and settings.
 
-    At 1 mm/s^2 (about 1.2 revolutions) N is a total; at 0.1 mm/s^2 (about 6.5
-    revolutions) it is per revolution, so N follows the seed's sweep as in the shipped
-    problem (16 per revolution x 2 sub-arcs there, N = 100).  Both run down to coarse
-    settings (10 segments at 1 mm/s^2, 2 per revolution at 0.1 mm/s^2), where a curve
-    must start above a miss to be read there rather than only bounded, and where a
-    method may stop converging at all (RK4 with one step at 2 and 3 per revolution did
-    not); 10 x 3 is the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break
-    the strain cap (``error_control.STRAIN_CAP``) and the seed adds them back.  CVODES
-    segments are exact to 1e-12 at any N and cost seconds per solve, so they run at one
-    or two N.  Loaded when called, not at import, so that importing the benches reads
-    no file.
-
-    Returns
-    -------
-    tuple of Case
+    At 1 mm/s^2 N is a total; at 0.1 mm/s^2 (about 6.5 revolutions) it is per
+    revolution, as in the shipped problem.  Both run down to coarse settings, where a
+    curve must start above a miss to be read there rather than only bounded; 10 x 3 is
+    the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break the strain cap
+    (``error_control.STRAIN_CAP``) and the seed adds them back.  CVODES segments are exact
+    at any N and slow, so they run at two.  Loaded when called, so that importing the
+    benches reads no file.  Returns a tuple of :class:`Case`.
     """
     high_ac, low_ac = (shipped_problem(name) for name in PROBLEMS)
     return (
@@ -207,21 +168,9 @@ def cases():
 
 
 def envelope(points):
-    """The lower-left envelope of (seconds, miss) points: those no other point beats.
-
-    A point is on it when every faster point misses by more.  Points with a miss of
-    None (failed) are left out.
-
-    Parameters
-    ----------
-    points : iterable of (float, float or None)
-        (seconds, miss_km).
-
-    Returns
-    -------
-    list of (float, float)
-        The envelope, fastest first: seconds strictly increasing, miss strictly
-        decreasing.
+    """The lower-left envelope of (seconds, miss_km) points: each point that every faster
+    one misses by more (a miss of None, failed, is left out).  Returns a list of
+    (seconds, miss), seconds strictly increasing, miss strictly decreasing.
     """
     kept = []
     # Ties in time: the more accurate first, so the other is dropped as dominated.
@@ -233,31 +182,14 @@ def envelope(points):
 
 
 def seconds_at_miss(points, target):
-    """Solve time at which a method's curve reaches a miss of ``target`` km.
+    """Seconds at which one method's (seconds, miss_km) ``points`` reach a miss of
+    ``target`` km (> 0), read on their :func:`envelope`; None if no point reaches it.
 
-    Read on the lower-left envelope (:func:`envelope`).  Let B be the fastest point with
-    miss <= ``target``.  If a faster envelope point A misses by more than ``target``, the
-    two bracket it and the time is interpolated linearly in (log seconds, log miss)
-    between them: log s = log s_A + (log target - log m_A) / (log m_B - log m_A)
-    (log s_B - log s_A), which lies between s_A and s_B and equals s_B when B's miss is
-    exactly ``target``.  That is the straight segment of the log-log work-precision
-    curve, the usual reading of these diagrams: the time an intermediate setting would
-    take if time and miss followed a power law between the two settings measured.
-    Without a faster bracketing point (the fastest point already reaches ``target``) the
-    time is B's own: extrapolating below the fastest setting measured would not be
-    sound.  A method none of whose points reaches ``target`` gives None.
-
-    Parameters
-    ----------
-    points : iterable of (float, float or None)
-        (seconds, miss_km) of one method.
-    target : float
-        Miss, km, > 0.
-
-    Returns
-    -------
-    float or None
-        Seconds.
+    With B the fastest point with miss <= ``target`` and A the envelope point before it,
+    the time is interpolated linearly in (log seconds, log miss) between them: the
+    straight segment of the log-log work-precision curve, the usual reading.  When B is
+    the fastest point the time is B's own: extrapolating below the fastest setting
+    measured would not be sound.
     """
     front = envelope(points)
     for i, (s_b, m_b) in enumerate(front):
@@ -311,16 +243,11 @@ def _label(settings):
 
 
 def run_point(problem, method, runs):
-    """Solve with ``method`` ``runs`` times (median wall time), verify the last result,
-    and print one progress line to stderr.
-
-    Returns
-    -------
-    dict
-        ``{"method", "segments", "steps", "seconds", "miss_km", "status"}``: seconds is
-        the median wall time of ``method.solve``; miss_km the CVODES flight's distance to
-        the target orbit, km, or None when Ipopt did not converge (Solve_Succeeded) or
-        the flight failed; status Ipopt's return status, or what failed.
+    """Solve with ``method`` ``runs`` times, verify the last result, and print one
+    progress line to stderr.  Returns ``{"method", "segments", "steps", "seconds",
+    "miss_km", "status"}``: the median wall time of ``method.solve``; the CVODES flight's
+    distance to the target orbit, km, or None when Ipopt did not converge or the flight
+    failed; Ipopt's return status, or what failed.
     """
     from esail_opt.optimisation.verify import verify
     from esail_opt.physics import constants as units
@@ -370,22 +297,10 @@ def run_case(case, runs):
 def draw_precision(case, ax=None,
                    xlabel="solve time [s] (seed + NLP construction + Ipopt)",
                    ylabel="verified target miss [km] (CVODES flight)"):
-    """Draw one case's log-log work-precision diagram: every point, each method's
-    envelope as a line, and the target misses as horizontal lines.
-
-    Parameters
-    ----------
-    case : dict
-        One entry of ``precision.json``'s ``cases`` (:func:`run_case`), or any dict with
-        its ``problem``, ``ac_mm_s2`` and ``points`` (``bench propagate``'s curves).
-    ax : matplotlib.axes.Axes, optional
-        Where to draw; by default the axes of a new :class:`~matplotlib.figure.Figure`.
-    xlabel, ylabel : str
-        What the two axes measure.
-
-    Returns
-    -------
-    matplotlib.axes.Axes
+    """Draw one case's log-log work-precision diagram on ``ax`` (default: a new Figure's)
+    and return the axes: every point, each method's envelope as a line, the target misses
+    as horizontal lines.  ``case`` is an entry of ``precision.json``'s ``cases``
+    (:func:`run_case`), or any dict with its ``problem``, ``ac_mm_s2`` and ``points``.
     """
     if ax is None:
         from matplotlib.figure import Figure
@@ -432,17 +347,9 @@ def precision_figure(cases):
 
 
 def run(out, repeats):
-    """Work-precision benchmark of the shooting NLP: closed form, RK4 and CVODES arcs.
-
-    For each case of :func:`cases` every method is solved at each of its settings
-    (median wall time of ``min(repeats, 3)`` runs of the whole ``solve_problem``:
-    seed, NLP construction and Ipopt), then its schedule is flown by CVODES and the
-    distance of the flight's end from the target orbit recorded.  Each method's seconds
-    at misses of 1e6, 1e5 and 1e4 km are read on its curve by :func:`seconds_at_miss`
-    (interpolated log-log between the envelope points that bracket the miss, else the
-    fastest point reaching it, None if none does); ratios are each method's seconds over
-    the closed form's.  Writes ``<out>/precision.json`` and ``<out>/precision.png``.
-    One progress line per point goes to stderr.  Returns the JSON's path.
+    """Every point of :func:`cases` by :func:`run_point` (median of ``runs_of(repeats)``),
+    each curve read by :func:`at_miss`.  Writes ``<out>/precision.json`` and
+    ``<out>/precision.png``; returns the JSON's path.
     """
     from esail_opt.app.outputs import save_figure, write_json
 

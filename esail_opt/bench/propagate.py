@@ -1,47 +1,37 @@
 """``esail-opt-bench propagate``: the paper's 10-year orbit raising (Sec. 3) propagated
 by the closed form, by CVODES and by Ref. [10]'s model, timed in one run; the same
 ten years as a work-precision race, each method's call time against its final error;
-and a batch of 1,025 such raisings, where the closed form (compiled across cases) is
-set against CVODES and against heyoka's Taylor integrator (``bench.taylor``, the
-``bench`` extra; skipped, and said so, without it), each at the closed form's error
-and at 1e-12."""
+and a batch of such raisings, the closed form (compiled across cases) against CVODES
+and heyoka (:mod:`.taylor`; skipped, and said so, without it), each at the closed
+form's error and at 1e-12."""
 
 import math
 from pathlib import Path
 
 from esail_opt.bench.timing import median_seconds, print_table
 
-#: The case: a_c, fixed pitch, years from the circular 1 au orbit, arcs (20 arcs of six
-#: months: 19 rectifications).
+#: The case: a_c (mm/s^2), fixed pitch (deg), years from the circular 1 au orbit, arcs.
 AC_MM_S2, ALPHA_DEG, YEARS, ARCS = 0.1, 45.0, 10.0, 20
 #: The race's settings: arcs of the closed form (equal durations over the ten years),
 #: CVODES's tolerances on the case's 20 arcs, and the final errors read off the curves.
 RACE_ARCS = (20, 40, 80, 160, 320)
 RACE_TOLERANCES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-10, 1e-12)
 RACE_ERRORS_KM = {"1e6": 1e6, "1e5": 1e5, "1e4": 1e4}
-#: The batch: pitch (deg) and a_c (mm/s^2) grids as (start, stop, count), 41 x 25 =
-#: 1,025 cases of the ten years at ARCS arcs, and the cases CVODES is timed on (evenly
-#: spread over the grid; its time per case is scaled to all cases).
+#: The batch: pitch (deg) and a_c (mm/s^2) grids as (start, stop, count), and the cases
+#: CVODES is timed on (evenly spread; its time per case is scaled to all cases).
 BATCH_GRID = {"alpha_deg": (-40.0, 80.0, 41), "ac_mm_s2": (0.05, 0.2, 25)}
 BATCH_CVODES_CASES = 100
-#: heyoka's tolerances on the batch, loosest first; and its batch sizes, as multiples
-#: of its recommended SIMD width (the fastest counts at each tolerance: more lanes
-#: share each call from Python, fewer fill the vector registers).
+#: heyoka's tolerances on the batch, loosest first; and its batch sizes as multiples of
+#: its SIMD width (the fastest counts: more lanes share each call from Python, fewer
+#: fill the vector registers).
 HEYOKA_TOLERANCES = (1e-3, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 1e-7, 1e-8, 1e-10, 1e-12)
 HEYOKA_LANES = (1, 2, 4)
 
 
 def _functions():
-    """The CasADi Functions and their arguments, keyed as the timings are.
-
-    Returns
-    -------
-    dict
-        Name -> (Function, argument tuple): ``closed_form`` (rectified arcs on their own
-        clock), ``closed_form_theta_lengths`` (the same arcs given by their angles, as the
-        optimiser uses it), ``cvodes`` (the same schedule at 1e-12), ``cvodes_single_call``
-        (all 10 years in one call with 20 output times) and ``ref10``.
-    """
+    """Name -> (CasADi Function, arguments), keyed as the timings are: ``closed_form``,
+    ``closed_form_theta_lengths``, ``cvodes``, ``cvodes_single_call`` and ``ref10``
+    (:func:`run`)."""
     import numpy as np
 
     from esail_opt.physics import constants as units
@@ -65,8 +55,7 @@ def _functions():
         "closed_form_theta_lengths": (rectified_function(ARCS, model=FIRST_ORDER),
                                       (x0, ac * row, alpha * row, angles)),
         "cvodes": (schedule_function(ARCS, 1, "time"), args),
-        # The attitude never changes in this case, so CVODES can also fly all 10 years
-        # without restarts; timed too, though only the schedule form serves any schedule.
+        # The attitude never changes, so CVODES can fly all 10 years without restarts.
         "cvodes_single_call": (segment_integrator(ARCS, "time"), (x0, ac, alpha, horizon)),
         "ref10": (radial_balance_function(ARCS), (times, 1.0, ac, R, T, 0.0)),
     }
@@ -76,8 +65,7 @@ def _position_km(a, b):
     """Distance between the planar positions (r, theta) of two states, km."""
     from esail_opt.physics import constants as units
 
-    # Cartesian, not the law of cosines: that one rounds to the root of a negative
-    # number when the two positions are metres apart.
+    # Not the law of cosines: it rounds to the root of a negative number at metres apart.
     gap = math.hypot(a[0] * math.cos(a[1]) - b[0] * math.cos(b[1]),
                      a[0] * math.sin(a[1]) - b[0] * math.sin(b[1]))
     return units.length_to_km(gap)
@@ -124,30 +112,18 @@ def race(repeats):
     """Call time against final error for the ten years, each method at several settings.
 
     * ``closed_form``: the NLP's kind of arc (second order, ending on the exact angular
-      momentum: ``ArcModel(sub_arcs=1, nodes=8)``), here in time, at :data:`RACE_ARCS`
-      arcs;
-    * ``closed_form_richardson``: the first-order arcs the NLP flew before, Richardson-
-      extrapolated and ending on the exact angular momentum (``ArcModel(order=1,
-      extrapolate=True, ...)``), at the same arc counts;
-    * ``closed_form_plain``: the paper's rectification (``arcs.FIRST_ORDER``) at the
-      same arc counts;
+      momentum), in time, at :data:`RACE_ARCS` arcs;
+    * ``closed_form_richardson``: first-order arcs, Richardson-extrapolated, ending on the
+      exact angular momentum, at the same arc counts;
+    * ``closed_form_plain``: the paper's rectification (``arcs.FIRST_ORDER``), the same;
     * ``cvodes``: the case's 20 arcs at :data:`RACE_TOLERANCES`.
 
-    The error is the distance of the final position from CVODES at the verifier's own
-    tolerance (``simulate.VERIFY_TOLERANCE``).  Each method's seconds at final errors
-    of 1e6, 1e5 and 1e4 km are read on its curve as the precision bench reads its
-    curves (``precision.seconds_at_miss``).  Also measured: ``call_floor_seconds``, one
-    call of a Function that only doubles its input, with the case's arguments, which no
-    Function called from Python undercuts.
-
-    Returns
-    -------
-    dict
-        ``points`` ({"method", "setting", "seconds", "miss_km"}: miss_km is the final
-        error), ``at_error_km`` (per error, each method's seconds and
-        ``ratio_cvodes_over_closed_form``), ``call_floor_seconds`` and
-        ``ratio_cvodes_over_call_floor`` (CVODES at 1e-12 over that floor), and the
-        reference's final state [r, theta, v_r, v_theta, t] (``reference_final_state``).
+    The error is the final position's distance (km) from CVODES at
+    ``simulate.VERIFY_TOLERANCE``, read at :data:`RACE_ERRORS_KM` by
+    ``precision.seconds_at_miss``.  Returns ``points`` ({"method", "setting", "seconds",
+    "miss_km"}), ``at_error_km`` (:func:`_race_at_error`), ``call_floor_seconds``
+    (:func:`_call_floor_seconds`), ``ratio_cvodes_over_call_floor`` (CVODES at 1e-12) and
+    ``reference_final_state`` [r, theta, v_r, v_theta, t].
     """
     import numpy as np
 
@@ -171,7 +147,6 @@ def _race_entries():
     from esail_opt.propagation.rectified import rectified_function
     from esail_opt.propagation.simulate import schedule_function
 
-    # One arc a segment at the 8-point panels, in time (where arcs are never compiled).
     models = {"closed_form": ArcModel(sub_arcs=1, nodes=PANEL_NODES),
               "closed_form_richardson": ArcModel(order=1, extrapolate=True, sub_arcs=1,
                                                  nodes=PANEL_NODES),
@@ -239,11 +214,8 @@ def _batch_cases(grid):
 
 def cpu_seconds(fn, repeats):
     """Median CPU seconds of this process over ``repeats`` calls of ``fn()``, after one
-    warm-up call.
-
-    The batch's methods each run on one thread, so the process's CPU time is each
-    one's own work: unlike the wall clock, it does not count the time this process
-    waits for a core that other jobs hold on a shared machine.
+    warm-up call: for a method on one thread, its own work, without the waits for a core
+    that the wall clock counts on a shared machine.
     """
     import time
 
@@ -277,31 +249,17 @@ def _heyoka_point(tol, sizes, schedule, truth, repeats):
 
 
 def heyoka_batch(repeats, schedule, truth, target_km):
-    """The batch flown by heyoka (``bench.taylor``) at each of :data:`HEYOKA_TOLERANCES`.
+    """The batch flown by heyoka (:mod:`.taylor`) at each of :data:`HEYOKA_TOLERANCES`,
+    or ``{"skipped": reason}`` when heyoka does not import.  ``schedule`` is (x0[4], acs,
+    alphas, durations), the last three (M, N), as ``taylor.fly`` takes them; ``truth``
+    (5, M) each case's reference final state; ``target_km`` the closed form's median
+    final error.
 
-    Parameters
-    ----------
-    repeats : int
-        Timed runs at each setting (median CPU seconds, :func:`cpu_seconds`).
-    schedule : tuple
-        (x0[4], acs, alphas, durations), the last three of shape (M, N), as
-        ``taylor.fly`` takes them.
-    truth : numpy.ndarray, shape (5, M)
-        Each case's final state by CVODES at the reference tolerance.
-    target_km : float
-        The closed form's median final error over the M cases.
-
-    Returns
-    -------
-    dict
-        ``points`` (per tolerance: ``seconds_per_case`` at the fastest of
-        :data:`HEYOKA_LANES`' batch sizes, each size's seconds and compile seconds,
-        ``median_final_error_km``), ``equal_error`` (the loosest tolerance whose
-        median final error is at most ``target_km``, or None), ``tight`` (1e-12) and
-        ``python_loop_seconds_per_case`` (the part of a point's time spent in the
-        Python loop around heyoka's calls, ``taylor.fly_prepared(steps=False)``); or
-        ``{"skipped": reason}`` when heyoka does not import.  Each time is of
-        ``taylor.fly_prepared``, from the lanes ``taylor.prepare`` made beforehand.
+    Returns ``points`` (:func:`_heyoka_point`), ``equal_error`` (the loosest point whose
+    median final error is at most ``target_km``, or None), ``tight`` (1e-12) and
+    ``python_loop_seconds_per_case`` (the part spent in the Python loop around heyoka's
+    calls).  Each time is median CPU seconds of ``taylor.fly_prepared`` on lanes
+    ``taylor.prepare`` made beforehand.
     """
     from esail_opt.bench import taylor
 
@@ -314,8 +272,6 @@ def heyoka_batch(repeats, schedule, truth, target_km):
     points = [_heyoka_point(tol, [lanes * simd for lanes in HEYOKA_LANES], schedule, truth,
                             repeats) for tol in HEYOKA_TOLERANCES]
     equal = next((p for p in points if p["median_final_error_km"] <= target_km), None)
-    # The loop around heyoka's calls alone, at the batch size of its equal-error point:
-    # the part of its time spent driving it arc by arc from Python.
     floor_size = equal["batch_size"] if equal else simd
     ready = taylor.prepare(floor_size, *schedule)
     floor = cpu_seconds(lambda: taylor.fly_prepared(taylor.integrator(1e-12, floor_size),
@@ -345,13 +301,11 @@ def _closed_form_batch(repeats, stacked, native):
     start = time.perf_counter()
     closed = batch_function(ARCS, cases, length_in="time", model=model, jit=native)
     compile_seconds = time.perf_counter() - start
-    # Every method is timed from arguments already in the form it takes (DM for
-    # CasADi, heyoka's lanes), to results in its own form: only the flight is timed.
     given = [ca.DM(a) for a in stacked]
     seconds = cpu_seconds(lambda: closed(*given), repeats)
     xs, q3 = (np.array(v) for v in closed(*given))
-    # The same batch as CasADi compiles it, one case at a time: what the compile across
-    # cases gains, and how far its numbers move (libmvec's elementary functions).
+    # CasADi's compile, one case at a time: what the compile across cases gains, and how
+    # far its numbers move (libmvec's elementary functions).
     start = time.perf_counter()
     scalar = batch_function(ARCS, cases, length_in="time", model=model, jit=native,
                             across_cases=False)
@@ -369,7 +323,7 @@ def _closed_form_batch(repeats, stacked, native):
 
 def _cvodes_points(repeats, stacked, timed, truth):
     """CVODES on the ``timed`` cases of the batch at each of the race's tolerances, per
-    case and as one mapped call, with the median final error (:func:`batch`)."""
+    case and as one mapped call (the faster counts), with the median final error."""
     import casadi as ca
     import numpy as np
 
@@ -396,43 +350,15 @@ def _cvodes_points(repeats, stacked, timed, truth):
 
 
 def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
-    """Many cases of the ten years at ARCS arcs: the closed form in one call against CVODES
-    per case.
+    """Many cases of the ten years at ARCS arcs, pitch and a_c on ``grid`` (default
+    :data:`BATCH_GRID`): the race's closed form in one call compiled across cases
+    (``propagation.batch.batch_function``; ``native`` False keeps it on CasADi's virtual
+    machine) and, for comparison, compiled by CasADi one case at a time; CVODES on
+    ``cvodes_cases`` evenly spread cases (:func:`_cvodes_points`); heyoka
+    (:func:`heyoka_batch`).  Final errors are the race's.  Every time is median CPU
+    seconds (:func:`cpu_seconds`) from arguments already in the method's form.
 
-    The cases are the case above with pitch and a_c on ``grid`` (default
-    :data:`BATCH_GRID`).  The closed form is the race's (second-order arcs on the exact
-    angular momentum, in time), all cases in one compiled call
-    (``propagation.batch.batch_function(..., jit=True)``, compiled across cases; its
-    compile, once per process, is reported apart as ``compile_seconds``; ``native``
-    False keeps it on CasADi's virtual machine).  The same mapped Function compiled
-    by CasADi one case at a time is timed too (``closed_form_one_case_at_a_time``,
-    with how far its states are from the compile across cases, over each state
-    row's largest value).  Each case's final error is the
-    distance of its final position from CVODES at ``simulate.VERIFY_TOLERANCE``, as the
-    race measures it; ``median_final_error_km`` is their median over all cases.
-
-    CVODES flies ``cvodes_cases`` of the cases (evenly spread) at each of the race's
-    tolerances, per case (one schedule call each), and again as one mapped call over
-    those cases; the faster of the two counts at each tolerance.  Its seconds per case
-    times the number of cases are ``cvodes_seconds_tight`` (at 1e-12) and
-    ``cvodes_seconds_equal_error``: the time at which its curve of (seconds, median
-    final error over the timed cases) reaches the closed form's median final error over
-    the same cases, read as the race reads its curves (``precision.seconds_at_miss``).
-
-    heyoka flies every case at each of :data:`HEYOKA_TOLERANCES` (:func:`heyoka_batch`,
-    the ``heyoka`` block).  Every time is the median CPU time of this process
-    (:func:`cpu_seconds`; each method runs on one thread), from arguments already in
-    the form the method takes.  ``per_case`` sets the methods side by side
-    (:func:`per_case_table`).
-
-    Returns
-    -------
-    dict
-        The ``batch`` block: ``cases``, ``arcs``, ``closed_form_seconds``,
-        ``cvodes_seconds_equal_error``, ``cvodes_seconds_tight``, ``ratio_equal_error``,
-        ``ratio_tight``, ``median_final_error_km``, ``heyoka``, ``per_case``, and what
-        they were read from (``cvodes_cases_timed``, ``cvodes_points``,
-        ``compile_seconds``, the grid, ...).
+    Returns the ``batch`` block (:func:`_batch_block`) with its ``per_case`` table.
     """
     import numpy as np
 
@@ -471,8 +397,9 @@ def _batch_errors(xs, stacked):
 
 def _batch_block(closed, errors, timed, points, heyoka, native, grid):
     """The ``batch`` block of :func:`batch` but its ``per_case`` table: the closed form's
-    time and errors, CVODES's read at its error (on the ``timed`` cases' ``points``)
-    and at 1e-12, scaled to every case, and heyoka's block."""
+    time and errors; CVODES's seconds per case times the cases at 1e-12
+    (``cvodes_seconds_tight``) and read on its curve at the closed form's median error
+    over the ``timed`` cases (``cvodes_seconds_equal_error``); heyoka's block."""
     import numpy as np
 
     from esail_opt.bench.precision import seconds_at_miss
@@ -511,12 +438,9 @@ def _batch_block(closed, errors, timed, points, heyoka, native, grid):
 
 def per_case_table(block):
     """The batch's methods side by side: seconds per case, median final error, and each
-    one's time over the closed form's (above 1: the closed form is faster).
-
-    CVODES at equal error is read on its curve at the closed form's error (so that error
-    is the closed form's, over the timed cases); heyoka at equal error is its loosest
-    tolerance measured whose median error is within the closed form's.  Rows of a
-    method that was skipped or never reached that error are left out.
+    one's time over the closed form's (above 1: the closed form is faster).  Equal error
+    is read as in :func:`_batch_block` and :func:`heyoka_batch`; rows of a method skipped
+    or never reaching that error are left out.
     """
     cases, closed = block["cases"], block["closed_form_seconds"] / block["cases"]
     rows = [("closed form", closed, block["median_final_error_km"], None),
@@ -643,17 +567,13 @@ def run(out, repeats, grid=None):
       Function call returning the 20 states at the rectification points;
     * CVODES at 1e-12 on Eqs. 1-2, the same schedule, the same 20 states;
     * Ref. [10]'s model at the same 20 times;
-    * and, for context, the closed form with the same arcs given by their angles (no
-      root on its clock, as the optimiser uses it) and, since this case never changes
-      attitude, CVODES in one call with 20 output times (no restarts).
+    * for context, the closed form with the arcs given by their angles (as the optimiser
+      uses it) and CVODES in one call with 20 output times (no restarts).
 
-    Each time is the median of ``repeats`` calls made with arguments already in the form
-    the Function takes, so only the evaluation is measured.  Accuracy is the distance
-    between final positions against CVODES after 10 years (the closed form with 20 arcs
-    runs about 11 deg ahead in theta; that dominates its km error), with the radial and
-    angular parts beside it.  Then :func:`race` times the ten years at several arc
-    counts and tolerances (``race`` in the JSON, ``propagate.png``), and :func:`batch`
-    flies many cases at once (``batch``; ``grid`` as there).  Returns the path written.
+    Each time is the median of ``repeats`` calls with arguments already in the form the
+    Function takes.  Accuracy is the final position's distance from CVODES (km), with its
+    radial and angular parts (:func:`_accuracy`).  Then :func:`race` (``race``,
+    ``propagate.png``) and :func:`batch` (``batch``).  Returns the path written.
     """
     import numpy as np
 

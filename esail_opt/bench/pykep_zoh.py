@@ -1,65 +1,37 @@
 """``esail-opt-bench pykep``: the main job in three dimensions against a pykep 3
 zero-order-hold script of the same fixed-date transfer, whole processes side by side.
 
-The main job is ``esail-opt solve problems/earth_mars_min_ac.py --polish``, timed twice
-in every round: with ``--no-plots`` and with its figures.  The baseline is what a pykep
-3 user writes for that transfer: pykep's zero-order-hold leg (``pykep.leg.zoh``: the
-segments flown forward from the departure and backward from the arrival by heyoka's
-Taylor integrator, one mismatch where they meet, its gradient from heyoka's
-variational equations), a pygmo problem around it and pygmo's Ipopt.  Both sides solve
-the same problem:
-
-* the departure and the arrival are the DE421 states of the Earth-Moon barycentre at
-  the problem's date and of Mars :data:`PROBLEM`'s time of flight later, both taken from
-  this package's ephemeris layer (``bodies.lookup.ecliptic_state_at``), so both tools
-  aim at the same points;
-* the dynamics are the Sun's gravity and the E-sail's thrust in three dimensions,
-  a_c kappa (r_E / r) (R r_hat + T t_hat + N h_hat) with (R, T, N) of the pitch alpha and
-  the clock delta as ``physics.thrust.radial_transverse_normal`` defines them, written
-  out in heyoka's expressions (:func:`dynamics`); not pykep's own low-thrust model, whose
-  thrust is a free vector;
-* 40 segments, each with its own pitch, clock and throttle, boxed as the problem boxes
-  them, and one a_c for the whole flight, which is the objective.
+The main job is ``esail-opt solve problems/earth_mars_min_ac.py --polish``, timed with
+``--no-plots`` and with its figures in every round.  The baseline is what a pykep 3 user
+writes for that transfer: pykep's zero-order-hold leg (``pykep.leg.zoh``: segments flown
+forward and backward by heyoka, one mismatch where they meet, its gradient from heyoka's
+variational equations), a pygmo problem around it and pygmo's Ipopt.  Both sides aim at
+the same DE421 states (``bodies.lookup.ecliptic_state_at``) and fly the same E-sail thrust
+(:func:`dynamics`; not pykep's free thrust vector), 40 segments of pitch, clock and
+throttle boxed as the problem boxes them, one a_c the objective.
 
 Decisions, each a choice a pykep user would make:
 
-* the segments are of equal duration, the leg's time grid (the main job's are of equal
-  swept angle, a grid the optimiser moves; both are 40 pieces of constant attitude, so
-  the two optima differ by the grids alone: 7e-5 of a_c here);
-* a_c is a fourth control held equal on every segment (the leg's ``pars[3]``), so that
-  the leg's own control gradients give its derivative (their sum) and the state stays
-  the six Cartesian components;
-* the leg is cut in the middle (:data:`CUT`); pykep's example problems cut at 0.6,
-  where a first version of this script took over ten times as long or ran out of
-  iterations;
-* the mismatch rows are given to Ipopt in metres (position) and metres per time unit
-  (velocity; 1 TU = 58.1 days): canonical units times the au.  :data:`IPOPT`'s
-  ``constr_viol_tol`` of 1 cm then holds the flown miss at the arrival to centimetres
-  (:func:`solve` reports it);
-* Ipopt's Hessian is its limited-memory quasi-Newton one (pygmo's problem has no
-  Hessian) with a memory longer than the 121 variables: Ipopt's default of 6 pairs
-  took 2,990 iterations and a minute, 50 pairs 8 s, 150 or more 276 iterations and
-  under 4 s (results/bench/README.md);
-* the guess is a constant attitude: pitch :data:`GUESS_PITCH_DEG`, clock 0, full
-  throttle and the problem's seed a_c.  The solve's time hangs on that pitch, the
-  optimum does not (the a_c of every guess below agree to 1e-9): constant pitches of
-  15 to 30 deg took 250-290 iterations (3.5-5 s of solve), 35 deg 440 (13 s), 40 and
-  45 deg 2,400 and 1,800 (135 s and 100 s; 45 deg is the main job's own seed), and
-  10 deg over five minutes.  The bench takes 20 deg, in the fast band, so that the
-  baseline is timed at its best and not at a guess that would flatter the main job.
+* segments of equal duration, the leg's time grid (the main job's are of equal swept
+  angle; the optima differ by the grids alone, 7e-5 of a_c here);
+* a_c a fourth control held equal on every segment, so that the leg's own control
+  gradients give its derivative (their sum);
+* the leg cut in the middle (:data:`CUT`): at pykep's examples' 0.6 the solve took over
+  ten times as long or ran out of iterations;
+* the mismatch rows in metres and metres per TU, so that :data:`IPOPT`'s
+  ``constr_viol_tol`` of 1 cm holds the flown miss to centimetres;
+* Ipopt's limited-memory Hessian (pygmo's problem has none) with a memory longer than
+  the 121 variables: the default of 6 pairs took a minute, 150 or more under 4 s;
+* a constant-attitude guess (:data:`GUESS_PITCH_DEG`, clock 0, full throttle, the
+  problem's seed a_c): the solve's time hangs on that pitch, the optimum does not.
 
-pykep 3.0.1 cannot be imported: its wheel lacks the ``trajopt/gym/tops/_tops_*.json``
-data files its ``__init__`` reads, and its compiled core bundles a libheyoka that
-conflicts with heyoka.py's in one process.  The leg is pure Python over heyoka.py, so
-:func:`zoh_class` loads ``pykep/leg/_zoh.py`` by its path inside the installed package,
-over heyoka.py, and nothing else of pykep.
+pykep 3.0.1 cannot be imported (its wheel lacks data files its ``__init__`` reads, and
+its core bundles a libheyoka that conflicts with heyoka.py's), so :func:`zoh_class` loads
+the pure-Python leg by path, and nothing else of pykep.
 
-:func:`main` is the baseline's process (``python -m esail_opt.bench.pykep_zoh``, or as
-the bench runs it, ``python -c`` calling :func:`main`: ``-m`` imports the module twice
-and Python warns so): it prints one JSON line (a_c, the flown miss, Ipopt's record, the
-schedule, its own import, build and solve times).  pykep, heyoka and
-pygmo are optional (the ``bench`` extra); without them :func:`run` times nothing, says
-the baseline was skipped, and writes ``pykep.json`` saying so.
+:func:`main` is the baseline's process: it prints one JSON line (:func:`solve`'s record
+and its import time).  pykep, heyoka and pygmo are the ``bench`` extra; without them
+:func:`run` times nothing and writes ``pykep.json`` saying the baseline was skipped.
 """
 
 import importlib.util
@@ -75,8 +47,9 @@ from pathlib import Path
 PROBLEM = "earth_mars_min_ac"
 #: Where the leg's forward and backward halves meet, as a fraction of its segments.
 CUT = 0.5
-#: Pitch of the constant-attitude guess, deg: in the band where the baseline is fastest
-#: (the module docstring lists the guesses tried).
+#: Pitch of the constant-attitude guess, deg: in the band (15 to 30 deg) where the
+#: baseline is fastest, so that it is timed at its best (at 45, the main job's seed, it
+#: took over 20 times as long).
 GUESS_PITCH_DEG = 20.0
 #: pygmo's Ipopt options (module docstring); the mismatch rows are in metres.
 IPOPT = {"tol": 1e-8, "constr_viol_tol": 0.01, "max_iter": 3000,
@@ -107,7 +80,7 @@ def _zoh_path():
 
 def missing():
     """None if the baseline can run, else the one line that says what is missing and how
-    to get it.  Nothing is imported: pykep's own import fails (module docstring)."""
+    to get it.  Nothing is imported: pykep's own import fails."""
     absent = [name for name in PACKAGES if importlib.util.find_spec(name) is None]
     if absent:
         return (f"{', '.join(absent)} not installed; the pykep baseline needs pykep 3, "
@@ -132,8 +105,8 @@ def versions():
 
 
 def zoh_class():
-    """pykep's ``leg.zoh`` class, its file loaded by path over heyoka.py (module
-    docstring); the module is loaded once a process."""
+    """pykep's ``leg.zoh`` class, ``pykep/leg/_zoh.py`` loaded by path over heyoka.py,
+    once a process."""
     name = "esail_opt_bench_pykep_leg_zoh"
     if name not in sys.modules:
         spec = importlib.util.spec_from_file_location(name, _zoh_path())
@@ -149,13 +122,10 @@ def dynamics(coefficients):
 
     State [x, y, z, vx, vy, vz]; runtime parameters ``par[0..3]`` = pitch alpha, clock
     delta (rad), throttle kappa and a_c.  The thrust is a_c kappa / r (R r_hat +
-    T t_hat + N h_hat) with R = b1 + b2 cos 2 alpha, T = b2 sin 2 alpha cos delta and
-    N = b2 sin 2 alpha sin delta, h_hat = r x v / |r x v| and t_hat = h_hat x r_hat =
-    (r^2 v - (r . v) r) / (|h| r): ``physics.dynamics.rhs_cartesian`` under
-    ``physics.thrust.radial_transverse_normal``, written again here as a pykep user
-    writes it (the tests check the two agree).
-
-    Returns (list of (variable, derivative), the state's variables).
+    T t_hat + N h_hat), ``physics.dynamics.rhs_cartesian`` under
+    ``physics.thrust.radial_transverse_normal`` written again as a pykep user writes it
+    (the tests check the two agree).  Returns (list of (variable, derivative), the
+    state's variables).
     """
     import heyoka as hy
 
@@ -182,8 +152,7 @@ def dynamics(coefficients):
 def integrators(coefficients):
     """heyoka's integrator of :func:`dynamics` and its first-order variational one (with
     respect to the state and the four parameters), as pykep's leg takes them; compact
-    mode, as pykep builds its own.  heyoka keeps their compiled code in its on-disk
-    cache, so only a machine's first process pays the compilation."""
+    mode, as pykep builds its own."""
     import heyoka as hy
 
     system, variables = dynamics(coefficients)
@@ -197,13 +166,9 @@ def integrators(coefficients):
 def transfer(problem):
     """The fixed-date transfer of ``problem``: a dict of the departure and arrival states
     (Cartesian, canonical), the time of flight (TU), the segments, the bounds and the
-    thrust coefficients.
-
-    Raises
-    ------
-    ValueError
-        Naming the problem, unless it is a three-dimensional minimum-a_c rendezvous with a
-        body from a body on a fixed date with no excess speed, in equal segments.
+    thrust coefficients.  ValueError, naming the problem, unless it is a 3-D minimum-a_c
+    rendezvous from a body on a fixed date with no excess speed, in a fixed count of
+    segments.
     """
     import numpy as np
 
@@ -236,9 +201,8 @@ class Transfer:
     """pygmo's problem of the transfer (:func:`transfer`) on pykep's zoh leg.
 
     Decision vector: [a_c] + [alpha_k, delta_k, kappa_k for each segment k].  Fitness:
-    [a_c] + the leg's six mismatch components in metres (module docstring).  The
-    gradient is the leg's (``compute_mc_grad``): its control columns, a_c's summed over
-    the segments.
+    [a_c] + the leg's six mismatch components in metres.  The gradient is the leg's
+    (``compute_mc_grad``): its control columns, a_c's summed over the segments.
     """
 
     def __init__(self, case, tas, zoh):
@@ -259,7 +223,7 @@ class Transfer:
         return 6
 
     def guess(self):
-        """The constant-attitude guess of the module docstring."""
+        """The constant-attitude guess: :data:`GUESS_PITCH_DEG`, clock 0, full throttle."""
         full = self.case["throttle"][1]
         return [self.case["seed_ac"]] + [math.radians(GUESS_PITCH_DEG), 0.0, full] * self.n
 
@@ -308,14 +272,12 @@ class Transfer:
 def solve(problem):
     """Solve ``problem``'s transfer with pygmo's Ipopt on pykep's leg.
 
-    Returns a JSON-ready record: ``status`` (Ipopt's), ``converged`` (that status is
-    Solve_Succeeded and the mismatch is within ``constr_viol_tol``), ``fevals`` and
-    ``gevals`` (pygmo's counts; about one gradient an Ipopt iteration), ``ac`` and
-    ``ac_mm_s2``, ``mismatch_m`` (the largest row), ``miss_m`` and ``miss_m_s`` (the
-    schedule flown forward over all segments by heyoka against the arrival state),
-    ``alpha_rad``, ``clock_rad``, ``throttle`` and ``duration_tu``, and ``build_seconds``
-    (the integrators and the leg) and ``solve_seconds``.  A failed solve is returned
-    with its status, not raised.
+    Returns a JSON-ready record: ``status`` (Ipopt's), ``converged`` (Solve_Succeeded and
+    the mismatch within ``constr_viol_tol``), ``fevals`` and ``gevals`` (pygmo's counts),
+    ``ac`` and ``ac_mm_s2``, ``mismatch_m`` (the largest row), ``miss_m`` and ``miss_m_s``
+    (:meth:`Transfer.fly` against the arrival state), ``alpha_rad``, ``clock_rad``,
+    ``throttle``, ``duration_tu``, ``build_seconds`` (integrators and leg) and
+    ``solve_seconds``.  A failed solve is returned with its status, not raised.
     """
     import numpy as np
     import pygmo as pg
@@ -403,11 +365,10 @@ def _last_line(stdout):
 
 
 def measure(rounds, problem_file, out):
-    """Time ``rounds`` rounds of the three processes, the order turned by one each round
-    (so that each goes first, second and third alike); returns the per-round lists and
-    the last runs' outputs.  One untimed run of each goes first, so that no timed run
-    fills a cache (the main job's compiled arcs, heyoka's compiled integrators, the
-    files' pages) for the runs after it."""
+    """Time ``rounds`` rounds of the three processes, the order turned by one each round;
+    returns the per-round lists and the last runs' outputs.  One untimed run of each goes
+    first, so that no timed run fills a cache (compiled arcs, heyoka's compiled
+    integrators, file pages) for the others."""
     from esail_opt.bench.rockit_baseline import _timed
 
     sides = ("esail_opt", "esail_opt_figures", "pykep")
@@ -517,15 +478,12 @@ def run(out, repeats):
     """Time the three whole processes side by side; writes ``pykep.json``, returns its
     path.
 
-    ``repeats`` rounds (:func:`measure`), wall and CPU time of each process (with its
-    children).  Each ratio is the median over rounds of pykep's wall time over the main
-    job's, without and with figures, and is None (the comparison void) unless every run
-    of both exited 0 and the two a_c agree within :data:`AC_AGREEMENT`.  Both answers are
-    kept: a_c in mm/s^2 and the miss in metres (the main job's from its polished
-    verification; pykep's from its own flight and flown again by CVODES, :func:`fly`).
-
-    Without pykep, heyoka or pygmo nothing is timed: ``pykep.json`` holds
-    ``{"skipped": reason}`` and the bench says it skipped the baseline.
+    ``repeats`` rounds (:func:`measure`), wall and CPU time of each process with its
+    children.  Each ratio is the median over rounds of pykep's wall time over the main
+    job's, without and with figures; None (the comparison void) unless every run of both
+    exited 0 and the two a_c agree within :data:`AC_AGREEMENT`.  Both answers are kept:
+    a_c in mm/s^2 and the miss in metres (pykep's also flown by CVODES, :func:`fly`).
+    Without the baseline's packages ``pykep.json`` holds ``{"skipped": reason}``.
     """
     import importlib.resources
     import os

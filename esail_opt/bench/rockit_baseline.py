@@ -2,35 +2,22 @@
 of the same transfer, both as whole processes.
 
 The main job is ``esail-opt solve problems/earth_mars_min_time.py --polish``.  The
-baseline is what a user of a general optimal-control toolkit writes for that transfer:
-rockit's ``Ocp`` with a free final time, the four polar states under Eqs. 1-2
-(``physics.dynamics.rhs`` with the thrust of ``physics.thrust.radial_transverse``), one
-pitch control held constant over each of N = 60 equal intervals and boxed to the sail's
-pitch bounds, the target's own end conditions (``target.constraints``), minimum time,
-``MultipleShooting(N=60, M=4, intg='rk')`` and Ipopt with the expression graph expanded
-(``expand``, as rockit's own examples do: the baseline is the toolkit used as its
-authors show, not a weakened one).
+baseline is what a user of a general optimal-control toolkit writes for that transfer
+(:func:`build`): rockit's ``Ocp`` with a free final time, the polar states under Eqs. 1-2,
+one pitch per each of N = 60 equal intervals boxed to the sail's bounds, the target's end
+conditions, ``MultipleShooting(N=60, M=4, intg='rk')`` and Ipopt with ``expand``, as
+rockit's own examples do: the toolkit used as its authors show, not a weakened one.
 
-Its guess is a spiral, the generic start of an orbit-raising problem: r linear in time
-from the departure to the target radius over :data:`GUESS_TOF_DAYS`, circular speed, the
-angle swept at the local circular rate, v_r constant, and the constant pitch the problem
-seeds its own NLP with (+45 deg outward).  Minimum-time transfers have local optima, and
-with the pitch boxed to [-90, 90] deg the optimum's pass of the thrust through the inner
-point (alpha_n = -90 = +90 deg) is a jump that multiple shooting finds from some guesses
-and not from others, so the guess's time of flight decides which optimum Ipopt reaches
-(results/bench/README.md lists the ones met).  :data:`GUESS_TOF_DAYS` is one that reaches
-the optimum the main job finds; the bench checks that the two times of flight agree
-within :data:`TOF_AGREEMENT` and voids the comparison otherwise.
+Its guess is a spiral (:func:`_spiral_guess`) at the problem's own seed pitch.  With the
+pitch boxed, the optimum's pass of the thrust through alpha_n = -90 = +90 deg is a jump
+that multiple shooting finds from some guesses only, so the guess's time of flight decides
+which optimum Ipopt reaches: :data:`GUESS_TOF_DAYS` reaches the main job's, and the
+comparison is void unless the two times of flight agree within :data:`TOF_AGREEMENT`.
 
 :func:`main` is the baseline's process: ``main([PROBLEM])`` (default :data:`PROBLEM`)
-solves and prints one JSON line (time of flight, the schedule, Ipopt's record, its own
-import and solve times).  ``main(["--figures", DIR])`` instead
-draws the two figures of ``DIR/solution.json`` in this process, one after the other, and
-prints how long that took (the figures' own time).
-
-rockit is an optional dependency (the ``bench`` extra).  The bench flies the baseline's
-schedule with CVODES (``propagation.simulate`` at the verifier's tolerance) and reports
-its miss from the target, so both sides are judged at a flown miss.
+solves and prints one JSON line (:func:`solve`'s record, its import and solve times);
+``main(["--figures", DIR])`` instead draws the two figures of ``DIR/solution.json`` and
+prints how long that took.  rockit is the ``bench`` extra.
 """
 
 import json
@@ -66,7 +53,9 @@ def rockit_missing():
 
 
 def _spiral_guess(ocp, states, alpha, problem, tf):
-    """Set the spiral guess of the module docstring on rockit's grid of N + 1 points."""
+    """Set the spiral guess on rockit's grid of N + 1 points: r linear in time from the
+    departure to the target radius over ``tf``, circular speed, the angle at the local
+    circular rate, v_r constant, and the problem's seed pitch (+-45 deg by default)."""
     import numpy as np
 
     x0 = problem.x0()[:4]
@@ -83,11 +72,10 @@ def _spiral_guess(ocp, states, alpha, problem, tf):
 
 
 def build(problem):
-    """rockit's OCP of ``problem`` (departure, sail, pitch bounds, target, minimum time).
-
-    Returns (ocp, states, alpha): the four states r, theta, v_r, v_theta and the pitch.
-    Only a fixed departure, an untrottled sail, a target with end conditions and
-    minimum time are transcribed; anything else is refused (ValueError).
+    """rockit's OCP of ``problem``; returns (ocp, states, alpha): the four states r,
+    theta, v_r, v_theta and the pitch.  Only a fixed departure, an unthrottled sail, a
+    target with end conditions and minimum time are transcribed; anything else raises
+    ValueError.
     """
     import casadi as ca
     from rockit import FreeTime, MultipleShooting, Ocp
@@ -122,11 +110,9 @@ def build(problem):
 
 
 def solve(problem):
-    """Solve :func:`build`'s OCP; returns a JSON-ready record of the solution.
-
-    Keys: ``status``, ``iterations``, ``tof_days``, ``alpha_rad`` (the N pitches) and
-    ``duration_tu`` (every interval's length, canonical units).  A failed solve is
-    returned with its status, not raised.
+    """Solve :func:`build`'s OCP; returns a JSON-ready record: ``status``, ``iterations``,
+    ``tof_days``, ``alpha_rad`` (the N pitches) and ``duration_tu`` (every interval's
+    length, TU).  A failed solve is returned with its status, not raised.
     """
     import numpy as np
 
@@ -162,10 +148,9 @@ def fly(problem, record):
 
 
 def _figures_seconds(folder):
-    """Draw the figures of ``folder``'s solution.json in this process, one after the
-    other; returns (seconds from the first import of the drawing code to the files
-    written, matplotlib's import included as a solve that draws pays it; seconds of
-    the drawing and writing alone)."""
+    """Draw the figures of ``folder``'s solution.json in this process; returns (seconds
+    from the first import of the drawing code, matplotlib's included, to the files
+    written; seconds of the drawing and writing alone)."""
     start = time.perf_counter()
     import matplotlib.pyplot  # noqa: F401  (what the first figure of a process imports)
 
@@ -183,9 +168,9 @@ def _figures_seconds(folder):
 def _timed(command):
     """Run ``command`` as a whole process; returns (wall s, CPU s, exit status, stdout).
 
-    Both sides get the same environment, with one OpenBLAS thread unless the caller's
-    says otherwise: ``esail-opt`` sets that default for itself, and a second thread
-    spinning in the baseline's MUMPS would only add to its CPU time.
+    Both sides get one OpenBLAS thread unless the caller's environment says otherwise:
+    ``esail-opt`` sets that default for itself, and a second thread spinning in the
+    baseline's MUMPS would only add to its CPU time.
     """
     import os
     import resource
@@ -219,11 +204,10 @@ def _commands(problem_file, out):
 
 
 def measure(pairs, problem_file, out):
-    """Time ``pairs`` pairs of the two processes, alternating which goes first, and
-    after each pair the figures of the main job's solution drawn in a process of
-    their own; returns the per-pair lists and the last runs' outputs.  One untimed run
-    of each goes first, so that no timed run fills a cache (the compiled arcs on disk,
-    the files' pages) for the runs after it."""
+    """Time ``pairs`` pairs of the two processes, alternating which goes first, and after
+    each pair the main job's figures in a process of their own; returns the per-pair
+    lists and the last runs' outputs.  One untimed run of each goes first, so that no
+    timed run fills a cache (compiled arcs on disk, file pages) for the others."""
     runs = {"esail_opt": [], "rockit": [], "figures": []}
     outputs = {}
     print("bench rockit: one untimed run of each ...", flush=True)
@@ -328,19 +312,12 @@ def _print(data):
 def run(out, repeats):
     """Time the two whole processes side by side; writes ``rockit.json``, returns its path.
 
-    ``max(repeats, MIN_PAIRS)`` pairs, alternating which process goes first, wall and
-    CPU time of each (the CPU time of a process and its children).  The ratio is the
-    median over pairs of rockit's wall time over the main job's, and is None (the
-    comparison void) unless every run of both exited 0 and the two times of flight
-    agree within :data:`TOF_AGREEMENT`.  The figures' own time is drawing the main job's
-    two figures from its ``solution.json`` in a fresh process (:func:`_figures_seconds`),
-    after each pair and outside its times.  rockit's schedule is flown with CVODES
-    (:func:`fly`); the main job's miss is its own polished verification's.
-
-    Raises
-    ------
-    InputError
-        Without rockit (one line: how to install it).
+    ``max(repeats, MIN_PAIRS)`` pairs (:func:`measure`), wall and CPU time of each
+    process and its children.  The ratio is the median over pairs of rockit's wall time
+    over the main job's; None (the comparison void) unless every run of both exited 0 and
+    the times of flight agree within :data:`TOF_AGREEMENT`.  rockit's miss is its
+    schedule flown (:func:`fly`), the main job's its polished verification's.  Raises
+    InputError without rockit.
     """
     import importlib.resources
     import os

@@ -42,15 +42,12 @@ def _print(case):
 def run(out, repeats):
     """The shooting NLP on closed-form arcs against CVODES arcs; writes ``solve.json``.
 
-    For each problem in :data:`PROBLEMS` (their own N and sub-arcs, with equal segment
-    lengths so that each side is one NLP from one start) both NLPs have the same
-    variables, bounds, constraints (the CVODES one's q3 rows are constant), initial guess
-    and Ipopt options (MUMPS, exact Hessian); only the segment Function differs: the
-    chain of second-order closed-form arcs, or one CVODES integration of Eqs. 1-2 in
-    theta at 1e-12 with CasADi's sensitivities.  Each is timed from ``nlpsol``
-    construction to the end of the solve, the median of ``min(repeats, 3)`` runs.
-    ``ratio`` is cvodes_seconds / closed_form_seconds.  The top-level keys are the first
-    problem's; ``cases`` holds all.  Returns the path written.
+    For each of :data:`PROBLEMS` (equal segment lengths: one NLP from one start) the two
+    NLPs share all but the segment Function: the chain of closed-form arcs, or one CVODES
+    integration of Eqs. 1-2 in theta at 1e-12 (:func:`.timing.timed_nlps`).  Each is timed
+    from ``nlpsol`` construction to the end of the solve, the median of
+    ``runs_of(repeats)`` runs; ``ratio`` is cvodes_seconds / closed_form_seconds.  The
+    top-level keys are the first problem's; ``cases`` holds all.  Returns the path written.
     """
     from esail_opt.app.outputs import write_json
 

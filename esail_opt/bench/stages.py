@@ -1,25 +1,18 @@
 """``esail-opt-bench stages``: where the time of one ``esail-opt solve --polish`` goes.
 
-One shipped problem (default ``earth_mars_min_ac``, the 3-D fixed-date Earth-Mars
-MinAcceleration; ``--problem earth_mars_min_ac_planar`` its planar twin) is solved with
-the polish in a fresh Python process, so that the imports are timed as a command pays
-them.  The child calls what ``esail-opt solve`` calls (load the file,
-``solution.solve_with_nearest``, ``Solution.write`` without figures, then the figures
-as ``esail-opt plot`` draws them) and times the package's own functions from outside:
-each is wrapped, where a module holds it, by a timer that charges the time spent to the
-innermost stage running (exclusive time, as a profiler's own time), so that the stages
-partition the child's wall time and none is counted twice.  The pipeline is not
-changed: the wrappers pass every argument and result through.
+One of :data:`PROBLEMS` is solved with the polish in a fresh Python process, so that the
+imports are timed as a command pays them.  The child calls what ``esail-opt solve``
+calls (:func:`child`) and wraps the package's own functions, wherever a module holds
+them, in timers that charge the time to the innermost stage running (exclusive time, as
+a profiler's own time), so that the stages partition the child's wall time.  The
+wrappers pass every argument and result through.
 
-Stages: ``imports`` (the modules the command imports before it solves), ``load`` (the
-problem file), ``ephemeris`` (building the bodies' tracks), ``seed``, ``nlp_build``
-(transcription and Ipopt's ``nlpsol``), ``ipopt`` (each call listed in
-``ipopt_calls``, labelled by the pipeline step that made it: ``answer``, ``probes``
-(turn-count probes), ``lift`` (a projected class into 3-D), ``error control``,
-``polish``), ``verification`` (the CVODES flights), ``files``, ``figures_import``
-(matplotlib) and ``figures``; ``other`` is the rest of the child's time (the
-pipeline's own Python).  The parent's wall time of the child process adds the
-interpreter's start and exit (``startup_and_exit``).
+Stages (:data:`STAGES`): ``imports``, ``load``, ``ephemeris`` (the bodies' tracks),
+``seed``, ``nlp_build`` (transcription and ``nlpsol``), ``ipopt`` (each call listed in
+``ipopt_calls`` with the pipeline step that made it: ``answer``, ``probes``, ``lift``,
+``error control``, ``polish``), ``verification``, ``files``, ``figures_import``,
+``figures`` and ``other`` (the pipeline's own Python).  ``startup_and_exit`` is what the
+parent's wall time of the process adds.
 """
 
 import contextlib
@@ -185,9 +178,9 @@ def child(problem_name, out_dir, plots=True):
                       "verified": bool(sol.verified)}))
 
 
-# Started as `python -c`: the child loads this file by path, not as part of the bench
-# package, whose __init__ imports every bench (and with them what the solve would
-# import later, which the stages would then miss).
+# The child loads this file by path, not as part of the bench package, whose __init__
+# imports every bench (and with them what the solve would import, which ``imports``
+# would then miss).
 _CHILD = """
 import importlib.util, sys
 spec = importlib.util.spec_from_file_location("esail_stages_child", sys.argv[1])

@@ -9,9 +9,8 @@ from pathlib import Path
 
 from esail_opt.bench.timing import print_table, runs_of
 
-#: The sweep's problem file (a sweep runs a file, whose text its workers load):
-#: Earth-Mars minimum time, coarse enough that each member takes seconds.  Not a
-#: shipped problem: the shipped Earth-Mars (60 x 3) would make the bench take minutes.
+#: The sweep's problem file (its workers load its text): Earth-Mars minimum time, coarser
+#: than the shipped one so that each member takes seconds, not the bench minutes.
 SWEEP_SOURCE = '''
 import esail_opt as eo
 
@@ -51,20 +50,16 @@ def _timed_sweeps(path, runs):
 def run(out, repeats):
     """One sweep on 1 worker and on 2; writes ``sweep.json``.
 
-    The family is Earth-Mars minimum time at 20 segments x 2 sub-arcs over 8 values of
-    a_c in [0.6, 1.6] mm/s^2 (:data:`SWEEP_SOURCE`, a few seconds of Ipopt each),
-    so the members outweigh the pool's start-up (each spawned worker imports CasADi
-    once).  The wall time covers the whole ``sweep.run``: pool start, every member, pool
-    shutdown.  With ``repeats`` above 1 the two pool sizes alternate (at most 3 runs
-    each) and the medians count, so that a burst of load on a shared machine hits both
-    alike.  Whether the two pools return the same numbers is recorded as well.  Returns
-    the path written.
+    The members (:data:`SWEEP_SOURCE` over :data:`SWEEP_PARAM`) outweigh the pool's
+    start-up.  The wall time covers the whole ``sweep.run``: pool start, every member,
+    shutdown.  The two pool sizes alternate over ``runs_of(repeats)`` runs and the medians
+    count, so that a burst of load hits both alike; whether both return the same rows is
+    recorded.  Returns the path written.
     """
     from esail_opt.app.outputs import write_json
 
     runs = runs_of(repeats)
-    # Two workers can only help if two CPUs are free: the load is recorded so that a
-    # ratio near 1 on a busy shared machine reads as what it is.
+    # Recorded so that a ratio near 1 on a busy machine reads as what it is.
     load_before = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="esail_bench_sweep_") as tmp:
         path = Path(tmp) / "bench_sweep_earth_mars.py"

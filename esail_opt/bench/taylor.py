@@ -2,27 +2,19 @@
 Cartesian equations in three dimensions under a piecewise-constant pitch and clock: the
 strongest integrator the propagation and ensemble benches set against the closed form.
 
-heyoka is an optional dependency (the ``bench`` extra): :func:`available` says whether
-it imports, and nothing here imports it at module level.
+heyoka is the ``bench`` extra: :func:`available` says whether it imports, and nothing
+here imports it at module level.
 
-How the dynamics reach heyoka: the package's one form of Eqs. 1-2
-(``physics.dynamics.rhs``) is built once as a CasADi SX Function of the polar state
-and of the thrust (a_c R, a_c T), and its instructions are replayed on heyoka's
-expressions (:func:`system`), so heyoka flies the same formula as CVODES, written
-nowhere a second time.  The thrust's two components are heyoka runtime parameters:
-a pitch schedule changes them between arcs without compiling anything again, and
-``physics.thrust.radial_transverse`` turns each arc's pitch into them.  In three
-dimensions (:func:`cartesian_system`) the Cartesian equations
-(``physics.dynamics.rhs_cartesian``) are replayed the same way, with a_c R, a_c T and
-a_c N as the parameters (``physics.thrust.radial_transverse_normal``).
+The package's own equations (``physics.dynamics.rhs``, ``rhs_cartesian``) are built as a
+CasADi SX Function and replayed on heyoka's expressions (:func:`replay`), so heyoka flies
+the same formula as CVODES, written nowhere a second time.  The thrust's components are
+runtime parameters, so a schedule changes them between arcs without compiling again.
 
-How the arcs are flown: arc by arc, ``propagate_until`` each arc's end time in
-heyoka's batch mode (``taylor_adaptive_batch``, one SIMD lane a case, on the calling
-thread), setting the lanes' parameters before each arc.  The integrator stops on each
-arc's end exactly, so every arc starts with its own thrust from an exact state, as
-CVODES restarts on each segment.  A single expression switching the thrust with time
-was rejected: the Taylor series of a right-hand side that jumps inside a step is
-wrong across the jump, and heyoka's step control would not see it.
+The arcs are flown one by one, ``propagate_until`` each arc's end in batch mode (one SIMD
+lane a case, on the calling thread), so every arc starts with its own thrust from an
+exact state, as CVODES restarts on each segment.  One expression switching the thrust
+with time would not do: the Taylor series is wrong across a jump inside a step, and
+heyoka's step control would not see it.
 """
 
 import collections
@@ -57,46 +49,22 @@ def _ops(hy):
 
 
 def system():
-    """Eqs. 1-2 (``dynamics.rhs``) as heyoka's ODE system.
-
-    Returns
-    -------
-    list of (heyoka.expression, heyoka.expression)
-        (variable, derivative) for r, theta, v_r, v_theta, in canonical units, with the
-        thrust a_c (r_E / r) (R, T) taken from the runtime parameters
-        ``par[0]`` = a_c R and ``par[1]`` = a_c T.
-
-    Raises
-    ------
-    NotImplementedError
-        If ``dynamics.rhs`` uses an operation this translation does not know.
-    """
+    """Eqs. 1-2 (``dynamics.rhs``) as heyoka's ODE system: (variable, derivative) for r,
+    theta, v_r, v_theta, canonical units, with ``par[0]`` = a_c R and ``par[1]`` = a_c T
+    (:func:`replay`, whose NotImplementedError it may raise)."""
     import heyoka as hy
 
     x, push = ca.SX.sym("x", 4), ca.SX.sym("push", 2)
-    # a_c = 1 with R, T standing for a_c R and a_c T: the same thrust a_c (R, T) / r.
+    # a_c = 1 with R, T standing for a_c R and a_c T.
     fun = ca.Function("eqs_1_2", [x, push], [dynamics.rhs(x, 1.0, push[0], push[1])])
     return replay(fun, hy.make_vars("r", "theta", "v_r", "v_theta"))
 
 
 def cartesian_system():
-    """The Cartesian equations in three dimensions (``dynamics.rhs_cartesian``) as heyoka's
-    ODE system.
-
-    Returns
-    -------
-    list of (heyoka.expression, heyoka.expression)
-        (variable, derivative) for x, y, z, vx, vy, vz, in canonical units, with the
-        thrust a_c (r_E / r) (R r_hat + T t_hat + N h_hat) taken from the runtime
-        parameters ``par[0]`` = a_c R, ``par[1]`` = a_c T and ``par[2]`` = a_c N.  The
-        expressions are of no floating-point type: the same system serves doubles and
-        quadruple precision.
-
-    Raises
-    ------
-    NotImplementedError
-        If ``dynamics.rhs_cartesian`` uses an operation this translation does not know.
-    """
+    """The Cartesian equations (``dynamics.rhs_cartesian``) as heyoka's ODE system:
+    (variable, derivative) for x, y, z, vx, vy, vz, canonical units, with ``par[0..2]`` =
+    a_c R, a_c T, a_c N (:func:`replay`).  The expressions have no floating-point type,
+    so the same system serves doubles and quadruple precision."""
     import heyoka as hy
 
     y, push = ca.SX.sym("y", 6), ca.SX.sym("push", 3)
@@ -109,17 +77,8 @@ def cartesian_system():
 def replay(fun, variables):
     """The SX Function ``fun(state, push) -> rates`` as heyoka's ODE system: its
     instructions replayed on heyoka's expressions, ``state`` as ``variables`` and
-    ``push`` as the runtime parameters ``par[0]``, ``par[1]``, ...
-
-    Returns
-    -------
-    list of (heyoka.expression, heyoka.expression)
-        (variable, derivative) pairs.
-
-    Raises
-    ------
-    NotImplementedError
-        If ``fun`` uses an operation this translation does not know.
+    ``push`` as the runtime parameters ``par[0]``, ``par[1]``, ...; a list of (variable,
+    derivative).  NotImplementedError if ``fun`` uses an operation not in :func:`_ops`.
     """
     import heyoka as hy
 
@@ -142,12 +101,9 @@ def replay(fun, variables):
 
 @functools.lru_cache(maxsize=None)
 def integrator(tol, batch_size=None):
-    """A heyoka batch integrator of :func:`system` at tolerance ``tol``, compiled once
-    per process and tolerance.
-
-    ``batch_size`` is the number of cases flown side by side, one a SIMD lane (default
-    heyoka's recommended SIMD width for doubles on this CPU).  The integrator is reused
-    by :func:`fly`, which sets its state, time and parameters every time.
+    """A heyoka batch integrator of :func:`system` at tolerance ``tol``, compiled once per
+    process, tolerance and ``batch_size`` (cases side by side, one a SIMD lane; default
+    heyoka's recommended SIMD width).  :func:`fly` sets its state, time and parameters.
     """
     import heyoka as hy
 
@@ -158,10 +114,7 @@ def integrator(tol, batch_size=None):
 
 @functools.lru_cache(maxsize=None)
 def cartesian_integrator(tol, batch_size=None):
-    """A heyoka batch integrator of :func:`cartesian_system` in doubles at tolerance
-    ``tol``, compiled once per process, tolerance and ``batch_size`` (as
-    :func:`integrator`); :func:`fly3d` and :func:`fly_prepared` set its state, time and
-    parameters every time."""
+    """:func:`integrator` of :func:`cartesian_system`, in doubles."""
     import heyoka as hy
 
     size = batch_size or hy.recommended_simd_size()
@@ -170,59 +123,23 @@ def cartesian_integrator(tol, batch_size=None):
 
 
 def fly(ta, x0, acs, alphas, durations, coefficients=EXACT):
-    """M cases of a piecewise-constant pitch schedule flown on Eqs. 1-2 by heyoka.
+    """M cases of a piecewise-constant pitch schedule flown on Eqs. 1-2 by ``ta``
+    (:func:`integrator`), ``ta.batch_size`` at a time.
 
-    Parameters
-    ----------
-    ta : heyoka.taylor_adaptive_batch
-        From :func:`integrator`; its lanes take the cases ``ta.batch_size`` at a time
-        (the last block repeats the last case in its spare lanes).
-    x0 : array_like, shape (4,) or (M, 4)
-        Polar start states [r, theta, v_r, v_theta], canonical units.
-    acs, alphas, durations : array_like, shape (M, N)
-        Characteristic acceleration (canonical, times any throttle), pitch (rad) and
-        duration (TU) of each case's N arcs.
-    coefficients : tuple of float
-        The thrust model's (b1, b2).
-
-    Returns
-    -------
-    numpy.ndarray, shape (M, 5, N)
-        Each case's [r, theta, v_r, v_theta, t] at the end of every arc.
-
-    Raises
-    ------
-    RuntimeError
-        If heyoka stops short of a case's last arc (a non-finite state).
+    ``x0`` (4,) or (M, 4) is the polar start, canonical; ``acs``, ``alphas``,
+    ``durations`` (M, N) each arc's a_c (canonical, times any throttle), pitch (rad) and
+    duration (TU); ``coefficients`` the thrust's (b1, b2).  Returns (M, 5, N): each case's
+    [r, theta, v_r, v_theta, t] at every arc's end.  RuntimeError if heyoka stops short
+    of a case's last arc (a non-finite state).
     """
     return _flown(ta, prepare(ta.batch_size, x0, acs, alphas, durations, coefficients))
 
 
 def fly3d(ta, y0, acs, alphas, deltas, durations, coefficients=EXACT):
-    """M cases of a piecewise-constant pitch and clock schedule flown on the Cartesian
-    equations by heyoka (:func:`fly` in three dimensions).
-
-    Parameters
-    ----------
-    ta : heyoka.taylor_adaptive_batch
-        From :func:`cartesian_integrator`.
-    y0 : array_like, shape (6,) or (M, 6)
-        Cartesian start states [x, y, z, vx, vy, vz], canonical units.
-    acs, alphas, deltas, durations : array_like, shape (M, N)
-        Characteristic acceleration (canonical, times any throttle and thrust factor),
-        pitch and clock (rad) and duration (TU) of each case's N arcs.
-    coefficients : tuple of float
-        The thrust model's (b1, b2).
-
-    Returns
-    -------
-    numpy.ndarray, shape (M, 7, N)
-        Each case's [x, y, z, vx, vy, vz, t] at the end of every arc.
-
-    Raises
-    ------
-    RuntimeError
-        If heyoka stops short of a case's last arc (a non-finite state).
+    """:func:`fly` in three dimensions on the Cartesian equations, ``ta`` from
+    :func:`cartesian_integrator`: ``y0`` (6,) or (M, 6) Cartesian, canonical; ``deltas``
+    (M, N) each arc's clock (rad), ``acs`` times any thrust factor too.  Returns
+    (M, 7, N): each case's [x, y, z, vx, vy, vz, t] at every arc's end.
     """
     return _flown(ta, prepare3d(ta.batch_size, y0, acs, alphas, deltas, durations,
                                 coefficients))
@@ -278,9 +195,8 @@ def fly_prepared(ta, lanes, steps=True):
     states at every arc's end, shape (N, rows, lanes) ([r, theta, v_r, v_theta] or
     [x, y, z, vx, vy, vz]).
 
-    ``steps`` False leaves out heyoka's ``propagate_until`` calls and the check of
-    their ends (the states are then the starts): what is left is the cost of the loop
-    around them from Python."""
+    ``steps`` False leaves out heyoka's ``propagate_until`` calls and their check (the
+    states are then the starts), to time the Python loop around them."""
     size, ends = ta.batch_size, lanes.ends
     out = np.empty((ends.shape[0], lanes.starts.shape[0], ends.shape[1]))
     state, pars = ta.state, ta.pars
@@ -288,8 +204,7 @@ def fly_prepared(ta, lanes, steps=True):
         block = slice(first, first + size)
         state[:] = lanes.starts[:, block]
         ta.set_time(0.0)
-        # Lanes that end their arcs together take one time: heyoka reads a float
-        # faster than an array, and the times are the same numbers.
+        # Lanes ending together take one float: heyoka reads it faster than an array.
         shared = (ends[:, block] == ends[:, first:first + 1]).all()
         times = ends[:, first].tolist() if shared else ends[:, block]
         for k in range(ends.shape[0]):

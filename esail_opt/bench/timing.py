@@ -2,7 +2,7 @@
 and the shooting NLP timed with one segment Function or another.
 
 Machines are shared and noisy, so each bench times its subject against a baseline
-measured in the same run, and only the ratios mean anything.
+measured in the same run; only the ratios mean anything.
 """
 
 import dataclasses
@@ -37,8 +37,8 @@ def runs_of(repeats):
 
 
 def equal_lengths(problem):
-    """One NLP, one start: a free-length problem is normally solved in two stages (equal
-    lengths, then free); the benchmarks time the single equal-length NLP."""
+    """``problem`` with equal segment lengths: one NLP from one start, where a free-length
+    problem is solved in two stages."""
     return dataclasses.replace(
         problem, segments=dataclasses.replace(problem.segments, equal=True))
 
@@ -51,24 +51,12 @@ def shooting_methods():
 
 
 def timed_nlps(problem, guess, methods, runs):
-    """Solve the NLP of ``problem`` from ``guess`` once per segment method, timed.
+    """Solve the NLP of ``problem`` from ``guess`` (shared, so only the arcs differ) with
+    each of ``methods`` (name -> segment method), ``runs`` times each.
 
-    Parameters
-    ----------
-    problem : Problem
-    guess : seed.Guess
-        Shared by every method, so only the arcs differ.
-    methods : dict
-        Name -> segment method (:func:`shooting_methods`).
-    runs : int
-        Timed solves per method; the median counts.
-
-    Returns
-    -------
-    dict
-        Name -> {"seconds", "iterations", "status", "objective", "result"}: the median
-        wall time of ``nlpsol`` construction plus the Ipopt solve (MUMPS, exact Hessian),
-        and the last run's :class:`~esail_opt.optimisation.ipopt.NLPResult`.
+    Returns name -> {"seconds", "iterations", "status", "objective", "result"}: the median
+    wall time of ``nlpsol`` construction plus the Ipopt solve (MUMPS, exact Hessian), and
+    the last run's :class:`~esail_opt.optimisation.ipopt.NLPResult`.
     """
     from esail_opt.optimisation.ipopt import solve_transcription
     from esail_opt.optimisation.transcription import transcribe

@@ -1,24 +1,17 @@
 """The 3-D verifier's accuracy: its flights of polished schedules against a Taylor
 integration in quadruple precision.
 
-The verifier judges a 3-D schedule by a CVODES flight of Eqs. 1-2 in the turning plane at
-3e-16 and counts as its own error the gap to a second such flight at 1e-15 plus the gap
-to a flight on the Cartesian equations at 3e-16 (``optimisation.verify.verify3d``).  This
-bench flies each case's polished schedule those three ways and a fourth, the Cartesian
-equations at 1e-15 (before the turning plane, the verifier judged by the Cartesian flight
-at 3e-16 and took its gap to this one as its error), and reports how far each ends from
-the truth, and whether the error the verifier states covers its judged flight's.
+The verifier (``optimisation.verify.verify3d``) judges a 3-D schedule by a CVODES flight
+in the turning plane at 3e-16 and states as its error the gap to a second such flight at
+1e-15 plus the gap to a Cartesian flight at 3e-16.  This bench flies each case's polished
+schedule those three ways and on the Cartesian equations at 1e-15 (the error the
+Cartesian pair alone would state), and reports how far each ends from the truth and
+whether the stated error covers the judged flight's.
 
-The truth is heyoka's Taylor integrator (the ``bench`` extra) in quadruple precision
-(``real128``, tolerance 1e-30) on the Cartesian equations, replayed from
-``dynamics.rhs_cartesian`` (:func:`esail_opt.bench.taylor.cartesian_system`).  Without heyoka the
-bench reports the flights' gaps and no true errors.
-
-The cases are the shipped 3-D rendezvous problems solved with ``--polish``, the
-minimum-time Earth-Mars rendezvous of ``earth_mars_2035`` moved to a 941-day transfer (a_c
-1.5 mm/s^2, leaving 2033-03-01, 30 free segments of 3 sub-arcs), whose polish the
-Cartesian verifier could not judge to 1 m, and the other optima that a search of that
-transfer's turn counts polishes.  Nothing is timed: ``repeats`` is not used.
+The truth is heyoka (the ``bench`` extra) in quadruple precision on the Cartesian
+equations (:func:`.taylor.cartesian_system`); without heyoka the bench reports the gaps
+and no true errors.  The cases are :func:`cases`, and the other optima a search of the
+last one's turn counts polishes.  Nothing is timed: ``repeats`` is not used.
 """
 
 import dataclasses
@@ -46,8 +39,9 @@ TRUTH_TOLERANCE = 1e-30
 
 
 def cases():
-    """(label, problem) of every case: the shipped 3-D rendezvous problems solved at a
-    fixed date, and the long Earth-Mars transfer."""
+    """(label, problem) of every case: the shipped 3-D rendezvous problems, and
+    ``earth_mars_2035`` moved to a 941-day transfer, one the Cartesian pair could not
+    judge to 1 m."""
     long = shipped_problem("earth_mars_2035")
     long = dataclasses.replace(
         long, name="earth_mars_941d", departure=eo.BodyDeparture(body="earth", date="2033-03-01"),
