@@ -1,18 +1,10 @@
 """What a problem asks for: the objective it minimises and the target it must reach.
 
-Each kind carries its own behaviour, so the transcription, the verification and the
-solution files ask it instead of testing which kind it is:
-
-* an objective gives the NLP's cost (:meth:`cost`), says whether it fixes the time of
-  flight, and how its value reads to a user (:attr:`meaning`, :meth:`shown_as`);
-* a target gives the NLP's equality constraints on the final state (:meth:`constraints`),
-  the miss of a flown state from it in km and m/s (:meth:`miss`), the radius the
-  seeding propagation aims at (:attr:`aim_radius_au`), and whether its final polar
-  angle is tied to a moving body (:attr:`tracks_body`: revolution classes are then
-  whole turns on the body, not windows of the final angle).
-
-All fields are in the boundary's units (au, deg, days) and range-checked on creation;
-states handed to the methods are canonical (au, rad, au/TU with mu = 1; time in TU).
+Each kind carries its own behaviour (the NLP's cost or equality constraints, a flown
+state's miss in km and m/s, how its value reads), so callers ask it rather than test its
+kind; a target with :attr:`tracks_body` counts revolution classes in whole turns on the
+body.  Fields are in au, deg and days, range-checked on creation; states passed to the
+methods are canonical (au, rad, au/TU, mu = 1; t in TU).
 """
 
 import functools
@@ -41,11 +33,8 @@ def cartesian(x):
 
 
 def state_miss(x, y):
-    """Miss between two polar states: (position km, velocity m/s, polar angle deg).
-
-    The angle is the unwrapped difference theta_x - theta_y, so a whole revolution of
-    disagreement shows as 360 deg instead of vanishing.
-    """
+    """Miss between two polar states: (position km, velocity m/s, polar angle deg), the
+    angle unwrapped (theta_x - theta_y), so that a whole turn apart shows as 360 deg."""
     px, vx = cartesian(x)
     py, vy = cartesian(y)
     return (units.length_to_km(float(np.linalg.norm(px - py))),
@@ -54,8 +43,7 @@ def state_miss(x, y):
 
 
 def cartesian_miss(y, z):
-    """Miss between two Cartesian states [x, y, z, vx, vy, vz] (canonical): (position
-    km, velocity m/s)."""
+    """(position km, velocity m/s) between two canonical Cartesian states."""
     d = np.asarray(y, float).ravel()[:6] - np.asarray(z, float).ravel()[:6]
     return (units.length_to_km(float(np.linalg.norm(d[:3]))),
             units.speed_to_m_s(float(np.linalg.norm(d[3:]))))
@@ -110,11 +98,8 @@ class MaxRadius(_FixedTime):
 
 @dataclass(frozen=True)
 class MaxEnergy(_FixedTime):
-    """Maximise the final orbital energy v^2/2 - 1/r after ``tof_days`` days.
-
-    While the orbit stays bound, this is the same as maximising the final osculating
-    semimajor axis a = -1 / (2 E), without a's pole at E = 0.
-    """
+    """Maximise the final orbital energy v^2/2 - 1/r after ``tof_days`` days: while bound,
+    the osculating semimajor axis a = -1 / (2 E) without a's pole at E = 0."""
 
     meaning = "-(final energy v^2/2 - 1/r), canonical (minimised)"
 
@@ -130,11 +115,10 @@ class FinalStateExpression(_FixedTime):
     Attributes
     ----------
     function : callable
-        ``function(x)`` with ``x`` the final polar state [r, theta, v_r, v_theta] as a
-        CasADi column (canonical units: au, rad, au/TU with mu = 1) returns a scalar
-        CasADi expression to *minimise*.  Use CasADi operations (``casadi.sqrt``,
-        ``casadi.cos``, ...) so that Ipopt gets exact derivatives; e.g. maximising the
-        angular momentum is ``lambda x: -x[0] * x[3]``.
+        ``function(x)`` of the final polar state [r, theta, v_r, v_theta] (a CasADi
+        column, canonical: au, rad, au/TU with mu = 1) returns a scalar CasADi expression
+        to *minimise*, built of CasADi operations so that Ipopt gets exact derivatives;
+        e.g. maximising the angular momentum is ``lambda x: -x[0] * x[3]``.
     tof_days : float
         Fixed time of flight, days.
     """
@@ -185,8 +169,7 @@ class CircularOrbit:
         return [r - self.radius_au, vr, vt - self.radius_au ** -0.5]
 
     def miss(self, x, t, t0=0.0):
-        """The radial distance to the orbit, and the velocity error against the local
-        circular velocity."""
+        """The radial distance to the orbit, and the error from the local circular velocity."""
         r, _, vr, vt = (float(v) for v in np.ravel(x)[:4])
         dv = math.hypot(vr, vt - self.radius_au ** -0.5)
         return _miss(units.length_to_km(abs(r - self.radius_au)), units.speed_to_m_s(dv))
@@ -218,9 +201,9 @@ class Orbit:
                 xf[0] * xf[3] - math.sqrt(self.a_au * (1 - self.e ** 2))]
 
     def miss(self, x, t, t0=0.0):
-        """A position on an orbit whose apse line is free has no unique nearest point, so
-        the position miss is max(|da|, a |de|) (an error of e moves the orbit by about
-        a de), with the two parts given apart; there is no velocity miss."""
+        """Position miss max(|da|, a |de|), its parts given apart (an orbit with a free apse
+        line has no unique nearest point; an error of e moves it by about a de); no
+        velocity miss."""
         a, e = (float(v) for v in classical_from_polar(np.ravel(x)[:4])[:2])
         da_km = units.length_to_km(abs(a - self.a_au))
         de_km = units.length_to_km(abs(e - self.e) * self.a_au)
@@ -255,15 +238,14 @@ class Rendezvous:
         return self.radius_au
 
     def body_angle(self, t, t0=0.0):
-        """The body's polar angle at time t (TU) after departure, rad, unwrapped:
-        phase0 + n t (the phase is given at departure, so the epoch t0 plays no part)."""
+        """The body's unwrapped polar angle t TU after departure, rad: phase0 + n t (t0
+        plays no part)."""
         return math.radians(self.phase_deg) + t * self.radius_au ** -1.5
 
     def turns_behind(self, theta, t, t0=0.0):
-        """Whole turns k between the sail at polar angle theta and the body at time t.
-
-        The sail arrives from an inner (faster) orbit, so it can gain angle on the body
-        by waiting, not lose it: the next whole turn ahead of the lag."""
+        """Whole turns k between the sail at polar angle theta and the body at time t: the
+        next whole turn ahead of the lag, since the sail, from a faster inner orbit, can
+        only gain angle by waiting."""
         return int(math.ceil((theta - self.body_angle(t)) / (2 * math.pi)))
 
     def constraints(self, xf, tf, turns, t0=0.0):
@@ -284,11 +266,10 @@ class Rendezvous:
 class MinAcceleration(_FixedTime):
     """The smallest characteristic acceleration that makes the transfer in ``tof_days``.
 
-    The sail's ``ac_mm_s2`` is then only the seed and the scale of a_c, which becomes a
-    decision variable, and every segment's throttle kappa is free in the sail's throttle
-    bounds ([0, 1] unless ``Sail(throttle=True)`` narrows them): a mission that needs
-    less than full thrust on some arcs should not pay for it in a_c.  Meant for fixed
-    departure and arrival dates: the sail designer's porkchop.
+    The sail's ``ac_mm_s2`` is then only the seed and scale of a_c, a decision variable,
+    and every segment's throttle kappa is free in the sail's throttle bounds ([0, 1]
+    unless ``Sail(throttle=True)`` narrows them), so that arcs that need less than full
+    thrust do not cost a_c.  Meant for fixed departure and arrival dates (a porkchop).
     """
 
     free_acceleration = True
@@ -335,9 +316,8 @@ class _BodyTarget:
         Earliest and latest arrival, ISO 8601 dates (TDB) in the tracked span 2000-2060,
         ending after the earliest departure; None leaves the arrival free.
 
-    The NLP sees the body through a smooth fit of its ephemeris (``bodies.track``), and
-    the verification holds the flown state to the ephemeris itself at the flown arrival
-    time, so the fit's error is in what is verified, not hidden by it.
+    The NLP sees the body through a smooth fit of its ephemeris (``bodies.track``); the
+    verification holds the flight to the ephemeris itself, so the fit's error is verified.
     """
 
     body: object
@@ -368,8 +348,7 @@ class _BodyTarget:
         return float(np.ravel(self.body_state(t0, t))[1])
 
     def turns_behind(self, theta, t, t0=0.0):
-        """Whole turns k between the sail at polar angle theta and the body at t0 + t
-        (as :meth:`Rendezvous.turns_behind`)."""
+        """:meth:`Rendezvous.turns_behind` for the body at t0 + t."""
         return int(math.ceil((theta - self.body_angle(t, t0)) / (2 * math.pi)))
 
     def constraints(self, xf, tf, turns, t0=0.0):
@@ -380,9 +359,8 @@ class _BodyTarget:
         return rows
 
     def miss(self, x, t, t0=0.0):
-        """Distance (and, for a rendezvous, relative speed) to the body's ephemeris
-        state at the arrival time t0 + t, with the relative speed at encounter and the
-        out-of-plane distance the two-dimensional model ignored there."""
+        """Distance (and, for a rendezvous, relative speed) to the body's ephemeris state
+        at t0 + t, with the encounter speed and the out-of-plane distance the plane ignores."""
         state, z_au = lookup.polar_state_at(self.body, t0 + t, "target.body")
         dr, dv, _ = state_miss(np.ravel(x)[:4], state)
         return _miss(dr, dv if self.matches_velocity else None,
@@ -391,20 +369,12 @@ class _BodyTarget:
 
 
     def cylindrical_constraints(self, yf, theta_f, tf, turns, t0=0.0):
-        """A 3-D body target's rows, the final position (and, for a rendezvous, velocity)
-        on the body's smooth 3-D track in the ecliptic's cylindrical coordinates, with
-        the turn count in them: [rho, lambda - 2 pi turns, z] and, for a
-        rendezvous, [v_rho, v_lambda, v_z] of the sail's final Cartesian state ``yf``
-        less the body's on its smooth 3-D track at t0 + tf (``Track3.cylindrical``,
-        whose longitude is unwrapped).  The sail's longitude is unwrapped near its polar
-        angle ``theta_f`` in its own plane, which is on the track's branch, so the
-        longitude row is the planar model's theta row plus terms of the order of the
-        inclination.
-
-        Zero exactly where the Cartesian miss is, on the row's turn count; as the
-        planar row, it pulls the final angle straight towards its turn, where Cartesian
-        rows, periodic in it, gave a class probe started half a turn off local optima of
-        several times the a_c."""
+        """A 3-D body target's rows: the sail's final Cartesian state ``yf`` less the
+        body's on its smooth 3-D track at t0 + tf, in the ecliptic's cylindrical
+        coordinates [rho, lambda - 2 pi turns, z] (and, for a rendezvous, [v_rho, v_lambda,
+        v_z]), the sail's longitude unwrapped near ``theta_f``.  Like the planar theta row,
+        it pulls the final angle towards its turn, where Cartesian rows, periodic in it,
+        have local optima half a turn off."""
         body = lookup.track3(self.body).cylindrical(t0 + tf)
         sail = _cylindrical()(yf, theta_f)
         rows = [sail[0] - body[0], sail[1] - body[1] - 2 * math.pi * turns,
@@ -414,11 +384,8 @@ class _BodyTarget:
         return [ca.vertcat(*rows)]
 
     def miss3d(self, y, t, t0=0.0):
-        """Distance (and, for a rendezvous, relative speed) of the Cartesian state ``y``
-        from the body's exact, unprojected ecliptic state at t0 + t (DE421, or a small
-        body's six elements), with the relative speed at encounter, the body's distance
-        from the ecliptic there (as :meth:`miss` gives it) and the part of the distance
-        along the ecliptic's normal."""
+        """:meth:`miss` of the Cartesian state ``y`` against the body's exact, unprojected
+        ecliptic state, with the part of the distance along the ecliptic's normal."""
         body = lookup.ecliptic_state_at(self.body, t0 + t, "target.body")
         dr, dv = cartesian_miss(y, body)
         return _miss(dr, dv if self.matches_velocity else None,
@@ -429,9 +396,8 @@ class _BodyTarget:
 
 @functools.lru_cache(maxsize=None)
 def _cylindrical():
-    """``(y[6], near) -> [rho, lambda, z, v_rho, v_lambda, v_z]`` of the ecliptic
-    Cartesian state y, the longitude on the branch of the angle ``near`` (within half a
-    turn of it); SX, as one small block of the NLP's derivatives."""
+    """``(y[6], near) -> [rho, lambda, z, v_rho, v_lambda, v_z]`` of the ecliptic state
+    y, the longitude within half a turn of ``near``; SX, a small block of derivatives."""
     y, near = ca.SX.sym("y", 6), ca.SX.sym("near")
     c, s = ca.cos(near), ca.sin(near)
     lon = near + ca.atan2(c * y[1] - s * y[0], c * y[0] + s * y[1])

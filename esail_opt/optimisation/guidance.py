@@ -1,22 +1,11 @@
 """Guidance that still arrives: re-targeting a schedule in flight, on the closed form.
 
-At each waypoint the spacecraft knows its state (navigation is taken as perfect) but
-not the wind to come.  It re-targets the remaining pieces of its schedule so that the
-closed form, flown at the nominal thrust from where it is, meets the target's position
-and velocity at the planned arrival time; then it flies on under the wind as it blows
-until the next waypoint.
-
-The correction is a smooth change of the remaining pitch, clock and asked a_c: each
-moves by a quadratic in the fraction of the remaining flight time (nine coefficients),
-so that the correction is small and smooth.  The coefficients come from Gauss-Newton
-steps on the predicted miss, weighted by the tolerance (a miss of one tolerance in
-position weighs as one in velocity), from the nominal flight's Jacobian by central
-differences (once a waypoint) which each flight then corrects by Broyden's update; a
-flight still predicted to miss takes its own Jacobian and steps again, since far
-from the nominal the nominal's Jacobian can point the wrong way.
-The asked a_c stays within the sail's (the schedule's, plus any margin) and pitch
-within the problem's bounds: at a minimum-a_c optimum without margin, the direction
-of more thrust is out of reach, and guidance can only steer.
+At each waypoint the spacecraft (its state known, the wind to come not) re-targets its
+remaining pieces so that the closed form, flown at nominal thrust, meets the target's
+position and velocity at the planned arrival; the remaining pitch, clock and asked a_c
+each move by a quadratic in the fraction of the remaining time (nine coefficients,
+:meth:`Retargeting.correct`).  The asked a_c stays within the sail's (the schedule's plus
+any margin): at a minimum-a_c optimum without margin, guidance can only steer.
 """
 
 from dataclasses import dataclass
@@ -76,7 +65,6 @@ class Controls:
         return cls(*(np.tile(v, (flights, 1)) for v in (plan.alphas, plan.deltas, plan.acs)))
 
     def take(self, index):
-        """The controls of the flights ``index``."""
         return Controls(self.alphas[index], self.deltas[index], self.acs[index])
 
     def repeat(self, times):
@@ -162,11 +150,9 @@ class Retargeting:
         return ((ends[:, :COEFFICIENTS] - ends[:, COEFFICIENTS:]) / (2 * STEP)).transpose(0, 2, 1)
 
     def _newton(self, states, controls, first, jac, coefficients, miss):
-        """Gauss-Newton steps from ``coefficients`` (whose predicted ``miss`` is given),
-        each flight's Jacobian ``jac`` corrected by Broyden's rank-one update from
-        what its own steps showed; a step is kept only where it lowers that flight's
-        predicted miss, and shortened where it did not.  Returns the coefficients and
-        their misses."""
+        """Gauss-Newton steps from ``coefficients`` and their ``miss``, each flight's ``jac``
+        Broyden-updated by its own steps; a step is kept only where it lowers that
+        flight's miss, else shortened.  Returns (coefficients, miss)."""
         coefficients, miss, jac = coefficients.copy(), miss.copy(), jac.copy()
         size = np.linalg.norm(miss, axis=1)
         scale = np.ones(len(states))
@@ -189,12 +175,11 @@ class Retargeting:
     def correct(self, states, controls, first, nominal_state):
         """``controls`` re-targeted from ``states`` at piece ``first``.
 
-        Gauss-Newton steps from the nominal's Jacobian, which each flight corrects by
-        Broyden's update (:meth:`_newton`); a flight still predicted to miss by more
-        than its tolerance then takes its own Jacobian, by central differences where
-        it is, and steps again from there: far from the nominal, the nominal's
-        Jacobian can point the wrong way.  A miss too large for the remaining flight
-        to remove is left as small as the steps made it.
+        Gauss-Newton steps on the miss weighted by the tolerances (:meth:`_newton`), from
+        the nominal's Jacobian; a flight still predicted to miss by more than its
+        tolerance takes its own Jacobian and steps again, since far from the nominal the
+        nominal's can point the wrong way.  A miss too large to remove is left as small
+        as the steps made it.
         """
         m = states.shape[0]
         zero = np.zeros((1, COEFFICIENTS))

@@ -1,8 +1,7 @@
 """The solve: Ipopt (MUMPS) on a :class:`~.transcription.Transcription`, status checked.
 
-Every result carries Ipopt's ``return_status`` and its :class:`~.outcome.Outcome`
-(``optimisation.outcome`` alone says what a status means; CasADi's ``success`` flag is
-also true for an acceptable level, so it is never read).
+Every result carries Ipopt's ``return_status`` and its :class:`~.outcome.Outcome`;
+CasADi's ``success`` flag is never read (``optimisation.outcome`` says why).
 """
 
 import contextvars
@@ -21,11 +20,8 @@ from esail_opt.optimisation.transcription import transcribe
 
 
 def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
-    """Ipopt options: MUMPS, quiet, and no ``ipopt.opt`` read from the working directory.
-
-    Ipopt reads ``option_file_name`` (default "ipopt.opt") from the current directory if
-    it exists; an empty name makes it read nothing, so a stray file cannot change a run.
-    """
+    """Ipopt options: MUMPS, quiet, and an empty ``option_file_name`` so that a stray
+    ``ipopt.opt`` in the working directory cannot change a run."""
     opts = {
         "ipopt.linear_solver": "mumps",
         "ipopt.option_file_name": "",
@@ -39,8 +35,7 @@ def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
         # rejects and backs off from; CasADi's warning for each is only noise.
         "show_eval_warnings": False,
     }
-    # The exact Hessian is the default: with limited-memory updates Ipopt did not
-    # converge on the closed-form NLPs within its iteration limit.
+    # Exact by default: limited-memory did not converge on the closed-form NLPs.
     if hessian != "exact":
         opts["ipopt.hessian_approximation"] = "limited-memory"
     return opts
@@ -50,11 +45,10 @@ def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
 class NLPResult:
     """What Ipopt returned, in canonical units, plus its bookkeeping.
 
-    ``outcome`` is the :class:`~.outcome.Outcome` of ``status`` (acceptable is found,
-    not converged).  ``nodes`` are the 5 x N states
-    [r, theta, v_r, v_theta, t] at the segments' ends, as in a :class:`Guess`, and the
-    revolution class (``revolutions_k``, ``theta_window``) is the NLP's own, so that
-    any later NLP started here (:meth:`as_guess`) stays in it.
+    ``nodes`` are the states at the segments' ends, 5 x N [r, theta, v_r, v_theta, t] (9
+    rows in three dimensions), as in a :class:`Guess`; the revolution class
+    (``revolutions_k``, ``theta_window``) is the NLP's own, so that an NLP started here
+    (:meth:`as_guess`) stays in it.
     """
 
     status: str
@@ -81,8 +75,7 @@ class NLPResult:
     epoch: float = 0.0  # departure, TU since J2000 (dated problems)
     ac_scale: float = 1.0  # a_c over the sail's (MinAcceleration)
     vinf_angle: float = 0.0  # excess velocity's direction, rad
-    # Clock per segment, rad, in three dimensions (None: planar); the nodes then have 9
-    # rows, the plane's quaternion after [r, theta, v_r, v_theta, t].
+    # Clock per segment, rad, in three dimensions (None: planar).
     delta: np.ndarray = None
 
     @property
@@ -138,11 +131,9 @@ def _clock_slice(tr):
 
 
 def _off_the_box(tr, result):
-    """``result``'s point with its clocks wrapped (:func:`wrap_clock`), or None if it is
-    no optimum (a probe stopped early, a solve that failed: the box did not decide those)
-    or no clock has reached its box (``problem.CLOCK_ROOM``).  The flight, the objective
-    and the constraints are periodic in the clocks, so the wrapped point is the same
-    optimum less the box's pull."""
+    """``result``'s point with its clocks wrapped (:func:`wrap_clock`): the same optimum,
+    everything being periodic in them, less the box's pull; None if it is no optimum or
+    no clock has reached its box (``problem.CLOCK_ROOM``)."""
     at = _clock_slice(tr)
     if not result.outcome.found:
         return None
@@ -160,9 +151,8 @@ STOPPED = "User_Requested_Stop"
 #: decided its class.
 AT_CAP = "Maximum_Iterations_Exceeded"
 
-#: A ``threading.Event`` that stops, at their next iteration, the Ipopt runs started in
-#: this context (a thread's own): how a probe run in a thread of its own is called off
-#: (``classes.ClassSearch``).  None: only a signal stops them.
+#: A ``threading.Event`` that stops the Ipopt runs of this context (a thread's own) at
+#: their next iteration, as ``classes.ClassSearch`` calls off a probe; None: only a signal.
 STOP = contextvars.ContextVar("esail_opt_ipopt_stop", default=None)
 
 #: Times a solve whose clocks reached their box is taken on from them wrapped
@@ -175,11 +165,9 @@ PROGRESS_SECONDS = 2.0
 class _Monitor(ca.Callback):
     """Ipopt's iteration callback: a progress line every few seconds, and a clean stop.
 
-    Ipopt runs in C++, where Python's KeyboardInterrupt cannot reach it; CasADi's own
-    check stopped only the running solve and the next stage went on from there.  So
-    while a solve runs the signal is held (:class:`~esail_opt.runtime.signals.SignalsHeld`), the
-    callback asks Ipopt to stop at the next iteration, and leaving ``with monitor``
-    raises KeyboardInterrupt (or Terminated) once Ipopt has returned.
+    KeyboardInterrupt cannot reach Ipopt's C++, so the signal is held (``SignalsHeld``),
+    the callback stops Ipopt, and leaving ``with monitor`` raises KeyboardInterrupt (or
+    Terminated).
     """
 
     def __init__(self, tr, progress, checkpoint=None):
@@ -242,9 +230,8 @@ class _Monitor(ca.Callback):
 
 
 def warm_options(options):
-    """Ipopt options for a re-solve from a nearby optimum: start from its primal and
-    dual point with a small barrier parameter, so Ipopt does not first walk back into
-    the interior (a default restart took as many iterations as a cold solve)."""
+    """Ipopt options for a re-solve from a nearby optimum's primal and dual point, with a
+    small barrier parameter so that Ipopt does not first walk back into the interior."""
     opts = dict(options)
     opts.update({"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-7,
                  "ipopt.warm_start_bound_push": 1e-9, "ipopt.warm_start_mult_bound_push": 1e-9,
@@ -253,16 +240,10 @@ def warm_options(options):
 
 
 def primal_warm_options(options):
-    """Ipopt options for a solve from a point that is an optimum of a nearby problem but
-    whose multipliers do not fit this NLP (a free departure date started from its best
-    fixed date): a small barrier parameter, and the start barely pushed off its bounds,
-    so that Ipopt descends from it.  From the default barrier, Earth-Mars's free date
-    left its seed's 658 d for an optimum of 798 d a year earlier.
-
-    The bounds' multipliers start at mu / slack, as that barrier has them, not at 1: a
-    bound far from the start (the clocks' box, ``problem.CLOCK_ROOM``) then pulls at
-    nothing.  At 1 they did, and the 3-D free date from 2031-05 to 2031-12 went from
-    its seed's 662 d to 930 d in ten times the iterations."""
+    """Ipopt options for a start at a nearby problem's optimum whose multipliers do not
+    fit (a free date from its best fixed date): a small barrier, the start barely pushed
+    off its bounds so that Ipopt descends from it, and bound multipliers at mu / slack, not
+    1, so that a far bound (the clocks' box, ``problem.CLOCK_ROOM``) pulls at nothing."""
     opts = dict(options)
     opts.update({"ipopt.mu_init": 1e-6, "ipopt.bound_push": 1e-8, "ipopt.bound_frac": 1e-8,
                  "ipopt.bound_mult_init_method": "mu-based"})
@@ -270,13 +251,11 @@ def primal_warm_options(options):
 
 
 def build_solver(tr, options=None, warm=False, progress=None, checkpoint=None):
-    """An Ipopt solver for ``tr`` with its :class:`_Monitor` (``solver.monitor``).
-
-    ``warm`` chooses :func:`warm_options`; ``progress(text)`` receives the iteration
-    lines.  Building is the costly part of a warm re-solve of the closed form, so the
-    error control builds once and re-solves.  ``checkpoint``, a pair (iteration, test), stops Ipopt
-    ("User_Requested_Stop") at that iteration when ``test(objective, violation)`` (the
-    NLP's own objective and the largest constraint violation there) is true.
+    """(solver, :class:`_Monitor`) for ``tr``, built once to be re-solved (building is
+    the costly part of a warm re-solve).  ``warm`` chooses :func:`warm_options`;
+    ``progress(text)`` receives the iteration lines; ``checkpoint``, a pair (iteration,
+    test), stops Ipopt (:data:`STOPPED`) at that iteration when ``test(objective,
+    violation)`` (the NLP's objective, its largest constraint violation) is true.
     """
     opts = dict(ipopt_options() if options is None else options)
     if warm:
@@ -289,32 +268,13 @@ def build_solver(tr, options=None, warm=False, progress=None, checkpoint=None):
 
 def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
                         progress=None, checkpoint=None):
-    """Run Ipopt on a transcription and unpack the result.
+    """Run Ipopt on ``tr`` and unpack the :class:`NLPResult`.
 
-    Parameters
-    ----------
-    tr : Transcription
-    options : dict, optional
-        Ipopt options; default :func:`ipopt_options`.
-    defects : numpy.ndarray, optional
-        5 x N segment defects of the defect correction (``optimisation.error_control``).
-    warm : NLPResult, optional
-        Start from this result's primal and dual point (same NLP layout) with
-        :func:`warm_options`, instead of from ``tr.x0``.
-    solver : (casadi.Function, _Monitor), optional
-        :func:`build_solver`'s pair, already built for ``tr`` (the error control
-        re-solves one NLP several times, and need not build it again).
-    progress : callable, optional
-        ``progress(text)`` gets a line on Ipopt's iterations every few seconds.
-    checkpoint : (int, callable), optional
-        As for :func:`build_solver` (without ``solver``).
-
-    Raises
-    ------
-    KeyboardInterrupt
-        If SIGINT arrived during the solve (Ipopt is stopped at its next iteration);
-        :class:`~esail_opt.errors.Terminated`, a KeyboardInterrupt, for SIGTERM under
-        the command line's handler.
+    ``defects`` are the rows x N defects of the defect correction; ``warm``, an NLPResult
+    of the same layout, is the start (:func:`warm_options`) instead of ``tr.x0``;
+    ``options``, ``progress`` and ``checkpoint`` are as for :func:`build_solver`, whose pair
+    ``solver`` is, if given, already built for ``tr`` (then ``checkpoint`` is its own).
+    Raises KeyboardInterrupt (or :class:`~esail_opt.errors.Terminated`) for a signal.
     """
     if solver is None:
         solver = build_solver(tr, options, warm is not None, progress, checkpoint)
@@ -371,26 +331,15 @@ def solve_problem(problem, method=None, options=None, guess=None, progress=None,
     """Transcribe and solve ``problem`` with the segment ``method`` (default the closed
     form, ``segment_methods``); returns (NLPResult, Transcription).
 
-    ``guess`` replaces the constant-pitch seed of :func:`initial_guess`, with its
-    revolution class (the global search, ``optimisation.multistart``, sets it).
-
-    Free segment lengths are solved in two stages: first with equal lengths (a smaller,
-    better-conditioned NLP that converges in tens of iterations), then with the lengths
-    free, warm-started from it: from the constant-pitch guess directly, the free NLP
-    took many more iterations and its optimum depended on the guess pitch.  The
-    result's iterations and seconds are the sums over both stages; ``stages`` lists
-    each stage's status.  ``staged=False`` solves the free NLP alone, for a guess that
-    is already an optimum of a nearby problem.
-
-    The equal-length stage is evaluated on one thread, being small; the free-length
-    stage takes ``transcription.segment_threads``.  The optimum depends on neither.
-    ``checkpoint`` (:func:`build_solver`) applies to each stage, and a stage it stopped
-    ends the solve (with that stage's result and transcription).
+    ``guess`` replaces :func:`initial_guess`'s seed, with its revolution class.  Free
+    lengths are solved equal first (smaller, better conditioned), then free from there:
+    from the seed the free NLP took many more iterations and its optimum depended on the
+    seed's pitch (``staged=False`` skips the first stage).  Iterations, seconds and
+    ``stages`` cover both; a stage ``checkpoint`` stopped ends the solve with its result.
     """
     seg = problem.segments
     first = None
-    # The seed fixes N (a per-revolution count is resolved by its propagation) and does
-    # not depend on whether the lengths are free, so both stages share it.
+    # The seed (which fixes N) does not depend on free lengths: both stages share it.
     guess = initial_guess(problem) if guess is None else guess
     if staged and not seg.equal and guess.alpha.size > 1:
         equal = dataclasses.replace(problem, segments=dataclasses.replace(seg, equal=True))

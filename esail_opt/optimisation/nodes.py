@@ -2,9 +2,7 @@
 
 A node is the state at a segment's end: [r, theta, v_r, v_theta, t] in the plane, and in
 three dimensions [r, theta, v_r, v_theta, t, qw, qx, qy, qz], theta inside the orbital
-plane that the unit quaternion turns the ecliptic into (THEORY.md §9.3).  The seed, the
-transcription, the error control, the verification and the polish all read and write
-nodes in this layout.
+plane that the unit quaternion turns the ecliptic into (THEORY.md §9.3).
 """
 
 import functools
@@ -33,8 +31,7 @@ def node_cartesian_function():
 
 
 def node_cartesian(node):
-    """The Cartesian ecliptic state [x, y, z, vx, vy, vz] of a 3-D node (9 rows; its
-    quaternion normalised) as numbers."""
+    """:func:`node_cartesian_function` of a 3-D node, as numbers."""
     return np.array(node_cartesian_function()(np.asarray(node, float).ravel()), float).ravel()
 
 
@@ -49,8 +46,7 @@ def flown_segments(problem, alpha, lengths, x_start, throttle=None, delta=None):
     controls = [np.asarray(alpha, float)[None, :]]
     if problem.three_d():
         controls.append((np.zeros(n) if delta is None else np.asarray(delta, float))[None, :])
-    # One call of the accumulated segment rather than one Python call per segment: the
-    # same numbers, without a call's overhead per segment.
+    # One accumulated call, not one Python call per segment.
     ends = ClosedForm().function(problem).mapaccum(n)(
         x, problem.sail.ac * kappa[None, :], *controls,
         np.asarray(lengths, float)[None, :])[0]

@@ -1,11 +1,7 @@
 """How a solve ended: the :class:`Outcome` of an Ipopt return status.
 
-This module is the only place that reads Ipopt's status strings.  It sits below both
-``optimisation.ipopt`` (which tags every result with its outcome) and
-``optimisation.pipeline`` (which decides from it what to run next and exports it to the
-application), so neither imports the other to learn what a status means: the pipeline
-imports ``ipopt`` to solve, and ``ipopt`` imports only this.
-
+The only reader of Ipopt's status strings, below both ``optimisation.ipopt`` and
+``optimisation.pipeline``, so neither imports the other to learn what a status means.
 CasADi's ``success`` flag is also true for "Solved_To_Acceptable_Level", so outcomes
 are read from ``stats()['return_status']`` and only "Solve_Succeeded" is *converged*.
 """
@@ -14,10 +10,7 @@ import enum
 
 
 class Outcome(enum.Enum):
-    """The end of one Ipopt solve, in four kinds.
-
-    Its ``value`` is the word solution.json writes under ``outcome``.
-    """
+    """The end of one Ipopt solve; ``value`` is what solution.json writes as ``outcome``."""
 
     CONVERGED = "converged"
     #: Solved_To_Acceptable_Level: a point worth refining, never reported as converged.
@@ -39,9 +32,8 @@ class Outcome(enum.Enum):
 
     @property
     def found(self):
-        """Converged or acceptable: a point the later stages (other starts skipped, error
-        control, polish) go on from.  Acceptable is found but not converged, so a run
-        that ends there is still not verified."""
+        """Converged or acceptable: a point the later stages go on from (an acceptable
+        one is still not verified)."""
         return self in (Outcome.CONVERGED, Outcome.ACCEPTABLE)
 
 

@@ -1,24 +1,8 @@
 """A trajectory optimisation problem, stated in the boundary's units and checked on creation.
 
-A user writes a problem file in ``problems/`` that builds one :class:`Problem` and names
-it ``problem``::
-
-    import esail_opt as eo
-
-    problem = eo.Problem(
-        name="earth_mars_min_time",
-        departure=eo.ParkingOrbit(a_au=1.0),
-        sail=eo.Sail(ac_mm_s2=1.0),
-        segments=eo.Segments(count=20, sub_arcs=3),
-        objective=eo.MinTime(),
-        target=eo.CircularOrbit(radius_au=1.524),
-    )
-
-Everything here is plain data in au, days, degrees, km/s and mm/s^2; every field is
-range-checked when it is built (``InputError`` names the field and the allowed range),
-so a bad file fails before any NLP is made.  The methods of :class:`Problem` below its
-fields (``x0``, ``fixed_tof``, ``epoch``, ...) are the one place where this layer
-converts to the package's canonical units.
+A problem file (as in ``problems/``) builds one :class:`Problem` named ``problem``: plain
+data in au, days, degrees, km/s and mm/s^2, every field range-checked when built (an
+``InputError`` names the field and range).  Its methods convert to canonical units.
 """
 
 import math
@@ -102,10 +86,8 @@ class ParkingOrbit:
         _check_bool("departure.free_anomaly", self.free_anomaly)
 
     def state(self, nu=None):
-        """Canonical polar state at true anomaly ``nu`` (rad; default the stated one).
-
-        Works on floats and CasADi symbols alike (the free-anomaly NLP passes a symbol).
-        """
+        """Canonical polar state at true anomaly ``nu`` (rad, a float or CasADi symbol;
+        default the stated one)."""
         nu = math.radians(self.nu_deg) if nu is None else nu
         return polar_from_classical(self.a_au, self.e, math.radians(self.omega_deg), nu)
 
@@ -188,8 +170,7 @@ class BodyDeparture:
             raise InputError("departure.date = None: give a date (ISO 8601, e.g. "
                              "'2031-06-01') or a window (earliest, latest)")
         if self.date is not None and self.window is not None:
-            # A window frees the date, and its seed comes from a scan of the window:
-            # a date given with it would be silently ignored.
+            # A date given with a window would be silently ignored.
             raise InputError(f"departure.date = {self.date!r} and departure.window = "
                              f"{self.window!r}: give one of them, not both (a window "
                              "frees the date; a date fixes it)")
@@ -261,16 +242,12 @@ class BodyDeparture:
         return ca.vertcat(x[0], x[1], x[2] + dvr, x[3] + dvt)
 
     def plane_state(self, y, angle, t0):
-        """The 3-D departure as the NLP's start: the polar state inside the plane of the
-        body's ecliptic state ``y`` (``elements.polar3d_from_cartesian``) plus the excess
-        velocity at ``angle`` in that plane, and the plane's quaternion: an 8-vector
-        [r, theta, v_r, v_theta, qw, qx, qy, qz] (numbers or CasADi expressions).  The
-        excess lies in the body's orbital plane, as in the planar model.
-
-        theta is put on the branch of the body's planar track at epoch ``t0`` (whole
-        turns added), so that it is continuous in the epoch as the planar model's is and
-        a rendezvous counts its turns as there (the 2 pi jump of atan2 and the jump of
-        the whole turns cancel)."""
+        """The 3-D departure as the NLP's start, [r, theta, v_r, v_theta, qw, qx, qy, qz]
+        (numbers or CasADi expressions): the polar state inside the plane of the body's
+        ecliptic state ``y`` (``elements.polar3d_from_cartesian``) plus the excess velocity
+        at ``angle`` in that plane, and the plane's quaternion.  theta is put on the branch
+        of the body's planar track at epoch ``t0``, so that it is continuous in the epoch
+        and a rendezvous counts its turns as the planar model does."""
         x, quat = polar3d_from_cartesian(y)
         ref = lookup.track(self.body).polar(t0)[1]
         turns = ca.floor((ref - x[1]) / (2 * math.pi) + 0.5)
@@ -314,10 +291,9 @@ class Sail:
     throttle : bool
         Make each segment's throttle kappa a decision variable: the tether voltage scales
         the thrust, so the segment flies at kappa a_c (kappa = 0 is a coast).  Off by
-        default: the sail is always fully on and the NLP has no throttle variables.
-        Prefer ``Segments(equal=True)`` with it: with free lengths, adjacent coasting
-        segments can trade duration without changing the flight, a flat direction on
-        which the exact polish can stall.
+        default: the sail is always fully on.  Prefer ``Segments(equal=True)`` with it:
+        free lengths let adjacent coasts trade duration, a flat direction on which the
+        exact polish can stall.
     throttle_min, throttle_max : float
         Bounds on kappa, a subset of [0, 1] with min <= max (used only with
         ``throttle``); equal bounds fix kappa, e.g. 1 reproduces the always-on NLP.
@@ -370,10 +346,9 @@ class Segments:
         Number N of constant-pitch segments, >= 1; None (the default) means 20 unless
         ``per_revolution`` is given.
     sub_arcs : int
-        Rectified closed-form arcs chained inside each segment, >= 1; more give
-        accuracy without more controls.  The arcs are second order in a~_c, so the
-        NLP's error against Eqs. 1-2 falls like 1/n^2 in the arc count n (THEORY.md
-        §3.8); one a segment is often enough at 20 or more segments a revolution.
+        Rectified closed-form arcs chained inside each segment, >= 1: accuracy without
+        more controls, the error against Eqs. 1-2 falling like 1/n^2 (THEORY.md §3.8);
+        one is often enough at 20 or more segments a revolution.
     equal : bool
         Equal segment angles (one shared length) or free ones.
     extrapolate : bool
@@ -381,13 +356,11 @@ class Segments:
         second-order error) at three times the arcs.  Off by default: it gains about
         what more sub-arcs do at the same cost (see ``segment_methods.closed_form_segment``).
     per_revolution : int or None
-        Segments per revolution K, >= 1, instead of a total: N is then
-        ceil(K angle / 2 pi), with ``angle`` the one the constant-pitch seeding
-        propagation flies to the target radius or the fixed time of flight
-        (``seed.initial_guess``).  An optimum that flies more turns than
-        1.25 N / K is solved again from itself on a mesh of K a turn of its own
-        (``pipeline.DENSITY_SLACK``).  For multi-revolution spirals, whose number
-        of turns is not known before that propagation.  Exclusive with ``count``.
+        Segments per revolution K, >= 1, instead of ``count`` (not both), for spirals
+        whose turns are not known beforehand: N = ceil(K angle / 2 pi), ``angle`` being
+        what the constant-pitch seed flies (``seed.initial_guess``); an optimum of more
+        than 1.25 N / K turns is solved again on K a turn of its own
+        (``pipeline.DENSITY_SLACK``).
     """
 
     count: Optional[int] = None
@@ -399,8 +372,7 @@ class Segments:
 
     def __post_init__(self):
         if self.per_revolution is None:
-            # count's default of 20 holds only without a per-revolution rule, so it is
-            # filled in here (a frozen dataclass needs object.__setattr__ for that).
+            # count's default of 20 holds only without a per-revolution rule.
             object.__setattr__(self, "count", 20 if self.count is None else self.count)
             _check_finite_positive_int("segments.count", self.count)
         else:
@@ -449,9 +421,8 @@ class PathConstraints:
 class Tolerance:
     """How close the schedule, flown on Eqs. 1-2, must end to what the NLP promised.
 
-    A run is *verified* only when its flight meets both bounds: against the target,
-    or, for a problem without one, against the NLP's own final state (so that a
-    fixed-time objective is what it claims).  The closed form is refined until they
+    A run is *verified* only when its flight meets both bounds against the target, or
+    without one against the NLP's own final state; the closed form is refined until they
     hold (``optimisation.error_control``).
 
     Attributes
@@ -470,18 +441,14 @@ class Tolerance:
         check_range("tolerance.velocity_m_s", self.velocity_m_s, 1e-6, 1e5, unit="m/s")
 
 
-#: Box on a clock angle that is free over the full circle, rad: two turns either way of
-#: a start that is always taken in [-pi, pi] (``ipopt.wrap_clock``).  Unbounded, a
-#: clock that hardly moves the flight on the way (its segment's throttle or pitch near
-#: 0) can run off by millions of turns, and the NLP then loses its point.  The box is not
-#: a limit: a solve that ends with a clock on it is taken on from the same attitudes
-#: wrapped (``ipopt.solve_transcription``).
+#: Box on a clock angle free over the full circle, rad: two turns either way of a start
+#: in [-pi, pi] (``ipopt.wrap_clock``), since unbounded, a clock that hardly moves the
+#: flight can run off by millions of turns.  Not a limit: a solve that ends on it is taken
+#: on from its attitudes wrapped (``ipopt.solve_transcription``).
 CLOCK_ROOM = 4 * math.pi
 
-#: Whether a real-body problem that does not say (``Problem(planar=None)``) flies in the
-#: ecliptic projection.  False: a real body's orbit is not in the ecliptic, and only the
-#: 3-D model meets its unprojected state; ``planar=True`` keeps the projected model, for
-#: comparison.  Problems off the calendar are planar whatever this says.
+#: Whether a real-body problem with ``planar=None`` flies in the ecliptic projection:
+#: False, since only the 3-D model meets a body's unprojected state.
 PLANAR_DEFAULT = False
 
 Departure = Union[ParkingOrbit, PolarState, BodyDeparture]
@@ -499,11 +466,11 @@ class Problem:
         Used for the default output folder ``results/<name>/``: printable characters
         (``str.isprintable``: no control character, no lone surrogate) without ``/``
         or ``\\``.  A ``$`` is allowed.
-    departure : ParkingOrbit or PolarState
+    departure : ParkingOrbit, PolarState or BodyDeparture
     sail : Sail
     segments : Segments
-    objective : MinTime, MaxRadius, MaxEnergy or FinalStateExpression
-    target : CircularOrbit, Orbit, Rendezvous or None
+    objective : MinTime, MaxRadius, MaxEnergy, FinalStateExpression or MinAcceleration
+    target : CircularOrbit, Orbit, Rendezvous, BodyRendezvous, BodyIntercept or None
         None leaves the final state free (then the objective must fix the time).
     path : PathConstraints
     guess_alpha_deg : float or None
@@ -515,12 +482,11 @@ class Problem:
         What the flown schedule must meet to be reported as verified.
     description : str
     planar : bool or None
-        Fly a real-body problem in the ecliptic projection (True: each body's state
-        projected on the ecliptic, the model before three dimensions) or in three
-        dimensions (False: DE421's unprojected states, a clock angle per segment,
-        the planar motion in a turning plane).  None takes :data:`PLANAR_DEFAULT`.  A
-        problem off the calendar (circles, (a, e) orbits, ``Rendezvous``) is planar
-        whatever this says, and False is refused there.
+        Fly a real-body problem in the ecliptic projection (True) or in three dimensions
+        (False: DE421's unprojected states, a clock angle per segment, the planar motion
+        in a turning plane).  None takes :data:`PLANAR_DEFAULT`.  A problem off the
+        calendar (circles, (a, e) orbits, ``Rendezvous``) is planar, and False is refused
+        there.
     """
 
     name: str
@@ -575,8 +541,7 @@ class Problem:
             raise InputError("planar = False needs a real body: three dimensions are for "
                              "departure = BodyDeparture(...); idealised problems are planar")
         if self.segments.extrapolate and self.three_d():
-            # Checked here, not where the 3-D arcs are built, so that a run never
-            # starts (a window scan on the projected model) before it is refused.
+            # Checked here so that a run is refused before it starts (a window scan).
             raise InputError("segments.extrapolate = True is not available in three "
                              "dimensions; use False (or planar=True)")
 
@@ -636,8 +601,7 @@ class Problem:
     # -- canonical views, the only unit conversions of this layer
 
     def three_d(self):
-        """Whether the problem flies in three dimensions: a real-body problem unless
-        ``planar`` is True (or, when None, :data:`PLANAR_DEFAULT` says so)."""
+        """Whether it flies in 3-D: a real-body problem not ``planar`` (:data:`PLANAR_DEFAULT`)."""
         planar = PLANAR_DEFAULT if self.planar is None else self.planar
         return self.dated() and not planar
 
@@ -646,20 +610,17 @@ class Problem:
         return "the equations of motion in 3-D" if self.three_d() else "Eqs. 1-2"
 
     def x0(self):
-        """Departure polar state, canonical units, as a numpy array: in three dimensions
-        the polar state inside the departure's plane (:meth:`plane_x0`'s first four)."""
+        """Departure polar state, canonical, numpy (in 3-D inside its plane, :meth:`plane_x0`)."""
         if self.three_d():
             return self.plane_x0()[:4]
         return np.array(self.departure.state(), float).ravel()
 
     def plane_x0(self):
-        """The 3-D departure at the (seed) epoch as [r, theta, v_r, v_theta, qw, qx, qy,
-        qz] (``BodyDeparture.plane_state_at``)."""
+        """The 3-D departure [r, theta, v_r, v_theta, qw, qx, qy, qz] at the (seed) epoch."""
         return self.departure.plane_state_at(self.epoch())
 
     def throttled(self):
-        """Whether each segment has a throttle variable: a throttled sail, or a
-        MinAcceleration objective (whose throttle is free, see its docstring)."""
+        """Whether each segment has a throttle variable (a throttled sail, MinAcceleration)."""
         return bool(self.sail.throttle) or self.objective.free_acceleration
 
     def throttle_bounds(self):
@@ -675,17 +636,15 @@ class Problem:
         return isinstance(self.departure, BodyDeparture)
 
     def epoch(self):
-        """Departure epoch (or the free date's seed), TU since J2000 TDB; 0 without a
-        calendar, where nothing depends on it."""
+        """Departure epoch (or the free date's seed), TU since J2000 TDB; 0 off the calendar."""
         return self.departure.epoch() if self.dated() else 0.0
 
     def free_date(self):
         return self.dated() and self.departure.free_date
 
     def start_state(self, result):
-        """The departure state a schedule is flown from in its verification: exact (the
-        body's ephemeris at the result's epoch, with its excess velocity), not the NLP's
-        smooth track of it; in three dimensions the Cartesian ecliptic state."""
+        """The exact departure (ephemeris, not the NLP's track) the verification flies
+        ``result`` from; in three dimensions the Cartesian ecliptic state."""
         if self.three_d():
             return self.departure.cartesian_at(result.epoch, result.vinf_angle)
         if self.dated():

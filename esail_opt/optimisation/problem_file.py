@@ -1,13 +1,9 @@
 """Loading a problem file: a Python file in ``problems/`` that names one ``Problem`` ``problem``.
 
-A file is loaded by path (:func:`load_problem`), or, for the shipped ones, by name
-(:func:`shipped_problem`) from the package data ``esail_opt.problems``.
-
-Every way a file can be wrong ends in one :class:`~esail_opt.errors.InputError` line that
-the command line prints: a missing file, an exception raised while it runs (a range
-check of :mod:`.problem`, a syntax error, a ``sys.exit()``, any ``BaseException`` but
-``KeyboardInterrupt``), an end of its process (``os._exit``, a signal; see
-:func:`load_problem`), no ``problem`` in it, or one of another type.
+Loaded by path (:func:`load_problem`) or, for the shipped ones, by name
+(:func:`shipped_problem`).  Every way a file can be wrong (missing, raising anything but
+``KeyboardInterrupt``, ending its process, no ``problem`` or one of another type) ends in
+one :class:`~esail_opt.errors.InputError` line.
 """
 
 import contextlib
@@ -29,24 +25,11 @@ SHIPPED_PACKAGE = "esail_opt.problems"
 def load_problem(path):
     """Run the file at ``path`` and return its ``problem``.
 
-    Where the process may fork (a POSIX system, and no other thread running, since a
-    forked copy of a threaded process can deadlock), the file is first run in a forked
-    child only to learn whether it returns control at all (:func:`_check_in_child`): a
-    file that ends its process, by ``os._exit``, a signal or anything else, ends only
-    the child, and is bad input.  Otherwise it then runs here, where every exception
-    (``SystemExit``, ``GeneratorExit``, a bare ``BaseException``) is bad input too and
-    ``KeyboardInterrupt`` keeps meaning an interrupt.  The file runs twice; its output
-    is shown once, from here (the child's is discarded).  Without a fork (a pool's
-    worker, which has threads) it runs only here: the command line's own process has
-    loaded it before any worker starts.
-
-    Raises
-    ------
-    InputError
-        With one line naming the file and what is wrong.
-    KeyboardInterrupt
-        Ctrl-C (or SIGTERM's :class:`~esail_opt.errors.Terminated`) while it ran, or
-        the file raised it.
+    Where the process may fork (no other thread: a forked threaded process can deadlock),
+    the file first runs in a child (:func:`_check_in_child`) so that one ending its process
+    is bad input, then here.  Raises InputError (one line naming the file and the fault),
+    or KeyboardInterrupt on Ctrl-C, SIGTERM (:class:`~esail_opt.errors.Terminated`) or
+    the file's own.
     """
     path = Path(path)
     if path.is_dir():
@@ -92,16 +75,8 @@ _RETURNED, _INTERRUPTED = b"returned", b"interrupted"
 
 
 def _check_in_child(path):
-    """Run the file in a forked child; raise if it ended the child's process.
-
-    Raises
-    ------
-    InputError
-        The child ended before it reported: the file exited (``os._exit``), killed its
-        process or crashed the interpreter.
-    KeyboardInterrupt
-        The child was interrupted (the same Ctrl-C reaches this process).
-    """
+    """Run the file in a forked child: InputError if it ended the child's process
+    (``os._exit``, a kill, a crash), KeyboardInterrupt if the child was interrupted."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()  # so that the child holds no copy of unwritten output
@@ -154,13 +129,9 @@ def _child(path, fd):
 
 
 def _shipped_folder():
-    """The folder of the shipped problem files, as an ``importlib.resources`` Traversable.
-
-    An installed package (editable or not) has ``esail_opt.problems``.  A source
-    checkout imported through ``PYTHONPATH`` without being installed has no such
-    module, since only the installer maps ``problems/`` into the package; its files are
-    then the checkout's own ``problems/`` folder beside ``esail_opt/``.
-    """
+    """The shipped problem files' folder (a Traversable): ``esail_opt.problems`` once
+    installed, else, since only the installer maps it there, ``problems/`` beside
+    ``esail_opt/``."""
     try:
         return importlib.resources.files(SHIPPED_PACKAGE)
     except ModuleNotFoundError:
@@ -168,34 +139,14 @@ def _shipped_folder():
 
 
 def shipped_problem_names():
-    """Names of the shipped problem files (without ``.py``), sorted.
-
-    Returns
-    -------
-    tuple of str
-        Every ``NAME.py`` of the shipped folder but the package's ``__init__.py``.
-    """
+    """Names of the shipped problem files (without ``.py``), a sorted tuple."""
     return tuple(sorted(entry.name[:-3] for entry in _shipped_folder().iterdir()
                         if entry.name.endswith(".py") and not entry.name.startswith("_")))
 
 
 def shipped_problem(name):
-    """Load the shipped problem file ``NAME.py`` and return its ``problem``.
-
-    The file goes through :func:`load_problem`, so a shipped problem is checked exactly
-    as a user's file is.
-
-    Parameters
-    ----------
-    name : str
-        One of :func:`shipped_problem_names`.
-
-    Raises
-    ------
-    InputError
-        If no shipped file has that name (one line listing the names), or as
-        :func:`load_problem` raises.
-    """
+    """:func:`load_problem` of the shipped file ``name``.py; InputError listing the
+    names (:func:`shipped_problem_names`) if there is no such file."""
     names = shipped_problem_names()
     if name not in names:
         raise InputError(f"shipped problem = {name!r} is not one of: {', '.join(names)}")

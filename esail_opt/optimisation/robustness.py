@@ -1,37 +1,14 @@
 """A solved schedule flown many times under a varying solar wind, open loop and guided.
 
-The schedule comes as pieces (:class:`Schedule`, canonical arrays: the caller cuts a
-solution into them and converts its units) and is flown ``runs`` times on the batched
-closed form, each flight with the wind's thrust factor drawn per piece
-(:class:`~esail_opt.propagation.solar_wind.SolarWind`): open loop (the schedule as
-solved), and guided (re-targeted every ``guide_days`` from where the flight is,
-:mod:`esail_opt.optimisation.guidance`), once for each of the ``margins``: how much
-more a_c than the schedule asks the sail has for guidance to spend.  The same wind
-blows on every kind, so the guided kinds tell what each margin buys.  The margin can
-also be solved into the schedule: a MinTime problem whose
-``Sail(throttle=True, throttle_max=1 / (1 + m))`` asks at most that fraction of the
-sail flies with a reserve m at margin 0, and a MinAcceleration answer's a_c times
-(1 + m) is the sail to build.
-
-A flight's miss is the closed form's departure from the nominal closed-form flight,
-added to the nominal's own miss flown on CVODES: the closed form's model error (a few
-thousand km over a two-year transfer) is common to all flights and is taken out by
-the nominal's CVODES flight, while the closed form carries the differences.  That this
-holds is checked, not assumed: ``check`` flights of each kind are flown on CVODES with
-their own wind and angles, and the run is verified only if every one lands where the
-closed form said, within :data:`AGREEMENT` of its miss or a tenth of the tolerance.
-
-The outcome's statistics are of a sample of ``runs`` flights, and each comes with the
-interval that holds the whole population's value with :data:`CONFIDENCE`: a
-percentile between two of the sample's order statistics (distribution-free, exact
-binomial coverage; None where the sample is too small to bound it), the fraction
-within tolerance by Wilson's score interval.  They say how far another seed's numbers
-may fall.  A guided flight's miss is sensitive to the schedule's last digits (guidance
-takes discrete steps), so a run after a rounding-level change of the schedule differs
-by about a sampling error: outcomes are compared through these intervals.
-
-Misses and tolerances are in km and m/s, the units the outcome is reported in; every
-other quantity is canonical.
+The schedule (:class:`Schedule`) is flown ``runs`` times on the batched closed form under
+the same per-piece wind draws: open loop, and guided (:mod:`.guidance`) once for each of
+the ``margins``, the fraction of a_c beyond the schedule's that guidance may spend.  A
+flight's miss is its closed-form departure from the nominal flight plus the nominal's
+own CVODES miss, the closed form's model error being common to all; the run is verified
+only if ``check`` flights of each kind, flown on CVODES, agree (:data:`AGREEMENT`).  Each
+statistic has its :data:`CONFIDENCE` interval, through which outcomes are compared (a
+guided miss is sensitive to the schedule's last digits).  Misses and tolerances are in
+km and m/s; everything else is canonical.
 """
 
 import time
@@ -191,7 +168,6 @@ class Flights:
         return (self.miss_km <= tolerance[0]) & (self.miss_m_s <= tolerance[1])
 
     def take(self, index):
-        """The flights ``index``."""
         return Flights(self.kind, self.margin, *(getattr(self, f)[index] for f in (
             "miss_km", "miss_m_s", "closest_km", "closest_days", "mean_factor", "positions",
             "arrival")))
@@ -235,9 +211,7 @@ def _check(mission, flights, factors, controls):
 
 @dataclass(frozen=True)
 class Robustness:
-    """A run's outcome: the request, the schedule's name and tolerance, the nominal's
-    CVODES miss, the kinds of flight (open loop, and guided at each margin), the CVODES
-    checks and the seconds each took, and the mission's dates and target track."""
+    """A run's outcome (:func:`run`), verified when every CVODES check agrees."""
 
     name: str
     request: object

@@ -1,19 +1,10 @@
 """How an NLP's segments are flown: the segment methods, as objects.
 
-A multiple-shooting NLP (``optimisation.transcription``) flies each segment from its
-start node with one segment Function, mapped over the segments.  Which Function is a
-choice of method, and each method here knows how to build its own for a problem:
-
-* :class:`ClosedForm`: the paper's rectified closed-form arcs (the default of every
-  NLP), planar or in a turning plane;
-* :class:`RK4`: fixed-step RK4 on Eqs. 1-2 (or, in three dimensions, on the turning
-  plane's equations in the angle, or on the Cartesian equations in time);
-* :class:`CVODES`: adaptive CVODES integration of Eqs. 1-2, in the angle or in time.
-
-A method also says what its segments' lengths measure (``length_in``: the angle swept
-or the duration) and whether its segments must be evaluated one after the other
-(``serial``).  The benchmarks, the error control and the polish each pass a method;
-the transcription builds the NLP the same way for all of them.
+The multiple-shooting NLP (``optimisation.transcription``) flies each segment from its
+start node with one segment Function, mapped over the segments.  A method builds that
+Function for a problem (:class:`ClosedForm`, the default; :class:`RK4`; :class:`CVODES`)
+and says what its lengths measure (``length_in``: the angle swept or the duration) and
+whether its segments must be evaluated one after the other (``serial``).
 """
 
 import dataclasses
@@ -61,9 +52,8 @@ class RK4:
 
     steps: int
     in_time: bool = False
-    #: In time in three dimensions (the 3-D polish's), compiled where compiling is on
-    #: (``propagation.compiled``); False keeps the expanded SX segment, for a few
-    #: evaluations that need no library.
+    #: In time in three dimensions, compiled where compiling is on; False keeps the
+    #: expanded SX segment, for a few evaluations that need no library.
     native: bool = True
 
     serial = False
@@ -92,9 +82,8 @@ class CVODES:
     in_time: bool = False
     margins: Optional[int] = None
 
-    # On two threads the Hessian of a CVODES theta segment differed from call to call
-    # by up to 1e-11 (8 segments, 6 calls at one point; identical serially), enough for
-    # one seed to fail and then succeed: determinism is worth more than the second core.
+    # On two threads a CVODES theta segment's Hessian varied between calls by up to 1e-11,
+    # enough to flip a solve's outcome: determinism is worth more than the second core.
     serial = True
 
     @property
@@ -112,9 +101,8 @@ class CVODES:
 
 
 def arc_model(problem):
-    """The arcs ``problem``'s NLP flies: :class:`ArcModel`'s default with the problem's
-    sub-arcs and extrapolation, compiled unless compiling is off (``ESAIL_OPT_COMPILE=0``;
-    ``propagation.compiled``).  The verification's closed-form curve flies the same."""
+    """The arcs ``problem``'s NLP (and the verification's closed-form curve) flies: the
+    problem's sub-arcs and extrapolation, compiled unless ``ESAIL_OPT_COMPILE=0``."""
     seg = problem.segments
     return ArcModel(sub_arcs=seg.sub_arcs, extrapolate=seg.extrapolate,
                     native=compiled.enabled())
@@ -122,32 +110,14 @@ def arc_model(problem):
 
 @functools.lru_cache(maxsize=None)
 def closed_form_segment(*, coefficients=EXACT, model=ArcModel()):
-    """One constant-pitch segment of ``model.sub_arcs`` rectified closed-form arcs.
+    """One constant-pitch segment of ``model.sub_arcs`` rectified closed-form arcs
+    (``rectified.rectified_function`` of one segment; ``propagation.arcs.ArcModel`` says
+    why its defaults): ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``, x = [r,
+    theta, v_r, v_theta, t] canonical, q3 each sub-arc's validity margin at its end (the
+    smallest over its whole and half arcs).  ``coefficients`` are (b1, b2) of Eqs. 3-4.
 
-    It is ``rectified.rectified_function`` of one segment on ``model``'s arcs (by
-    default second order, ending on the exact angular momentum, ``arcs.QUAD_NODES``
-    Gauss-Legendre points, not extrapolated: ``propagation.arcs.ArcModel`` says why);
-    the NLP restarts every segment from its node.
-
-    Parameters
-    ----------
-    coefficients : tuple
-        (b1, b2) of Eqs. 3-4.
-    model : ArcModel
-        The arcs.  With ``model.native`` they are compiled (``propagation.compiled``):
-        the same arithmetic, with the derivatives Ipopt asks for run as C, and the
-        segment's own graph of arc calls and its derivatives compiled too (a library
-        linked against the arcs').  Where nothing can be compiled the segment is the
-        expanded SX one, as with ``native=False``; where only the segment's graph fails
-        to compile, it is that MX graph over the compiled arcs.
-
-    Returns
-    -------
-    casadi.Function
-        ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``: x = [r, theta, v_r,
-        v_theta, t] canonical, and q3 is each sub-arc's validity margin at its end (the
-        smallest over its whole and half arcs).  SX and expanded, or an ``External``
-        (or MX) over the compiled arcs.
+    With ``model.native`` the arcs and the graph over them are compiled
+    (``propagation.compiled``); else, or where nothing compiles, it is expanded SX.
     """
     native = flies_native(coefficients=coefficients, model=model)
     chain = rectified_function(1, coefficients=coefficients, model=model)
@@ -162,9 +132,8 @@ def closed_form_segment(*, coefficients=EXACT, model=ArcModel()):
     segment = ca.Function("segment", [x0, ac, alpha, dtheta], [xs[:, -1], q3.T],
                           ["x0", "ac", "alpha", "dtheta"], ["x1", "q3"], {"cse": native})
     if native:
-        # The chain rule between the arcs compiled as well, calling the arcs' library:
-        # on CasADi's virtual machine it was a large part of every Hessian and
-        # constraint Jacobian.  One library per sub-arc count and extrapolation setting.
+        # The chain rule between the arcs compiled too: on CasADi's virtual machine it was
+        # a large part of every Hessian and Jacobian.
         segment = compiled.compiled(segment, (piece_function(coefficients=coefficients,
                                                              model=model),))
     return segment
@@ -174,20 +143,12 @@ def closed_form_segment(*, coefficients=EXACT, model=ArcModel()):
 def closed_form_segment3d(*, coefficients=EXACT, model=ArcModel()):
     """One segment of constant pitch and clock in three dimensions, ``model.sub_arcs``
     rectified closed-form arcs: ``(x0[9], ac, alpha, delta, dtheta) -> (x1[9],
-    q3[sub_arcs])``, x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] (the planar arc's
-    state inside the plane of the unit quaternion, ``propagation.rectified3d``).
+    q3[sub_arcs])``, x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz]
+    (``propagation.rectified3d``); InputError for an extrapolated ``model``.
 
-    The arc is ``rectified3d.arc_function3d`` of one sample, expanded to SX, flown from
-    the identity quaternion: an arc's polar rows never depend on its plane, and its
-    plane ends as the start's times the turn that the identity ends at
-    (``plane_turn.turned_plane``).  So the arcs chain the polar state and the product
-    of their turns, and the segment's start quaternion enters once, in one product at
-    its end -- the same quaternion products, grouped the other way (equal to rounding).
-    The expensive part, whose Hessian Ipopt asks for, then takes the planar arc's inputs
-    and the clock (10 in all, not 14).  With ``model.native`` the arc is compiled with
-    its derivatives and the segment's chain compiled over it
-    (``propagation.compiled``), as :func:`closed_form_segment` does in the plane;
-    otherwise, or where nothing compiles, the segment is the expanded SX chain.
+    Each arc is flown from the identity quaternion (its polar rows never depend on its
+    plane, ``plane_turn.turned_plane``) and the start quaternion applied once at the end,
+    so the expensive part takes 10 inputs, not 14.  Compiled as :func:`closed_form_segment`.
     """
     if model.extrapolate:
         raise InputError("segments.extrapolate = True is not available in three "
@@ -223,12 +184,10 @@ def node_from_swept(y, theta, quat_start):
     Cartesian state ``y`` whose Sun-sail line has swept to the angle ``theta``, in the
     gauge of the turning plane (THEORY.md §9.3) that starts at ``quat_start``.
 
-    The plane's frame never spins about its normal, so its x axis is where theta = 0:
-    x = cos(theta) r_hat - sin(theta) t_hat, y = sin(theta) r_hat + cos(theta) t_hat,
-    z = h_hat.  The quaternion is ``quat_start`` times the turn from its frame to that
-    one, read off the rotation matrix by its scalar-first branch, smooth while the
-    plane turns by less than a half turn over the arc.  CasADi operations: numbers or
-    symbols.
+    The plane's frame never spins about its normal, so x = cos(theta) r_hat - sin(theta)
+    t_hat, y = sin(theta) r_hat + cos(theta) t_hat, z = h_hat; the quaternion is
+    ``quat_start`` times the turn to that frame (scalar-first branch: smooth while the
+    plane turns by less than a half turn).  Numbers or CasADi symbols.
     """
     pos, vel = y[:3], y[3:6]
     r = ca.norm_2(pos)
@@ -254,21 +213,12 @@ def node_from_swept(y, theta, quat_start):
 @functools.lru_cache(maxsize=None)
 def rk4_time_segment3d(steps, coefficients=EXACT, native=False):
     """The 3-D polish's segment: ``steps`` RK4 steps in time on the Cartesian equations
-    (``rk4.rk4_step3d`` with the angle swept), between 3-D nodes.
+    (``rk4.rk4_step3d`` with the angle swept), ``(x0[9], ac, alpha, delta, duration) ->
+    (x1[9], q3[0])``.
 
-    ``(x0[9], ac, alpha, delta, duration) -> (x1[9], q3[0])``, x = [r, theta, v_r,
-    v_theta, t, qw, qx, qy, qz]: the node is turned into its Cartesian state
-    (``elements.cartesian_from_polar3d``), flown, and named again by
-    :func:`node_from_swept` with theta advanced by the angle swept, so that its ends
-    are in the same gauge as the closed form's (:func:`closed_form_segment3d`) and the
-    NLP's continuity rows mean the same thing for both.  q3 is empty, as for every
-    exact arc.
-
-    With ``native`` the RK4 step is compiled with its derivatives and the segment's
-    chain of steps compiled over it (``propagation.compiled``), as the closed form's
-    arcs are: on the virtual machine the Hessian of the Lagrangian of these segments
-    was most of the 3-D polish's time.  One step library serves every step count.
-    Otherwise, or where nothing compiles, the segment is SX, expanded.
+    The end is named by :func:`node_from_swept`, in the closed form's gauge, so that the
+    continuity rows mean the same for both.  ``native`` compiles it (``propagation.compiled``):
+    on the virtual machine its Hessian was most of the 3-D polish's time.
     """
     step = rk4_step3d(coefficients, "time", swept=True)
     fast = compiled.compiled(step) if native else step
@@ -291,13 +241,10 @@ def rk4_time_segment3d(steps, coefficients=EXACT, native=False):
 
 @functools.lru_cache(maxsize=None)
 def cvodes_segment(sub_arcs, coefficients=EXACT):
-    """The same segment as :func:`closed_form_segment` with CVODES arcs on Eqs. 1-2.
-
-    ``(x0[5], ac, alpha, dtheta) -> (x1[5], q3[sub_arcs])``: one CVODES integration in
-    theta over the segment at tolerances 1e-12 (``simulate.segment_integrator``); CasADi
-    differentiates it through forward and adjoint sensitivities.  There is no first-order
-    arc, so its q3 outputs are a constant 1, which keeps the NLP's constraint count and
-    structure identical to the closed form's (for the benchmark).
+    """:func:`closed_form_segment`'s signature flown by one CVODES integration of Eqs. 1-2
+    in theta (``simulate.segment_integrator``), differentiated through its sensitivities;
+    q3 is a constant 1, so that the NLP's structure is the closed form's (for the
+    benchmark).
     """
     seg = segment_integrator(1, "theta", coefficients)
     x0 = ca.MX.sym("x0", 5)
@@ -310,18 +257,13 @@ def cvodes_segment(sub_arcs, coefficients=EXACT):
 
 @functools.lru_cache(maxsize=None)
 def cvodes_time_segment(coefficients=EXACT):
-    """One constant-pitch segment of Eqs. 1-2 integrated by CVODES in time: the exact arc.
-
-    ``(x0[5], ac, alpha, duration) -> (x1[5], q3[0])``: one CVODES integration over the
-    segment's duration (TU) at tolerances 1e-15 (``simulate.segment_integrator``), which
-    CasADi differentiates through forward and adjoint sensitivities.  The state's t row
-    advances by the duration itself.  An exact arc has no first-order validity margin, so
-    q3 is empty and ``transcription.transcribe`` (in time) adds no q3 rows.  Time,
-    not theta, is the independent variable: the verification flies the schedule in time,
-    so the polished NLP and its check integrate the same equations the same way.
+    """One constant-pitch segment of Eqs. 1-2 integrated by CVODES in time, the exact arc:
+    ``(x0[5], ac, alpha, duration) -> (x1[5], q3[0])``, duration in TU, differentiated
+    through CVODES's sensitivities; q3 is empty, so no q3 rows.  In time, not theta, as the
+    verification flies, so that both integrate the same equations the same way.
     """
-    # As tight as the verifier's check: at 1e-12 the polished optimum itself was 2-10 m
-    # off where an independent DOP853 flight ended, so it could not meet a 1 m bound.
+    # As tight as the verifier's check: at 1e-12 the polished optimum was 2-10 m off an
+    # independent flight, over the 1 m bound.
     seg = segment_integrator(1, "time", coefficients, CHECK_TOLERANCE)
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, duration = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("duration")

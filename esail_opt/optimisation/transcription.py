@@ -1,40 +1,20 @@
 """The transcription: a :class:`Problem` turned into a multiple-shooting NLP.
 
-Decision variables (each scaled to order one):
+Decision variables, each scaled to order one, in this order: ``alpha[N]``, each
+segment's constant pitch, rad; ``length[N]``, its arc angle, rad (or its duration, TU, for
+a method in time); ``X[5 x N]``, the state [r, theta, v_r, v_theta, t] at its end; where
+free, the departure anomaly ``nu0``, the throttles ``kappa[N]`` (a segment flies at kappa
+a_c), the departure ``epoch``, ``ac_scale`` and ``vinf_angle``.  In three dimensions
+(``Problem.three_d``) ``X[9 x N]`` adds the unit quaternion of the orbital plane (theta
+inside it), and the clock angles ``delta[N]`` come last.
 
-* ``alpha[N]``: the constant pitch of each segment, rad, within the sail's bounds;
-* ``length[N]``: each segment's arc angle, rad (equal segments: chained equalities);
-* ``X[5 x N]``: the state [r, theta, v_r, v_theta, t] at the end of each segment;
-* ``nu0``: the departure true anomaly, when it is free;
-* ``kappa[N]``: each segment's throttle in the sail's bounds, with ``Sail(throttle=True)``;
-  the segment then flies at kappa a_c (the closed form scales a~_c by kappa).
-
-A segment is ``sub_arcs`` closed-form arcs (Eq. 12 for q with one Picard sweep that makes
-it second order in a~_c, Eqs. 9-11 for the state, the time by Gauss-Legendre quadrature
-of dt/dtheta) chained with rectification at each sub-arc's start, all at one pitch, and
-optionally Richardson-extrapolated: the problem's ``segment_methods.arc_model``
-(``propagation.arcs.ArcModel``), which the verification's closed-form curve flies too.
-The segment Function is ``map``-ped over the N segments inside an MX NLP, so the NLP
-holds one copy of the arc's graph however many segments there are.  Which Function is
-the segment method's choice (``optimisation.segment_methods``): the closed form by
-default; the benchmarks pass RK4 or CVODES arcs, and the polish RK4 or CVODES arcs in
-time, whose segment durations are then the length variables.
-
-In three dimensions (``Problem.three_d``: a real body, not ``planar=True``) a node adds
-the unit quaternion of its orbital plane, ``X[9 x N]`` = [r, theta, v_r, v_theta, t, qw,
-qx, qy, qz] with theta inside that plane, each segment adds a clock angle ``delta[N]``
-(after every planar variable, within ``Problem.clock_bounds``), and the closed-form
-segment is ``segment_methods.closed_form_segment3d``, the planar arc in a plane that turns
-(``propagation.rectified3d``).  The departure is the body's smooth 3-D track
-(``bodies.track.Track3``) at the epoch, and a body target's rows hold the final node to
-the target's 3-D track at the arrival date in the ecliptic's cylindrical coordinates
-(``goals._BodyTarget.cylindrical_constraints``), the turn count in the longitude row as
-in the planar theta row.  Orbit targets keep their rows on the polar state, which hold
-in any plane.
-
-Constraints: continuity X_{k+1} = F(X_k) (time included), q3 >= margin at every sub-arc's
-end, positive segment durations, r >= r_min at the nodes (a variable bound), the target at
-the last node, and the time of flight when the objective fixes it.
+A segment is the method's Function (``segment_methods``), by default ``sub_arcs``
+rectified closed-form arcs (Eq. 12 for q, one Picard sweep; Eqs. 9-11 for the state),
+``map``-ped so that the MX NLP holds one copy of its graph.  Constraints: continuity
+X_{k+1} = F(X_k), q3 >= margin at every sub-arc's end, equal lengths if asked, positive
+durations, the time of flight when fixed, the target at the last node (a 3-D body
+target's in cylindrical coordinates, ``goals._BodyTarget.cylindrical_constraints``) and
+the arrival window; r >= r_min is a variable bound.
 """
 
 import dataclasses
@@ -57,26 +37,16 @@ _SHARE = None
 
 
 def share_cores(threads):
-    """In a run's pool worker: evaluate the segments of every NLP built in this process
-    on ``threads`` threads, this worker's share of the machine.
-
-    The run that starts the worker passes its share (cores // workers) to the worker's
-    initialiser, which calls this once; the share is the process's, like the worker
-    itself.  A lone solve never calls it and keeps the default of
-    :func:`segment_threads`.
-    """
+    """In a run's pool worker (once, from its initialiser): evaluate the segments of every
+    NLP built in this process on ``threads`` threads, the worker's share of the cores."""
     global _SHARE
     _SHARE = int(threads)
 
 
 def segment_threads():
-    """Threads that evaluate the segments and their derivatives (CasADi's threaded map).
-
-    Segments are independent of one another given their start nodes, so they split
-    across cores, to the same optimum in the same iterations.  In a run's pool worker,
-    the share it was given (:func:`share_cores`); elsewhere the machine's cores, at
-    most 4.
-    """
+    """Threads that evaluate the segments and their derivatives (independent given their
+    nodes; the same optimum in the same iterations): a pool worker's :func:`share_cores`,
+    else the machine's cores, at most 4."""
     if _SHARE is not None:
         return _SHARE
     return max(1, min(4, os.cpu_count() or 1))
@@ -93,8 +63,8 @@ class Transcription:
     ubx: np.ndarray
     lbg: np.ndarray
     ubg: np.ndarray
-    # w -> (alpha, lengths, nodes[5 x N], durations, x_start, q3, nu0, throttle, epoch,
-    #       ac_scale, vinf_angle)
+    # (w, p) -> (alpha, lengths, nodes, durations, x_start, q3, nu0, throttle, epoch,
+    #            ac_scale, vinf_angle, delta)
     unpack: ca.Function
     guess: Guess
     names: dict
@@ -103,12 +73,10 @@ class Transcription:
     # the fixed time of flight (TU; 0 without one).  A scan changes them, not the NLP.
     epoch: float = 0.0
     tof: float = 0.0
-    # Then the bodies' corrections: ephemeris less smooth track, [r, theta, v_r, v_theta]
-    # of the departure body at departure and of the target body at arrival
-    # (:func:`body_corrections`); zero unless a caller holds the NLP to the ephemeris.
+    # Then the bodies' corrections (:func:`body_corrections`); zero unless a caller holds
+    # the NLP to the ephemeris.
     corrections: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(8))
-    # How the variables are scaled, and whether the lengths are durations: what
-    # :meth:`start_of` needs to put another start into this NLP.
+    # What :meth:`start_of` needs: the scales, and whether the lengths are durations.
     scales: object = None
     in_time: bool = False
 
@@ -137,25 +105,23 @@ class Transcription:
                                    tof=0.0 if tof is None else tof)
 
     def start_of(self, problem, guess):
-        """``guess`` (of this NLP's size and class) as a point of this NLP's variables,
-        scaled as this NLP scales them and clipped to its bounds: a start from another
-        model's optimum, solved on this NLP rather than on one built for it."""
+        """``guess`` (of this NLP's size and class) as a point of this NLP, scaled and
+        clipped to its bounds: another model's optimum started on this NLP."""
         _, blocks = _variables(problem, guess, self.scales, self.in_time)
         return np.clip(blocks.stacked()[3], self.lbx, self.ubx)
 
     def constraints(self, w, defects=None):
         """The constraint values g at the flat point ``w`` (numpy), with the segment
-        defects of the defect correction (5 x N; default none)."""
+        defects of the defect correction (rows x N; default none)."""
         return np.array(self.nlp_g(w, self.parameters(defects))).ravel()
 
 
 def body_corrections(problem, result):
-    """:attr:`Transcription.corrections` at the dates of ``result`` (an NLPResult): the
-    departure body's ephemeris less its track at the departure epoch, then the target
-    body's at the arrival (``bodies.lookup.track_correction``); zeros for a problem off
-    the calendar and for a target that is not a real body."""
+    """:attr:`Transcription.corrections` at ``result``'s dates: the departure body's
+    ephemeris less its track at departure, then the target body's at arrival (polar,
+    4 + 4, ``bodies.lookup.track_correction``; Cartesian in three dimensions, 6 + 6); zeros
+    off the calendar and for a target that is not a real body."""
     if problem.three_d():
-        # Cartesian in three dimensions (``lookup.track3_correction``), 6 + 6.
         body = getattr(problem.target, "body", None)
         arrival = result.epoch + float(np.sum(result.durations))
         return np.r_[lookup.track3_correction(problem.departure.body, result.epoch),
@@ -203,13 +169,10 @@ class _Blocks:
 @dataclass
 class _Scales:
     """Order-one scales of the variables: the guess's segment length for lengths, its
-    whole angle for theta and its time of flight for t; radii and speeds are already of
-    order one in canonical units.
-
-    A node's theta is scaled after a shift by whole turns: a body's track counts its
-    longitude from the ephemeris's first date, hundreds of radians before a departure
-    in this century, and scaled by that size the transfer's own angles would be lost
-    in the last digits of Ipopt's tolerances.
+    whole angle for theta and its time of flight for t (radii and speeds are of order one).
+    Theta is first shifted by whole turns: a body's track counts its longitude from the
+    ephemeris's first date, hundreds of radians back, which would bury the transfer's own
+    angles in the last digits of Ipopt's tolerances.
     """
 
     length: float
@@ -228,7 +191,7 @@ class _Scales:
                    float(guess.epoch), np.r_[0.0, turns, 0.0, 0.0, 0.0, np.zeros(extra)])
 
     def scaled(self, nodes):
-        """Nodes (5 x N, numbers) in the NLP's scaled variables."""
+        """Nodes (rows x N, numbers) in the NLP's scaled variables."""
         return (np.asarray(nodes, float) - self.shift[:, None]) / self.node[:, None]
 
     @property
@@ -239,16 +202,14 @@ class _Scales:
 def _pitch_bounds(problem):
     """Bounds of the pitch variables, rad."""
     if problem.sail.alpha_min_deg == -90 and problem.sail.alpha_max_deg == 90:
-        # R and T depend on 2 alpha only, so -90 and +90 deg are one attitude and the
-        # full box is a wall that optima stopped against (578.04-578.23 d on Earth-Mars
-        # from different seeds).  Unbounded, the pitch crosses it; results report it
-        # wrapped into [-90, 90) deg.
+        # R and T depend on 2 alpha only, so -90 and +90 deg are one attitude and the full
+        # box is a wall optima stop against; results report the pitch wrapped.
         return -np.inf, np.inf
     return problem.alpha_bounds()
 
 
 def _node_bounds(problem, guess, scales, n):
-    """Bounds of the 5 x N scaled nodes.  r >= r_min is a bound; v_theta > 0 keeps the
+    """Bounds of the rows x N scaled nodes.  r >= r_min is a bound; v_theta > 0 keeps the
     orbit prograde, as the closed form (q3 = 1/h) assumes; the revolution window, if
     any, boxes the last node's theta."""
     lo = np.tile([[max(problem.path.r_min_au, 1e-3)], [-np.inf], [-10.0], [1e-2], [0.0]], n)
@@ -263,16 +224,12 @@ def _node_bounds(problem, guess, scales, n):
 
 
 def _variables(problem, guess, scales, in_time):
-    """The decision variables, their bounds and start: pitch, segment lengths, nodes,
-    the free departure anomaly and the throttle.
+    """The decision variables (the module's list), their bounds and start.
 
-    MX: the segment Function is mapped over them, so the NLP holds one copy of the arc's
-    graph (inlining the SX arcs would copy it into every segment, and building their
-    derivatives then costs far more than the little the solve gains).  Every variable
-    couples only neighbouring segments -- the node carries the elapsed time, and equal
-    lengths are chained equalities rather than one shared variable -- so the constraint
-    Jacobian is banded and colours in a handful of directions; a shared length column
-    plus a sum-of-durations row would make it dense, and every Jacobian far dearer.
+    MX, so that the mapped segment Function is one copy of the arc's graph (inlined SX
+    arcs make the derivatives far dearer).  Every variable couples only neighbouring
+    segments (the node carries the elapsed time; equal lengths are chained equalities,
+    not one shared variable), so the constraint Jacobian is banded and cheap to colour.
     """
     n = guess.alpha.size
     free_nu = bool(getattr(problem.departure, "free_anomaly", False))
@@ -299,12 +256,10 @@ def _variables(problem, guess, scales, in_time):
     blocks.add("nodes", v["nodes"], *_node_bounds(problem, guess, scales, n),
                scales.scaled(guess.nodes))
     blocks.add("nu0", v["nu0"], -4 * math.pi, 4 * math.pi, guess.nu0)
-    # The throttle comes last, so a throttled NLP only appends N columns to the layout.
     k_lo, k_hi = (1.0, 1.0) if kappa_bounds is None else kappa_bounds
     blocks.add("kappa", v["kappa"], k_lo, k_hi, 1.0 if guess.throttle is None else guess.throttle)
     if free_date:
-        # In TU from the guess's epoch: an order-one variable, where the epoch itself is
-        # hundreds of TU from J2000.
+        # In TU from the guess's epoch: order one, where the epoch is hundreds of TU.
         lo, hi = (dates.tu_from_jd(jd) - scales.epoch for jd in problem.departure.window_jd)
         blocks.add("epoch", v["epoch"], lo, hi, guess.epoch - scales.epoch)
     # a_c stays inside the sail's own range, (0, 100] mm/s^2.
@@ -332,7 +287,6 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
     else:
         x_start = dep.state(v["nu0"][0]) if v["nu0"].numel() else ca.DM(problem.x0())
     starts = ca.horzcat(ca.vertcat(x_start[:4], 0, x_start[4:]), nodes[:, :-1])
-    # The closed form (and Eqs. 1-2) take a_c per segment, so a throttle simply scales it.
     ac_scale = v["ac_scale"][0] if v["ac_scale"].numel() else 1
     ac = problem.sail.ac * ac_scale * (v["kappa"].T if v["kappa"].numel() else 1)
     length = v["length"] * scales.length
@@ -340,9 +294,8 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
     controls = [v["alpha"].T] + ([v["delta"].T] if three_d else [])
     ends, q3 = mapped(starts, ac, *controls, length.T)
-    # The defect correction (optimisation.error_control): a constant per segment, added
-    # to its end, that makes the closed-form chain land where Eqs. 1-2 do.  A parameter,
-    # so one solver serves every round of the error control.
+    # The defect correction (optimisation.error_control), a parameter so that one solver
+    # serves every round.
     defects = ca.MX.sym("defects", nodes.shape[0], n)
     swept = (nodes[1, :] - starts[1, :]).T
     elapsed = (nodes[4, :] - starts[4, :]).T
@@ -370,17 +323,14 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     if problem.fixed_tof() is not None:
         g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
     if hasattr(problem.target, "cylindrical_constraints") and "yf" in flight:
-        # In three dimensions a body target's rows are on its 3-D track, in the
-        # ecliptic's cylindrical coordinates: the longitude row holds the turn count k
-        # as the planar theta row does, so the revolution classes are the planar model's
-        # (scans, other starts) and Ipopt is pulled towards the class's turn.
+        # The longitude row holds the turn count k as the planar theta row does, so the
+        # revolution classes are the planar model's.
         yf = flight["yf"] - (p["corrections"][6:] if problem.target.tracks_body else 0)
         target = problem.target.cylindrical_constraints(yf, flight["xf"][1], flight["tf"],
                                                         guess.revolutions_k, flight["epoch"])
         g.add("target", ca.vertcat(*target), 0, 0)
     elif problem.target is not None:
-        # A body target's rows compare the final state with the body's track; its
-        # correction moves the track onto the ephemeris (zero for other targets).
+        # A body's correction moves its track onto the ephemeris.
         real = getattr(problem.target, "body", None) is not None
         xf = flight["xf"] - (p["corrections"][4:] if real else 0)
         target = problem.target.constraints(xf, flight["tf"], guess.revolutions_k,
@@ -395,30 +345,15 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
 
 
 def transcribe(problem, method=None, guess=None, threads=None):
-    """Build the multiple-shooting NLP of ``problem``.
+    """The :class:`Transcription` of ``problem``.
 
-    Parameters
-    ----------
-    problem : Problem
-    method : segment method, optional
-        How the segments are flown (``segment_methods``: :class:`ClosedForm`, the
-        default, ``RK4`` or ``CVODES``).  Its ``length_in`` says what the length
-        variables measure: each segment's arc angle (rad), or its duration (TU).  In
-        time, equal segments mean equal angles (a constraint on the nodes' theta), the
-        segment lengths returned by ``unpack`` are still the angles swept, and a
-        segment with an empty q3 output adds no q3 rows.
-    guess : Guess, optional
-        Default :func:`initial_guess`.  Its size sets the number of segments N and its
-        revolution class (turns, final-angle window) is kept.  With a method in time
-        its ``lengths`` are the segment durations (TU).
-    threads : int, optional
-        Threads the segments are evaluated on, at most (one for a ``serial`` method);
-        default
-        :func:`segment_threads`.  The optimum and its iterations do not depend on it.
-
-    Returns
-    -------
-    Transcription
+    ``method`` (``segment_methods``, default :class:`ClosedForm`) flies the segments; its
+    ``length_in`` says whether the lengths are arc angles (rad) or durations (TU).  In
+    time, equal segments still mean equal angles, ``unpack``'s lengths are still the
+    angles swept, and an empty q3 output adds no q3 rows.  ``guess`` (default
+    :func:`initial_guess`) sets N and the revolution class (turns, final-angle window),
+    its ``lengths`` in the method's measure.  ``threads`` bounds the segments' threads
+    (one for a ``serial`` method; default :func:`segment_threads`).
     """
     method = ClosedForm() if method is None else method
     in_time = method.length_in == "time"
