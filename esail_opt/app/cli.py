@@ -1,9 +1,5 @@
-"""The ``esail-opt`` command line.
-
-Each subcommand parses its options here and hands the work to the module that
-owns it.  Bad input ends in one line on stderr and exit status 2; see :data:`EPILOG`
-for every exit status.
-"""
+"""The ``esail-opt`` command line: each subcommand parses its options here and hands the
+work to the module that owns it; :data:`EPILOG` gives every exit status."""
 
 import argparse
 import atexit
@@ -20,14 +16,11 @@ from esail_opt.errors import (FigureError, InputError, NoStart, OutputError, Ter
 from esail_opt.runtime.signals import terminate_as_interrupt
 
 EXIT_INPUT = 2
-#: An output that cannot be written (a full disk, a read-only folder): not 1, which
-#: says "solved but not verified".
+#: An output that cannot be written (full disk, read-only folder); 1 says "not verified".
 EXIT_OUTPUT = 3
-#: A figure that could not be drawn, the rest of its set written: not 3, which says
-#: that the files are not there.
+#: A figure not drawn, the rest of its set written; 3 says the files are not there.
 EXIT_FIGURE = 4
-#: The errors of a file system that refuses an output: full, read-only, forbidden, or a
-#: folder or a file in the way.
+#: A file system refusing an output: full, read-only, forbidden, or something in the way.
 _OUTPUT_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
                   errno.EISDIR, errno.ENOTDIR)
 EPILOG = ("exit status: 0 converged and verified; 1 not converged or not verified (one "
@@ -53,22 +46,14 @@ def _numbers(text):
     return tuple(_number(part) for part in text.split(","))
 
 
-#: eps (Eq. 27, a fraction) above which ``propagate`` warns that its single arc has
-#: left the flight behind.
+#: eps (Eq. 27, a fraction) above which ``propagate`` warns that one arc is not the flight.
 EPS_WARNING = 0.10
-#: Values or ranges a propagate option takes: START:STOP:COUNT, both ends included.
 RANGE_HELP = "; or START:STOP:COUNT, both ends included, to fly a grid"
 
 
 def _value_or_range(option, text):
     """A propagate option's values: one number, or a START:STOP:COUNT range
-    (:func:`esail_opt.errors.number_range`).
-
-    Raises
-    ------
-    InputError
-        If the text is neither (one line naming the option and what it takes).
-    """
+    (:func:`esail_opt.errors.number_range`); InputError naming the option otherwise."""
     if ":" in text:
         return number_range(f"--{option}", text)
     try:
@@ -171,7 +156,6 @@ def _run_propagate_grid(args, values):
     if args.method != "both":
         raise InputError(f"method = {args.method!r} with ranges: a grid flies both; "
                          "allowed: both")
-    # Every case is checked here, before anything is flown or written.
     count = len(propagate.grid_cases(values, args.years))
     print(f"propagating {count} cases of {args.years:g} years ...", file=sys.stderr)
     data = propagate.run_grid(values, args.years, args.samples)
@@ -207,8 +191,7 @@ def _figures():
 
 class _FigureNames:
     """The reproduce command's choices, read from ``reproduce.FIGURES`` only when argparse
-    asks: that module imports scipy, matplotlib and the paper's cases, which no other
-    command needs at start-up."""
+    asks: that module imports scipy and matplotlib, which no other command needs at start."""
 
     def __contains__(self, name):
         return name in _figures()
@@ -255,9 +238,8 @@ def _load(args):
 
 
 def progress_printer(command):
-    """``progress(text)`` for long work: on a terminal one line rewritten in place (call
-    ``.done()`` to erase it), in a log one plain line per message; both end in " ...",
-    which sets them apart from the verdict and the errors."""
+    """``progress(text)`` for long work: on a terminal one line rewritten in place (erased
+    by ``.done()``), in a log a line per message; both end in " ..." unlike the verdict."""
     tty = sys.stderr.isatty()
 
     def progress(text):
@@ -390,9 +372,8 @@ def _run_plot(args):
 
 
 def _plot_record(record):
-    """Draw the figures of one record file (solution.json, porkchop.json or
-    search.json) into its folder: the paths written and one line per figure that could
-    not be drawn."""
+    """Draw the figures of one solution.json, porkchop.json or search.json into its
+    folder: the paths written and one line per figure that could not be drawn."""
     import json
 
     from esail_opt.app import plots
@@ -531,9 +512,8 @@ def _out(args, option="--out"):
     return Path(value)
 
 
-#: The options whose value is a range, which may start with a minus sign: given as
-#: ``--tof -100:850:2`` the value reaches its own check (one line naming it) instead of
-#: being taken for an option.
+#: Options whose range may start with a minus sign: ``--tof -100:850:2`` reaches the
+#: value's own check instead of being taken for an option.
 _RANGE_OPTIONS = ("--param", "--depart", "--tof", "--a0", "--e0", "--nu0", "--ac", "--alpha")
 
 
@@ -544,9 +524,9 @@ def _sweepable():
 
 
 class _Parser(argparse.ArgumentParser):
-    """The subcommands' parser: a description's ``{sweepable}`` is filled in when the
-    help is printed, so that building the parser (every command does) does not import
-    the sweep module."""
+    """The subcommands' parser: joins a range after an option of :data:`_RANGE_OPTIONS`,
+    and fills a description's ``{sweepable}`` only when help is printed, so that building
+    the parser (every command does) does not import the sweep module."""
 
     def parse_known_args(self, args=None, namespace=None):
         args = list(sys.argv[1:] if args is None else args)
@@ -652,9 +632,8 @@ def _run_porkchop(args):
 
 
 def _porkchop_lines():
-    """The progress of a porkchop: one line on stderr per cell as its job's forward
-    pass ends it, and one more if the job's end changed it (the repair pass, the edge
-    of the feasible)."""
+    """A porkchop's progress: a line on stderr per cell as its job's forward pass ends
+    it, and one more if the job's end (repair pass, edge of the feasible) changed it."""
     told = {}  # index -> what its line said
 
     def line(row, done, total):
@@ -668,8 +647,7 @@ def _porkchop_lines():
             what = "no sail (shorter than the edge of the feasible)"
         else:
             what = f"NOT verified ({row['error']})"
-        # A cell told again is a correction, not one more cell: no count; and one whose
-        # line would not change (its row changed elsewhere) is not told again.
+        # A cell told again is a correction (no count), and only if its line changes.
         again = row["index"] in told
         if told.get(row["index"]) == what:
             return
@@ -800,23 +778,16 @@ def main(argv=None):
 
 
 def console():
-    """The ``esail-opt`` command: :func:`main` on ``sys.argv`` (with one BLAS thread
-    unless the environment says otherwise, as every use of the package: see
-    ``esail_opt/__init__.py``), then :func:`end_process` with its exit status."""
+    """The ``esail-opt`` command: :func:`main` on ``sys.argv`` (one BLAS thread unless the
+    environment says otherwise: ``esail_opt/__init__.py``), then :func:`end_process`."""
     end_process(main())
 
 
 def end_process(code):
-    """End the process with exit status ``code``: at once, after its exit handlers
-    (logging's flush among them) and its streams' flushes, when the command ran alone;
-    through Python's own shutdown when it started threads that are still alive or
-    child processes (a scan's pool, whose executor, queues and resource tracker that
-    shutdown joins and releases in order).
-
-    Once a command has returned, its files are closed and in place; what is left is
-    Python's teardown, object by object, of CasADi's graphs, the compiled libraries
-    and matplotlib's figures: 0.07 s of an Earth-Mars solve, 0.14 s with its figures,
-    that change nothing on disk."""
+    """End the process with exit status ``code``: at once, after the exit handlers and the
+    flushes, when the command ran alone (Python's teardown of CasADi's graphs changes
+    nothing on disk); through Python's shutdown, which joins them, when threads are alive
+    or child processes ran (a scan's pool)."""
     code = 0 if code is None else code
     if threading.active_count() > 1 or "multiprocessing" in sys.modules:
         sys.exit(code)
@@ -828,23 +799,10 @@ def end_process(code):
 
 
 def run_command(label, run, args):
-    """Run ``run(args)`` as a command does, and return the exit status.
-
-    The package's log lines go to stderr, SIGTERM stops the run as Ctrl-C does, and
-    each exception a user can meet becomes one line ``<label>: error: ...`` on stderr
-    and its exit status (see :data:`EPILOG`).  The
-    benchmarks' own command (``esail-opt-bench``) runs through here too, so that it
-    exits as this one does.
-
-    Parameters
-    ----------
-    label : str
-        What the lines start with, e.g. ``"esail-opt solve"``.
-    run : callable
-        ``run(args) -> int``, the command's work and its exit status.
-    args : argparse.Namespace
-        The parsed options, passed to ``run``.
-    """
+    """Run ``run(args) -> int`` as a command does and return its exit status: the package's
+    log lines go to stderr, SIGTERM stops the run as Ctrl-C does, and each exception a user
+    can meet becomes one line ``<label>: error: ...`` (``label`` e.g. ``"esail-opt solve"``)
+    and its exit status (:data:`EPILOG`).  ``esail-opt-bench`` runs through here too."""
     _show_library_log()
     from esail_opt.runtime.pool import ClusterLost
 
@@ -861,9 +819,7 @@ def run_command(label, run, args):
     except OSError as err:
         if err.errno not in _OUTPUT_ERRNOS:
             raise
-        # A full or read-only disk, or a folder or file in the way, met outside the
-        # output checks (a bench, a plot into a folder that holds a folder of a
-        # figure's name).  A rename's error names its target second.
+        # Met outside the output checks; a rename's error names its target second.
         print(f"{label}: error: cannot write "
               f"{err.filename2 or err.filename or 'an output'}: {err.strerror}",
               file=sys.stderr)

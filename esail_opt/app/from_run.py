@@ -1,10 +1,7 @@
-"""A pipeline :class:`~esail_opt.optimisation.pipeline.Run` in the boundary's units: the
-:class:`~esail_opt.app.solution.Solution`'s fields it is written down as.
-
-Canonical units become the file's (au, km/s, km, m/s, days, degrees), the problem's
-parts their kind and fields, the dates ISO 8601 (TDB).  Nothing here solves or flies:
-every number is the run's own, converted.
-"""
+"""A pipeline :class:`~esail_opt.optimisation.pipeline.Run` as the fields of its
+:class:`~esail_opt.app.solution.Solution`: the file's units (au, km/s, km, m/s, days,
+degrees), the problem's parts as kind and fields, dates ISO 8601 (TDB).  Nothing here
+solves or flies: every number is the run's own, converted."""
 
 import dataclasses
 import math
@@ -38,8 +35,7 @@ def _polar(x):
 
 
 def state(x, cartesian=None):
-    """A polar state (4,) as a :class:`State`; in three dimensions with its Cartesian
-    state (6,), canonical."""
+    """A polar state (4,) as a :class:`State`; in 3-D with its Cartesian state (6,)."""
     three_d = None if cartesian is None else schema.state_fields(np.asarray(cartesian,
                                                                             float)[:6])
     return State(**_polar(x), cartesian=three_d)
@@ -65,11 +61,9 @@ def _angle_deg(radians):
 
 
 def _attitudes_deg(problem, result):
-    """Each segment's (pitch, clock) in deg, the clock None in the plane.
-
-    The clock is reported in [-180, 180); where the problem leaves the clock free and
-    bounds the pitch symmetrically, each attitude goes by its canonical name
-    (:func:`~esail_opt.physics.thrust.canonical_attitude`), which both bounds admit."""
+    """Each segment's (pitch, clock) in deg, the clock in [-180, 180) (None in the plane);
+    with the clock free and the pitch bounded symmetrically, each attitude by its canonical
+    name (:func:`~esail_opt.physics.thrust.canonical_attitude`), which both bounds admit."""
     if result.delta is None:
         return [(math.degrees(a), None) for a in result.alpha]
     lo, hi = problem.alpha_bounds()
@@ -81,9 +75,8 @@ def _attitudes_deg(problem, result):
 
 
 def schedule(problem, result, local_errors=None):
-    """The :class:`Schedule` of an NLP result (boundary units) for ``problem``; where the
-    problem has throttles each row carries its kappa, with ``local_errors`` (km, one per
-    segment) its closed form's local error."""
+    """The :class:`Schedule` of an NLP result for ``problem``: each row with its throttle
+    for a throttled problem, and its ``local_errors`` entry (km, one per segment) if given."""
     n = result.alpha.size
     throttled = problem.throttled()
     starts_t = np.r_[0.0, np.cumsum(result.durations)[:-1]]
@@ -172,10 +165,9 @@ def _target_body(target, check):
 
 
 def calendar(problem, result, check):
-    """The dated fields of a flight (departure and arrival dates, the bodies with their
-    sources and the planes' distances the 2-D model ignores) and the a_c a
-    MinAcceleration objective found; empty for a problem off the calendar that sizes no
-    sail.  Keyword arguments of :class:`Solution` and :class:`Polish` alike."""
+    """The dated fields of a flight (dates, the bodies with their sources and distances from
+    the ecliptic) and the a_c a MinAcceleration found, as keyword arguments of
+    :class:`Solution` and :class:`Polish` alike; empty for an undated problem sizing no sail."""
     out = {}
     if problem.objective.free_acceleration:
         out["ac_mm_s2_required"] = problem.sail.ac_mm_s2 * result.ac_scale
@@ -212,8 +204,7 @@ def _polish(problem, polished):
         verified=polished.verified, note=polished.note,
         schedule=schedule(problem, exact),
         final_state=_final_state(exact), verification=_flight(polished.check),
-        # A polish may move the departure (a free date, anomaly or excess-velocity
-        # angle) and the a_c: the polished schedule is flown from its own start.
+        # A polish may move the departure and the a_c: it is flown from its own start.
         departure_state=departure_state(problem, exact),
         **calendar(problem, exact, polished.check))
 
@@ -290,9 +281,9 @@ def _closed_form_fields(run, drawn):
 
 
 def solution_fields(run, drawn, drawn_polish=None):
-    """The keyword arguments of the :class:`~esail_opt.app.solution.Solution` of a
-    pipeline Run, but its schema version: ``drawn`` is the run's schedule drawn for the
-    files and figures (``verify.sampled``), ``drawn_polish`` the polished one's."""
+    """The keyword arguments of a pipeline Run's Solution, but its schema version:
+    ``drawn`` is its schedule drawn for the files and figures (``verify.sampled``),
+    ``drawn_polish`` the polished one's."""
     return dict(**_closed_form_fields(run, drawn), **_polish_fields(run, drawn_polish),
                 classes=tuple(_class_looked(run.problem, c) for c in run.classes),
                 classes_skipped=run.classes_skipped,

@@ -1,37 +1,11 @@
-"""A flown trajectory as a CCSDS Orbit Ephemeris Message (OEM, CCSDS 502.0-B), in KVN.
-
-The message is what navigation and mission-analysis tools read (GMAT, Orekit, STK, SPICE's
-``mkspk``): one segment, centre ``SUN``, frame ``ICRF``, time system ``TDB``, positions in
-km and velocities in km/s, epochs ``YYYY-MM-DDTHH:MM:SS.ffffff``.  It is written through
-the ``oem`` package (its message, segment, metadata and header classes and its KVN writer),
-not by hand, so that its layout is that library's reading of the standard.
-
-Decisions:
-
-- **Frame.**  The package flies in the ecliptic of J2000 (:mod:`esail_opt.bodies.ephemeris`);
-  the message is in DE421's own ICRF axes, turned back by that module's one rotation
-  (:func:`~esail_opt.bodies.ephemeris.icrf_from_ecliptic`), so that a body's DE421 state
-  written here reads back as DE421's heliocentric ICRF state itself.
-- **Time.**  Epochs are TDB, the ephemeris's scale (:mod:`esail_opt.bodies.dates`), written
-  to the microsecond, the library's format: a state is labelled within 0.5 microseconds
-  of its epoch, 2 cm at 40 km/s.  Two epochs closer than that would print alike and are
-  refused.
-- **Digits.**  The library's scientific format keeps 15 significant digits: each position
-  coordinate to 0.5 mm within 1e9 km (6.7 au) of the Sun (5e-15 relative beyond), each
-  velocity coordinate to 0.5 nm/s below 100 km/s.
-- **One data segment per schedule segment.**  The thrust switches between segments, so
-  the flight's acceleration jumps there; a polynomial through samples on both sides of a
-  switch would smear it (hundreds of km at a day's spacing).  Segments that meet share
-  their boundary epoch, as the standard allows, and each states the Hermite interpolation
-  (positions and velocities) that reproduces the flight between its samples.
-- **Comments.**  ``COMMENT`` lines after the version line say what was flown and how
-  well: the reader of the message alone learns the model, the verdict and the miss.
-- **Whole or nothing.**  The file is written under a temporary name beside ``path`` and
-  renamed onto it (:func:`esail_opt.runtime.files.atomic_path`): a reader sees the old file
-  or the new one.
-
-The ``oem`` package (and the astropy it reads times with) is imported on first use, not
-with this module: a command that never writes a message does not pay for it.
+"""A flown trajectory as a CCSDS Orbit Ephemeris Message (OEM, CCSDS 502.0-B) in KVN, as
+GMAT, Orekit, STK and SPICE's ``mkspk`` read it: centre ``SUN``, TDB to the microsecond
+(2 cm at 40 km/s), km and km/s to 15 digits (0.5 mm within 6.7 au), written through the
+``oem`` package (imported on first use) so that the layout is that library's reading of
+the standard.  The frame is DE421's ICRF (:func:`~esail_opt.bodies.ephemeris.icrf_from_ecliptic`),
+so that a body's DE421 state reads back as DE421's own.  Each schedule segment is a data
+segment of its own: a polynomial across a thrust switch would smear the jump in
+acceleration (hundreds of km at a day's spacing).
 """
 
 import datetime as _dt
@@ -68,42 +42,19 @@ def states_km_km_s(states):
 
 def write_oem(path, object_name, epochs, states_km_kms_ecliptic, *, jd2=0.0, object_id=None,
               originator="esail_opt", creation_date=None, breaks=(), comments=()):
-    """Write a trajectory as a CCSDS OEM in KVN, heliocentric ICRF, TDB, km and km/s.
+    """Write a trajectory to ``path`` (renamed onto it whole, its folder created) as a CCSDS
+    OEM in KVN, heliocentric ICRF, TDB, km and km/s.
 
-    Parameters
-    ----------
-    path : str or Path
-        The file to write (conventionally ``trajectory.oem``); its folder is created.
-    object_name : str
-        ``OBJECT_NAME``: the spacecraft, e.g. the problem's name.
-    epochs : sequence of str, or array_like of float, length N
-        The states' epochs, strictly increasing: ISO 8601 dates read as TDB
-        (:func:`esail_opt.bodies.dates.jd_from_iso`, one float's resolution, about 40
-        microseconds), or Julian dates (TDB).
-    states_km_kms_ecliptic : array_like, shape (6, N)
-        ``[x, y, z, vx, vy, vz]`` at each epoch, heliocentric, in the ecliptic of J2000,
-        km and km/s (:func:`states_km_km_s` converts canonical states).
-    jd2 : float or array_like of length N
-        Days added to each epoch: a flight's epochs as its departure's Julian date plus
-        its days since, which keeps the microseconds one float of a Julian date loses.
-    object_id : str, optional
-        ``OBJECT_ID``; ``object_name`` by default (a planned sail has no designator).
-    originator : str
-        ``ORIGINATOR``.
-    creation_date : datetime.datetime, optional
-        ``CREATION_DATE`` (UTC); now by default.
-    breaks : sequence of int
-        Sample indices where the flight's thrust switches: the message gets one data
-        segment from each break to the next, both ends included.
-    comments : sequence of str
-        One-line ``COMMENT`` lines written after the version line.
-
-    Raises
-    ------
-    InputError
-        Naming ``oem.<argument>``: states not of shape (6, N) or not finite, epochs of
-        another count, not finite or not increasing at the microsecond, or a name or
-        comment that is empty or spans lines.
+    ``epochs`` (N, strictly increasing) are ISO 8601 dates read as TDB (:func:`jd_from_iso`,
+    about 40 us) or Julian dates (TDB); ``jd2`` (days, one or N) is added to each, keeping
+    the microseconds one float of a Julian date loses.  ``states_km_kms_ecliptic`` (6, N) is
+    ``[x, y, z, vx, vy, vz]`` in the ecliptic of J2000, km and km/s (:func:`states_km_km_s`).
+    ``object_id`` is ``object_name`` by default (a planned sail has no designator),
+    ``creation_date`` (UTC) now.  ``breaks``: sample indices where the thrust switches, each
+    ending one data segment and starting the next.  ``comments``: one-line ``COMMENT`` lines
+    after the version line.  Raises InputError naming ``oem.<argument>`` for states not
+    (6, N) or not finite, epochs of another count, not finite or not increasing at the
+    microsecond, or a name or comment that is empty or spans lines.
     """
     states = _checked_states(states_km_kms_ecliptic)
     count = states.shape[1]
@@ -143,12 +94,9 @@ def _checked_states(states):
 
 
 def _epochs(epochs, jd2, count):
-    """The epochs (TDB, two-part Julian dates), checked, as the message's text of each,
-    rounded to the microsecond by astropy's Time.
-
-    They reach the ``oem`` package as naive datetimes read back from that text, which
-    its writer formats to the same text: the library takes a datetime as an epoch, and
-    formatting hundreds of astropy Time scalars one by one cost most of the writing."""
+    """The epochs (TDB, two-part Julian dates), checked and rounded to the microsecond by
+    astropy, as naive datetimes read back from that text, which the ``oem`` writer formats
+    to the same text: formatting astropy Time scalars one by one cost most of the writing."""
     from astropy.time import Time
 
     if isinstance(epochs, str):
@@ -177,8 +125,7 @@ def _epochs(epochs, jd2, count):
 
 
 def _message(fields, created, stamps, states, edges):
-    """The ``oem`` package's OrbitEphemerisMessage, one data segment between each pair
-    of consecutive ``edges``."""
+    """The ``oem`` message, one data segment between each pair of consecutive ``edges``."""
     from oem import OrbitEphemerisMessage
     from oem.components import EphemerisSegment, HeaderSection, MetaDataSection
 

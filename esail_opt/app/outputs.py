@@ -1,6 +1,5 @@
 """A command's files: JSON records, CSV tables, figures and a scan's set of the three,
-each written whole or not at all (on :mod:`esail_opt.runtime.files`'s publication).
-"""
+each written whole or not at all (:mod:`esail_opt.runtime.files`)."""
 
 import csv
 import io
@@ -18,19 +17,15 @@ def write_json(path, data):
         tmp.write_text(json.dumps(plain(data), indent=1, allow_nan=False) + "\n")
 
 
-#: zlib's level for the PNGs written: the fastest, since matplotlib's default (6) spent
-#: about a quarter of a solve's figure time encoding, for files about 10 % smaller.
+#: zlib's level for the PNGs: the fastest; matplotlib's default (6) spent a quarter of a
+#: solve's figure time for files about 10 % smaller.
 PNG_COMPRESS_LEVEL = 1
 
 
 def figure_bytes(fig, fmt="png", dpi=150):
-    """The file of a :class:`matplotlib.figure.Figure` in format ``fmt``, drawn and
-    encoded by matplotlib's own ``savefig``, as bytes.
-
-    Drawing is kept apart from writing: an error here is the figure's (see
-    :func:`esail_opt.app.plots.write_plots`), one while writing is the disk's.  A PNG
-    is compressed at zlib's fastest level (:data:`PNG_COMPRESS_LEVEL`).
-    """
+    """The file of a matplotlib Figure in format ``fmt`` as bytes (a PNG at
+    :data:`PNG_COMPRESS_LEVEL`).  Drawing is kept apart from writing: an error here is the
+    figure's (:func:`esail_opt.app.plots.write_plots`), one while writing the disk's."""
     buffer = io.BytesIO()
     options = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
     fig.savefig(buffer, format=fmt, dpi=dpi, **options)
@@ -38,12 +33,8 @@ def figure_bytes(fig, fmt="png", dpi=150):
 
 
 def save_figure(fig, path, dpi=150):
-    """Save a :class:`matplotlib.figure.Figure` atomically, in the format of ``path``'s
-    suffix (PNG without one).
-
-    The figure is made without pyplot, so nothing else holds it and there is
-    nothing to close.
-    """
+    """Save a matplotlib Figure atomically, in the format of ``path``'s suffix (PNG
+    without one); made without pyplot, it needs no closing."""
     data = figure_bytes(fig, Path(path).suffix.lstrip(".") or "png", dpi)
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
@@ -63,15 +54,9 @@ def csv_text(rows, fields, digits=10):
 
 
 def write_table_set(out_dir, names, csv_text, data, fig):
-    """A scan's table, record and picture (``names``: the CSV, JSON and PNG file names)
-    written into ``out_dir`` as one set (:func:`publish`); without a picture (``fig``
-    None), the first two.  Returns their paths.
-
-    Raises
-    ------
-    OutputError
-        The folder cannot be written (one line; the old set stays as it was).
-    """
+    """A scan's table, record and picture (``names``: the CSV, JSON and PNG file names;
+    ``fig`` None for no picture) written into ``out_dir`` as one set (:func:`publish`);
+    their paths.  OutputError when the folder cannot be written (the old set stays)."""
     out = Path(out_dir)
     names_written = names if fig is not None else names[:2]
     with publish(out, family=names) as stage:

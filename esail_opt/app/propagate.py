@@ -1,7 +1,6 @@
-"""The ``propagate`` command's work: what it writes for one fixed attitude
-(:func:`run`) or a grid of them (:func:`run_grid`), in the boundary's units, and a
-grid's table and picture.  The flights are :mod:`esail_opt.propagation.fixed_attitude`'s.
-"""
+"""What ``propagate`` writes for one fixed attitude (:func:`run`) or a grid of them
+(:func:`run_grid`), in the boundary's units, and a grid's table and picture; the flights
+are :mod:`esail_opt.propagation.fixed_attitude`'s."""
 
 import math
 
@@ -81,15 +80,9 @@ GRID_COLUMNS = (*GRID_FIELDS, "years", "swept_deg", "eps_percent", "closed_form_
 
 
 def grid_cases(values, years):
-    """Every combination of ``values`` (field of :data:`GRID_FIELDS` -> sequence of
-    numbers), the first field varying slowest.
-
-    Raises
-    ------
-    InputError
-        If a value is outside its field's range (each case is checked, so before
-        anything is flown), or the grid holds more than :data:`MAX_GRID_CASES` cases.
-    """
+    """Every combination of ``values`` (field of :data:`GRID_FIELDS` -> numbers), the first
+    field varying slowest; InputError, before anything is flown, for a value outside its
+    field's range or more than :data:`MAX_GRID_CASES` cases."""
     import itertools
 
     axes = [list(values[field]) for field in GRID_FIELDS]
@@ -103,20 +96,12 @@ def grid_cases(values, years):
 
 
 def run_grid(values, years, samples=None):
-    """What ``esail-opt propagate`` writes for ranges: every case of the grid flown as
-    Figs. 3-4 fly theirs (:func:`eps_over_swept_angles`: the closed forms in one call).
-
-    Each case is flown to the angle CVODES sweeps in the horizon; its row holds eps of
-    Eq. 27 (percent), the closed form's final osculating a and e, r and its own clock
-    there, and CVODES's a, e and r at the horizon.  A case whose closed form does not
-    hold over its span has null results and its reason in ``invalid``.
-
-    Returns
-    -------
-    dict
-        ``input`` (the axes and years), ``ranged`` (the fields with more than one
-        value), ``columns`` (:data:`GRID_COLUMNS`, one list each, a row per case, the
-        first field varying slowest) and ``invalid`` ({row index: reason}).
+    """What ``esail-opt propagate`` writes for ranges: each case flown as Figs. 3-4 fly
+    theirs (:func:`eps_over_swept_angles`), to the angle CVODES sweeps in the horizon.  A
+    dict: ``input`` (axes and years), ``ranged`` (fields with more than one value),
+    ``columns`` (:data:`GRID_COLUMNS`, a list each, a row per case: eps of Eq. 27 in
+    percent, the closed form's final osculating a, e, r and own clock, CVODES's a, e and r)
+    and ``invalid`` ({row index: reason}, that case's results null).
     """
     cases = grid_cases(values, years)
     results = eps_over_swept_angles(cases, samples)
@@ -165,11 +150,8 @@ def grid_csv(data):
 
 
 def grid_figure(data, plot="eps", ax=None):
-    """A grid's ``plot`` (a key of :data:`PLOT_KEYS`) over its ranged axes.
-
-    One ranged axis gives a line; two or more a map over the first two, at the first
-    value of any others (the title says which).  Cells without a value are grey.
-    """
+    """A grid's ``plot`` (a key of :data:`PLOT_KEYS`) over its ranged axes: a line for one,
+    else a map over the first two (grey where empty) at the first value of the others."""
     from esail_opt.app.plots import axes_or_new
 
     column, label = PLOT_KEYS[plot]
@@ -180,7 +162,6 @@ def grid_figure(data, plot="eps", ax=None):
                       float).reshape(shape)
     ranged = data["ranged"] or [list(GRID_FIELDS)[-1]]
     names = list(GRID_FIELDS)
-    # Keep the first two ranged axes whole, every other at its first value.
     index = tuple(slice(None) if f in ranged[:2] else 0 for f in names)
     section = values[index]
     fixed = [f"{f} = {axes[f][0]:g}" for f in names if f not in ranged[:2]]

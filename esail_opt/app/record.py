@@ -1,17 +1,14 @@
 """Frozen records written to JSON from their fields and read back by the same fields.
 
-A record is a frozen dataclass deriving from :class:`Record`; each field is one key of
-its JSON object, named as the field unless :func:`key` gives it a ``name`` (a dotted
-name sits in a nested object: ``"refinement.rounds"``).  A key is left out when the
-field's ``omit(record, value)`` holds (:func:`if_none`: absent rather than null).  A
-``flat`` dict field puts its items in the record's own object: the keys it lists, or
-with :data:`REST` every key no other field names.
-
-Values convert by their annotation: records and other dataclasses by their fields, an
-``Enum`` by its value, lists and tuples item by item.  A field without a default must
-be in the file; one with a default may be absent.  A record holds plain JSON values
-only (:meth:`Record.__post_init__`: numpy numbers as Python ones, NaN and infinity as
-None), so one built in memory equals the same one read back from its file.
+A record is a frozen dataclass deriving from :class:`Record`: each field is one key of its
+JSON object, named as the field unless :func:`key` gives a ``name`` (a dotted one nests:
+``"refinement.rounds"``).  A key is left out when the field's ``omit(record, value)`` holds
+(:func:`if_none`: absent rather than null).  A ``flat`` dict field puts its items in the
+record's own object: the keys it lists, or with :data:`REST` every key no other field names.
+Values convert by their annotation (dataclasses by their fields, an ``Enum`` by its value,
+lists and tuples item by item); a field without a default must be in the file.  A record
+holds plain JSON values only (:func:`plain`), so one built in memory equals the same one
+read back from its file.
 """
 
 import dataclasses
@@ -68,8 +65,8 @@ def _unwrap(hint):
 
 def plain(value):
     """``value`` as plain JSON values: numpy numbers as Python ones, NaN and infinity as
-    None, arrays and tuples as lists; records and enums are kept as they are, other
-    dataclasses made plain field by field."""
+    None, arrays and tuples as lists; records and enums as they are, other dataclasses
+    field by field."""
     kind = type(value)
     if kind is float:
         return value if math.isfinite(value) else None
@@ -203,11 +200,8 @@ def _short(value):
 
 
 def read(cls, data):
-    """The dataclass ``cls`` from the JSON object ``data`` that :func:`write` made.
-
-    Raises :class:`BadField` naming the dotted key at fault: missing, null where the
-    field takes no null, or a value of the wrong kind.
-    """
+    """The dataclass ``cls`` from the JSON object ``data`` that :func:`write` made; raises
+    :class:`BadField` naming the dotted key missing, null where not nullable, or mistyped."""
     if not isinstance(data, dict):
         raise BadField("", f"= {_short(data)} is not a JSON object")
     fields = dataclasses.fields(cls)

@@ -1,14 +1,12 @@
-"""The terminal summary of a :class:`~esail_opt.app.solution.Solution`: the lines
-``esail-opt solve`` prints after a solve, read from the record alone (a solution loaded
-from its file prints the same lines)."""
+"""The lines ``esail-opt solve`` prints for a :class:`~esail_opt.app.solution.Solution`,
+read from the record alone, so that a solution loaded from its file prints the same."""
 
 from esail_opt.bodies import dates
 from esail_opt.optimisation.ipopt import STOPPED
 
 
 def summary(sol):
-    """The summary of ``sol``, one string of lines: the solve, the flight and its
-    verdict, then the turn counts looked at and the polish where there are any."""
+    """``sol``'s summary lines: the solve, the flight and its verdict, turn counts, polish."""
     lines = _solve_lines(sol) + _mission_lines(sol) + _flight_lines(sol.verification)
     lines.append(f"  {sol.verification_note}")
     return "\n".join(lines + _class_lines(sol) + _polish_lines(sol))
@@ -45,9 +43,8 @@ def _flight_lines(v):
 
 
 def _class_line(c, again=False):
-    """One turn count looked at: what it gave (and on which model, when that was the
-    projection of a 3-D run; ``again`` for another start in a count already shown), and
-    whether it was flown and chosen."""
+    """One turn count looked at (``again``: another start of a count already shown): what
+    it gave, on which model, and whether it was flown and chosen."""
     k = (f"k = {c.revolutions_k}" + (" (another start)" if again else "")
          + (" (projected model)" if c.projected else ""))
     if c.tof_days is None and c.status == STOPPED:
@@ -65,7 +62,6 @@ def _class_lines(sol):
     """The turn counts looked at, and the nearest feasible flight, if any."""
     lines = []
     if sol.classes:
-        # The chosen start of a count first, then its other starts.
         ranked = sorted(sol.classes, key=lambda c: (c.revolutions_k, not c.chosen))
         shown = [_class_line(c, i > 0 and ranked[i - 1].revolutions_k == c.revolutions_k)
                  for i, c in enumerate(ranked)]
@@ -77,8 +73,7 @@ def _class_lines(sol):
 
 
 def nearest_feasible_line(n):
-    """One line on a :class:`~esail_opt.app.solution_parts.NearestFeasible`: its date, time of
-    flight and a_c."""
+    """One line on a ``NearestFeasible``: its date, time of flight and a_c."""
     date = "" if n.departure_date is None else f" departing {n.departure_date}"
     return (f"the shortest flight found feasible{date} takes {n.tof_days:.1f} d at a_c "
             f"{n.ac_mm_s2_required:.4g} mm/s^2 ({'verified' if n.verified else 'NOT verified'}"
@@ -103,8 +98,7 @@ def _binding_windows(sol):
 
 
 def _mission_lines(sol):
-    """The dates, the a_c a MinAcceleration found and what the plane hides at a body:
-    the answers a dated or sail-sizing problem was asked for."""
+    """The dates, the a_c a MinAcceleration found and what the plane hides at a body."""
     lines = []
     if sol.departure_date is not None:
         lines.append(f"  departs {sol.departure_date}, arrives {sol.arrival_date} (TDB)")

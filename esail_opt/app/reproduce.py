@@ -1,11 +1,7 @@
-"""Reproduction of the paper's figures: each writes a PNG and the JSON of its data.
-
-Each figure is computed into its JSON data, then drawn from that data alone by a
-figure function (``*_figure(data, ax=None)``, or ``axes=`` for several panels) that
-draws into the caller's axes or, given none, into a Figure of its own.  ``FIGURES``
-maps a name to ``fn(out, progress=None)``, which writes both files and returns their
-paths; ``progress(text)``, if given, hears how far a long figure has got.
-"""
+"""The paper's figures, each computed into its JSON data and drawn from that data alone
+(``*_figure(data, ax=None)``, or ``axes=`` for several panels; a Figure of its own without).
+``FIGURES`` maps a name to ``fn(out, progress=None)``, which writes the JSON and the PNG
+and returns their paths; ``progress(text)`` hears how far a long figure has got."""
 
 import dataclasses
 import math
@@ -47,11 +43,8 @@ def _contour_levels(data, log):
 
 
 def grid_figure(data, key, label, title, scale=1.0, log=False, mark_max=True, ax=None):
-    """A map of ``data[key]`` (times ``scale``) over pitch and a_c, as Figs. 2-4.
-
-    ``data[key][i][j]`` is at ``data["alpha_deg"][i]``, ``data["ac_mm_s2"][j]``; null
-    cells are grey.  Returns the figure.
-    """
+    """A map of ``data[key]`` (times ``scale``) over pitch and a_c, as Figs. 2-4:
+    ``data[key][i][j]`` at ``data["alpha_deg"][i]``, ``data["ac_mm_s2"][j]``, null grey."""
     from matplotlib.colors import LogNorm
 
     fig, ax = axes_or_new(ax, figsize=(7, 4.5))
@@ -92,11 +85,8 @@ def eps_figure(data, ax=None):
 
 
 def fig2(out, progress=None):
-    """Fig. 2: theta_max = 1 / (T a~_c) for the circular parking orbit at r0 = 1 au.
-
-    Where T <= 0, q3 never falls and there is no theta_max: such cells are null in
-    the JSON and grey in the plot.
-    """
+    """Fig. 2: theta_max = 1 / (T a~_c), circular parking orbit at r0 = 1 au; null where
+    T <= 0 (q3 never falls)."""
     theta_max = np.full((ALPHA_DEG.size, AC_MM_S2.size), np.nan)
     for i, alpha in enumerate(ALPHA_DEG):
         _, T = radial_transverse(math.radians(alpha))
@@ -120,17 +110,11 @@ def fig2(out, progress=None):
 
 
 def eps_map(a0, e0, nu0, label, progress=None):
-    """Eq. 27 over the grid: the closed form against CVODES over CVODES's swept angle.
-
-    Returns
-    -------
-    eps, swept : numpy.ndarray, shape (ALPHA_DEG.size, AC_MM_S2.size)
-        eps, and the angle (rad) swept by CVODES in YEARS, over which it was taken.
-    """
+    """Eq. 27 over the grid, closed form against CVODES: ``eps`` and the angle (rad) CVODES
+    swept in YEARS, over which it was taken, each (ALPHA_DEG.size, AC_MM_S2.size)."""
     grid = [(float(alpha), float(ac)) for alpha in ALPHA_DEG for ac in AC_MM_S2]
     cases = [FixedAttitudeCase(a0, e0, nu0, ac, alpha, YEARS)
              for alpha, ac in grid]
-    # All closed forms in one batched call; CVODES per case.
     results = eps_over_swept_angles(cases)
     for (alpha, ac), result in zip(grid, results):
         if result.error is not None:
@@ -208,13 +192,9 @@ def _raising_inputs():
 
 
 def raising_curves():
-    """The three trajectories of Figs. 5-7 in canonical units, rows [r, theta, v_r, v_theta, t].
-
-    The closed form is found with lengths in time (six months of its own clock
-    per arc, as the paper rectifies), then each arc is re-sampled in theta over the
-    angle it was found to span: the same arcs from the same states, only with plot
-    points in between (the time propagator's cost grows with its sample count).
-    """
+    """Figs. 5-7's three trajectories, canonical rows [r, theta, v_r, v_theta, t]: the closed
+    form's arcs are found in time (six months of its clock each, as the paper rectifies),
+    then the same arcs re-sampled in theta: the time propagator's cost grows with samples."""
     from esail_opt.propagation.arcs import FIRST_ORDER
     from esail_opt.propagation.rectified import propagate
     from esail_opt.propagation.radial_balance import radial_balance_function
@@ -233,8 +213,7 @@ def raising_curves():
     t = np.linspace(0.0, horizon, DENSE_POINTS + 1)
     ref10 = np.vstack([np.array(radial_balance_function(t.size)(t[None, :], x0[0], ac, R, T,
                                                                  0.0)), t])
-    # CVODES again at exactly the closed form's and the rectification points' times,
-    # for the errors reported beside the plots.
+    # CVODES at the closed form's sample times, for the errors reported beside the plots.
     at_closed = simulate(x0, [alpha] * (arcs * SAMPLES_PER_ARC), np.diff(closed[4]), ac)
     return {"cvodes": cvodes, "ref10": ref10, "closed_form": closed,
             "cvodes_at_closed_form": at_closed,
@@ -270,8 +249,7 @@ def _raising_json(figure, curves, series):
     for key in CURVE_NAMES:
         xs = curves[key]
         data[key] = {"t_days": units.time_to_days(xs[4]).tolist(), **series(xs)}
-    # Taken from the closed form's samples (every arc's first and last), so that a
-    # quantity unwrapped along the curve (omega) is unwrapped the same way here.
+    # From the closed form's own samples, so that omega is unwrapped as along the curve.
     data["rectification_points"] = {
         key: values[::SAMPLES_PER_ARC] for key, values in data["closed_form"].items()
     }
@@ -279,11 +257,8 @@ def _raising_json(figure, curves, series):
 
 
 def raising_panels(data, keys, ylabels, title, axes=None):
-    """Stacked panels of ``data``'s curves against time in days (Figs. 5-6).
-
-    Each panel holds the three curves of ``keys[k]`` and the rectification points
-    (squares).  ``axes``, if given, holds one Axes per key.  Returns the figure.
-    """
+    """Stacked panels (Figs. 5-6), one per key (``axes``: one Axes each), of the three
+    curves and the rectification points (squares) against time in days."""
     fig, axes = axes_or_new(axes, len(keys), 1, figsize=(7, 2.4 * len(keys) + 0.6),
                             sharex=True, squeeze=False)
     axes = np.ravel(axes)
@@ -353,8 +328,7 @@ def fig6(out, progress=None):
 
 
 def raising_trajectory_figure(data, ax=None):
-    """Fig. 7 from its JSON data: the three trajectories in the plane, and the
-    rectification points (squares)."""
+    """Fig. 7 from its JSON data: the trajectories and the rectification points."""
     fig, ax = axes_or_new(ax, figsize=(6.5, 6.5))
     for curve in CURVE_NAMES:
         color, style = _STYLES[curve]
@@ -388,9 +362,8 @@ def fig7(out, progress=None):
 
 #: Arc counts of the convergence study; each doubles the last.
 CONVERGENCE_ARCS = [5, 10, 20, 40, 80, 160, 320, 640, 1280, 2560]
-#: Below this count the error changes sign between 20 and 40 arcs (arcs of a
-#: quarter revolution and more are outside the asymptotic regime), so the order is
-#: fitted on the counts from here on.
+#: The order is fitted from this count on: arcs of a quarter revolution and more are
+#: outside the asymptotic regime (the error changes sign between 20 and 40 arcs).
 FIT_FROM_ARCS = 160
 
 
@@ -402,18 +375,10 @@ def _slope(arcs, errors, start=FIT_FROM_ARCS):
 
 
 def convergence_errors(arcs=CONVERGENCE_ARCS, progress=None):
-    """Final errors of the rectified closed form against CVODES after 10 years.
-
-    Two schedules of N equal arcs, so that each error is measured where it exists:
-
-    * equal durations (10 years / N, lengths in time): the final time is exact by
-      construction, and the errors in r and theta are taken at 10 years;
-    * equal angles (lengths in theta), the total being the angle swept by CVODES
-      in 10 years: theta is exact by construction, and the time-of-flight error is
-      the closed form's time at that angle minus 10 years (r there is kept too).
-
-    Each also with Richardson extrapolation from N and 2N arcs (cost 3N arcs).
-    """
+    """Final errors of the rectified closed form against CVODES after 10 years, for N equal
+    arcs, plain and with Richardson extrapolation from N and 2N arcs (cost 3N), each where
+    it exists: arcs of equal duration (time exact) give r and theta at 10 years; arcs of
+    equal angle, totalling CVODES's swept angle (theta exact), the time of flight and r."""
     from esail_opt.propagation.arcs import FIRST_ORDER
     from esail_opt.propagation.rectified import propagate
     from esail_opt.propagation.simulate import simulate
@@ -470,8 +435,7 @@ def _convergence_rates(data, arcs):
         "slope": {key: {"plain": _slope(arcs, data[key]),
                         "richardson": _slope(arcs, richardson[key])} for key in _RATED},
         "err_640_over_err_20": {key: data[key][i640] / data[key][i20] for key in _RATED},
-        # Equal cost: Richardson from N and 2N (3N arcs) against plain with the arc count
-        # on the grid nearest above 3N (4N), which favours the plain scheme.
+        # Richardson at 3N arcs against plain at 4N, the grid's next count: this favours plain.
         "equal_cost": {
             "note": "Richardson at cost 3N against plain at 4N arcs (the next grid point above)",
             "richardson_arcs_cost": [3 * n for n in arcs[:-2]],
@@ -507,8 +471,7 @@ def _convergence_json(truth, rows, arcs):
 
 
 def convergence_figure(data, axes=None):
-    """The convergence study from its JSON data: three log-log panels (r, theta, time of
-    flight) of the plain and Richardson errors against the arcs evaluated."""
+    """The convergence study from its JSON data: log-log errors against arcs evaluated."""
     fig, axes = axes_or_new(axes, 1, 3, figsize=(12, 4))
     arcs = np.asarray(data["arcs"], float)
     labels = {"err_r_au": "final |dr| [au]", "err_theta_deg": r"final |d$\theta$| [deg]",

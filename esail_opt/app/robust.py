@@ -1,12 +1,7 @@
-"""The ``robust`` command: a solved schedule flown under a varying solar wind.
-
-This module is the command's edge: it checks the request and the solution (a dated,
-verified rendezvous with a body, in three dimensions), reads the solution's schedule
-into the canonical pieces :mod:`esail_opt.optimisation.robustness` flies (each arc
-cut into the problem's ``sub_arcs``, its units converted), and writes the outcome:
-robust.csv (each flight), robust.json (the record) and robust.png.  What is flown and
-how a miss is measured and checked is that module's.
-"""
+"""The ``robust`` command's edge: checks the request and the solution (a dated, verified 3-D
+rendezvous with a body), reads its schedule into the canonical pieces that
+:mod:`esail_opt.optimisation.robustness` flies under a varying solar wind, and writes
+robust.csv, robust.json and robust.png."""
 
 from dataclasses import dataclass
 
@@ -27,10 +22,9 @@ NAMES = ("robust.csv", "robust.json", "robust.png")
 
 @dataclass(frozen=True)
 class Request:
-    """What to fly: ``runs`` flights a kind, the wind, its seed, the guidance (every
-    ``guide_days``; 0 for none), the sail's a_c ``margins`` over what the schedule asks
-    (fractions: one guided kind each), and ``check`` flights of each kind flown again on
-    CVODES."""
+    """What to fly: ``runs`` flights a kind, the wind and its seed, guidance every
+    ``guide_days`` (0: none), the sail's a_c ``margins`` over what the schedule asks
+    (fractions, one guided kind each), and ``check`` flights a kind flown again on CVODES."""
 
     runs: int = 1000
     wind: SolarWind = SolarWind()
@@ -87,9 +81,8 @@ def _checked(sol):
 
 
 def schedule(sol):
-    """``sol``'s schedule as the pieces the NLP flew (each arc cut into the problem's
-    ``sub_arcs``), in the core's canonical units; InputError when it is not one a run
-    flies.  A polished solution flies its polish, at the a_c it asks."""
+    """``sol``'s schedule as the pieces the NLP flew, canonical units; InputError when it is
+    not one a run flies.  A polished solution flies its polish, at the a_c it asks."""
     source = _checked(sol)
     pieces = sol.problem.sub_arcs
     arcs = source.schedule
@@ -109,8 +102,7 @@ def schedule(sol):
 
 
 def run(sol, request, progress=lambda text: None):
-    """Fly ``sol``'s schedule as ``request`` says; a
-    :class:`~esail_opt.optimisation.robustness.Robustness`."""
+    """Fly ``sol``'s schedule as ``request`` says; a ``robustness.Robustness``."""
     return robustness.run(schedule(sol), request, progress)
 
 

@@ -15,22 +15,17 @@ from esail_opt.app.oem import states_km_km_s, write_oem
 from esail_opt.bodies import dates
 from esail_opt.errors import FigureError
 
-#: Every file :func:`write` may put in its folder: the set that a new write replaces
-#: whole (anything else in the folder is the user's and stays).
-#: ``schedule_polished.csv`` is an older version's name of the polished schedule (now
-#: schedule.csv): listed so that a new write drops it rather than keep it as the user's.
+#: Every file :func:`write` may put in its folder, the set a new write replaces whole
+#: (other files are the user's); ``schedule_polished.csv``, an old name of schedule.csv, is
+#: listed so that a new write drops it.
 SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_closed_form.csv",
                   "trajectory.png", "timeline.png", "trajectory.oem", "schedule_polished.csv")
 
 
 def schedule_csv(sol, polished=None):
-    """The schedule as CSV text, one row per segment: the rows of the flight the verdict
-    is about (``sol.polish.schedule`` after a polish, else ``sol.schedule``; ``polished``
-    True or False picks one), every number to the digit, so that
-    flying the file reproduces the flight that was verified.  (At 10 significant
-    digits a polished 2500-day schedule, flown from the CSV, ended 3.5 m from its
-    target where the same schedule at full precision ends 8 mm from it.)  A null of
-    the file (a NaN the JSON could not hold) is written as nan."""
+    """The schedule as CSV text, one row per segment: the flight the verdict is about (the
+    polish's after a polish; ``polished`` True or False picks one), every number to the
+    last digit, so that flying the file reproduces the verified flight; a null as nan."""
     if polished is None:
         polished = sol.polished
     schedule = sol.polish.schedule if polished else sol.schedule
@@ -46,24 +41,12 @@ def schedule_csv(sol, polished=None):
 
 def write(sol, out_dir, plots=True, object_name=None, object_id=None):
     """Write solution.json, schedule.csv, trajectory.oem for a dated 3-D flight and (with
-    ``plots``) the two PNGs into ``out_dir``.  After a polish the schedule and the OEM
-    are the polished flight's, and schedule_closed_form.csv keeps the closed form's.
-    ``object_name`` and ``object_id`` are the OEM's (the problem's name by default).
-    The files are written
-    as one set (:func:`esail_opt.runtime.files.publish`): a reader of the folder sees the
-    previous run's files or these, never a mix, and files of the user's own stay.  The
-    figures are drawn here, one after the other (:func:`esail_opt.app.plots.write_plots`).
-
-    Returns the list of paths written.
-
-    Raises
-    ------
-    OutputError
-        The folder cannot be written (one line; the old set stays as it was).
-    FigureError
-        A figure could not be drawn: the rest of the set was published all the same
-        (the error's ``written``), without that figure.
-    """
+    ``plots``) the two PNGs into ``out_dir`` as one set (:func:`publish`); their paths.
+    After a polish the schedule and the OEM are the polished flight's, and
+    schedule_closed_form.csv the closed form's.  ``object_name`` and ``object_id`` are the
+    OEM's (the problem's name by default).  OutputError when the folder cannot be written
+    (the old set stays); FigureError when a figure was not drawn (the rest published: its
+    ``written``)."""
     out = Path(out_dir)
     failures = []
     with publish(out, family=SOLUTION_FILES) as stage:
@@ -87,11 +70,9 @@ def write(sol, out_dir, plots=True, object_name=None, object_id=None):
 
 
 def _write_oem(sol, path, object_name, object_id):
-    """The flight the verdict is about (the polished one after a polish) as
-    ``trajectory.oem`` (``app.oem``), one data segment per schedule segment; False, and
-    nothing written, for a planar or undated one, a failed flight, or one whose time
-    does not advance: the last iterate of a solve that found no point can hold a
-    segment of negative duration, and such a flight is no ephemeris."""
+    """The flight the verdict is about as ``trajectory.oem``, one data segment per schedule
+    segment; False, nothing written, for a planar, undated or failed flight, or one whose
+    time does not advance (a failed solve's last iterate can hold a negative duration)."""
     polish = sol.polish if sol.polished else None
     flight = sol.trajectory_polished if polish else sol.trajectory_cvodes
     if flight is None or flight.three_d is None or not sol.dated:
@@ -114,8 +95,7 @@ def _write_oem(sol, path, object_name, object_id):
 
 
 def _oem_comments(sol, polish):
-    """What the message's reader should know: the model, which flight, its verdict, its
-    miss with the verifier's own error, and the bound it was held to."""
+    """The OEM's comments: the model, which flight, its verdict, miss and bound."""
     check, bounds = (polish.verification, polish.bounds) if polish else (sol.verification,
                                                                            sol.tolerance)
     verdict = "verified" if (polish.verified if polish else sol.flight_verified) else "NOT verified"
@@ -141,8 +121,7 @@ def _oem_comments(sol, polish):
 
 
 def plot(sol):
-    """The trajectory and timeline figures of ``sol``, drawn and returned unsaved
-    (:func:`write` saves them)."""
+    """The trajectory and timeline figures of ``sol``, unsaved."""
     from esail_opt.app import plots as plotting
 
     return plotting.trajectory_figure(sol), plotting.timeline_figure(sol)

@@ -1,10 +1,6 @@
-"""The records a :class:`~esail_opt.app.solution.Solution` is made of: its states,
-samples, schedule, verification, settings, calendar bodies, classes and polish.
-
-They are apart from :mod:`esail_opt.app.solution` so that :mod:`esail_opt.app.from_run`
-builds them without importing the module that solves: the dependency runs one way,
-solution -> from_run -> solution_parts.
-"""
+"""The records a :class:`~esail_opt.app.solution.Solution` is made of, apart from that
+module so that :mod:`esail_opt.app.from_run` builds them without importing the module that
+solves: solution -> from_run -> solution_parts."""
 
 import dataclasses
 from dataclasses import dataclass
@@ -82,8 +78,8 @@ OPTIONAL_COLUMNS = tuple(f.name for f in dataclasses.fields(Segment)
 
 @dataclass(frozen=True)
 class Schedule(Record):
-    """A schedule's rows, and which of the optional columns it carries (a column may
-    be present with null values: a segment CVODES could not fly has no local error)."""
+    """A schedule's rows and which optional columns it carries (a column may hold nulls:
+    a segment CVODES could not fly has no local error)."""
 
     rows: Tuple[Segment, ...]
     throttled: bool
@@ -133,14 +129,10 @@ def _flight_failed(flight, value):
 
 @dataclass(frozen=True)
 class Flight(Record):
-    """The CVODES verification of a schedule: its misses against the NLP's final state
-    and the target, the verifier's own error, and the flown final state.
-
-    ``extra`` holds a target's own misses beyond the named ones (an (a, e) target's
-    ``target_miss_a_km`` and ``target_miss_e``, a body's ``relative_speed_km_s``,
-    ``out_of_plane_km`` and, in 3-D, ``normal_miss_km``), by their file names: which
-    ones exist depends on the target.
-    """
+    """The CVODES verification of a schedule: misses against the NLP's final state and the
+    target, the verifier's own error, the flown final state; ``extra``, the target's other
+    misses by file name (``target_miss_a_km`` and ``target_miss_e`` of an (a, e) target, a
+    body's ``relative_speed_km_s``, ``out_of_plane_km`` and, in 3-D, ``normal_miss_km``)."""
 
     miss_r_km: Optional[float]
     miss_v_m_s: Optional[float]
@@ -174,11 +166,9 @@ class Part(Record):
 
 @dataclass(frozen=True)
 class Settings(Record):
-    """The problem as solved (solution.json's ``problem``): ``segments`` is the count
-    used, also when a per-revolution rule set it; ``sub_arcs`` the count the error
-    control ended with; ``departure_state`` the state the schedule is flown from;
-    ``throttle_bounds`` only for a throttled sail (an unthrottled solution.json is
-    exactly what it was before throttles existed)."""
+    """The problem as solved (``problem``): ``segments`` the count used, also when set per
+    revolution; ``sub_arcs`` the count the error control ended with; ``departure_state`` the
+    state the schedule is flown from; ``throttle_bounds`` only for a throttled sail."""
 
     name: str
     description: Optional[str]
@@ -213,9 +203,8 @@ class DepartureBody(Record):
 
 @dataclass(frozen=True)
 class TargetBody(Record):
-    """The body a BodyRendezvous or BodyIntercept flies to, as the flight met it: its
-    distance from the ecliptic, and in 3-D the flight's miss along the ecliptic's
-    normal."""
+    """The body a BodyRendezvous or BodyIntercept flies to, as met: its distance from the
+    ecliptic, and in 3-D the flight's miss along the ecliptic's normal."""
 
     name: str
     source: str
@@ -227,12 +216,10 @@ class TargetBody(Record):
 
 @dataclass(frozen=True)
 class ClassLooked(Record):
-    """One turn count k on the target body that the solve looked at (an entry of
-    ``classes.looked_at``): what its closed form gave, and whether it was flown.
-    ``tof_days``, ``objective`` and ``ac_mm_s2_required`` (MinAcceleration) are None
-    where Ipopt found no point; ``verified`` is None where the class was not flown;
-    ``projected``: its values are the projected model's (a 3-D run's class that was not
-    lifted into 3-D; the key is written only when true)."""
+    """A turn count k on the target body the solve looked at (``classes.looked_at``):
+    ``tof_days``, ``objective`` and ``ac_mm_s2_required`` (MinAcceleration) None where Ipopt
+    found no point, ``verified`` where not flown; ``projected`` (written when true): the
+    projected model's values, not lifted into 3-D."""
 
     revolutions_k: int
     label: str
@@ -249,10 +236,9 @@ class ClassLooked(Record):
 
 @dataclass(frozen=True)
 class NearestFeasible(Record):
-    """The shortest flight found feasible from the same departure, for a fixed-time
-    solve that found no point (``nearest_feasible``): its date, time of flight and a_c,
-    whether its flight is verified (with its note), the longest time of flight found
-    infeasible (the edge lies between the two) and the Ipopt iterations of the walk."""
+    """For a fixed-time solve that found no point, the shortest flight found feasible from
+    the same departure: the edge lies between ``infeasible_tof_days`` and ``tof_days``, and
+    ``iterations`` are Ipopt's over the walk."""
 
     departure_date: Optional[str]
     tof_days: float
@@ -278,15 +264,12 @@ def _not_ran(polish, value):
 
 @dataclass(frozen=True, kw_only=True)
 class Polish(Record):
-    """solution.json's ``polish``: the polished optimum and its verification, or, when
-    the closed form found nothing, only ``note`` (and ``status`` None).
-
-    ``verified`` is True only when Ipopt converged and the flight, its verifier's error
-    included, is within ``bounds`` (1 m, 1 mm/s) of both the target and the polished
-    NLP's final state.  ``departure_state`` and the calendar fields are the polished
-    flight's own: flown from that state (at ``ac_mm_s2_required`` for MinAcceleration)
-    the polished schedule is the flight verified.  A version-3 file has none of them.
-    """
+    """solution.json's ``polish``: the polished optimum and its verification, or, when the
+    closed form found nothing, only ``note`` (``status`` None).  ``verified``: Ipopt
+    converged and the flight, its verifier's error included, is within ``bounds`` (1 m,
+    1 mm/s) of the target and the polished NLP's final state.  ``departure_state`` and the
+    calendar fields are the polished flight's own: flown from that state (at
+    ``ac_mm_s2_required`` for MinAcceleration), the polished schedule is the flight verified."""
 
     status: Optional[str]
     converged: bool
