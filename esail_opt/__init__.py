@@ -1,20 +1,16 @@
-"""esail_opt: trajectory optimisation of Electric Solar Wind Sails on the paper's
-closed form of fixed-attitude arcs (carried to second order in the thrust), verified on
-Eqs. 1-2 with CVODES.
+"""esail_opt: trajectory optimisation of Electric Solar Wind Sails on the paper's closed
+form of fixed-attitude arcs (to second order in the thrust), verified on Eqs. 1-2 with CVODES.
 
-A problem file does ``import esail_opt as eo`` and builds ``problem = eo.Problem(...)``
-from the names below (see :mod:`esail_opt.optimisation.problem`); ``eo.solve(problem)``
-runs it and returns a :class:`Solution`.
+A problem file does ``import esail_opt as eo``, builds ``problem = eo.Problem(...)`` from the
+names below (:mod:`esail_opt.optimisation.problem`); ``eo.solve(problem)`` returns a
+:class:`Solution`.
 """
 
 import os
 
-# One BLAS thread for the Ipopt that CasADi bundles, unless the user's environment says
-# otherwise.  Its OpenBLAS reads this when it loads, at the first solve, so setting it
-# here holds for scripts as for ``esail-opt``: with a second thread the rounding of
-# MUMPS's factorisations differs, enough for a warm-started chart to settle in other
-# close local optima (a script's Earth-Venus chart differed from the command's by up to
-# 3 % a cell), and the factorisations of these NLPs are too small to gain from it.
+# One BLAS thread for the bundled Ipopt, for scripts as for ``esail-opt``, unless the
+# environment says otherwise: a second changes the rounding of MUMPS's factorisations, enough
+# to move a warm-started chart to other local optima, and these NLPs are too small to gain.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from esail_opt.bodies.keplerian import BENNU, CERES, SmallBody  # noqa: F401
@@ -29,8 +25,7 @@ from esail_opt.optimisation.problem import (  # noqa: F401
 
 
 def __getattr__(name):
-    # The application layer (matplotlib, Ipopt) loads only when asked for, so that
-    # ``import esail_opt`` in a problem file stays cheap.
+    # Loaded lazily (matplotlib, Ipopt), so that ``import esail_opt`` stays cheap.
     if name in ("solve", "Solution"):
         from esail_opt.app import solution
 

@@ -1,12 +1,11 @@
-"""The exceptions the command line turns into one line and an exit status.
+"""The exceptions the command line turns into one line and an exit status; in the lowest
+layer, since every layer may raise them.
 
-:class:`InputError` is bad user input (exit 2); its message names the field and the
-allowed range.  :class:`NoStart` is a valid problem that no start can be flown for
-(exit 1).  :class:`OutputError` is an output folder or file that cannot be
-written (exit 3).  :class:`FigureError` is a figure that could not be drawn while the
-rest of its set was written (exit 4).  :class:`Terminated` is SIGTERM, raised where Python would raise
-KeyboardInterrupt for SIGINT (exit 143; :mod:`esail_opt.runtime.signals` raises it).  They live
-in the lowest layer because every layer may raise them.
+:class:`InputError` is bad user input, its message naming the field and the allowed range
+(exit 2); :class:`NoStart` a valid problem no start can be flown for (exit 1);
+:class:`OutputError` an output that cannot be written (exit 3); :class:`FigureError` a figure
+not drawn while the rest of its set was written (exit 4); :class:`Terminated` SIGTERM
+(exit 143; :mod:`esail_opt.runtime.signals` raises it).
 """
 
 import math
@@ -18,11 +17,10 @@ class InputError(ValueError):
 
 
 class NoStart(Exception):
-    """A valid problem for which no start can be flown: at the seed's constant pitch the
-    sail escapes the Sun (which the closed form cannot follow), winds past
-    ``max_revolutions``, or needs its target body after the dates it is known at,
-    before it reaches its aim.  Not bad input: the command says why in one line,
-    writes nothing and exits 1 (nothing was solved)."""
+    """A valid problem for which no start can be flown: at the seed's constant pitch the sail
+    escapes the Sun (which the closed form cannot follow), winds past ``max_revolutions``, or
+    needs its target body after the dates it is known at.  Not bad input: the command says
+    why in one line, writes nothing and exits 1."""
 
 
 class OutputError(Exception):
@@ -31,12 +29,9 @@ class OutputError(Exception):
 
 
 class FigureError(Exception):
-    """One or more figures could not be drawn; every other file of the set was written.
-
-    The message is one line: each figure's failure
-    (``esail_opt.app.plots.figure_failure``), joined by "; ".  ``written`` lists the
-    paths that were written.
-    """
+    """One or more figures could not be drawn; every other file of the set was written.  The
+    message joins each figure's failure (``esail_opt.app.plots.figure_failure``) by "; ";
+    ``written`` lists the paths written."""
 
     def __init__(self, failures, written=()):
         super().__init__("; ".join(failures))
@@ -45,12 +40,8 @@ class FigureError(Exception):
 
 
 class Terminated(KeyboardInterrupt):
-    """The process was asked to stop by a signal other than SIGINT (SIGTERM).
-
-    A KeyboardInterrupt, so that every clean-up written for Ctrl-C (stopping workers,
-    removing temporary files, stopping Ipopt at its next iteration) runs for it too;
-    ``signum`` tells the command line which exit status to give (128 + signum).
-    """
+    """SIGTERM (or another signal but SIGINT) as a KeyboardInterrupt, so that every clean-up
+    written for Ctrl-C runs for it too; the exit status is 128 + ``signum``."""
 
     def __init__(self, signum=15):
         super().__init__(signum)
@@ -62,19 +53,13 @@ MAX_RANGE_COUNT = 10_000
 
 
 def number_range(field, text, max_count=MAX_RANGE_COUNT):
-    """``START:STOP:COUNT`` -> COUNT numbers from START to STOP, both ends included.
+    """``START:STOP:COUNT`` -> COUNT numbers from START to STOP, both ends included, by numpy's
+    linspace (so exactly STOP, and the same floats for the same text): the one reader of a
+    numeric range for every command.
 
-    The grid is numpy's linspace, so it ends exactly on STOP and the same text always
-    gives the same floats; COUNT = 1 needs START = STOP.  This is the one reader of a
-    numeric range for every command (a sweep's parameter, a porkchop's times of flight,
-    the propagation's grids), so they all take and refuse the same texts.
-
-    Raises
-    ------
-    InputError
-        One line naming ``field``: not three parts, START or STOP not finite numbers,
-        COUNT not an integer in [1, ``max_count``], COUNT = 1 between two ends, or
-        COUNT > 1 between equal ones.
+    Raises InputError naming ``field`` for not three parts, START or STOP not finite numbers,
+    COUNT not an integer in [1, ``max_count``], COUNT = 1 between two ends, or COUNT > 1
+    between equal ones.
     """
     import numpy as np
 
@@ -105,13 +90,9 @@ def number_range(field, text, max_count=MAX_RANGE_COUNT):
 
 def check_range(name, value, low=-math.inf, high=math.inf, low_open=False, high_open=False,
                 unit=""):
-    """Return ``float(value)`` if it lies in the stated interval, else raise InputError.
-
-    The message reads e.g. ``e0 = 1.2 is outside [0, 1)`` so a user can fix it.  A
-    string is refused even when it spells a number (``"650"``): the field would keep
-    the string, and the first arithmetic on it would fail far from the problem file
-    with a TypeError that names no field.
-    """
+    """Return ``float(value)`` if it lies in the stated interval, else raise InputError reading
+    e.g. ``e0 = 1.2 is outside [0, 1)``.  A string is refused even when it spells a number
+    (``"650"``): the field would keep the string and fail later, naming no field."""
     left = "(" if low_open else "["
     right = ")" if high_open else "]"
     suffix = f" {unit}" if unit else ""
@@ -140,16 +121,11 @@ _CONTROLS = {"\0": "NUL", "\t": "tab", "\n": "newline", "\r": "CR", "\x1b": "ESC
 
 
 def check_printable(name, value, allowed="printable characters"):
-    """Return ``value`` if it is a non-empty string of printable characters, else raise
-    InputError naming ``name`` and what is allowed.
-
-    Printable is :meth:`str.isprintable`: no control characters (ESC, CR, tab, newline,
-    NUL), no lone surrogates (which no file name or terminal can encode), no format or
-    line-separator characters; a space is allowed.  Such a name is written into folder
-    names, file contents and one-line messages, where a control character would rewrite
-    the terminal's line or split a line in two.  ``allowed`` says what the field takes,
-    for the message.
-    """
+    """Return ``value`` if it is a non-empty string of printable characters
+    (:meth:`str.isprintable`: a space, but no control, lone surrogate, format or line-separator
+    character), else raise InputError naming ``name`` and ``allowed``, what the field takes.
+    Such names go into folder names, files and one-line messages, where a control character
+    would rewrite or split the line."""
     if not isinstance(value, str) or not value:
         raise InputError(f"{name} = {value!r} is not a non-empty string of {allowed}")
     bad = next((c for c in value if not c.isprintable()), None)

@@ -1,21 +1,11 @@
 """Dates: the one place where calendar dates become times and back.
 
-Every date the package reads is an ISO 8601 calendar date, ``YYYY-MM-DD``,
-``YYYY-MM-DDTHH:MM`` or ``YYYY-MM-DDTHH:MM:SS[.fff]`` (a space may stand for the ``T``),
-and it is read as **TDB**, the time scale of the JPL ephemerides.  A trailing ``TDB``
-(``2030-01-01T00:00 TDB``) is accepted, since it only restates that.  A trailing ``Z`` or
-a UTC offset is refused rather than ignored: it claims UTC, which this module does not
-convert.
-
-Why TDB and not UTC: the ephemeris is tabulated in TDB, and the difference is far below
-the tolerances a trajectory is optimised to.  TT - UTC = 69.184 s since 2017-01-01
-(32.184 s plus 37 leap seconds) and TDB - TT stays below 2 ms, so a UTC date read as TDB
-is about 69 s late: a planet moves at most a few thousand km in that time (Earth about
-2,100 km at 30 km/s, Mercury about 3,300 km at 47 km/s), a fraction of a 10,000 km
-rendezvous tolerance and far inside Earth's sphere of influence.
-
-Canonical time is TU (``esail_opt.physics.constants.TU_DAYS`` days) since J2000.0 TDB,
-JD 2451545.0 = 2000-01-01T12:00:00 TDB.
+A date is ISO 8601, ``YYYY-MM-DD``, ``YYYY-MM-DDTHH:MM`` or ``YYYY-MM-DDTHH:MM:SS[.fff]``
+(a space may stand for the ``T``), read as **TDB**, the ephemeris's time scale.  A trailing
+``TDB`` is accepted; a ``Z`` or a UTC offset is refused, since UTC is not converted.  A UTC
+date read as TDB is about 69 s late, at most a few thousand km of a planet's motion: a
+fraction of a 10,000 km rendezvous tolerance.  Canonical time is TU
+(``esail_opt.physics.constants.TU_DAYS`` days) since J2000.0, 2000-01-01T12:00:00 TDB.
 """
 
 import datetime as _dt
@@ -37,9 +27,8 @@ ISO_FORM = "YYYY-MM-DD[THH:MM[:SS]]"
 _JD_2000_MIDNIGHT = J2000_JD - 0.5
 _ORDINAL_2000 = _dt.date(2000, 1, 1).toordinal()
 
-#: The dates (TDB) every date a problem gives must lie in: departures, arrivals, scans
-#: and a small body's epoch.  The bodies' smooth tracks for the NLP span these years
-#: (``bodies.lookup``); the DE421 tables themselves run wider (``bodies.ephemeris``).
+#: The dates (TDB) every date a problem gives must lie in (departures, arrivals, scans, a
+#: small body's epoch): the span of the bodies' tracks (``bodies.lookup``).
 TRACK_SPAN = ("2000-01-01", "2060-01-01")
 
 _PATTERN = re.compile(
@@ -50,27 +39,12 @@ _PATTERN = re.compile(
 
 
 def jd_from_iso(text, field="date"):
-    """Julian date (TDB) of an ISO 8601 calendar date read as TDB.
+    """Julian date (TDB) of an ISO 8601 date (proleptic Gregorian, read as TDB); a date
+    without a time is at 00:00:00, JD ``N.5``.  ``field`` names the date in messages.
 
-    Parameters
-    ----------
-    text : str
-        ``YYYY-MM-DD``, ``YYYY-MM-DDTHH:MM`` or ``YYYY-MM-DDTHH:MM:SS[.fff]``, optionally
-        followed by ``TDB``.  The calendar is the proleptic Gregorian one.
-    field : str
-        The name of the field the date comes from, used in the error message.
-
-    Returns
-    -------
-    float
-        The Julian date; a date without a time is at 00:00:00, i.e. JD ``N.5``.
-
-    Raises
-    ------
-    InputError
-        If ``text`` is not such a date, names a day that does not exist (2030-02-30), an
-        hour past 23, a minute or second past 59 (TDB has no leap seconds), or carries a
-        UTC marker.
+    Raises InputError if ``text`` is not such a date, names a day that does not exist
+    (2030-02-30), an hour past 23, a minute or second past 59 (TDB has no leap seconds),
+    or carries a UTC marker.
     """
     if not isinstance(text, str):
         raise InputError(f"{field} = {text!r} is not an ISO 8601 date ({ISO_FORM})")
@@ -98,23 +72,16 @@ def jd_from_iso(text, field="date"):
 
 def iso_from_jd(jd):
     """ISO 8601 date ``YYYY-MM-DDTHH:MM:SS[.fff]`` (TDB) of a Julian date, rounded to the
-    millisecond, which is written only when it is not zero.  A second of a planet's
-    motion is some 30 km, more than a verified miss may be; a millisecond is 30 m, and a
-    JD's float resolves about 40 microseconds.
-
-    Raises
-    ------
-    InputError
-        If ``jd`` is not a finite number or lies outside the years 1-9999.
-    """
+    millisecond (written only when not zero): a second of a planet's motion is some 30 km,
+    more than a verified miss may be.  InputError if ``jd`` is not a finite number or lies
+    outside the years 1-9999."""
     try:
         value = float(jd)
     except (TypeError, ValueError):
         raise InputError(f"jd = {jd!r} is not a number") from None
     if not math.isfinite(value):
         raise InputError(f"jd = {jd!r} is not a finite Julian date")
-    # Whole days and seconds are split before rounding so that no float ever holds
-    # seconds since year 1 (a JD has ~40 microseconds of resolution, enough for this).
+    # Days and seconds split before rounding: no float holds the seconds since year 1.
     days_from_2000 = value - _JD_2000_MIDNIGHT
     whole = math.floor(days_from_2000)
     milliseconds = round((days_from_2000 - whole) * units.DAY * 1000)
@@ -128,10 +95,8 @@ def iso_from_jd(jd):
 
 
 def tu_from_jd(jd):
-    """Canonical time (TU since J2000.0 TDB) of a Julian date.
-
-    A float gives a float; a numpy array gives an array of the same shape.
-    """
+    """Canonical time (TU since J2000.0 TDB) of a Julian date (float, or numpy array of
+    any shape)."""
     return _same_kind(units.time_from_days(np.asarray(jd, dtype=float) - J2000_JD), jd)
 
 
@@ -141,9 +106,8 @@ def jd_from_tu(t):
 
 
 def jd_split_from_tu(t):
-    """A canonical time as a Julian date in two parts, (J2000's JD, days since J2000):
-    the sum is :func:`jd_from_tu`'s, but the parts keep the microseconds that one float
-    of a Julian date rounds away (the ephemeris and the elements take both parts)."""
+    """A canonical time as a Julian date in two parts, (J2000's JD, days since J2000), that
+    keep the microseconds one float of a Julian date rounds away."""
     return J2000_JD, _same_kind(units.time_to_days(np.asarray(t, dtype=float)), t)
 
 

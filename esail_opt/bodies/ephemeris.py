@@ -1,36 +1,21 @@
 """Planets from JPL's DE421, heliocentric and in the ecliptic frame of J2000.
 
-The `de421` package ships DE421 as Chebyshev coefficients that `jplephem` evaluates
-(``Ephemeris(de421).compute(name, jd)``: km and km/day, relative to the solar-system
-barycentre, in the ICRF, i.e. equatorial axes).  This module
+jplephem evaluates the `de421` package's Chebyshev tables (km and km/day about the
+solar-system barycentre, ICRF axes); this module subtracts the Sun (up to about 0.01 au
+from the barycentre), rotates the axes about x by the obliquity 84381.448 arcsec (IAU 1976,
+as JPL's ecliptic frame), so that atan2(y, x) is the ecliptic longitude, and converts to au
+and au/TU.  :func:`ecliptic_state` is the 3-D state; :func:`polar_state` its projection on
+the ecliptic, which the planar problems fly against.
 
-- subtracts the Sun, since the Sun itself moves up to about 0.01 au about the
-  barycentre, far more than any tolerance here;
-- rotates the equatorial axes to the ecliptic of J2000 about x by the obliquity
-  84381.448 arcsec (IAU 1976, the value JPL's ecliptic frame uses), so that the polar
-  angle atan2(y, x) is the ecliptic longitude;
-- converts to canonical units: au (149,597,870.7 km) and au/TU.
+``earth`` is the **Earth-Moon barycentre**: about 4,700 km from Earth's centre, below a
+10,000 km rendezvous tolerance, and free of the Moon's monthly wobble that a smooth
+:mod:`~esail_opt.bodies.track` would otherwise have to resolve.
 
-:func:`ecliptic_state` is the planet's whole state in three dimensions, out of the
-ecliptic as it is; :func:`polar_state` is its projection on the ecliptic, which the
-planar problems fly against.  The rotation between the two frames is written once, in
-:func:`ecliptic_from_icrf` and :func:`icrf_from_ecliptic` (the latter for outputs in
-DE421's own ICRF, such as an orbit ephemeris message).
-
-Which point ``earth`` is: the **Earth-Moon barycentre** (DE421's ``earthmoon``).  The sail
-starts from Earth's sphere of influence (about 925,000 km across), and the barycentre is
-only about 4,700 km from Earth's centre, below the 10,000 km tolerance of a rendezvous and
-far inside the sphere of influence.  Earth's centre would add the Moon's monthly wobble
-(4,700 km, 12.6 m/s), which a smooth :mod:`~esail_opt.bodies.track` of the barycentre
-does not need to resolve.
-
-Dates are Julian dates in TDB (see :mod:`~esail_opt.bodies.dates`).  The span is read
-from the tables as loaded (:data:`SPAN_JD`); the `de421` package's tables run from
-1899-12-04 to 2200-02-01, wider than the 1900-2050 its description names, and past 2050
-they agree with ERFA's plan94 as well as before it.  jplephem itself would extrapolate
-up to one record beyond the end, so this module checks every date against the span.  The coefficients load
-lazily: the small header at import (for :data:`SPAN_JD`), each body's table on first use,
-once.
+Dates are Julian dates in TDB (:mod:`~esail_opt.bodies.dates`), each checked against
+:data:`SPAN_JD`, since jplephem would extrapolate up to one record beyond the tables' end.
+The tables run from 1899-12-04 to 2200-02-01, wider than the 1900-2050 the package's
+description names, and agree with ERFA's plan94 past 2050 as before.  Each body's table
+loads on first use.
 """
 
 import math
@@ -67,8 +52,7 @@ def _load():
 
 
 def _span():
-    # Every table of the old jplephem format covers [jalpha, jomega]: the reader itself
-    # divides that interval into the table's records, so it is the span of all of them.
+    # In jplephem's old format every table's records divide [jalpha, jomega].
     eph = _load()
     return float(eph.jalpha), float(eph.jomega)
 
@@ -91,10 +75,8 @@ def check_span(jd, field="date"):
         )
 
 
-#: The rotation from DE421's ICRF (equatorial) axes to the ecliptic-J2000 axes, about x by
-#: :data:`OBLIQUITY_J2000`: ``ecliptic = ECLIPTIC_FROM_ICRF @ icrf``.  Its transpose turns
-#: back; both directions go through :func:`ecliptic_from_icrf` and
-#: :func:`icrf_from_ecliptic`, the one place the package rotates between the two.
+#: Rotation from DE421's ICRF axes to the ecliptic of J2000, ``ecliptic = ECLIPTIC_FROM_ICRF
+#: @ icrf``; the package rotates only through :func:`ecliptic_from_icrf` and its inverse.
 ECLIPTIC_FROM_ICRF = np.array([[1.0, 0.0, 0.0],
                                [0.0, _COS_EPS, _SIN_EPS],
                                [0.0, -_SIN_EPS, _COS_EPS]])
@@ -105,8 +87,7 @@ def _rotate(matrix, vectors):
     if values.shape[:1] not in ((3,), (6,)):
         raise ValueError(f"expected 3 or 6 components along the first axis, got shape {values.shape}")
     rotated = np.empty_like(values)
-    # Written out term by term (not a matrix product, which may fuse or reorder the
-    # sums): the ecliptic states keep the exact bits they had before this function.
+    # Term by term: a matrix product may fuse or reorder the sums, changing the last bits.
     for block in range(0, values.shape[0], 3):
         x, y, z = values[block], values[block + 1], values[block + 2]
         for row in range(3):
@@ -115,19 +96,8 @@ def _rotate(matrix, vectors):
 
 
 def ecliptic_from_icrf(vectors):
-    """Rotate ICRF (DE421's equatorial axes) vectors or states to the ecliptic of J2000.
-
-    Parameters
-    ----------
-    vectors : array_like, shape (3, ...) or (6, ...)
-        Positions ``[x, y, z]``, or states ``[x, y, z, vx, vy, vz]`` whose two halves are
-        each rotated; any units (a rotation keeps them).
-
-    Returns
-    -------
-    numpy.ndarray
-        A new array of the same shape.
-    """
+    """A new array: ICRF (DE421's equatorial axes) positions, shape (3, ...), or states,
+    shape (6, ...), each half rotated, turned to the ecliptic of J2000, in the same units."""
     return _rotate(ECLIPTIC_FROM_ICRF, vectors)
 
 
@@ -145,27 +115,14 @@ def planet_key(name, field="body"):
 
 
 def ecliptic_state(name, jd, field="body", jd2=0.0):
-    """Heliocentric ecliptic-J2000 Cartesian state of a planet, canonical units.
+    """Heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU) of the planet
+    ``name`` (one of :data:`PLANETS`, any case, else InputError naming ``field``): shape (6,)
+    for a scalar date, (6, M) for M dates.
 
-    Parameters
-    ----------
-    name : str
-        One of :data:`PLANETS`, any case; ``earth`` is the Earth-Moon barycentre.
-    jd : float or array_like of shape (M,)
-        Julian date(s), TDB, within :data:`SPAN_JD`.
-    field : str
-        The name used for ``name`` in error messages (the date is ``<field>.date``).
-    jd2 : float or array_like
-        A second part of the date, added to ``jd`` (days).  One float of a Julian date
-        resolves about 40 microseconds, a metre of a planet's motion; a date split as
-        J2000 plus the days since (:func:`esail_opt.bodies.dates.jd_split_from_tu`)
-        keeps the microseconds that a metre-level polish is judged on.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``[x, y, z, vx, vy, vz]`` in au and au/TU: shape (6,) for a scalar date, (6, M)
-        for M dates.
+    ``jd`` is the Julian date(s), TDB, plus ``jd2`` days, within :data:`SPAN_JD` (else
+    InputError naming ``<field>.date``).  One float of a JD resolves about 40 microseconds, a
+    metre of a planet's motion; a date split by :func:`~esail_opt.bodies.dates.jd_split_from_tu`
+    keeps what a metre-level polish needs.
     """
     key = planet_key(name, field)
     scalar = np.ndim(jd) == 0 and np.ndim(jd2) == 0
@@ -186,27 +143,12 @@ def ecliptic_state(name, jd, field="body", jd2=0.0):
 
 
 def polar_from_ecliptic(state):
-    """Project ecliptic Cartesian state(s) onto the ecliptic as polar state(s).
+    """Project ecliptic state(s) ``[x, y, z, vx, vy, vz]``, shape (6,) or (6, M), canonical
+    units, onto the ecliptic: ``([r, theta, v_r, v_theta], z)``, shapes (4,) or (4, M) and
+    () or (M,), theta = atan2(y, x) in (-pi, pi], z the height the projection drops (au).
 
-    The position is projected orthogonally onto the ecliptic plane, and the velocity is
-    the time derivative of that projection, i.e. the in-plane components (vx, vy) of the
-    3-D velocity resolved along and across the projected radius:
-    ``v_r = (x vx + y vy) / r`` and ``v_theta = (x vy - y vx) / r`` with ``r = hypot(x, y)``.
-    So dr/dt = v_r and r dtheta/dt = v_theta hold exactly for the projected motion, which
-    a smooth fit of the four components then respects.  The out-of-plane z is returned
-    as well, since the projection drops it.
-
-    Parameters
-    ----------
-    state : array_like, shape (6,) or (6, M)
-        ``[x, y, z, vx, vy, vz]``, canonical units.
-
-    Returns
-    -------
-    polar : numpy.ndarray, shape (4,) or (4, M)
-        ``[r, theta, v_r, v_theta]``, theta = atan2(y, x) in (-pi, pi].
-    z : float or numpy.ndarray, shape (M,)
-        The out-of-plane coordinate, au.
+    The velocity is the projection's time derivative, ``v_r = (x vx + y vy) / r`` and
+    ``v_theta = (x vy - y vx) / r``, so dr/dt = v_r and r dtheta/dt = v_theta hold exactly.
     """
     s = np.asarray(state, dtype=float)
     x, y, z, vx, vy = s[0], s[1], s[2], s[3], s[4]
@@ -216,15 +158,6 @@ def polar_from_ecliptic(state):
 
 
 def polar_state(name, jd, field="body", jd2=0.0):
-    """A planet's state projected onto the ecliptic of J2000, as the package's polar state
-    (arguments as :func:`ecliptic_state`).
-
-    Returns
-    -------
-    polar : numpy.ndarray, shape (4,) or (4, M)
-        ``[r, theta, v_r, v_theta]`` in au, rad and au/TU; theta is the ecliptic
-        longitude in (-pi, pi].  See :func:`polar_from_ecliptic` for the projection.
-    z : float or numpy.ndarray
-        The ecliptic latitude's height, au, that the projection drops.
-    """
+    """:func:`ecliptic_state` projected by :func:`polar_from_ecliptic`: ``[r, theta, v_r,
+    v_theta]`` (au, rad, au/TU; theta the ecliptic longitude) and the height z (au)."""
     return polar_from_ecliptic(ecliptic_state(name, jd, field, jd2))

@@ -1,16 +1,11 @@
 """Small bodies on Keplerian orbits about the Sun, from osculating elements at an epoch.
 
-A :class:`SmallBody` holds heliocentric osculating elements referred to the ecliptic and
-equinox of J2000 (the frame of :mod:`~esail_opt.bodies.ephemeris`), in boundary units
-(au, degrees, an ISO 8601 epoch in TDB).  Its state at another date is the two-body
-motion with mu_sun = 1 in canonical units: the mean anomaly grows at n = a^(-3/2) per TU,
-Kepler's equation gives the eccentric anomaly, and the orbit's orientation is fixed.
-
-This ignores the planets' pull, so it drifts from the real body as the date moves from
-the epoch (for a main-belt asteroid, of order 1e-4 au a year; far more for a near-Earth
-asteroid after a close planetary encounter).  It is the standard preliminary-design
-model of a small-body target; elements with an epoch near the mission dates keep it
-close.
+A :class:`SmallBody` holds heliocentric osculating elements in the ecliptic and equinox of
+J2000 (the frame of :mod:`~esail_opt.bodies.ephemeris`) in au, degrees and an ISO 8601 epoch
+(TDB); its state at another date is two-body motion with mu_sun = 1 (n = a^(-3/2) per TU).
+Ignoring the planets, it drifts from the real body away from the epoch (of order 1e-4 au a
+year for a main-belt asteroid): the standard preliminary-design model, kept close by an
+epoch near the mission's dates.
 """
 
 import math
@@ -23,12 +18,9 @@ from esail_opt.bodies.ephemeris import polar_from_ecliptic
 from esail_opt.errors import InputError, check_printable, check_range
 from esail_opt.physics import constants as units
 
-#: The semimajor axes a small body may have, au: the range every other target's
-#: radius takes (``optimisation.goals``), so that a body is refused where a circular
-#: orbit of its radius would be.  Below 0.05 au (ten solar radii) the orbit grazes
-#: the Sun; beyond 100 au the period passes 1000 years.  Outside it the seeding and
-#: the NLP failed later, with a line naming another field (the seed's pitch, the
-#: revolutions).
+#: The semimajor axes a small body may have, au: every other target's range of radius
+#: (``optimisation.goals``).  Below 0.05 au (ten solar radii) the orbit grazes the Sun;
+#: beyond 100 au the period passes 1000 years.
 A_AU_RANGE = (0.05, 100.0)
 
 #: Newton's method on Kepler's equation stops when the step is below this, rad.
@@ -37,26 +29,13 @@ _KEPLER_MAX_ITER = 60
 
 
 def eccentric_anomaly(mean_anomaly, e):
-    """Solve Kepler's equation E - e sin E = M for E (elliptic, 0 <= e < 1).
+    """Solve Kepler's equation E - e sin E = M for E, rad, of the shape of ``mean_anomaly``
+    (M, rad, float or array; 0 <= e < 1).
 
-    M is first reduced to (-pi, pi], E is returned in the same branch plus the
-    removed whole turns, so E - M is continuous.  The start E0 = M + 0.85 e sign(sin M)
-    (Danby's) keeps Newton's method monotone and fast for every e < 1, including high
-    eccentricities where the start E0 = M can overshoot; iteration stops when every step
-    is below :data:`KEPLER_TOL`, capped at 60 iterations, after which the residual is
-    checked.
-
-    Parameters
-    ----------
-    mean_anomaly : float or numpy.ndarray
-        M, rad.
-    e : float
-        Eccentricity in [0, 1).
-
-    Returns
-    -------
-    float or numpy.ndarray
-        E, rad, of the shape of ``mean_anomaly``.
+    M is reduced to (-pi, pi] and its whole turns added back to E, so E - M is continuous.
+    Danby's start E0 = M + 0.85 e sign(sin M) keeps Newton's method monotone for every
+    e < 1, where E0 = M can overshoot; it stops at steps below :data:`KEPLER_TOL` (at most
+    60 iterations) and raises ArithmeticError if the residual is then above 1e-13.
     """
     m = np.asarray(mean_anomaly, dtype=float)
     turns = np.round(m / (2 * math.pi))
@@ -75,8 +54,7 @@ def eccentric_anomaly(mean_anomaly, e):
     return float(result) if np.ndim(mean_anomaly) == 0 else result
 
 
-#: The perihelion's two angles and what each is, for the line that refuses a body
-#: given both or neither.
+#: The line that refuses a body given both perihelion angles or neither.
 _PERIHELION_CHOICE = (
     "give exactly one: argument_of_perihelion_deg (omega, measured from the ascending node "
     "in the orbit's plane; JPL's small-body database lists it as w) in [-360, 360] deg, "
@@ -93,53 +71,33 @@ def _wrapped_deg(angle):
 class SmallBody:
     """A small body on a heliocentric Keplerian orbit (ecliptic and equinox J2000).
 
-    The perihelion's direction is given by exactly one of two angles, by name:
+    The perihelion is given by exactly one of two keyword angles: ``argument_of_perihelion_deg``
+    (omega, from the ascending node in the orbit's plane: JPL's small-body database's w,
+    pasted as is) or ``perihelion_deg`` (the longitude varpi = node + omega, as some
+    catalogues give).  Both or neither is refused, since no range tells one from the other;
+    both are readable whichever was given.  Every angle after ``node_deg`` is keyword-only.
 
-    - ``argument_of_perihelion_deg``, omega, measured from the ascending node in the
-      orbit's plane.  JPL's small-body database lists w, the argument of perihelion:
-      paste it here.  The shipped bodies are written this way.
-    - ``perihelion_deg``, the longitude of perihelion varpi = node + omega, which some
-      catalogues (and planetary tables) give instead.
+    Fields, in boundary units, each checked on creation (InputError naming ``body.<field>``
+    and its allowed range):
 
-    Both or neither is refused (both lie in the same range of angles, so a catalogue's
-    w given as the longitude would not be caught by a range).  The other one is derived:
-    ``body.argument_of_perihelion_deg`` and ``body.perihelion_deg`` are both readable
-    whichever was given.  Every angle after ``node_deg`` is keyword-only, so that no
-    position in the argument list can stand for the wrong one.
+    - ``name``: what the body is called, e.g. ``"(101955) Bennu"``.
+    - ``a_au``: semimajor axis, au, in [0.05, 100] (:data:`A_AU_RANGE`).
+    - ``e``: eccentricity in [0, 1) (elliptic orbits only).
+    - ``inclination_deg``: to the ecliptic of J2000, deg, in [0, 90): the polar state
+      describes prograde motion about the ecliptic pole, and a polar or retrograde orbit's
+      projected longitude stalls or runs backwards.
+    - ``node_deg``: longitude of the ascending node (Omega, JPL's "om"), deg, in [-360, 360].
+    - ``argument_of_perihelion_deg``: omega (JPL's "w"), deg, in [-360, 360] when given,
+      wrapped into [0, 360) when derived.
+    - ``perihelion_deg`` (read-only property): varpi, deg, in [-720, 720] when given, read
+      back wrapped into [0, 360).
+    - ``mean_anomaly_deg``: mean anomaly at the epoch, deg, in [-360, 360].
+    - ``epoch``: ISO 8601 date of the elements, TDB, within ``dates.TRACK_SPAN`` (2000-2060),
+      so that the two-body model is not carried decades from its epoch.
+    - ``source``: where the elements come from.
 
-    Attributes (boundary units)
-    ---------------------------
-    name : str
-        What the body is called, e.g. ``"(101955) Bennu"``.
-    a_au : float
-        Semimajor axis, au, in [0.05, 100] (:data:`A_AU_RANGE`).
-    e : float
-        Eccentricity in [0, 1) (elliptic orbits only).
-    inclination_deg : float
-        Inclination to the ecliptic of J2000, deg, in [0, 90): the package's polar state
-        describes prograde motion about the ecliptic pole, so retrograde and polar orbits,
-        whose projected longitude stalls or runs backwards, are refused.
-    node_deg : float
-        Longitude of the ascending node (Omega, JPL's "om"), deg, in [-360, 360].
-    argument_of_perihelion_deg : float
-        Argument of perihelion omega (JPL's "w"), deg, from the node: in [-360, 360] when
-        given, wrapped into [0, 360) when derived from ``perihelion_deg``.
-    perihelion_deg : float (read-only property)
-        Longitude of perihelion varpi = node + omega, deg: in [-720, 720] when given
-        (as a keyword argument), always read back wrapped into [0, 360).
-    mean_anomaly_deg : float
-        Mean anomaly at the epoch, deg, in [-360, 360].
-    epoch : str
-        ISO 8601 date of the elements, TDB, in the tracked span 2000-2060
-        (``dates.TRACK_SPAN``): the two-body model drifts from the real body as the
-        date moves from the epoch, so elements from outside the years a mission is
-        flown in are refused rather than carried decades.
-    source : str
-        Where the elements come from.
-
-    Every field is checked when the body is created; a bad one raises InputError naming
-    ``body.<field>`` and its allowed range.  A solution file holds the body's fields
-    with ``argument_of_perihelion_deg``; an older one's ``perihelion_deg`` still reads.
+    A solution file holds ``argument_of_perihelion_deg``; one holding ``perihelion_deg``
+    reads too.
     """
 
     name: str
@@ -205,23 +163,10 @@ class SmallBody:
         return units.time_to_days(2 * math.pi / self.mean_motion)
 
     def ecliptic_state(self, jd, field="body", jd2=0.0):
-        """Heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU).
-
-        Parameters
-        ----------
-        jd : float or array_like of shape (M,)
-            Julian date(s), TDB.  Any finite date: the two-body model has no span.
-        field : str
-            Name used in error messages (``<field>.date``).
-        jd2 : float or array_like
-            A second part of the date, days, as for the planets
-            (:func:`esail_opt.bodies.ephemeris.ecliptic_state`).
-
-        Returns
-        -------
-        numpy.ndarray
-            Shape (6,) for a scalar date, (6, M) for M dates.
-        """
+        """Heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU), shape (6,)
+        or (6, M), at Julian date(s) ``jd`` (TDB) plus ``jd2`` days, as the planets'
+        (:func:`esail_opt.bodies.ephemeris.ecliptic_state`).  Any finite date (else InputError
+        naming ``<field>.date``): the two-body model has no span."""
         scalar = np.ndim(jd) == 0 and np.ndim(jd2) == 0
         dates = np.atleast_1d(np.asarray(jd, dtype=float))
         extra = np.broadcast_to(np.asarray(jd2, dtype=float), dates.shape)
@@ -229,8 +174,7 @@ class SmallBody:
             raise InputError(f"{field}.date = {jd!r} is not a finite Julian date")
         a, e = self.a_au, self.e
         n = self.mean_motion
-        # The days since the epoch are formed before the second part is added, so that
-        # a split date keeps its microseconds.
+        # Days since the epoch before ``jd2`` is added: a split date keeps its microseconds.
         since = units.time_from_days((dates - self.epoch_jd) + extra)
         m = math.radians(self.mean_anomaly_deg) + n * since
         big_e = eccentric_anomaly(m, e)
@@ -245,10 +189,8 @@ class SmallBody:
         return state[:, 0] if scalar else state
 
     def polar_state(self, jd, field="body", jd2=0.0):
-        """State projected onto the ecliptic as ``([r, theta, v_r, v_theta], z)``.
-
-        Same contract as :func:`esail_opt.bodies.ephemeris.polar_state`.
-        """
+        """``([r, theta, v_r, v_theta], z)`` projected onto the ecliptic, as
+        :func:`esail_opt.bodies.ephemeris.polar_state`."""
         return polar_from_ecliptic(self.ecliptic_state(jd, field, jd2))
 
     def _perifocal_to_ecliptic(self):
@@ -272,22 +214,9 @@ class SmallBody:
 
 
 def _from_horizons(name, designation, elements, epoch, solution):
-    """A shipped body from JPL Horizons' heliocentric ecliptic J2000 osculating elements.
-
-    Parameters
-    ----------
-    name : str
-        The body's name, e.g. ``"(101955) Bennu"``.
-    designation : str
-        The body as Horizons names it, for ``source``.
-    elements : tuple of float
-        Horizons' own elements in its order, (A au, EC, IN deg, OM deg, W deg, MA deg),
-        given to :class:`SmallBody` as printed: W is ``argument_of_perihelion_deg``.
-    epoch : str
-        ISO 8601 date of the elements (0 h TDB).
-    solution : str
-        Which orbit solution, for ``source``.
-    """
+    """A shipped body from JPL Horizons' heliocentric ecliptic J2000 osculating elements, in
+    Horizons' order and as printed (A au, EC, IN deg, OM deg, W deg, MA deg) at ``epoch``
+    (0 h TDB); ``designation`` and ``solution`` go into ``source``."""
     a, e, inclination, node, argument, mean_anomaly = elements
     return SmallBody(
         name=name, a_au=a, e=e, inclination_deg=inclination, node_deg=node,

@@ -1,16 +1,14 @@
 """One way to ask for any body, planet or small body, by what a problem file names.
 
-A problem names a body as a planet's name (a string, read from DE421) or as a
-:class:`~esail_opt.bodies.keplerian.SmallBody`.  The optimisation layer asks this module
-for the body's exact state at a date, its smooth track for the NLP, and its label, so
-it never has to know which kind it holds.
+A body is a planet's name (read from DE421) or a
+:class:`~esail_opt.bodies.keplerian.SmallBody`; the optimisation layer asks this module for
+its exact state at a date, its smooth track for the NLP and its label, whichever it is.
 
-Every track spans :data:`TRACK_SPAN`, built once per body and process: one NLP then
-serves a scan over any dates in it, and the dates stay parameters of the NLP rather
-than part of its structure.  The span is sixty years rather than the whole of DE421,
-since fitting grows with the span and no mission analysis here asks for other dates.  The exact state's polar angle is put on the track's branch
-(theta unwrapped from the span's start), so that a seed flown from the exact state and
-the NLP's departure from the track agree on theta, not only modulo 2 pi.
+Every track spans :data:`TRACK_SPAN`, built once per body and process, so that one NLP
+serves a scan over any dates in it, the dates being parameters rather than structure; sixty
+years, not all of DE421, since fitting grows with the span.  An exact state's polar angle is
+put on the track's branch (theta unwrapped from the span's start), so that a seed flown from
+it and the NLP's departure from the track agree on theta, not only modulo 2 pi.
 """
 
 import dataclasses
@@ -73,7 +71,7 @@ def _track(key):
 
 
 def track(body):
-    """The body's smooth track over the ephemeris's span (``bodies.track.Track``)."""
+    """The body's smooth track over :data:`TRACK_SPAN` (``bodies.track.Track``)."""
     return _track(_key(body))
 
 
@@ -94,17 +92,15 @@ def polar_state(body, jd, field="body", jd2=0.0):
 
 def polar_state_at(body, t, field="body"):
     """:func:`polar_state` at canonical time ``t`` (TU since J2000 TDB), the date kept in
-    two parts (``dates.jd_split_from_tu``): what the verification and the polish hold a
-    flight to, where a metre of a planet's motion is a few tens of microseconds."""
+    two parts (``dates.jd_split_from_tu``) whose microseconds the verification and the polish
+    need: a metre of a planet's motion is a few tens of them."""
     jd, days = jd_split_from_tu(float(t))
     return polar_state(body, jd, field, days)
 
 
 def track_correction(body, t):
-    """The body's exact polar state less its smooth track's at time ``t`` (TU since
-    J2000 TDB): what moves the track onto the ephemeris (or the elements) at that time.
-    The track meets its source to tens of metres (``bodies.track``), so this is that
-    small; the polish adds it so that its 1 m holds against the source itself."""
+    """The body's exact polar state less its smooth track's at time ``t`` (TU since J2000
+    TDB): tens of metres, which the polish adds so that its 1 m holds against the source."""
     exact, _ = polar_state_at(body, t)
     return exact - np.ravel(track(body).polar(float(t)))
 
@@ -134,11 +130,9 @@ def check_span(jd, field):
 
 
 def ecliptic_state(body, jd, field="body", jd2=0.0):
-    """Exact heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU) of a
-    planet (DE421, unprojected) or a small body (its six elements) at Julian date(s)
-    ``jd`` (TDB) plus ``jd2`` days: shape (6,) for a scalar date, (6, M) for M dates.
-    Its projection on the ecliptic is :func:`polar_state`'s state (theta there is put on
-    the track's branch)."""
+    """Exact heliocentric ecliptic-J2000 state ``[x, y, z, vx, vy, vz]`` (au, au/TU), shape
+    (6,) or (6, M), at Julian date(s) ``jd`` (TDB) plus ``jd2`` days; projected, it is
+    :func:`polar_state`'s but for theta's branch."""
     body = _key(body)
     if isinstance(body, SmallBody):
         return body.ecliptic_state(jd, field, jd2)
@@ -158,15 +152,13 @@ def _track3(key):
 
 
 def track3(body):
-    """The body's smooth 3-D track over :data:`TRACK_SPAN` (``bodies.track.Track3``),
-    built on :func:`track`'s samples: its projection on the ecliptic is that track, unless
-    the height above the ecliptic needed finer samples than the plane (then the two agree
-    to their errors, tens of metres)."""
+    """The body's smooth 3-D track over :data:`TRACK_SPAN` (``bodies.track.Track3``) on
+    :func:`track`'s samples, unless z needed finer ones (then the two agree to tens of
+    metres)."""
     return _track3(_key(body))
 
 
 def track3_correction(body, t):
     """The body's exact ecliptic state less its smooth 3-D track's at time ``t`` (TU since
-    J2000 TDB), as :func:`track_correction` in the plane: tens of metres, what a polish
-    adds to hold its metre against the source itself."""
+    J2000 TDB): :func:`track_correction` in three dimensions."""
     return ecliptic_state_at(body, t) - np.ravel(track3(body).state(float(t)))

@@ -1,26 +1,14 @@
 """A smooth, twice-differentiable form of a body's state over a time window, for the NLP.
 
-The NLP needs a body's polar state as a function of a free time (a departure or arrival
-date) that Ipopt can differentiate twice, since it uses exact Hessians.  DE421 is
-piecewise Chebyshev with records of 8-32 days whose joints are only approximately smooth,
-and the Keplerian solver iterates; neither is a CasADi expression.  A :class:`Track`
-samples the exact source on a uniform grid over the window (plus a margin of at least
-60 days at each end, where a spline is least accurate and where an NLP iterate may
-stray), unwraps the longitude so that it grows continuously past 2 pi, and fits one
-cubic B-spline (``casadi.interpolant``, "bspline", not-a-knot) to each of r, theta, v_r
-and v_theta.  The spline is C2 and CasADi has its
-derivatives in closed form, so first and second derivatives exist for SX and MX inputs.
-
-Why a spline of samples rather than Kepler's equation unrolled in CasADi for small
-bodies: one form for every body keeps one contract and one error measurement, and the
-fit error is far below the model error of the Keplerian orbit itself.
-
-The default step starts at 1/200 of the body's osculating period at the window's start
-(1.8 d for Earth, 3.4 d for Mars, 2.2 d for Bennu) and is halved until the error measured
-against the exact source, at the mid-points between samples where a spline's error
-peaks, is at most 50 m and 0.1 mm/s.  The error of a cubic spline falls as h^4, so one
-halving gains a factor of 16; the measured errors are kept on the track
-(:attr:`Track.max_error_km`, :attr:`Track.max_error_m_s`).
+Ipopt uses exact Hessians, so a body's polar state must be a CasADi expression of a free
+date, which neither DE421's Chebyshev records (joined only approximately smoothly) nor the
+iterated Kepler solver is.  A :class:`Track` samples the exact source on a uniform grid over
+the window plus a margin (at least 60 days at each end, where a spline is least accurate and
+an iterate may stray), unwraps the longitude and fits a C2 cubic B-spline
+(``casadi.interpolant``, "bspline", not-a-knot) to r, theta, v_r and v_theta.  Small bodies
+too: one form keeps one contract, and its error is far below the Keplerian model's.  The
+default step, 1/200 of the osculating period at the window's start, is halved until the
+error at the samples' mid-points, where a spline errs most, is at most 50 m and 0.1 mm/s.
 """
 
 import math
@@ -50,35 +38,18 @@ MAX_HALVINGS = 6
 
 
 class Track:
-    """A body's polar state over a window of time as a smooth CasADi function.
+    """A body's polar state over a window of time as a smooth CasADi function; build one with
+    :func:`track_of`.
 
-    Build one with :func:`track_of`.
-
-    Attributes
-    ----------
-    name : str
-        The body's name.
-    jd_range : tuple of float
-        (start, stop) Julian dates (TDB) of the window.
-    t_range : tuple of float
-        The same window in TU since J2000 TDB: the times the track is valid on.
-    step_days : float
-        Spacing of the samples, days.
-    max_error_km, max_error_m_s : float
-        The largest in-plane position (km) and velocity (m/s) difference between the
-        track and its exact source at the mid-points of the samples inside the window.
-    sampled_jd : numpy.ndarray
-        The Julian dates (TDB) sampled, uniformly spaced over :attr:`sampled_t_range`.
-    samples : numpy.ndarray
-        The polar states fitted there, (4, M), theta unwrapped.
-    sampled_t_range : tuple of float
-        The times sampled, TU: :attr:`t_range` widened by a margin of at least 60 days
-        at each end (less where a planet's window meets the ephemeris span).  The spline
-        follows the body there too, but its error is only measured on :attr:`t_range`.
-    function : casadi.Function
-        ``track(t) -> [r, theta, v_r, v_theta]`` (4x1), t in TU since J2000; theta is
-        unwrapped, so continuous over the window.  Beyond :attr:`sampled_t_range` it
-        holds the end state (zero derivative): bound t to :attr:`t_range` in the NLP.
+    Attributes: ``name``; ``jd_range``, the window's (start, stop) Julian dates (TDB), and
+    ``t_range``, the same in TU since J2000 TDB; ``step_days``, the samples' spacing, days;
+    ``sampled_jd``, the dates sampled, (M,), over ``sampled_t_range`` (:attr:`t_range` widened
+    by the margin, less where a planet's window meets the ephemeris span); ``samples``, the
+    polar states fitted, (4, M), theta unwrapped; ``max_error_km`` and ``max_error_m_s``, the
+    largest in-plane position (km) and velocity (m/s) difference from the exact source at the
+    samples' mid-points within :attr:`t_range`; ``function``, ``track(t) -> [r, theta, v_r,
+    v_theta]`` (4x1, t in TU since J2000, theta unwrapped), which holds the end state beyond
+    ``sampled_t_range`` (zero derivative): bound t to :attr:`t_range` in the NLP.
     """
 
     def __init__(self, name, source, start_jd, stop_jd, step_days, span=None):
@@ -96,11 +67,9 @@ class Track:
         polar[1] = np.unwrap(polar[1])
         t_grid = tu_from_jd(jd)
         t = ca.MX.sym("t")
-        # CasADi's B-spline is zero outside its knots; holding t at the sampled range
-        # keeps a stray NLP iterate on a finite, physical (if frozen) state instead.
+        # CasADi's B-spline is zero outside its knots: a stray iterate gets the end state.
         held = ca.fmin(ca.fmax(t, t_grid[0]), t_grid[-1])
-        # One spline of four outputs (the sample index slowest): the same fit of each
-        # component as four splines would make, at a fraction of the cost to build.
+        # Four outputs in one spline (sample index slowest): the same fit, far cheaper.
         spline = stored_spline(self._tag(), t_grid, polar.T.ravel())
         self.function = ca.Function("track", [t], [spline(held)], ["t"], ["polar"])
         self.sampled_t_range = (float(t_grid[0]), float(t_grid[-1]))
@@ -113,18 +82,9 @@ class Track:
         return "track_" + "_".join(words).lower()
 
     def polar(self, t):
-        """The smooth polar state ``[r, theta_unwrapped, v_r, v_theta]`` at time(s) t.
-
-        Parameters
-        ----------
-        t : float, numpy.ndarray of shape (M,), or casadi SX/MX/DM scalar
-            Canonical time, TU since J2000 TDB.
-
-        Returns
-        -------
-        numpy.ndarray of shape (4,) or (4, M) for numeric t (which must lie in
-        :attr:`t_range`), a 4x1 CasADi expression for symbolic t.
-        """
+        """The smooth polar state ``[r, theta_unwrapped, v_r, v_theta]`` at canonical time(s) t (TU
+        since J2000 TDB): shape (4,) or (4, M) for a float or array, which must lie in
+        :attr:`t_range` (InputError otherwise), a 4x1 CasADi expression for a symbolic t."""
         if isinstance(t, (ca.SX, ca.MX)):
             return self.function(t)
         times = np.asarray(t, dtype=float)
@@ -141,8 +101,7 @@ class Track:
             worst = float(np.atleast_1d(times)[np.atleast_1d(bad)][0])
             when = (f"on {iso_from_jd(jd_from_tu(worst))} TDB" if math.isfinite(worst)
                     else f"at t = {worst!r}")
-            # Reached by a flight, not by a date the user wrote (those are checked on
-            # their own): say which dates would fit.
+            # Reached by a flight, not a date the user wrote: say which dates would fit.
             raise InputError(
                 f"{self.name} is needed {when}, outside the dates it is known at "
                 f"[{iso_from_jd(self.jd_range[0])}, {iso_from_jd(self.jd_range[1])}] TDB: "
@@ -169,15 +128,10 @@ class Track:
 
 
 def stored_spline(name, grid, values):
-    """CasADi's cubic B-spline interpolant ``name`` through ``values`` on ``grid`` (as
-    ``casadi.interpolant(name, "bspline", [grid], values)``), read from the package's
-    cache when the same samples were fitted before (:mod:`esail_opt.runtime.function_store`).
-
-    Fitting a track's tens of thousands of samples is most of building it, in every
-    process; the stored spline is the one fitted, number for number.  Its file is named
-    by the samples' bytes, the name and the CasADi version, so other samples or another
-    CasADi fit anew.
-    """
+    """``casadi.interpolant(name, "bspline", [grid], values)``, read from the package's cache
+    (:mod:`esail_opt.runtime.function_store`) when the same samples were fitted before, since
+    fitting is most of building a track; the file is named by the samples' bytes, the name and
+    the CasADi version."""
     grid = np.ascontiguousarray(grid, dtype=float)
     values = np.ascontiguousarray(values, dtype=float)
     decided_by = b"\0".join([name.encode(), ca.__version__.encode(), grid.tobytes(),
@@ -191,17 +145,11 @@ SPOT_CHECKS = 3
 
 
 def stored_samples(name, source, jd):
-    """``source(jd)`` (an array whose last axis runs over ``jd``), read from the package's
-    cache when the same dates of ``name`` were sampled before (:mod:`esail_opt.runtime.function_store`).
-
-    Sampling DE421 over a track's sixty years, and again at the mid-points where its
-    error is measured, is most of what is left of building a track once its spline is
-    stored.  The file is named by ``name`` and the dates' bytes; before it is used the
-    source is asked again at :data:`SPOT_CHECKS` of its dates, spread from the first to
-    the last, and the stored samples are used only if they are those numbers exactly:
-    an ephemeris, a small body's elements or a conversion that changed is sampled
-    afresh.
-    """
+    """``source(jd)`` (an array whose last axis runs over ``jd``), read from the package's cache
+    when the same dates of ``name`` were sampled before, since sampling is most of what is left
+    of building a track.  The stored samples are used only if the source gives exactly them
+    again at :data:`SPOT_CHECKS` of the dates, so a changed ephemeris, set of elements or
+    conversion is sampled afresh."""
     jd = np.ascontiguousarray(jd, dtype=float)
     path = function_store.path_of("tracks", name, b"\0".join([name.encode(), jd.tobytes()]),
                                   suffix=".npy")
@@ -223,17 +171,10 @@ def _mids(jd_grid, jd_range):
 
 
 def stored_errors(name, decided_by, measure):
-    """A track's largest errors (km, m/s) against its source, ``measure()``'s, read from
-    the package's cache when the same fit was measured against the same exact samples
-    before.
-
-    Evaluating a sixty-year track at its twelve thousand mid-points is most of what is
-    left of building it once its spline and samples are stored.  The errors are
-    decided by the arrays ``decided_by`` (the samples fitted, the dates measured at and
-    the exact states there, which :func:`stored_samples` has checked against the
-    source) and by CasADi's version, which fits and evaluates the spline; any other
-    array measures afresh.
-    """
+    """A track's largest errors (km, m/s), ``measure()``'s, read from the package's cache when
+    measured before with the same arrays ``decided_by`` (the samples fitted, the dates measured
+    at and the exact states there, checked by :func:`stored_samples`) and CasADi version, since
+    evaluating a sixty-year track at its twelve thousand mid-points is costly."""
     key = b"\0".join([name.encode(), ca.__version__.encode()]
                       + [np.ascontiguousarray(a, dtype=float).tobytes() for a in decided_by])
     path = function_store.path_of("tracks", name, key, suffix=".npy")
@@ -257,27 +198,16 @@ def _in_plane(r, th, vr, vt, cos, sin):
 
 
 def track_of(body, start_jd, stop_jd, step_days=None):
-    """The smooth :class:`Track` of a planet or small body over [start_jd, stop_jd].
+    """The smooth :class:`Track` of ``body``, a planet of
+    :data:`esail_opt.bodies.ephemeris.PLANETS` (any case) or a :class:`SmallBody`, over the
+    window [start_jd, stop_jd], Julian dates (TDB), a planet's within
+    :data:`esail_opt.bodies.ephemeris.SPAN_JD`.
 
-    Parameters
-    ----------
-    body : str or SmallBody
-        A planet name from :data:`esail_opt.bodies.ephemeris.PLANETS` (any case;
-        ``earth`` is the Earth-Moon barycentre) or a :class:`SmallBody`.
-    start_jd, stop_jd : float
-        The window, Julian dates (TDB), start < stop.  For a planet both must lie within
-        :data:`esail_opt.bodies.ephemeris.SPAN_JD`; a small body's two-body orbit has no
-        span.
-    step_days : float, optional
-        Sample spacing, days.  By default it starts at 1/200 of the osculating period at
-        ``start_jd`` (at most 1/16 of the window) and is halved, up to 6 times, until the
-        measured error is at most :data:`TARGET_ERROR_KM` and :data:`TARGET_ERROR_M_S`.
-
-    Raises
-    ------
-    InputError
-        For an unknown body, a window outside the ephemeris span, stop <= start, or a
-        step that is not positive.
+    ``step_days`` is the samples' spacing, days; by default 1/200 of the osculating period at
+    ``start_jd`` (at most 1/16 of the window), halved up to :data:`MAX_HALVINGS` times until the
+    error is at most :data:`TARGET_ERROR_KM` and :data:`TARGET_ERROR_M_S`.  Raises InputError for
+    an unknown body, a window outside the ephemeris span, stop <= start, or a step that is not
+    positive.
     """
     start = check_range("track.start_jd", start_jd)
     stop = check_range("track.stop_jd", stop_jd)
@@ -314,39 +244,20 @@ def _period_days(polar):
 
 
 class Track3:
-    """A body's 3-D state over a window of time as a smooth CasADi function.
+    """A body's 3-D state over a window of time as a smooth CasADi function; build one with
+    :func:`track3_of` or :func:`track3_on`.  It is the planar :class:`Track` ``planar`` plus the
+    height z above the ecliptic and its rate v_z, one cubic B-spline each on the same samples:
+    its projection *is* the planar track.  z swings once a revolution with amplitude r sin i, so
+    its spline errs by about (5/384) r sin i (2 pi h / P)^4 for a step h and period P, possibly
+    more than the plane: the 3-D error is measured, and :func:`track3_on` refines the step.
 
-    Build one with :func:`track3_of` or :func:`track3_on`.  It is a planar
-    :class:`Track` (the state projected on the ecliptic, :attr:`planar`) plus the height
-    above the ecliptic z and its rate v_z, fitted by the same method on the same samples:
-    one cubic B-spline each, held at the sampled ends.  So the projection of this track
-    *is* the planar track, spline for spline, and a planar problem and a 3-D one built on
-    the same samples see the same body in the plane.  z and v_z are the components the
-    projection drops (:func:`esail_opt.bodies.ephemeris.polar_from_ecliptic`).  Their
-    samples are not as smooth as the in-plane ones: r and the longitude move slowly and
-    steadily, while z swings once a revolution with amplitude r sin i, so its spline
-    error is about (5/384) r sin i (2 pi h / P)^4 for a step h and period P (Venus's z
-    errs by more than its plane does).  The 3-D error is measured (:attr:`max_error_km`, :attr:`max_error_m_s`)
-    and, where the step is chosen here, the step is refined until it meets the targets
-    (:func:`track3_on`).
-
-    Attributes
-    ----------
-    planar : Track
-        The projected track whose samples this one shares.
-    name, jd_range, t_range, step_days, sampled_t_range, sampled_jd
-        As :attr:`planar`'s.
-    max_error_km, max_error_m_s : float
-        The largest 3-D position (km) and velocity (m/s) difference between the track and
-        its exact source at the mid-points of the samples inside the window.
-    function : casadi.Function
-        ``track3(t) -> [x, y, z, vx, vy, vz]`` (6x1), heliocentric, ecliptic of J2000,
-        au and au/TU, t in TU since J2000 TDB.  Beyond :attr:`sampled_t_range` it holds
-        the end state: bound t to :attr:`t_range` in the NLP.
-    cylindrical : casadi.Function
-        ``t -> [r, theta, v_r, v_theta, z, v_z]`` (6x1): the first four are
-        ``planar.function``'s outputs (theta unwrapped), the last two the fitted z and
-        v_z; :attr:`function` is these turned to Cartesian.
+    Attributes: ``planar``; ``name``, ``jd_range``, ``t_range``, ``step_days``,
+    ``sampled_t_range`` and ``sampled_jd``, the planar track's; ``max_error_km`` and
+    ``max_error_m_s``, as the planar track's but in 3-D; ``function``, ``track3(t) -> [x, y, z,
+    vx, vy, vz]`` (6x1, heliocentric, ecliptic of J2000, au and au/TU), which holds the end
+    state beyond ``sampled_t_range``; ``cylindrical``, ``t -> [r, theta, v_r, v_theta, z,
+    v_z]`` (6x1), the planar outputs and the fitted z and v_z, which ``function`` turns to
+    Cartesian.
     """
 
     def __init__(self, planar, source):
@@ -369,19 +280,9 @@ class Track3:
         self._measure(source, jd, states)
 
     def state(self, t):
-        """The smooth ecliptic state ``[x, y, z, vx, vy, vz]`` (au, au/TU) at time(s) t.
-
-        Parameters
-        ----------
-        t : float, numpy.ndarray of shape (M,), or casadi SX/MX/DM scalar
-            Canonical time, TU since J2000 TDB; numeric times must lie in :attr:`t_range`
-            (InputError otherwise, as :meth:`Track.polar`).
-
-        Returns
-        -------
-        numpy.ndarray of shape (6,) or (6, M) for numeric t, a 6x1 CasADi expression for
-        symbolic t.
-        """
+        """The smooth ecliptic state ``[x, y, z, vx, vy, vz]`` (au, au/TU) at canonical time(s) t,
+        as :meth:`Track.polar`: shape (6,) or (6, M) for numeric t within :attr:`t_range`
+        (InputError otherwise), a 6x1 CasADi expression for symbolic t."""
         if isinstance(t, (ca.SX, ca.MX)):
             return self.function(t)
         times = np.asarray(t, dtype=float)
@@ -412,10 +313,8 @@ class Track3:
 
 
 def exact_state_source(body, field="track.body"):
-    """``jd -> (6, M)`` exact ecliptic states of a planet (DE421) or a SmallBody, au and au/TU.
-
-    Raises InputError, naming ``field``, for an unknown planet.
-    """
+    """``jd -> (6, M)`` exact ecliptic states (au, au/TU) of a planet (DE421) or a SmallBody;
+    InputError, naming ``field``, for an unknown planet."""
     if isinstance(body, SmallBody):
         return body.ecliptic_state
     key = ephemeris.planet_key(body, field)
@@ -424,14 +323,10 @@ def exact_state_source(body, field="track.body"):
 
 def track3_on(planar, body, refine=False):
     """The :class:`Track3` of ``body`` on the samples of its planar track ``planar``
-    (:func:`track_of`'s, for the same body), so that the two agree in the plane exactly.
-
-    With ``refine``, if that 3-D track misses :data:`TARGET_ERROR_KM` or
-    :data:`TARGET_ERROR_M_S` (z and v_z may need finer samples than the plane, see
-    :class:`Track3`), the step is halved, up to :data:`MAX_HALVINGS` times, on a new
-    planar track of its own until it meets them; it then agrees with ``planar`` only to
-    the two tracks' errors.
-    """
+    (:func:`track_of`'s), so that the two agree in the plane exactly.  With ``refine``, while it
+    misses :data:`TARGET_ERROR_KM` or :data:`TARGET_ERROR_M_S`, the step is halved (up to
+    :data:`MAX_HALVINGS` times) on a new planar track of its own, which then agrees with
+    ``planar`` only to the two tracks' errors."""
     source = exact_state_source(body)
     track = Track3(planar, source)
     for _ in range(MAX_HALVINGS if refine else 0):
@@ -443,13 +338,9 @@ def track3_on(planar, body, refine=False):
 
 
 def track3_of(body, start_jd, stop_jd, step_days=None):
-    """The smooth 3-D :class:`Track3` of a planet or small body over [start_jd, stop_jd].
-
-    Arguments and errors as :func:`track_of`, whose planar track it extends.  With the
-    default step, the planar track's step is halved further (up to :data:`MAX_HALVINGS`
-    times) while the 3-D error exceeds :data:`TARGET_ERROR_KM` or
-    :data:`TARGET_ERROR_M_S`; an explicit ``step_days`` is used as given.
-    """
+    """The smooth :class:`Track3` of a planet or small body over [start_jd, stop_jd]: arguments
+    and errors as :func:`track_of`; with the default step refined as :func:`track3_on`, an
+    explicit ``step_days`` used as given."""
     return track3_on(track_of(body, start_jd, stop_jd, step_days), body,
                      refine=step_days is None)
 

@@ -1,20 +1,11 @@
 """Publishing files: files whole or not at all, folders as one set, checked before a solve.
 
-Three mechanisms, used by every command that writes a folder (``solve``, ``search``,
-``sweep``, and any scan built on them):
-
-* :func:`check_output_dir` runs before any solve: the folder's name must be a safe
-  name, and the folder must be creatable and writable.  A run that cannot write its
-  results must not solve first, and the check creates nothing.
-* :func:`publish` writes a run's files into a staging folder beside the target and
-  then puts the whole set in place in one step, so a reader sees the old set or the
-  new one, never a mix (see its docstring for what a reader can observe).
-* :func:`atomic_path` writes one file under a temporary name and renames it into
-  place, for the files that are not part of a folder's set (a journal's header, a
-  bench's JSON).
-
-Files and folders are created with mode 0666/0777 less the umask, as ``open`` and
-``mkdir`` would create them (a private temporary file would leave every output 0600).
+:func:`check_output_dir` checks before any solve, creating nothing, that the output folder
+has a safe name and can be created and written; :func:`publish` writes a run's files into a
+staging folder beside the target and swaps the whole set in at once, so a reader sees the
+old set or the new one, never a mix; :func:`atomic_path` writes one file (a journal's
+header, a bench's JSON) under a temporary name and renames it into place.  Files and folders
+are created 0666/0777 less the umask, as ``open`` and ``mkdir`` would.
 """
 
 import contextlib
@@ -31,9 +22,8 @@ from esail_opt.runtime import processes, signals
 
 #: Longest file or folder name most file systems take (ext4, xfs, tmpfs), bytes.
 NAME_MAX = 255
-#: The staging folders of :func:`publish` and :func:`check_output_dir`:
-#: ``.<name>.tmp-<pid>-<random>``, so that one left by a killed run can be told from
-#: one in use (its pid is dead) and removed.
+#: Staging folders of :func:`publish` and :func:`check_output_dir`,
+#: ``.<name>.tmp-<pid>-<random>``: one whose pid is dead, a killed run's, is removed.
 _STAGING = ".{name}.tmp-"
 
 
@@ -46,12 +36,9 @@ def _fail(path, err, doing="write"):
 
 
 def check_name(name, what="output folder name"):
-    """Raise InputError unless ``name`` is one safe path component.
-
-    A safe component is not empty, ``.`` or ``..`` (which would write into an
-    existing folder such as the working directory), holds no ``/`` and no NUL, and is
-    at most :data:`NAME_MAX` bytes in UTF-8.
-    """
+    """Return ``name`` if it is one safe path component, else raise InputError: not empty, ``.``
+    or ``..`` (which would write into an existing folder), no ``/`` or NUL, and at most
+    :data:`NAME_MAX` bytes in UTF-8."""
     text = str(name)
     if text in ("", ".", ".."):
         raise InputError(f"{what} = {text!r} is not a folder name (not '', '.' or '..')")
@@ -67,40 +54,17 @@ def check_name(name, what="output folder name"):
 
 
 def check_output_dir(path, name=None, files=()):
-    """Check, before any solve, that the run's output folder can be published.
+    """Check, before any solve, that the run's output folder ``path`` (``--out``, or
+    ``results/<problem name>``) can be published; return it as a Path.  Creates nothing, not
+    even the parents :func:`publish` creates, and removes only the staging folders a killed run
+    left beside it.  ``name``, the user-given name the folder is named after, must be one safe
+    component (:func:`check_name`); ``files`` are the names the run writes as files there, and
+    a folder of one of these names, the user's, is refused.
 
-    The check creates nothing: a run refused later (by this check or any other) leaves
-    no folder behind, not even the parents of ``--out``, which :func:`publish` creates
-    when the run's files are written.  It removes only the staging folders a killed
-    run left beside the folder (as :func:`publish` would).
-
-    Parameters
-    ----------
-    path : str or Path
-        The output folder (``--out``, or the default ``results/<problem name>``).
-    name : str, optional
-        The user-given name the folder is named after (a problem's name), checked as
-        one safe component with :func:`check_name`.
-    files : iterable of str
-        The names the run writes as files into the folder: a folder of one of these
-        names there is the user's and is refused, never replaced.
-
-    Returns
-    -------
-    Path
-        ``path``.
-
-    Raises
-    ------
-    InputError
-        The folder's last component is not a safe name (``..``, ``.``, a NUL, more
-        than 255 bytes), or ``name`` is not (a ``/`` in it too); or the folder is a
-        symbolic link, dangling or not (folders above it may be links); or the folder
-        is the working folder or holds it (replacing it would strand the shell).
-    OutputError
-        The folder cannot be created or written: a path under a regular file, a
-        regular file in its place, a folder in place of one of ``files``, a read-only
-        or full file system.  Nothing is left behind by the check.
+    Raises InputError if the last component is not a safe name, or the folder is a symbolic
+    link (dangling or not; folders above it may be links), or is or holds the working folder;
+    OutputError if it cannot be created or written (a path under a regular file, a file in its
+    place, a folder in place of one of ``files``, a read-only or full file system).
     """
     if name is not None:
         check_name(name, "problem name (the output folder's name)")
@@ -149,9 +113,8 @@ def _checked_out_path(raw):
     check_name(os.fspath(raw).rstrip("/").rpartition("/")[2] or os.fspath(raw),
                "output folder name")
     if path.is_symlink():
-        # A run's set is swapped in by renaming folders: through a link it would
-        # replace the link itself (or fail after the solve), and a journal appended
-        # through it would land where the link points.
+        # The set is swapped in by renaming: through a link it would replace the link,
+        # and a journal appended through it would land where the link points.
         raise InputError(f"output folder {str(path)!r} is a symbolic link (to "
                          f"{os.readlink(path)!r}); give the folder itself, not a link, "
                          "or another --out")
@@ -161,8 +124,7 @@ def _checked_out_path(raw):
     if path.exists():
         here, out = Path.cwd().resolve(), path.resolve()
         if here == out or out in here.parents:
-            # The set is swapped in by renaming folders: the shell would be left in
-            # the old one, deleted.
+            # Swapped in by renaming, it would leave the shell in a deleted folder.
             raise InputError(f"output folder {str(path)!r} is the working folder or holds "
                              "it; give a folder below it (for example --out results/run)")
     return path
@@ -264,15 +226,11 @@ def _exchange(a, b):
 
 
 def _swap_in(staging, target):
-    """Put ``staging`` at ``target``; return the path now holding the old set, or None.
-
-    With an existing target the two are exchanged by ``renameat2(RENAME_EXCHANGE)``:
-    ``target`` never stops existing and always holds one whole set.  Without that
-    (not Linux, or a file system that does not take it), the old set is renamed aside
-    and the new one renamed in: a reader may then find no folder for an instant, but
-    never a mixed one.  ``rename`` of a folder onto an empty one succeeds, onto a
-    non-empty one fails, so a concurrent writer is retried, not overwritten half-way.
-    """
+    """Put ``staging`` at ``target``; return the path now holding the old set, or None.  An
+    existing target is exchanged by ``renameat2(RENAME_EXCHANGE)`` and never stops existing;
+    without that, the old set is renamed aside and the new one in: an instant without a folder,
+    never a mixed one.  ``rename`` fails onto a non-empty folder, so a concurrent writer is
+    retried, not overwritten half-way."""
     for _ in range(20):
         try:
             os.rename(staging, target)  # no target yet, or an empty one
@@ -311,8 +269,7 @@ def _carry_over(target, staging, family):
             continue
         destination = staging / entry.name
         if entry.is_dir(follow_symlinks=False):
-            # Folders cannot be hard-linked; a foreign one is copied (rare, and small
-            # in the folders this tool writes).
+            # Folders cannot be hard-linked: a foreign one (rare, small) is copied.
             shutil.copytree(entry.path, destination, symlinks=True)
             continue
         try:
@@ -323,35 +280,17 @@ def _carry_over(target, staging, family):
 
 @contextlib.contextmanager
 def publish(target, family=()):
-    """Yield a staging folder for a run's files; on success it becomes ``target``.
+    """Yield a staging folder for a run's files; on success it becomes ``target`` (whose parents
+    are created).  ``family`` names the entries the writer owns: those of the old set that the
+    new one does not write are dropped with it (a stale ``schedule_closed_form.csv`` never sits
+    beside an unpolished solution); every other entry, the user's or a journal, is carried over.
 
-    Parameters
-    ----------
-    target : str or Path
-        The output folder.  Its parents are created.
-    family : iterable of str
-        Names the writer owns in ``target``: those in the old set that the new set
-        does not write are dropped with it (a stale ``schedule_closed_form.csv`` never
-        sits beside an unpolished solution).  Every other entry of the old folder is
-        the user's (or a journal) and is carried into the new set.
-
-    Notes
-    -----
-    What a reader of ``target`` observes: the old set, complete, until one
-    ``renameat2(RENAME_EXCHANGE)`` swaps the folders, then the new set, complete.  No
-    file is replaced inside ``target`` itself, so a reader that opens ``target/x`` and
-    then ``target/y`` sees one set only if it holds ``target`` open (a file descriptor
-    of the folder, or ``cd``); by path it may see the old ``x`` and the new ``y`` if
-    the swap falls between its two opens.  Without RENAME_EXCHANGE there is an instant
-    with no folder between two renames.  Two writers of one folder leave one of their
-    sets, whole.  A run killed while writing leaves its staging folder
-    ``.<name>.tmp-<pid>-<random>`` beside the target, which the next run removes.
-
-    Raises
-    ------
-    OutputError
-        An OSError while writing or swapping (a full disk, a read-only folder): one
-        line; ``target`` keeps its old set and the staging folder is removed.
+    A reader of ``target`` sees the old set, complete, until one ``renameat2(RENAME_EXCHANGE)``
+    swaps the folders, then the new one (without it, no folder for an instant between two
+    renames); by path it may see the old ``x`` and the new ``y`` unless it holds the folder
+    open.  Of two writers of one folder, one set is left whole; a killed run's staging folder
+    ``.<name>.tmp-<pid>-<random>`` is removed by the next run.  Raises OutputError, one line,
+    for an OSError while writing or swapping; ``target`` keeps its old set.
     """
     target = Path(target)
     family = set(family)
@@ -401,12 +340,9 @@ def _fsync_tree(folder):
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
-
-    The temporary file is created with mode 0666 less the umask (``mkstemp`` would
-    make it 0600, and the rename would keep that), and removed on any failure or
-    interrupt.
-    """
+    """Yield a temporary path beside ``path`` and rename it onto ``path`` on success; it is
+    created 0666 less the umask (``mkstemp``'s 0600 would survive the rename) and removed on
+    any failure or interrupt."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     for _ in range(100):

@@ -1,25 +1,17 @@
 """CasADi Functions, and the arrays they are fitted to, kept on disk and read back: the
-one cache folder of the package, and how a Function or an array is written into it and
-read from it.
+package's one cache folder.
 
-Why: some Functions cost a noticeable part of a short solve to build in every process
-(the closed form's arcs, :mod:`esail_opt.propagation.graph_store`; the bodies' splines,
-:mod:`esail_opt.bodies.track`, and the ephemeris samples they are fitted to), and a
-Function read back from its serialised graph is the Function built, number for number,
-as an array read back from ``numpy.save``'s format is the array.  A caller names a
-stored entry by a hash of everything that decides it, so that anything that could make
-it differ reads another file; an old file is simply never read again.
-
-A file holds the SHA-256 of its payload on its first line: one that does not match
-(truncated, damaged) is said in one line, built again and rewritten.  Files are written
-under a temporary name and renamed into place, so parallel workers never read half a
-file, and they follow the umask, as the compiled libraries do, so that a cache folder
-can be shared.  When the folder cannot be written (a full disk, a read-only folder) the
-entry is built as before; the compiled libraries' warning
-(:mod:`esail_opt.propagation.compiled`) already says the folder is unusable.
-
+Some Functions cost a noticeable part of a short solve to build in every process (the
+closed form's arcs, :mod:`esail_opt.propagation.graph_store`; the bodies' splines and
+samples, :mod:`esail_opt.bodies.track`), and one read back is the one built, number for
+number.  A caller names an entry by a hash of everything that decides it, so anything that
+could make it differ reads another file.  A file holds the SHA-256 of its payload on its
+first line (one that does not match is said in one line, built again and rewritten), is
+renamed into place, so parallel workers never read half a file, and follows the umask, so a
+cache folder can be shared.  A folder that cannot be written is left alone: the compiled
+libraries' warning (:mod:`esail_opt.propagation.compiled`) already says so.
 ``ESAIL_OPT_CACHE`` chooses the folder (default ``$XDG_CACHE_HOME/esail_opt``, else
-``~/.cache/esail_opt``): a user's setting, read where the folder is needed.
+``~/.cache/esail_opt``).
 """
 
 import hashlib
@@ -66,9 +58,8 @@ def _read_checked(path):
 
 
 def read(path):
-    """The Function stored at ``path``, or None if it is missing or damaged: a file that
-    does not match its checksum, or does not read back as a Function, is said in one
-    line (it is then built again and rewritten)."""
+    """The Function stored at ``path``, or None if it is missing or damaged (its checksum does
+    not match or it is no Function: said in one line)."""
     payload = _read_checked(path)
     if payload is None:
         return None

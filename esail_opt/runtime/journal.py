@@ -1,9 +1,8 @@
-"""A scan's journal on disk: a header line, then one JSON row per finished row, each on
-disk before the next, so that an interrupted scan is resumed from the rows it kept.
-
-A row is a dict of a frozen dataclass's fields; a row read back is checked against the
-fields' annotations, and a journal is resumed only under the same header.  What a row
-holds, and what a scan is, are the caller's (:mod:`esail_opt.app.engine`).
+"""A scan's journal on disk: a header line, then one JSON row per finished row, each on disk
+before the next, so that an interrupted scan resumes from the rows it kept.  A row is a
+dict of a frozen dataclass's fields, checked against their annotations when read back; a
+journal resumes only under the same header.  What a row holds is the caller's
+(:mod:`esail_opt.app.engine`).
 """
 
 import contextlib
@@ -32,7 +31,7 @@ def _why_not(value, hint):
     kind = next((t for t in typing.get_args(hint) if t is not type(None)), hint)
     if value is None:
         return None if kind is not hint else "is missing"
-    name = "num" if kind is float else kind.__name__  # as the messages have always said
+    name = "num" if kind is float else kind.__name__  # the word the messages use
     if isinstance(value, bool) is not (kind is bool) \
             or not isinstance(value, (int, float) if kind is float else kind):
         return f"= {_short(value)} is not a {name}"
@@ -45,36 +44,20 @@ def fields(row_type):
 
 
 class Journal:
-    """A scan's record on disk: a header line, then one JSON row per finished row; of
-    two rows of one index, the later holds (a job's end replaces a row it told of).
+    """A scan's record on disk: a header line, then one JSON row per finished row; of two rows of
+    one index the later holds (a job's end replaces a row it told of).
 
-    Each row is one ``write`` of one whole line to a file opened for appending,
-    followed by ``fsync``: a crash or a kill leaves at most a torn last line, which
-    :meth:`read` ignores and :meth:`start` cuts off; every row before it is on disk.
+    Each row is one ``write`` of a whole line in append mode, then ``fsync``: a crash or a kill
+    leaves at most a torn last line, which :meth:`read` ignores and :meth:`start` cuts off.
 
-    Parameters
-    ----------
-    path : Path
-        The journal file.
-    header : dict
-        What identifies the scan (``journal``, ``problem``, ``source_sha256``, ``param``,
-        ``values``, ``polish``, ``tolerance``, and what else its kind adds); a journal
-        is resumed only under the same header, every key of it.
-    row_type : type
-        The rows' frozen dataclass: a row read is checked against its fields'
-        annotations (:func:`_why_not`) and kept as a dict of its fields, in their
-        order.
-    count : int
-        Rows the grid has.
-    belongs : callable, optional
-        ``belongs(index, row)``: whether a row is this grid's (default: its index is
-        in ``range(count)``).
-    invalid : callable, optional
-        ``invalid(row)``: why a row whose fields have their types is still not a
-        valid row, or None.
-
-    The header and the rows written are JSON values already (None, not NaN): the
-    journal writes them as they are, and refuses NaN.
+    ``header`` identifies the scan (``journal``, ``problem``, ``source_sha256``, ``param``,
+    ``values``, ``polish``, ``tolerance`` and what its kind adds); a journal resumes only under
+    the same header, every key of it.  ``row_type`` is the rows' frozen dataclass: a row read is
+    checked against its fields' annotations (:func:`_why_not`) and kept as a dict of its
+    fields, in order.  The grid has ``count`` rows; ``belongs(index, row)`` says whether a row
+    is this grid's (default: its index is in ``range(count)``), ``invalid(row)`` why a row of
+    the right types is still not valid, or None.  The header and the rows are JSON values
+    already (None, not NaN); NaN is refused.
     """
 
     def __init__(self, path, header, row_type, count, belongs=None, invalid=None):
@@ -86,14 +69,8 @@ class Journal:
 
     def read(self, resume):
         """With ``resume``, the rows the journal holds (index -> row); changes nothing.
-
-        Raises
-        ------
-        InputError
-            With ``resume``: the journal is not this kind's, belongs to another scan,
-            or a whole line of it is not UTF-8 JSON or not a valid row (one line naming
-            the file and the line).
-        """
+        InputError, one line naming the file and the line, if the journal is not this kind's,
+        belongs to another scan, or a whole line of it is not UTF-8 JSON or not a valid row."""
         if not resume or not self.path.exists():
             return {}
         lines = self._lines()
@@ -129,8 +106,7 @@ class Journal:
             self._replace()
 
     def _replace(self, row=None):
-        # The header replaces any old journal whole, so a stale row is never read as
-        # this scan's.
+        # The header replaces any old journal whole: no stale row is read as this scan's.
         with atomic_path(self.path) as tmp:
             tmp.write_text(self._line(self.header) + ("" if row is None else self._line(row)))
             with open(tmp, "rb") as handle:
@@ -144,16 +120,9 @@ class Journal:
         return kept
 
     def append(self, row):
-        """Add one finished row, on disk before returning.
-
-        A write that fails part-way (a full disk) is cut back off the file, so the
-        journal never keeps half a line that the next row would be glued to.
-
-        Raises
-        ------
-        OutputError
-            The row could not be written (one line; the journal is as it was).
-        """
+        """Add one finished row, on disk before returning; OutputError (one line) if it cannot
+        be written, the journal left as it was.  A write that fails part-way (a full disk) is cut
+        back off, so no half line is left for the next row to be glued to."""
         if self.fresh:
             try:
                 self._replace(row)

@@ -1,24 +1,15 @@
 """Independent jobs on a local process pool or a Dask cluster, surviving lost workers.
 
-:func:`run` calls ``function(index, *args)`` once per job on a
-:mod:`concurrent.futures` executor: a local process pool, or Dask distributed's
-executor on a client of :func:`session` -- the same code path either way.  Results
-and failures are handed to the caller as each job ends, in finishing order.  A job on
-the local pool may also :func:`tell` the caller something before it ends (a porkchop's
-cell as its run of cells goes on); on Dask the result is all the caller hears.
-
-A job whose worker process dies (killed, out of memory, a crash in native code) is run
-again on a fresh pool a bounded number of times; the jobs on healthy workers keep or
-redo their work without being charged for it.  On Ctrl-C, SIGTERM (under the command
-line's handler) or any error the workers are stopped within seconds: pending jobs
-cancelled, running ones terminated.  A local pool's workers also end by themselves when
-the parent dies without a word (SIGKILL): the kernel sends them SIGKILL on Linux
-(``PR_SET_PDEATHSIG``), and each polls its parent's pid in any case.
-
-On Dask, a cluster that can no longer run anything ends the run with
-:class:`ClusterLost` within a bounded time: the scheduler unreachable for
-:data:`SCHEDULER_LOST_SECONDS`, or no worker at all for :data:`NO_WORKER_SECONDS` while
-jobs wait.  The jobs that ended before were reported as they ended.
+:func:`run` calls ``function(index, *args)`` once per job on a :mod:`concurrent.futures`
+executor, a local process pool or Dask distributed's on a client of :func:`session`, and
+hands results and failures to the caller as each job ends; a job on the local pool may also
+:func:`tell` the caller something before it ends.  A job whose worker dies is run again on
+a fresh pool a bounded number of times, without charging the jobs on healthy workers.  On
+Ctrl-C, SIGTERM (under the command line's handler) or any error the workers are stopped
+within seconds; local workers also end when the parent dies without a word (SIGKILL).  On
+Dask, a cluster that can no longer run anything ends the run with :class:`ClusterLost`: no
+scheduler for :data:`SCHEDULER_LOST_SECONDS`, or no worker for :data:`NO_WORKER_SECONDS`
+while jobs wait.
 """
 
 import contextlib
@@ -35,18 +26,13 @@ from esail_opt.errors import InputError
 
 #: Times a job lost with its worker is run again before it is reported failed.
 RETRIES = 2
-#: Longest wait on the futures between two looks at the pool: a Ctrl-C is acted on
-#: within this, whatever the executor's own waiting does with signals.
+#: Longest wait on the futures between two looks at the pool: a Ctrl-C is acted on within it.
 POLL_SECONDS = 0.25
-#: Seconds a Dask scheduler may take to answer the first connection: a wrong address
-#: is reported after this, not after Dask's default 30 s.
+#: Seconds a Dask scheduler may take to answer the first connection (Dask's default: 30 s).
 CONNECT_SECONDS = 5.0
-#: Seconds without a connection to the scheduler before the run ends (Dask's client
-#: tries to reconnect meanwhile).
+#: Seconds without the scheduler (Dask's client reconnecting meanwhile) before the run ends.
 SCHEDULER_LOST_SECONDS = 10.0
-#: Seconds with no worker on the cluster, while jobs wait, before the run ends.  Long
-#: enough for a worker to restart; a cluster that scales up from none needs its first
-#: worker within this.
+#: Seconds with no worker, while jobs wait, before the run ends: time for one to (re)start.
 NO_WORKER_SECONDS = 30.0
 
 
@@ -63,48 +49,20 @@ def first_line(err):
 
 def run(function, jobs, on_result, on_failure, workers=1, client=None, address=None,
         retries=RETRIES, setup=None, on_news=None):
-    """Run ``function(i, *jobs[i])`` for every job, reporting each as it ends.
+    """Run ``function(i, *jobs[i])`` for every index ``i`` of the dict ``jobs``, reporting each as
+    it ends; return index -> (losses, cause of the last) for every job charged with a lost
+    worker.  ``function`` is module-level (pickled by name).  ``on_result(i, value)`` gets each
+    result; ``on_failure(i, message)``, one line, each job the executor failed or whose worker
+    was lost more than ``retries`` times.  ``workers`` is the local pool's size, >= 1, ignored
+    with ``client``, a Dask client from :func:`session` (None: the local pool) whose scheduler
+    ``address`` the messages name.  With ``setup = (function, args)`` each local worker calls
+    ``function(cores, *args)`` as it starts, ``cores`` its share of the machine's cores.
+    ``on_news(item)`` gets each item a local job sent with :func:`tell`, in order and before
+    that job's result.
 
-    Parameters
-    ----------
-    function : callable
-        A module-level function (it is pickled by name), returning the job's result.
-    jobs : dict
-        Index -> tuple of the further arguments.
-    on_result : callable
-        ``on_result(i, value)`` when job ``i`` returned ``value``.
-    on_failure : callable
-        ``on_failure(i, message)`` when the executor failed job ``i`` or its worker was
-        lost more than ``retries`` times; ``message`` is one line.
-    workers : int
-        Local process-pool size, >= 1; ignored with ``client``.
-    client : distributed.Client, optional
-        A Dask client from :func:`session`; None runs on a local process pool.
-    address : str, optional
-        The client's scheduler address, for the lines that name it.
-    retries : int
-        Times a job lost with its worker is run again.
-    setup : tuple, optional
-        ``(function, args)``: each local worker calls ``function(cores, *args)`` once
-        as it starts, ``cores`` its share of the machine's cores (a module-level
-        function, pickled by name).  How a worker computes is the caller's to set;
-        this floor knows nothing of it.
-    on_news : callable, optional
-        ``on_news(item)`` for each item a local pool's job sent with :func:`tell`, in
-        the order sent and before that job's result.
-
-    Returns
-    -------
-    dict
-        Index -> (losses, cause of the last) for every job charged with a lost worker.
-
-    Raises
-    ------
-    ClusterLost
-        The Dask scheduler was lost, or every worker, for longer than
-        :data:`SCHEDULER_LOST_SECONDS` or :data:`NO_WORKER_SECONDS` (one line).
-    KeyboardInterrupt
-        After stopping the workers (:class:`~esail_opt.errors.Terminated` for SIGTERM).
+    Raises ClusterLost (one line) when the Dask scheduler, or every worker, is lost for longer
+    than :data:`SCHEDULER_LOST_SECONDS` or :data:`NO_WORKER_SECONDS`; KeyboardInterrupt
+    (:class:`~esail_opt.errors.Terminated` for SIGTERM) after stopping the workers.
     """
     runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
                      address, setup, on_news)
@@ -114,14 +72,9 @@ def run(function, jobs, on_result, on_failure, workers=1, client=None, address=N
 
 @contextlib.contextmanager
 def session(scheduler):
-    """A Dask client on ``scheduler`` while inside (None without one), Dask's own log
-    lines kept off the terminal.
-
-    Raises
-    ------
-    InputError
-        Dask is missing or the scheduler cannot be reached, on entering.
-    """
+    """A Dask client on ``scheduler`` while inside (None without one), Dask's own log lines kept
+    off the terminal; InputError on entering if Dask is missing or the scheduler cannot be
+    reached."""
     if scheduler is None:
         yield None
         return
@@ -134,8 +87,7 @@ def session(scheduler):
                 client.close(timeout=CONNECT_SECONDS)
 
 
-#: The start of a run's scratch folder's name in the temporary folder; the run's pid
-#: follows, so that a later run can tell a folder whose run was killed outright.
+#: Prefix of a run's scratch folder, then its pid, so that a killed run's is found and removed.
 SCRATCH_PREFIX = "esail_started_"
 
 
@@ -168,8 +120,7 @@ class _Runner:
         todo = sorted(self.jobs)
         # A run killed by SIGKILL had no time to remove its scratch folder.
         processes.remove_dead(tempfile.gettempdir(), SCRATCH_PREFIX)
-        # The scratch folder outlives the try below: on an interrupt the workers are
-        # stopped before the folder they write into goes away.
+        # The folder outlives the try: on an interrupt the workers stop before it goes away.
         with tempfile.TemporaryDirectory(prefix=f"{SCRATCH_PREFIX}{os.getpid()}_") as scratch:
             try:
                 while todo or self.active:
@@ -190,13 +141,11 @@ class _Runner:
             self.started = Path(scratch, str(self.rounds))
             self.started.mkdir()
             self.processes = {}
-            # pure=False: a job run again must be a new task, not Dask's remembered
-            # failure of the same arguments.
+            # pure=False: a job run again is a new task, not Dask's remembered failure.
             if self.client is not None:
                 self.executor = self.client.get_executor(pure=False)
             else:
-                # A queue per round: a worker killed while writing to it can leave
-                # its lock held, and that round's pool is gone with it.
+                # A queue per round: a worker killed writing to it may leave its lock held.
                 self.news = _news_queue() if self.on_news is not None else None
                 self.executor = _new_pool(self.workers, self.setup, self.news)
         submitted = []
@@ -211,11 +160,9 @@ class _Runner:
         except self.lost_errors:
             if self.client is not None:
                 raise
-            # The pool broke while being fed: the jobs not yet submitted are lost in
-            # the same break (handled by the next step).
+            # The pool broke while fed: the jobs not submitted are lost in the same break.
         except Exception as err:
-            # A Dask client that gave up on its scheduler refuses new work at once
-            # (ClosedClientError), sooner than the bound the watch would wait out.
+            # A client that gave up on its scheduler refuses work at once (ClosedClientError).
             if self.client is None or _client_status(self.client) == "running":
                 raise
             raise ClusterLost(self._scheduler_lost("its client closed")) from err
@@ -344,10 +291,9 @@ def tell(item):
 
 
 def _worker_init(cores, parent=None, setup=None, news=None):
-    """Pool initializer: a worker ignores SIGINT, so that Ctrl-C in a terminal (sent to
-    the whole process group) reaches only the parent, which decides what stops; it runs
-    the caller's ``setup`` on its share of the cores, ``cores``; and it ends when its
-    parent ``parent`` does, however the parent ended."""
+    """Pool initializer: leave Ctrl-C to the parent
+    (:func:`~esail_opt.runtime.signals.leave_interrupt_to_parent`), run the caller's ``setup`` on
+    ``cores``, this worker's share, and end when ``parent`` does, however it ended."""
     global _NEWS
     signals.leave_interrupt_to_parent()
     _NEWS = news
@@ -359,10 +305,8 @@ def _worker_init(cores, parent=None, setup=None, news=None):
 
 
 def _pool_member(started, function, index, *args):
-    """``function(index, *args)`` in a local pool worker, first leaving
-    ``started/<index>`` with this worker's pid: when the pool breaks, the parent uses it
-    to tell the job whose worker died from the ones whose healthy workers the pool
-    terminated."""
+    """``function(index, *args)`` in a local pool worker, first leaving ``started/<index>`` with
+    this worker's pid, by which a broken pool's job whose worker died is told from the rest."""
     Path(started, str(index)).write_text(str(os.getpid()))
     return function(index, *args)
 
@@ -376,14 +320,10 @@ def _client_status(client):
 
 
 def _lost_worker_errors():
-    """Exception types that mean "the worker went away", not "the job failed".
-
-    A broken process pool fails every unfinished future with BrokenProcessPool (a
-    BrokenExecutor).  Dask reports a job whose workers kept dying as KilledWorker, and
-    cancels the futures of a lost client or worker (CancelledError, whose subclass
-    FutureCancelledError is Dask's).  The runner never cancels a future it still waits
-    on, so a cancelled one was lost.
-    """
+    """Exception types that mean "the worker went away", not "the job failed": BrokenExecutor
+    for a broken local pool, Dask's KilledWorker for a job whose workers kept dying, and
+    CancelledError (with Dask's FutureCancelledError) for the futures of a lost client or
+    worker, since the runner never cancels a future it still waits on."""
     kinds = [BrokenExecutor, CancelledError]
     try:
         from distributed.scheduler import KilledWorker
@@ -420,10 +360,9 @@ def _quiet_dask():
     connection) off the terminal during a run: the run reports the cluster's state in
     one line of its own (:class:`ClusterLost`)."""
     with contextlib.suppress(ImportError):
-        import distributed.client  # noqa: F401 -- its loggers exist, with their levels, once imported
-    # Each of Dask's loggers by name: its configuration gives the children levels of
-    # their own, which a parent's level would not override.  concurrent.futures logs
-    # the tracebacks of Dask's callbacks on futures cancelled after the client closed.
+        import distributed.client  # noqa: F401 -- its loggers exist once imported
+    # Each logger by name, since Dask's configuration gives children levels of their own;
+    # concurrent.futures logs Dask's callbacks on futures cancelled after the client closed.
     names = [name for name in list(logging.root.manager.loggerDict)
              if name == "distributed" or name.startswith("distributed.")]
     loggers = [logging.getLogger(name) for name in
@@ -450,8 +389,7 @@ def _new_pool(workers, setup=None, news=None):
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    # spawn, not fork: the parent has CasADi and maybe threads loaded, and a forked
-    # child of a threaded process can deadlock; spawn costs one import per worker.
+    # spawn, not fork: a forked child of a process with threads (CasADi's) can deadlock.
     cores = os.cpu_count() or 1
     return ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context("spawn"),
@@ -461,12 +399,9 @@ def _new_pool(workers, setup=None, news=None):
 
 
 def _pool_processes(pool, known):
-    """Add the pool's worker processes (pid -> Process) to ``known``.
-
-    ProcessPoolExecutor has no public list of its workers; its ``_processes`` has been
-    there since Python 3.2.  Without it the runner still works, but cannot attribute a
-    break to one job or kill running jobs on an interrupt.
-    """
+    """Add the pool's worker processes (pid -> Process) to ``known``, from ProcessPoolExecutor's
+    private ``_processes``; without it the runner still works, but cannot blame one job for a
+    break or kill running jobs on an interrupt."""
     try:
         known.update(dict(getattr(pool, "_processes", None) or {}))
     except RuntimeError:  # the pool's thread changed it while we copied; next poll
@@ -500,18 +435,12 @@ def _ended(code):
 
 
 def _blame(lost, started_dir, processes):
-    """Which of the jobs lost in one pool break to charge with the loss, and why.
+    """Which of the jobs lost in one pool break to charge with the loss: index -> one-line cause.
 
-    When one worker dies, the pool fails every unfinished future and terminates its
-    other workers (SIGTERM).  A job that had started (``started_dir/<index>`` holds
-    its worker's pid) on a worker that ended any other way is the one whose worker
-    died.  If no job can be singled out, every started job is charged; if none had
-    started, every lost job is -- so the retries stay bounded either way.
-
-    Returns
-    -------
-    dict
-        Index -> one-line cause, for the jobs charged.
+    The pool terminates its other workers (SIGTERM) when one dies, so a started job
+    (``started_dir/<index>`` holds its worker's pid) whose worker ended any other way is the
+    culprit; failing one, every started job is charged, and if none had started, every lost
+    job, so that the retries stay bounded.
     """
     started = {}
     for i in lost:

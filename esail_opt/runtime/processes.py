@@ -1,9 +1,6 @@
-"""Processes of our own: whether another one is still there, and a child that ends with
-its parent.
-
-Stale temporary folders are named after the process that made them, and are removed
-only once it is gone (:func:`alive`).  Pool workers end when their parent does, however
-it ended (:func:`die_with_parent`).
+"""Processes of our own: whether another one is still there (:func:`alive`), so that a stale
+temporary folder named after its maker is removed only once it is gone, and a child that
+ends with its parent, however the parent ended (:func:`die_with_parent`).
 """
 
 import contextlib
@@ -50,14 +47,11 @@ def remove_dead(folder, prefix):
 
 
 def die_with_parent(parent):
-    """End this process when process ``parent`` ends.
-
-    On Linux the kernel sends SIGKILL at once (``prctl(PR_SET_PDEATHSIG)``; it fires
-    when the thread that started this process ends, which for a pool is the parent's
-    main thread, or the parent itself).  Everywhere a daemon thread also checks every
-    :data:`PARENT_POLL_SECONDS` that the parent is still this process's parent: an
-    orphan is re-parented, so a changed ``getppid()`` means the parent is gone.
-    """
+    """End this process when process ``parent`` ends: on Linux the kernel sends SIGKILL at once
+    (``prctl(PR_SET_PDEATHSIG)``, which fires when the thread that started this process ends:
+    for a pool, the parent's main thread); everywhere, a daemon thread checks every
+    :data:`PARENT_POLL_SECONDS` that ``getppid()`` is still ``parent``, since an orphan is
+    re-parented."""
     if sys.platform.startswith("linux"):
         with contextlib.suppress(Exception):
             libc = ctypes.CDLL(None, use_errno=True)

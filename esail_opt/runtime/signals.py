@@ -1,15 +1,7 @@
-"""The one place that sets how signals are handled: handlers and masks.
-
-Ctrl-C (SIGINT) and SIGTERM stop a command the same way (:class:`~esail_opt.errors.
-Terminated` is SIGTERM as a KeyboardInterrupt), and every other module asks this one
-for what it needs: a command turns SIGTERM into that exception
-(:func:`terminate_as_interrupt`); CasADi's C++ runs with both signals held until it
-returns (:class:`SignalsHeld`); a clean-up that must not be cut short ignores them
-(:func:`ignoring`) and one that must not be cut in the middle blocks them until it ends
-(:func:`blocked`); a pool worker leaves Ctrl-C to its parent
-(:func:`leave_interrupt_to_parent`).
-Python runs signal handlers in the main thread only, so each of these changes nothing
-in another thread.
+"""The one place that sets how signals are handled: handlers and masks.  Ctrl-C (SIGINT) and
+SIGTERM stop a command the same way (:class:`~esail_opt.errors.Terminated` is SIGTERM as a
+KeyboardInterrupt), and every other module asks this one for what it needs.  Python runs
+signal handlers in the main thread only, so each of these changes nothing in another thread.
 """
 
 import contextlib
@@ -24,17 +16,13 @@ def _main_thread():
 
 
 class SignalsHeld:
-    """Inside, SIGINT (and SIGTERM, where a Python handler already turns it into an
-    exception: the command line's) is recorded rather than raised; on the way out, the
-    exception it means is raised: KeyboardInterrupt, or :class:`Terminated`.
-
-    For CasADi's C++ (Ipopt, CVODES): it checks Python's signals while it runs, and
-    the KeyboardInterrupt that Python's own handler raises there made the evaluation
-    fail where it stood, so that Ctrl-C during a CVODES flight read as a flight that
-    failed (an unverified solve, exit 1) instead of an interrupt (exit 130).  Held, the
-    signal waits for the C++ call to return.  ``interrupted`` tells a caller that polls
-    (Ipopt's iteration callback) to stop early.
-    """
+    """Inside, SIGINT (and SIGTERM, where a Python handler, the command line's, already turns it
+    into an exception) is recorded rather than raised; on the way out its exception is raised,
+    KeyboardInterrupt or :class:`Terminated`.  For CasADi's C++ (Ipopt, CVODES), which checks
+    Python's signals as it runs: an exception raised there fails the evaluation where it
+    stands, so Ctrl-C during a CVODES flight would read as a failed flight (exit 1), not an
+    interrupt (exit 130).  ``interrupted`` tells a caller that polls (Ipopt's iteration
+    callback) to stop early."""
 
     def __init__(self):
         self.signum = None
