@@ -1,6 +1,7 @@
 """The solar wind as it blows: the thrust factor's law, the Monte Carlo of a schedule,
 and guidance, against answers computed apart from them."""
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -95,6 +96,21 @@ def test_the_schedule_is_the_solution_s_arcs_cut_into_its_pieces(earth_mars):
     days = units.time_to_days(s.durations).sum()
     assert days == pytest.approx(sum(r.duration_days for r in source.schedule), rel=1e-12)
     assert np.all(s.acs <= s.sail_ac * (1 + 1e-15))
+
+
+def test_a_polish_that_moved_the_departure_is_flown_from_its_own(earth_mars):
+    """A free date's polish may depart at another instant and state than its closed
+    form: the schedule flown is the polish's, so its start must be the polish's too."""
+    later = dataclasses.replace(earth_mars.polish.departure_state,
+                                cartesian={**earth_mars.polish.departure_state.cartesian,
+                                           "x_au": 0.5})
+    moved = dataclasses.replace(earth_mars, polish=dataclasses.replace(
+        earth_mars.polish, departure_epoch_days=earth_mars.departure_epoch_days + 3.0,
+        departure_state=later))
+    s = robust.schedule(moved)
+    assert s.departure_epoch_days == earth_mars.departure_epoch_days + 3.0
+    assert s.departure[0] == 0.5  # au is the canonical length
+    assert robust.schedule(earth_mars).departure_epoch_days != s.departure_epoch_days
 
 
 @pytest.fixture(scope="module")

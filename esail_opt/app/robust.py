@@ -94,8 +94,11 @@ def schedule(sol):
     throttles = repeat([1.0 if r.throttle is None else r.throttle for r in arcs])
     sail_ac = units.accel_from_mm_s2(source.ac_mm_s2_required or sol.problem.ac_mm_s2)
     tol = sol.tolerance
+    # A polish may move the departure (a free date): it is flown from its own.
+    start = getattr(source, "departure_state", None) or sol.problem.departure_state
+    epoch = getattr(source, "departure_epoch_days", None)
     return Schedule(sol.problem.name, alphas, deltas, durations, sail_ac * throttles, sail_ac,
-                    _cartesian(sol.problem.departure_state), sol.departure_epoch_days,
+                    _cartesian(start), sol.departure_epoch_days if epoch is None else epoch,
                     lookup.resolve(sol.problem.target.body),
                     (tol.position_km, tol.velocity_m_s),
                     tuple(np.radians(sol.problem.alpha_bounds_deg)))
