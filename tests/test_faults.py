@@ -855,9 +855,9 @@ def test_a_symlinked_out_is_refused_before_anything_runs(tmp_path, kind, danglin
 
 
 @pytest.mark.parametrize("row, message", [
-    ({"tof_days": "abc"}, "line 2 is not a valid row: tof_days = 'abc' is not a num"),
-    ({"converged": "yes"}, "line 2 is not a valid row: converged = 'yes' is not a bool"),
-    ({"index": 1.5}, "line 2 is not a valid row: index = 1.5 is not a int"),
+    ({"tof_days": "abc"}, "line 2 is not a valid row: tof_days = 'abc' is not a number"),
+    ({"converged": "yes"}, "line 2 is not a valid row: converged = 'yes' is not true or false"),
+    ({"index": 1.5}, "line 2 is not a valid row: index = 1.5 is not a whole number"),
 ])
 def test_a_bad_journal_row_is_one_line_naming_its_line(tmp_path, row, message):
     path = tmp_path / sweep.JOURNAL

@@ -203,12 +203,12 @@ def test_the_journal_keeps_no_sail_and_the_edge_and_reads_old_rows(tmp_path):
 
 
 @pytest.mark.parametrize("field, value, why", [
-    ("departure_jd", "2462502.5", "departure_jd = '2462502.5' is not a num"),
-    ("departure_jd", True, "departure_jd = True is not a num"),  # a bool is no number
+    ("departure_jd", "2462502.5", "departure_jd = '2462502.5' is not a number"),
+    ("departure_jd", True, "departure_jd = True is not a number"),  # a bool is no number
     ("verified", None, "verified is missing"),  # not Optional in a porkchop's row
     ("departure_date", None, "departure_date is missing"),
-    ("departure_state", [1, 2], "departure_state = [1, 2] is not a dict"),
-    ("schedule", {"a": 1}, "schedule = {'a': 1} is not a list"),
+    ("departure_state", [1, 2], "departure_state = [1, 2] is not a JSON object"),
+    ("schedule", {"a": 1}, "schedule = {'a': 1} is not a JSON list"),
 ])
 def test_a_journal_row_is_checked_against_its_dataclass(tmp_path, field, value, why):
     """A porkchop's journal row against :class:`PorkchopRow`'s annotations: one line

@@ -498,12 +498,12 @@ class _Unverified:
 
 
 @pytest.mark.parametrize("field, value, why", [
-    ("tof_days", "300", "tof_days = '300' is not a num"),  # a string for a number
-    ("objective", True, "objective = True is not a num"),  # a bool is not a number
-    ("iterations", False, "iterations = False is not a int"),
-    ("iterations", 12.0, "iterations = 12.0 is not a int"),
-    ("status", 3, "status = 3 is not a str"),
-    ("exact_verified", 1, "exact_verified = 1 is not a bool"),
+    ("tof_days", "300", "tof_days = '300' is not a number"),  # a string for a number
+    ("objective", True, "objective = True is not a number"),  # a bool is not a number
+    ("iterations", False, "iterations = False is not a whole number"),
+    ("iterations", 12.0, "iterations = 12.0 is not a whole number"),
+    ("status", 3, "status = 3 is not a string"),
+    ("exact_verified", 1, "exact_verified = 1 is not true or false"),
     ("converged", None, "converged is missing"),  # null where the field is not Optional
     ("value", None, "value is missing"),
 ])

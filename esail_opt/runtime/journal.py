@@ -24,6 +24,11 @@ def _short(value):
     return repr(value)
 
 
+#: How a refusal names each JSON type a field may hold.
+_WORDS = {float: "a number", int: "a whole number", bool: "true or false", str: "a string",
+          dict: "a JSON object", list: "a JSON list"}
+
+
 def _why_not(value, hint):
     """Why the JSON ``value`` cannot fill a field annotated ``hint`` (``int``, ``float``,
     ``bool``, ``str``, ``dict``, ``list``, or one of them Optional: or null), or None.
@@ -31,10 +36,9 @@ def _why_not(value, hint):
     kind = next((t for t in typing.get_args(hint) if t is not type(None)), hint)
     if value is None:
         return None if kind is not hint else "is missing"
-    name = "num" if kind is float else kind.__name__  # the word the messages use
     if isinstance(value, bool) is not (kind is bool) \
             or not isinstance(value, (int, float) if kind is float else kind):
-        return f"= {_short(value)} is not a {name}"
+        return f"= {_short(value)} is not {_WORDS[kind]}"
     return None
 
 
