@@ -321,15 +321,11 @@ def arc_state(x0, arc, phi, q=None):
 
 
 def arc_end(x0, dtheta, ac, R, T, panels=4, nodes=8):
-    """Polar state after a fixed-attitude arc of angle ``dtheta``, and the time it takes.
-
-    ``x0`` is the polar state [r, theta, v_r, v_theta] at the start, canonical; ``dtheta``
-    the arc angle, rad (several revolutions are fine); ``ac`` the characteristic
-    acceleration at 1 au, canonical (times any throttle); ``R``, ``T`` the factors of
-    Eqs. 3-4; the time is a composite Gauss-Legendre rule of ``panels`` equal pieces,
-    ``nodes`` points each.  Returns ``(x1, dt, q3)``: the polar state at theta0 + dtheta,
-    the time along the arc (TU), and q3 at the end, where the first-order solution is
-    valid only while it is positive (for T >= 0 its smallest value on the arc).
+    """``(x1, dt, q3)`` after a fixed-attitude arc of ``dtheta`` rad (several revolutions
+    are fine) from the polar state ``x0`` (canonical, ``ac`` times any throttle): the state,
+    the time (TU, by ``panels`` Gauss-Legendre panels of ``nodes`` points) and q3 at the
+    end, which must stay positive for the first-order arc to hold (for T >= 0 its smallest
+    value on the arc).
     """
     arc = arc_frame(x0, ac, R, T)
     dt = 0

@@ -7,12 +7,10 @@ angle phi from its start) the turn is the Magnus expansion
     Omega = Phi(phi) - (1/2) int_0^phi omega(p) x Phi(p) dp + O(a~_c^3),
     Phi(phi) = int_0^phi omega(p) dp,  omega = a~_c N / s^2 (cos phi, sin phi, 0).
 
-At first order s is the arc's Keplerian one, and Phi is the closed-form integral I_b
-(``closed_form._KeplerIntegrals``) for every 0 <= e0 < 1: error O(a~_c^2).  At second
-order s's first-order drift and the commutator term are added at the arc's
-Gauss-Legendre nodes (as ``closed_form.SecondOrderArc``): error O(a~_c^3).  A turn is
-applied as quat_end = quat_start exp(R_z(theta_start) Omega); the plane's theta is
-unchanged by it.
+At first order Phi is the closed-form integral I_b on the Keplerian s, error O(a~_c^2);
+at second order s's drift and the commutator are added at the arc's Gauss-Legendre
+nodes, error O(a~_c^3).  A turn is applied as quat_end = quat_start
+exp(R_z(theta_start) Omega); the plane's theta is unchanged by it.
 """
 
 import casadi as ca
