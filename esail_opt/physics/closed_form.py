@@ -1,30 +1,22 @@
 """The paper's first-order closed form of a fixed-attitude arc (Eqs. 12-26).
 
-Why not Eqs. 15 and 20-26 as printed
-------------------------------------
-The printed elliptic solution measures theta from the parking orbit's apse line and
-carries 1/e0 factors, a pole in tan(theta/2) and a branch jump in E (Eq. 26).  An
-optimiser restarts arcs on nearly circular orbits, where the apse line is undefined
-and those forms lose every digit.  Here Eq. 13 is integrated in closed form once more,
-in a frame whose theta starts at the arc's first radius (so theta0 = 0 and the
-eccentricity vector zeta = (e_x, e_y) is a smooth function of the state), and the
-integrals are written with the complex variable
+Not Eqs. 15 and 20-26 as printed: they measure theta from the parking orbit's apse line
+and carry 1/e0 factors, a pole in tan(theta/2) and a branch jump in E (Eq. 26), which lose
+every digit on the nearly circular orbits an optimiser restarts arcs on.  Here Eq. 13 is
+integrated in a frame whose theta starts at the arc's first radius (so the eccentricity
+vector (e_x, e_y) is smooth in the state), with the complex variable
 
-    u(phi) = beta e^{-i omega} e^{i phi},   beta = e / (1 + sqrt(1 - e^2)),
+    u(phi) = beta e^{-i omega} e^{i phi},   beta = e / (1 + sqrt(1 - e^2)).
 
-for which 1 + e cos(phi - omega) = |1 + u|^2 / (1 + beta^2) and
-1 / (1 + e cos f) = (2 Re(1 / (1 + u)) - 1) / sqrt(1 - e^2).  Since |u| < 1, the
-principal log(1 + u) is continuous over any number of revolutions, E - f equals
--2 arg(1 + u), and the only removable singularity left is log(1 + u) / u, which is
-evaluated by a series near u = 0.  The result is the same function as Eq. 15 at
-e0 = 0 and Eqs. 20-26 for e0 > 0 (the tests check both), with finite first and
-second derivatives everywhere on 0 <= e0 < 1.
+Since |u| < 1, the principal log(1 + u) is continuous over any number of revolutions,
+E - f = -2 arg(1 + u), and the one removable singularity left, log(1 + u) / u, is
+evaluated by a series near u = 0.  The result equals Eq. 15 at e0 = 0 and Eqs. 20-26 for
+e0 > 0, with finite first and second derivatives on all of 0 <= e0 < 1.
 
-Units: lengths in r0 (the arc's first radius), speeds in sqrt(mu / r0), as in the
-paper; :func:`arc_end` converts from and to the canonical polar state.
-
-Eq. 6 as printed carries 1/(q3 s^2); the consistent prefactor is 1/s^2 (see
-THEORY.md §2.3 and §6.1).  Only Eq. 14, which agrees with 1/s^2, is used here.
+Lengths are in r0 (the arc's first radius), speeds in sqrt(mu / r0), as in the paper;
+:func:`arc_end` converts from and to the canonical polar state.  Eq. 6 as printed carries
+1/(q3 s^2); the consistent prefactor is 1/s^2 (THEORY.md §2.3, §6.1), which Eq. 14, the
+only one used here, agrees with.
 """
 
 import casadi as ca
@@ -110,14 +102,11 @@ _SERIES_TERMS = 13
 def _log1p_over(u, small, log1p_u):
     """log(1 + u) / u for |u| < 1, finite with all derivatives at u = 0.
 
-    ``small`` is the (scalar) condition |u| < _SERIES_RADIUS, and ``log1p_u`` is
-    log(1 + u) itself, which the callers have already formed: an arc's cost is mostly
-    its complex logarithms.  There the identity
-    log(1 + u) = 2 atanh(v), v = u / (2 + u), turns the quotient into
-    2/(2 + u) * sum v^(2n)/(2n+1), a rapidly converging polynomial.  Elsewhere the
-    quotient divides by a copy of u that the series branch replaces by a harmless
-    constant, so neither branch ever sees 0/0 (whose derivative would be NaN even
-    where it is not selected).
+    ``small`` is the (scalar) condition |u| < _SERIES_RADIUS, where the series of
+    2 atanh(v) / u, v = u / (2 + u), serves; ``log1p_u`` is log(1 + u), passed in because
+    an arc's cost is mostly its complex logarithms.  The direct quotient divides by a copy
+    of u that the series branch replaces by a constant: a 0/0 in the unselected branch
+    would still put NaN into derivatives.
     """
     v = u / (2 + u)
     v2 = v * v
@@ -133,12 +122,9 @@ def _log1p_over(u, small, log1p_u):
 
 
 class _KeplerIntegrals:
-    """Integrals over [0, phi] along the Keplerian orbit w = 1 + e_x cos + e_y sin.
-
-    The arc's constants are formed once, so that expressions evaluated at many phi
-    share them.  ``at(phi)`` returns (I_a, I_b, I_c): I_a = int e^{i phi}/w,
-    I_b = int e^{i phi}/w^2 and I_c = int 1/w^2, the last being
-    (Delta M)/(1 - e^2)^{3/2}.
+    """Integrals over [0, phi] along the Keplerian orbit w = 1 + e_x cos + e_y sin, the
+    arc's constants formed once for all phi.  ``at(phi)`` returns (I_a, I_b, I_c):
+    int e^{i phi}/w, int e^{i phi}/w^2 and int 1/w^2 = (Delta M)/(1 - e^2)^{3/2}.
     """
 
     def __init__(self, ex, ey):
@@ -184,15 +170,9 @@ class _KeplerIntegrals:
 class FirstOrderArc:
     """The first-order solution of one fixed-attitude arc (Eq. 12), in the arc's frame.
 
-    Parameters
-    ----------
-    q0 : 3-vector
-        Keplerian elements (Eq. 5) at phi = 0, in a frame whose theta is 0 at the
-        arc's start and normalised by the radius there (so q0_3 s(0) = 1).
-    actilde : scalar
-        a~_c of Eq. 7 for this arc (times any throttle).
-    R, T : scalars
-        Thrust factors of Eqs. 3-4.
+    ``q0`` are the elements (Eq. 5) at phi = 0, theta 0 at the arc's start and normalised
+    by the radius there (q0_3 s(0) = 1); ``actilde`` is a~_c of Eq. 7 (times any
+    throttle), ``R``, ``T`` the thrust factors of Eqs. 3-4.
     """
 
     def __init__(self, q0, actilde, R, T):
@@ -219,12 +199,9 @@ class FirstOrderArc:
         return clock_rate(self.q(phi), phi)
 
     def time(self, phi_a, phi_b, nodes=8):
-        """Time from phi_a to phi_b, in units sqrt(r0^3 / mu).
-
-        dt/dphi = 1 / (q3 s^2).  Its Keplerian part h0^3 / w^2 integrates exactly
-        (Kepler's equation); the first-order remainder, of relative size a~_c, is
-        integrated by an n-point Gauss-Legendre rule over the closed-form q(phi).
-        """
+        """Time from phi_a to phi_b, in units sqrt(r0^3 / mu): the Keplerian part of
+        dt/dphi exactly (Kepler's equation), the first-order remainder, of relative size
+        a~_c, by a ``nodes``-point Gauss-Legendre rule."""
         kep = self.kepler
         exact = self.h0**3 * (kep.i_c(phi_b) - kep.i_c(phi_a))
         xg, wg = gauss_legendre(nodes)
@@ -254,10 +231,9 @@ def element_rate(q, phi, R, T):
 
 
 def _node_integrals(nodes):
-    """W[k, j] = int_0^{x_k} L_j(x) dx on [0, 1], where L_j are the Lagrange polynomials
-    through 0 and the n Gauss-Legendre nodes x_k, for j over the nodes only (the value
-    interpolated is zero at 0).  So a function that vanishes at 0 and is known at the
-    nodes is integrated from 0 to each node, to the order of the interpolation."""
+    """W[k, j] = int_0^{x_k} L_j(x) dx on [0, 1], L_j the Lagrange polynomials through 0
+    and the Gauss-Legendre nodes x_k, j over the nodes only: integrates a function that
+    vanishes at 0, known at the nodes, from 0 to each node."""
     xg, _ = gauss_legendre(nodes)
     points = np.r_[0.0, xg]
     weights = np.zeros((nodes, nodes))
@@ -274,19 +250,14 @@ def _node_integrals(nodes):
 class SecondOrderArc:
     """One Picard sweep on :class:`FirstOrderArc`: the arc to second order in a~_c.
 
-    Eq. 12 freezes q at q0 on the right of dq/dtheta = a~_c (1/s^2) A [R, T]^T.  Here
-    the right side is evaluated on the first-order q instead, at the Gauss-Legendre
-    nodes of [0, phi], and only its difference from the frozen (Keplerian) one is
-    integrated numerically, since Eq. 12 integrates the frozen one exactly:
+    The right side of dq/dtheta, which Eq. 12 freezes at q0, is evaluated on the
+    first-order q at the Gauss-Legendre nodes of [0, phi], and only its difference from
+    the frozen one is integrated numerically:
 
         q(phi) = q_1(phi) + a~_c phi sum_k w_k [F(q_1(phi_k), phi_k) - F(q0, phi_k)].
 
-    The difference is O(a~_c) and vanishes at 0, so the error left is O(a~_c^3 phi^3)
-    from the first-order q in the integrand, plus the quadrature's (THEORY.md §3.8).
-    The clock needs q to second order at its nodes too: the same differences, known
-    at the nodes and zero at 0, are integrated from 0 to each node through their
-    interpolating polynomial (:func:`_node_integrals`).  The cost over the first-order
-    arc is a few dozen instructions a node, as q_1 at the nodes is the clock's anyway.
+    The error left is O(a~_c^3 phi^3) plus the quadrature's (THEORY.md §3.8).  The clock's
+    q at its nodes is brought to second order the same way (:func:`_node_integrals`).
     """
 
     def __init__(self, arc, phi, nodes):
@@ -312,12 +283,9 @@ class SecondOrderArc:
 
 
 def q_of_theta(q0, theta0, theta, actilde, R, T):
-    """First-order elements q(theta) of Eq. 12 in any fixed reference frame.
-
-    ``q0`` are the Keplerian elements at ``theta0`` (for the paper's parking orbit,
-    Eq. 8 with theta measured from the apse line), normalised by r(theta0).  The
-    frame's theta may start anywhere; the rotation to the arc's own frame is exact.
-    """
+    """First-order elements q(theta) of Eq. 12 in any fixed reference frame, from the
+    elements ``q0`` at ``theta0`` normalised by r(theta0) (the paper's parking orbit:
+    Eq. 8, theta from the apse line)."""
     c0, s0 = ca.cos(theta0), ca.sin(theta0)
     # Rotating the reference direction by theta0 rotates (q1, q2) by -theta0.
     q_local = ca.vertcat(c0 * q0[0] + s0 * q0[1], -s0 * q0[0] + c0 * q0[1], q0[2])
@@ -337,11 +305,8 @@ def gauss_legendre(nodes):
 
 
 def arc_frame(x0, ac, R, T):
-    """The :class:`FirstOrderArc` that starts at polar state ``x0`` (canonical units).
-
-    The arc's reference direction is the starting radius, so theta0 = 0 and the
-    eccentricity vector enters smoothly; lengths are then in r0 = x0[0].
-    """
+    """The :class:`FirstOrderArc` that starts at polar state ``x0`` (canonical units), its
+    theta from the starting radius and its lengths in r0 = x0[0]."""
     r0 = x0[0]
     q0 = q_from_polar(ca.vertcat(r0, 0, x0[2], x0[3]), r0)
     return FirstOrderArc(q0, ac_tilde(ac, r0), R, T)
@@ -356,31 +321,11 @@ def arc_state(x0, arc, phi, q=None):
 
 
 def arc_end(x0, dtheta, ac, R, T, panels=4, nodes=8):
-    """Polar state after a fixed-attitude arc of angle ``dtheta``, and the time it takes.
-
-    Parameters
-    ----------
-    x0 : 4-vector
-        Polar state [r, theta, v_r, v_theta] at the arc's start, canonical units.
-    dtheta : scalar
-        Arc angle, radians (several revolutions are fine).
-    ac : scalar
-        Characteristic acceleration at 1 au, canonical units (times any throttle).
-    R, T : scalars
-        Thrust factors of Eqs. 3-4.
-    panels, nodes : int
-        Composite Gauss-Legendre rule for the time of flight: ``panels`` equal
-        pieces of the arc, ``nodes`` points each.
-
-    Returns
-    -------
-    x1 : 4-vector
-        Polar state at theta0 + dtheta (Eqs. 9-11 on the q of Eq. 12).
-    dt : scalar
-        Time along the arc, TU (see :meth:`FirstOrderArc.time`).
-    q3 : scalar
-        q3 at the arc's end; the first-order solution is valid only while it is
-        positive, and for T >= 0 this is its smallest value on the arc.
+    """``(x1, dt, q3)`` after a fixed-attitude arc of ``dtheta`` rad (several revolutions
+    are fine) from the polar state ``x0`` (canonical, ``ac`` times any throttle): the state,
+    the time (TU, by ``panels`` Gauss-Legendre panels of ``nodes`` points) and q3 at the
+    end, which must stay positive for the first-order arc to hold (for T >= 0 its smallest
+    value on the arc).
     """
     arc = arc_frame(x0, ac, R, T)
     dt = 0

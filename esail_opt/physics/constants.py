@@ -1,10 +1,8 @@
-"""Physical constants and the one place where units are converted.
+"""Physical constants and the package's only unit conversions.
 
-Inside the package everything is canonical: length in au, mu_sun = 1, time in
-TU = sqrt(au^3 / mu_sun) (about 58.13 days), angles in radians.  The boundary
-(problem files, CLI, JSON, plots) speaks au, days, degrees, km/s and mm/s^2;
-the functions below are the only conversions between the two.
-"""
+Inside, lengths are in au, mu_sun = 1, time in TU = sqrt(au^3 / mu_sun) (about 58.13 days)
+and angles in radians; the boundary (problem files, CLI, JSON, plots) speaks au, days,
+degrees, km/s and mm/s^2."""
 
 import math
 

@@ -24,20 +24,15 @@ def rhs(x, ac, R, T):
 
 
 def rhs_in_theta(x, ac, R, T):
-    """Derivative of ``[r, theta, v_r, v_theta]`` and of time, with theta as the
-    independent variable: Eqs. 1-2 divided by theta' = v_theta / r.
-
-    Returns the 5-vector d[r, theta, v_r, v_theta, t]/dtheta; its theta entry is 1.
-    """
+    """d[r, theta, v_r, v_theta, t]/dtheta: Eqs. 1-2 divided by theta' = v_theta / r (its
+    theta entry is 1)."""
     dt_dtheta = x[0] / x[3]
     return ca.vertcat(rhs(x, ac, R, T) * dt_dtheta, dt_dtheta)
 
 
 def angular_momentum(x0, ac, T, dt):
-    """Angular momentum r v_theta after ``dt`` (TU) of constant pitch from polar state ``x0``.
-
-    Eq. 2 is d(r v_theta)/dt = a_c r_E T, so with the pitch (and throttle) fixed,
-    h = r0 v_theta0 + ac T dt exactly (r_E = 1 au, canonical units; THEORY.md §2.4).
+    """Angular momentum r v_theta after ``dt`` (TU) of constant pitch from polar state ``x0``:
+    exactly r0 v_theta0 + ac T dt, since Eq. 2 is d(r v_theta)/dt = a_c r_E T (THEORY.md §2.4).
     """
     return x0[0] * x0[3] + ac * T * dt
 
@@ -60,11 +55,9 @@ def taylor_step(x, ac, R, T, dt, order):
     """Polar state ``[r, theta, v_r, v_theta]`` after ``dt`` (TU) of constant pitch from
     ``x``, by the Taylor series of Eqs. 1-2 about ``x`` to ``order`` in ``dt``.
 
-    The k-th term is (dt^k / k!) (f . grad)^(k-1) f, each derivative the Jacobian-vector
-    product of the one before, formed on free symbols (so that they are derivatives of
-    Eqs. 1-2, not of whatever expression ``x`` is) and then evaluated at ``x``; any
-    argument may be a CasADi expression.  The truncation error falls like
-    dt^(order + 1); it is meant for steps that are a small part of an orbit.
+    The series' derivatives are formed on free symbols, so any argument may be a CasADi
+    expression.  The truncation error falls like dt^(order + 1): for steps that are a
+    small part of an orbit.
     """
     return _taylor_function(order)(x, ac, R, T, dt)
 
@@ -76,12 +69,11 @@ def _cross(a, b):
 
 def rhs_cartesian(y, ac, R, T, N):
     """Time derivative of the Cartesian state ``[x, y, z, vx, vy, vz]`` under the Sun's
-    gravity and the E-sail's thrust ``ac (r_E / r) (R r_hat + T t_hat + N h_hat)``.
+    gravity and the thrust ``ac (r_E / r) (R r_hat + T t_hat + N h_hat)``, canonical units.
 
-    r_hat = r / |r|, h_hat = r x v / |r x v| and t_hat = h_hat x r_hat, from the state
-    alone: this is the reference that the turning-plane decomposition (:func:`rhs_turning`,
-    ``physics.plane_turn``) is checked against, so it uses none of it.  Canonical units,
-    mu = 1, r_E = 1 au; (R, T, N) from ``thrust.radial_transverse_normal``.
+    The frame comes from the state alone (h_hat = r x v / |r x v|, t_hat = h_hat x r_hat):
+    this is the reference the turning-plane decomposition (:func:`rhs_turning`) is
+    checked against, so it uses none of it.
     """
     pos, vel = y[:3], y[3:6]
     r = ca.norm_2(pos)
@@ -95,8 +87,7 @@ def rhs_cartesian(y, ac, R, T, N):
 
 def swept_angle_rate(y):
     """d(theta)/dt = |r x v| / r^2 of a Cartesian state: the rate at which the Sun-sail
-    line sweeps angle, |d r_hat / dt|.  It is how a Cartesian flight measures a
-    schedule's lengths in theta, with no reference to any plane."""
+    line sweeps angle, by which a Cartesian flight measures lengths in theta."""
     pos, vel = y[:3], y[3:6]
     return ca.norm_2(_cross(pos, vel)) / ca.sumsqr(pos)
 
@@ -116,13 +107,9 @@ def plane_rate(x, ac, N):
 
 
 def rhs_turning(x, quat, ac, R, T, N):
-    """The motion in three dimensions as the planar motion in a turning plane: the
-    derivatives of the polar state ``[r, theta, v_r, v_theta]`` (Eqs. 1-2 with R and T,
-    :func:`rhs`) and of the plane's unit quaternion (``physics.rotation``'s convention:
-    the plane's frame has x along theta = 0, z along h_hat).
-
-    The frame turns about r_hat only (:func:`plane_rate`), so d quat/dt =
-    (1/2) quat (0, omega).  Returns the 8-vector d[x, quat]/dt.
+    """d[x, quat]/dt (8-vector): the motion in three dimensions as the planar motion
+    (:func:`rhs`) in a plane whose unit quaternion (``physics.rotation``'s convention;
+    x along theta = 0, z along h_hat) turns about r_hat at :func:`plane_rate`.
     """
     omega = plane_rate(x, ac, N)
     dq = 0.5 * rotation.multiply(quat, ca.vertcat(0, omega))

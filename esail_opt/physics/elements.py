@@ -1,9 +1,8 @@
 """Conversions between the polar state, Bombardelli's elements q and classical elements.
 
-The polar state is ``x = [r, theta, v_r, v_theta]`` in canonical units (au, rad,
-au/TU, au/TU, with mu = 1).  The elements q of Eq. 5 are dimensionless: lengths are
-scaled by a reference radius r0 and speeds by sqrt(mu / r0), and theta is measured
-from whatever fixed direction the polar state uses.
+The polar state is ``x = [r, theta, v_r, v_theta]`` in canonical units (au, rad, au/TU,
+au/TU, mu = 1).  The elements q of Eq. 5 are dimensionless (lengths in a reference radius
+r0, speeds in sqrt(mu / r0)), theta from the polar state's fixed direction.
 """
 
 import functools
@@ -15,12 +14,8 @@ from esail_opt.physics import rotation
 
 
 def q_from_polar(x, r0):
-    """Elements q (Eq. 5) of a polar state, normalised by the radius r0.
-
-    Uses h q3 = 1, q1 = cos(th) (v_th - q3) + sin(th) v_r and
-    q2 = sin(th) (v_th - q3) - cos(th) v_r, with speeds in sqrt(mu / r0) and
-    h = r v_th in sqrt(mu r0): the inverse of Eqs. 9-11, smooth for every e < 1.
-    """
+    """Elements q (Eq. 5) of a polar state, normalised by the radius r0: the inverse of
+    Eqs. 9-11, smooth for every e < 1."""
     r, th, vr, vt = x[0], x[1], x[2], x[3]
     scale = ca.sqrt(r0)
     vr_n, vt_n = vr * scale, vt * scale
@@ -50,11 +45,8 @@ def polar_from_q(q, theta, r0):
 
 
 def eccentricity_vector(x):
-    """Osculating eccentricity vector (e cos omega, e sin omega), mu = 1.
-
-    Built from e cos(th - omega) = h v_th - 1 and e sin(th - omega) = h v_r, so it is
-    smooth at e = 0, where the apse line itself is undefined.
-    """
+    """Osculating eccentricity vector (e cos omega, e sin omega), mu = 1; smooth at e = 0,
+    where the apse line is undefined."""
     r, th, vr, vt = x[0], x[1], x[2], x[3]
     h = r * vt
     ec_f, es_f = h * vt - 1, h * vr
@@ -70,11 +62,8 @@ def orbital_energy(x):
 
 
 def classical_from_polar(x):
-    """Osculating (a, e, omega, h, nu) of a polar state, mu = 1.
-
-    omega and nu come from atan2 and have no derivative at e = 0; use
-    :func:`eccentricity_vector` where derivatives are needed.
-    """
+    """Osculating (a, e, omega, h, nu) of a polar state, mu = 1.  omega and nu have no
+    derivative at e = 0; use :func:`eccentricity_vector` where derivatives are needed."""
     a = -0.5 / orbital_energy(x)
     ev = eccentricity_vector(x)
     e = ca.sqrt(ev[0] ** 2 + ev[1] ** 2)
@@ -108,11 +97,8 @@ def parking_q0(e0, theta0):
 
 
 def ac_tilde(ac, r0):
-    """Dimensionless characteristic acceleration a~_c (Eq. 7).
-
-    With canonical ac (units mu/au^2), r_E = 1 au and r0 in au,
-    a~_c = ac / (mu / r0^2) * (r_E / r0) = ac r0.
-    """
+    """Dimensionless characteristic acceleration a~_c of Eq. 7: ac r0, with ac canonical
+    (mu/au^2), r_E = 1 au and r0 in au."""
     return ac * r0
 
 
@@ -120,12 +106,10 @@ def cartesian_from_polar3d(x, quat):
     """Cartesian state ``[x, y, z, vx, vy, vz]`` of the polar state ``x = [r, theta, v_r,
     v_theta]`` in the plane of unit quaternion ``quat``.
 
-    Convention (THEORY.md §9.3): ``quat`` takes the plane's frame to the fixed frame (the
-    ecliptic of J2000 for real bodies); the plane's frame has x along the direction from
-    which theta is measured, z along the angular momentum r x v, and y = z x x, so theta
-    grows with the motion.  Position and velocity both lie in the plane: the frame turns
-    about r_hat only, so its turn adds nothing to the velocity.  The identity quaternion
-    gives the planar model's state in the fixed frame's x-y plane.
+    ``quat`` takes the plane's frame (x along theta = 0, z along r x v) to the fixed frame
+    (the ecliptic of J2000 for real bodies; THEORY.md §9.3).  The frame turns about r_hat
+    only, so its turn adds nothing to the velocity.  The identity gives the planar model's
+    state in the fixed x-y plane.
     """
     r, th, vr, vt = x[0], x[1], x[2], x[3]
     c, s = ca.cos(th), ca.sin(th)
@@ -137,13 +121,10 @@ def cartesian_from_polar3d(x, quat):
 def polar3d_from_cartesian(y):
     """Polar state and plane quaternion ``(x[4], quat[4])`` of a Cartesian state.
 
-    The plane's frame is the one reached from the fixed frame by the smallest rotation
-    that takes its z axis to h_hat (about the line of nodes, by the inclination), and
-    theta is measured from that rotation's image of the fixed x axis; at inclination 0
-    the quaternion is the identity and theta the longitude, as in the planar model.  Any other frame of the same plane differs by a
-    turn about h_hat and a matching shift of theta (the map back,
-    :func:`cartesian_from_polar3d`, is the same).  Defined for every orbit but a
-    retrograde one exactly (h_hat = -z).
+    The quaternion is the smallest rotation that takes the fixed z axis to h_hat, theta
+    measured from its image of the fixed x axis: at inclination 0 the identity and the
+    longitude, as in the planar model.  Undefined for an exactly retrograde orbit
+    (h_hat = -z).
     """
     pos, vel = y[:3], y[3:6]
     h_vec = ca.vertcat(pos[1] * vel[2] - pos[2] * vel[1], pos[2] * vel[0] - pos[0] * vel[2],

@@ -1,30 +1,16 @@
 """The orbital plane's turn over a closed-form arc (THEORY.md §9).
 
-With the thrust f = f_R r_hat + f_T t_hat + f_N h_hat, the polar state obeys Eqs. 1-2
-inside a plane whose frame turns about r_hat at the rate r f_N / h
-(``dynamics.rhs_turning``).  With theta as the independent variable the rate is
+The plane's frame turns about r_hat at d(turn)/d(theta) = a~_c N / s^2 (s of Eq. 9;
+``dynamics.rhs_turning``).  In the arc's frame (x along its first radius, z along h_hat,
+angle phi from its start) the turn is the Magnus expansion
 
-    d(turn)/d(theta) = a~_c N / s^2  about r_hat(theta),
+    Omega = Phi(phi) - (1/2) int_0^phi omega(p) x Phi(p) dp + O(a~_c^3),
+    Phi(phi) = int_0^phi omega(p) dp,  omega = a~_c N / s^2 (cos phi, sin phi, 0).
 
-s of Eq. 9.  In the arc's frame (x along the arc's first radius, z along h_hat, angle
-phi from the arc's start) the frame's orientation M(phi) obeys dM/dphi = M [omega(phi)]x
-with omega = a~_c N / s^2 (cos phi, sin phi, 0), M(0) = 1.  Its Magnus expansion is
-
-    M = exp([Omega]x),  Omega = Phi(phi) - (1/2) int_0^phi omega(p) x Phi(p) dp + O(a~_c^3),
-    Phi(phi) = int_0^phi omega(p) dp.
-
-* First order: s from the arc's Keplerian q0 (s0 = q3 w, w = 1 + e_x cos + e_y sin), so
-  Phi = a~_c N h0^2 int_0^phi e^{ip} / w^2 dp, the integral I_b that the first-order arc
-  already forms in closed form for every 0 <= e0 < 1 (``closed_form._KeplerIntegrals``);
-  the error is O(a~_c^2), from s and from the commutator term, which is a turn about
-  h_hat.
-* Second order: the part of Phi that s's first-order drift adds, by the arc's
-  Gauss-Legendre nodes on the first-order q (as ``closed_form.SecondOrderArc``), plus the
-  commutator term on the first-order Phi at the same nodes; the error is O(a~_c^3).
-
-A turn is applied to the plane's quaternion (``physics.rotation``'s convention) as
-quat_end = quat_start exp(R_z(theta_start) Omega): the arc's frame is the plane's frame
-turned by theta_start about z, and the plane's theta is unchanged by the turn.
+At first order Phi is the closed-form integral I_b on the Keplerian s, error O(a~_c^2);
+at second order s's drift and the commutator are added at the arc's Gauss-Legendre
+nodes, error O(a~_c^3).  A turn is applied as quat_end = quat_start
+exp(R_z(theta_start) Omega); the plane's theta is unchanged by it.
 """
 
 import casadi as ca
@@ -42,22 +28,17 @@ def turn_rate(q, phi, actilde, N):
 
 
 def first_order_turn(arc, N, phi):
-    """Phi(phi) = a~_c N h0^2 (Re I_b, Im I_b, 0) on ``arc`` (a
-    ``closed_form.FirstOrderArc``): the turn's rotation vector at first order, in the
-    arc's frame, in closed form for every e0 (circular: a~_c N (sin phi, 1 - cos phi))."""
+    """Phi(phi) = a~_c N h0^2 (Re I_b, Im I_b, 0): the turn's rotation vector at first
+    order over ``arc`` (a ``closed_form.FirstOrderArc``), in the arc's frame."""
     i_b = arc.kepler.at(phi)[1]
     scale = arc.actilde * N * arc.h0**2
     return ca.vertcat(scale * i_b.re, scale * i_b.im, 0)
 
 
 def second_order_turn(arc, N, phi, nodes):
-    """The turn's rotation vector to second order in a~_c over [0, phi] of ``arc``.
-
-    Phi with s on the first-order q(p) at the ``nodes`` Gauss-Legendre points of
-    [0, phi] (only its difference from the closed-form Phi is integrated numerically),
-    plus the Magnus commutator -(1/2) int omega x Phi, a turn about z, on the
-    first-order omega and Phi at the same nodes.
-    """
+    """The turn's rotation vector to second order in a~_c over [0, phi] of ``arc``: only
+    the difference from the closed-form Phi, and the Magnus commutator, are integrated
+    at the ``nodes`` Gauss-Legendre points."""
     xg, wg = gauss_legendre(nodes)
     eps = arc.actilde
     drift, commutator = 0, 0

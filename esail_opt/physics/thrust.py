@@ -15,20 +15,9 @@ BEST_FIT = (0.7477, 0.2523)
 
 
 def radial_transverse(alpha, coefficients=EXACT):
-    """Radial and transverse thrust factors (Eqs. 3-4).
-
-    Parameters
-    ----------
-    alpha : float or casadi expression
-        Sail pitch angle alpha_n in radians, within [-pi/2, pi/2].
-    coefficients : tuple of float
-        (b1, b2).
-
-    Returns
-    -------
-    R, T
-        ``b1 + b2 cos(2 alpha)`` and ``b2 sin(2 alpha)``.
-    """
+    """Radial and transverse thrust factors (Eqs. 3-4), ``b1 + b2 cos(2 alpha)`` and
+    ``b2 sin(2 alpha)``, of the pitch alpha_n (rad, in [-pi/2, pi/2], float or CasADi)
+    and ``coefficients`` (b1, b2)."""
     b1, b2 = coefficients
     return b1 + b2 * ca.cos(2 * alpha), b2 * ca.sin(2 * alpha)
 
@@ -42,25 +31,15 @@ def cone_angle(alpha, coefficients=EXACT):
 def radial_transverse_normal(alpha, delta, coefficients=EXACT):
     """Thrust factors (R, T, N) in three dimensions, along r_hat, t_hat and h_hat.
 
-    The sail's normal n lies at pitch ``alpha`` from r_hat and is turned by the clock
-    angle ``delta`` about r_hat: delta = 0 keeps it in the orbital plane on the side of
-    the motion (t_hat), positive delta turns it toward h_hat = r x v / |r x v|.  The
-    solar wind is radial, so the sail's thrust is symmetric about r_hat: turning the
-    normal by delta about r_hat turns the planar thrust (Eqs. 3-4) by delta about r_hat.
-    Hence, for either coefficient set,
+    The sail's normal lies at pitch ``alpha`` (rad, in [-pi/2, pi/2]) from r_hat, turned
+    by the clock angle ``delta`` (rad) about r_hat: delta = 0 keeps it in the orbital
+    plane on the side of the motion, positive delta turns it toward h_hat.  The solar
+    wind is radial, so the planar thrust (Eqs. 3-4) turns by delta with it:
 
         (R, T, N) = (b1 + b2 cos 2 alpha, b2 sin 2 alpha cos delta, b2 sin 2 alpha sin delta),
 
-    which is Eqs. 3-4 at delta = 0 (built from :func:`radial_transverse`, so the planar
-    factors are these to the last bit).  With :data:`EXACT` it is Huo et al.'s
-    a = (a_c/2)(r_E/r)[r_hat + (r_hat . n) n] (THEORY.md §9.1).
-
-    Parameters
-    ----------
-    alpha, delta : float or casadi expression
-        Pitch in [-pi/2, pi/2] and clock angle, radians.
-    coefficients : tuple of float
-        (b1, b2).
+    at delta = 0 :func:`radial_transverse`'s to the last bit.  With :data:`EXACT` it is
+    Huo et al.'s a = (a_c/2)(r_E/r)[r_hat + (r_hat . n) n] (THEORY.md §9.1).
     """
     R, T = radial_transverse(alpha, coefficients)
     return R, T * ca.cos(delta), T * ca.sin(delta)
@@ -69,12 +48,10 @@ def radial_transverse_normal(alpha, delta, coefficients=EXACT):
 def canonical_attitude(alpha, delta):
     """The one of the two names of a sail attitude that a reader expects, radians.
 
-    The sail's normal at (alpha, delta) and at (-alpha, delta + pi) is the same line (the
-    normal is turned half a circle about r_hat and its pitch changes sign), so both give
-    the same thrust.  The NLP may land on either name, a turn or two away.  The
-    canonical name has delta in (-pi/2, pi/2]: the normal leans toward the side of the
-    motion's half of the orbital plane, and a thrust that brakes shows as a negative
-    pitch, as in the planar problem.
+    (alpha, delta) and (-alpha, delta + pi) are the same normal line, so the same thrust,
+    and the NLP may land on either, a turn or two away.  The canonical name has delta in
+    (-pi/2, pi/2], so that a thrust that brakes shows as a negative pitch, as in the
+    planar problem.
     """
     delta = math.remainder(delta, 2 * math.pi)  # in [-pi, pi]
     if delta <= -math.pi / 2 or delta > math.pi / 2:

@@ -1,39 +1,22 @@
 """Many fixed-attitude cases propagated by the closed form in one mapped call.
 
-A survey (which pitch and a_c reach where, and when) and the paper's Figs. 3-4 are
-grids of propagations that differ only in their numbers.  Each is one case of the
-same ``casadi.Function``, so the grid is that Function's ``map`` over M cases: one
-call from Python, one loop in CasADi, no Python loop over cases.  The single-case
-Functions of :mod:`.rectified` are mapped as they are, so a case of the batch is the
-single-case propagator's answer to rounding (tests check it case by case).
+A grid of propagations that differ only in their numbers (a survey, the paper's
+Figs. 3-4) is one ``map`` over M cases of a single-case Function of :mod:`.rectified`,
+so each case is the single-case propagator's answer to rounding.  Two shapes are
+batched: a rectified schedule of N segments (:func:`batch_function`,
+:func:`propagate_batch`), and the paper's single first-order arc at angles given per
+case (:func:`angles_batch_function`, :func:`arcs_at_angles`), so that arcs of different
+sample counts share one call.
 
-Two shapes are batched:
-
-* a rectified schedule of N segments (:func:`batch_function`, numbers through
-  :func:`propagate_batch`): ``rectified.rectified_function`` mapped;
-* the paper's single first-order arc at angles given per case
-  (:func:`angles_batch_function`, numbers through :func:`arcs_at_angles`), so that arcs
-  of different sample counts (Fig. 4 has hundreds) share one call.
-
-``jit`` compiles the batch to C.  Where the schedule is a plain
-chain of one SX arc (one arc a segment, no extrapolation, arcs not on the disk cache's
-panels: the bench's timed batch), the C is generated here across cases
-(:func:`_vectorised`): every CasADi instruction of the arc becomes one operation on a
-vector of cases (GCC's vector extensions, as wide as the CPU's registers), and the
-elementary functions go to glibc's vector math library (libmvec), so the compiler
-computes four or eight cases at once where CasADi's own code computes one.  Its sums,
-products, quotients and roots are the scalar code's, rounded alike (fused
-multiply-adds are kept off); only libmvec's sin, cos, log, atan and atan2, within
-4 ulp where the scalar ones are within 1, differ, which moves the ten-year states
-by a few 1e-13 of their size; it is compiled in the process that loads it.  How that
-compares with integrators (CVODES, heyoka's Taylor integrator) is measured by
-``esail-opt-bench propagate``; results/bench/README.md holds the figures.
-
-Where it does not apply, or its compile fails, the mapped Function is compiled through ``propagation.compiled``'s
-disk cache, its value alone (never differentiated, its derivatives would be far
-larger to compile), so a process loads it in milliseconds where compiling it took
-about a second.  Without a compiler, or with ``ESAIL_OPT_COMPILE=0``, the
-Function stays on CasADi's virtual machine.
+``jit`` compiles the batch to C.  Where the schedule is a plain chain of one SX arc, the
+C is generated here across cases (:func:`_vectorised`): each CasADi instruction becomes
+one operation on a vector of four or eight cases (GCC's vector extensions), the
+elementary functions go to glibc's libmvec.  Its arithmetic is the scalar code's,
+rounded alike, but for libmvec's sin, cos, log, atan and atan2 (within 4 ulp, not 1),
+which move ten-year states by a few 1e-13 of their size.  Elsewhere, or if that compile
+fails, the mapped Function's value alone (derivatives would be far larger to compile)
+goes through ``propagation.compiled``'s disk cache; without a compiler, or with
+``ESAIL_OPT_COMPILE=0``, it stays on CasADi's virtual machine.
 """
 
 import functools
@@ -56,32 +39,29 @@ log = logging.getLogger("esail_opt")
 
 def _native(single, cases):
     """``single`` (one case) compiled to C, its value alone, through the disk cache, and
-    mapped over ``cases``; on the virtual machine where compiling is off or failed
-    (one warning).  The case is compiled, not the map: the map's C is the same loop
-    over it, and a map's graph, as long as its cases, is slow to hash for the key.  A
-    case that calls compiled arcs already (``model.native``) is mapped as it is: its
-    C would call their symbols, which its own library cannot find."""
+    mapped over ``cases``; on the virtual machine where compiling is off or failed.  The
+    case is compiled, not the map, whose graph is slow to hash for the key.  A case that
+    calls compiled arcs already is mapped as it is: its library could not find their
+    symbols."""
     if any(f.class_name() == "External" for f in single.find_functions()):
         return single.map(cases)
     return compiled.compiled(single, with_derivatives=False).map(cases)
 
 
-#: Where the vectorised batch's source and library live while it is loaded: the
-#: system's temporary folder, not the working directory (which may be read-only).
+#: Where the vectorised batch's source and library live: the system's temporary folder,
+#: as the working directory may be read-only.
 _JIT_FOLDER = tempfile.gettempdir() + os.sep
 
 
-#: Flags of the compile across cases: -march=native gives the vector width of this CPU
-#: (with a fallback without it); -ffp-contract=off keeps each product and sum rounded
-#: as CasADi's scalar code rounds it (fused multiply-adds moved the bench's ten-year
-#: states by 5e-11 of their size).  -O3 without errno or floating-point traps gave the
-#: same numbers to the bit as -O1 and -O2, and ran a little faster on the bench's batch.
+#: Flags of the compile across cases: -march=native gives this CPU's vector width (with
+#: a fallback without it); -ffp-contract=off rounds each product and sum as CasADi's
+#: scalar code does (fused multiply-adds moved ten-year states by 5e-11 of their size);
+#: -O3 without errno or traps gave the bits of -O1, a little faster.
 VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fno-math-errno",
                 "-fno-trapping-math")
-#: The C of one arc over a vector of cases: W cases a vector (8 with AVX-512, 4
-#: otherwise); M1/M2 call libmvec's vector function where MVEC is defined, else the
-#: scalar one lane by lane.  SPLAT(c) is c in every lane (-0.0 stays -0.0), MASK a
-#: comparison's lanes as 1.0 or 0.0, as CasADi's scalar code has them.
+#: The C of one arc over a vector of W cases (8 with AVX-512, 4 otherwise); M1/M2 call
+#: libmvec where MVEC is defined, else the scalar function lane by lane; SPLAT keeps -0.0
+#: and MASK gives 1.0 or 0.0, as CasADi's scalar code does.
 _PRELUDE = r"""#include <math.h>
 typedef long long int casadi_int;
 #if defined(__AVX512F__)
@@ -111,8 +91,8 @@ vd V2(atan2)(vd, vd); vd V2(pow)(vd, vd);
 #define M2(f, t, a, b) LANES(t, f(a[j], b[j]))
 #endif
 """
-#: The batch over all cases: W cases at a time through the arcs, each arc's end the
-#: next one's start; a last, partial vector repeats the last case in its spare lanes.
+#: The batch over all cases, W at a time through the chained arcs; a last, partial
+#: vector repeats the last case in its spare lanes.
 _DRIVER = r"""
 static const casadi_int s_x0[3] = {5, CASES, 1}, s_row[3] = {1, CASES * ARCS, 1};
 static const casadi_int s_xs[3] = {5, CASES * ARCS * SAMPLES, 1};
@@ -160,8 +140,8 @@ _VECTOR_OPS = {
     ca.OP_LE: "MASK({a} <= {b})", ca.OP_EQ: "MASK({a} == {b})", ca.OP_NE: "MASK({a} != {b})",
     ca.OP_NOT: "MASK({a} == 0.)", ca.OP_IF_ELSE_ZERO: "(vd)((vi){b} & ({a} != 0.))",
 }
-#: Operations called lane by lane on the scalar functions CasADi's own code calls (the
-#: same numbers), and those libmvec has as vector functions.
+#: Operations called lane by lane on CasADi's own scalar functions (the same numbers),
+#: and those libmvec has as vector functions.
 _LANE_CALLS = {ca.OP_SQRT: "sqrt", ca.OP_FABS: "fabs", ca.OP_TAN: "tan",
                ca.OP_FMIN: "fmin", ca.OP_FMAX: "fmax"}
 _VECTOR_CALLS = {ca.OP_SIN: "sin", ca.OP_COS: "cos", ca.OP_LOG: "log", ca.OP_EXP: "exp",
@@ -190,13 +170,9 @@ def _vector_statement(fun, k):
 
 
 def vector_source(arc, segments, cases, name):
-    """C of ``segments`` chained arcs of the SX Function ``arc`` over ``cases`` cases, W
-    at a time, as a CasADi external Function ``name`` with the inputs and outputs of
-    :func:`batch_function`'s mapped Function.
-
-    ``arc`` is ``(x0[5], ac, alpha, length) -> (xs[5 x S], q3[1], ...)``; its outputs
-    after the second are not used.
-    """
+    """C of ``segments`` chained arcs of the SX Function ``arc`` ``(x0[5], ac, alpha,
+    length) -> (xs[5 x S], q3[1], ...)`` over ``cases`` cases, as a CasADi external
+    Function ``name`` with the inputs and outputs of :func:`batch_function`'s map."""
     if arc.size_in(0) != (5, 1) or arc.nnz_out(1) != 1 or arc.n_out() > 3:
         raise NotImplementedError(f"{arc.name()} is not an arc of the chain")
     outs = ", ".join(f"vd* out{i}" for i in range(3))
@@ -212,8 +188,7 @@ def vector_source(arc, segments, cases, name):
 
 def _plain_arc(samples, length_in, coefficients, model):
     """The arc that :func:`batch_function`'s schedule chains, as one SX Function, or
-    None where the schedule is more than a chain of it (sub-arcs, extrapolation,
-    compiled panels)."""
+    None where the schedule is more than a chain of it."""
     if model.sub_arcs != 1 or model.extrapolate:
         return None
     one = model.one_arc()
@@ -221,15 +196,13 @@ def _plain_arc(samples, length_in, coefficients, model):
         return None
     make = timed_arc_function if length_in == "time" else arc_function
     arc = make(samples, coefficients=coefficients, model=one)
-    # An arc in theta is an MX map of SX panels: expanded, the same operations in one
-    # SX Function.
+    # An arc in theta is an MX map of SX panels.
     return arc if arc.class_name() == "SXFunction" else arc.expand()
 
 
 def _vectorised(arc, segments, cases):
-    """:func:`vector_source` compiled and loaded, with libmvec if it links and
-    -march=native if the compiler takes it; None when compiling is off or every try
-    fails (one warning)."""
+    """:func:`vector_source` compiled and loaded, with libmvec and -march=native if they
+    work; None when compiling is off or every try fails (one warning)."""
     if not compiled.enabled():
         return None
     name = f"lanes_{segments}x{cases}"
@@ -260,12 +233,9 @@ def batch_function(segments, cases, *, samples=1, length_in="theta", coefficient
     """``rectified.rectified_function`` (same arguments) mapped over ``cases``.
 
     ``(x0[5 x M], ac[1 x M N], alpha[1 x M N], length[1 x M N]) ->
-    (xs[5 x M N S samples], q3[1 x M N S])``, S = ``model.sub_arcs``: case m's columns
-    are the m-th block of each (its N S arcs, its N S samples-per-arc states).  With
-    ``jit`` the whole map is compiled to C in this process (see the module's docstring):
-    across cases where it can be, unless ``across_cases`` is False, and otherwise by
-    CasADi's own compile.  That is apart from ``model.native``, which flies the arcs on
-    the disk cache's compiled panels.
+    (xs[5 x M N S samples], q3[1 x M N S])``, S = ``model.sub_arcs``, case m's columns the
+    m-th block of each.  With ``jit`` the map is compiled to C (see the module's
+    docstring), across cases unless ``across_cases`` is False.
     """
     single = rectified_function(segments, samples=samples, length_in=length_in,
                                 coefficients=coefficients, model=model)
@@ -293,30 +263,12 @@ def propagate_batch(x0, alphas, lengths, ac, *, throttles=None, samples=1, lengt
                     coefficients=EXACT, model=ArcModel(), jit=False):
     """:func:`rectified.propagate` for M cases in one call.
 
-    Parameters
-    ----------
-    x0 : array_like, shape (4,) or (M, 4)
-        Polar start states [r, theta, v_r, v_theta], canonical units; one for all cases,
-        or one per case.
-    alphas, lengths : array_like, shape (M, N)
-        Pitch (rad) and length (angle or duration, as ``length_in``) of each case's
-        segments; a (N,) row serves every case.
-    ac : float or array_like, shape (M,)
-        Characteristic acceleration per case, canonical units.
-    throttles : array_like, shape (M, N) or (N,), optional
-        Factor on ac per segment, default 1.
-    samples, length_in, coefficients, model
-        As :func:`rectified.propagate`.
-    jit : bool
-        Compile the mapped Function to C (see the module's docstring).
-
-    Returns
-    -------
-    xs : numpy.ndarray, shape (M, 5, N * S * samples + 1)
-        Each case's [r, theta, v_r, v_theta, t] at its start and at every sample
-        (S = ``model.sub_arcs``).
-    q3 : numpy.ndarray, shape (M, N * S)
-        Validity margins at each arc's end.
+    ``x0`` (4,) or (M, 4) are the polar start states, canonical; ``alphas`` (rad),
+    ``lengths`` (as ``length_in``) and ``throttles`` (default 1) are (M, N), or a (N,) row
+    for every case; ``ac`` is canonical, scalar or (M,); ``jit`` compiles the map (see the
+    module's docstring); the rest as :func:`rectified.propagate`.  Returns ``xs`` (M, 5,
+    N S samples + 1), each case's [r, theta, v_r, v_theta, t] at its start and every
+    sample (S = ``model.sub_arcs``), and ``q3`` (M, N S), the margin at each arc's end.
     """
     starts = np.atleast_2d(np.asarray(x0, float))
     n = np.shape(np.atleast_2d(alphas))[1]
@@ -350,25 +302,12 @@ def arcs_at_angles(x0, ac, alphas, angles, *, coefficients=EXACT, nodes=PANEL_NO
                    jit=False):
     """The paper's single first-order arc of M cases at angles given per case, one call.
 
-    Parameters
-    ----------
-    x0 : array_like, shape (M, 4)
-        Start states [r, theta, v_r, v_theta], canonical units.
-    ac, alphas : array_like, shape (M,)
-        Characteristic acceleration (canonical) and pitch (rad) per case.
-    angles : sequence of array_like
-        Case m's sample angles from its start (rad), increasing from 0; the cases may
-        have different counts.
-    coefficients, nodes, jit
-        The thrust model, the time quadrature's Gauss-Legendre points per panel, and
-        whether to compile (:func:`batch_function`).
-
-    Returns
-    -------
-    list of (numpy.ndarray, numpy.ndarray)
-        Per case, its states [r, theta, v_r, v_theta, t] at its angles (shape
-        (5, len(angles[m])), the start first, t from 0 on the closed form's clock) and
-        q3 at each angle after the start.
+    ``x0`` (M, 4) are the start states, canonical; ``ac`` (canonical) and ``alphas``
+    (rad) are (M,); ``angles[m]`` are case m's sample angles from its start (rad,
+    increasing from 0, counts may differ); ``nodes`` are the Gauss-Legendre points per
+    panel.  Returns per case its states [r, theta, v_r, v_theta, t] at its angles
+    (5, len(angles[m])), t from 0 on the closed form's clock, and q3 at each angle after
+    the start.
     """
     starts = np.asarray(x0, float).reshape(-1, 4)
     cases = starts.shape[0]
@@ -397,10 +336,8 @@ def batch3d_function(segments, cases, *, samples=1, length_in="theta", coefficie
                      model=ArcModel(), jit=False, cartesian=False):
     """``rectified3d.rectified3d_function`` mapped over ``cases``, laid out as
     :func:`batch_function`: ``(x0[9 x M], ac, alpha, delta, length [1 x M N each]) ->
-    (xs[9 x M N S samples], q3[1 x M N S])``; with ``cartesian``, a third output, every
-    sample's Cartesian state and time (7 x M N S samples, as
-    ``rectified3d.cartesian_states``), so that a large ensemble converts in the same
-    compiled call instead of through a map as wide as its samples."""
+    (xs[9 x M N S samples], q3[1 x M N S])``; with ``cartesian`` a third output, every
+    sample's Cartesian state and time (7 x M N S samples), converted in the same call."""
     single = rectified3d_function(segments, samples=samples, length_in=length_in,
                                   coefficients=coefficients, model=model)
     if cartesian:
@@ -415,13 +352,9 @@ def batch3d_function(segments, cases, *, samples=1, length_in="theta", coefficie
 
 def propagate_batch3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
                       length_in="theta", coefficients=EXACT, model=ArcModel(), jit=False):
-    """``rectified3d.propagate3d`` for M cases in one call.
-
-    ``x0`` (4,) or (M, 4) and ``quat0`` (4,) or (M, 4) are the start polar states and
-    planes; ``alphas``, ``deltas`` (rad) and ``lengths`` (angles or durations, as
-    ``length_in``) (M, N) or (N,); ``ac`` scalar or (M,); the rest as
-    :func:`propagate_batch`.  Returns ``xs`` of shape
-    (M, 9, N S samples + 1) and ``q3`` of shape (M, N S).
+    """``rectified3d.propagate3d`` for M cases in one call, as :func:`propagate_batch`
+    with ``quat0`` (4,) or (M, 4) the start planes and ``deltas`` (rad) as ``alphas``.
+    Returns ``xs`` (M, 9, N S samples + 1) and ``q3`` (M, N S).
     """
     n = np.shape(np.atleast_2d(alphas))[1]
     cases = max(np.atleast_2d(x0).shape[0], np.atleast_2d(quat0).shape[0], np.size(ac),

@@ -1,49 +1,24 @@
 """CasADi Functions compiled to C once, cached on disk, and loaded by name.
 
-Why: on the closed-form NLP nearly all of Ipopt's time is spent evaluating the
-constraint Jacobian and the Hessian of the Lagrangian, which CasADi's virtual machine
-interprets one SX instruction at a time; the same instructions compiled by gcc run
-natively, with the same numbers (``ESAIL_OPT_COMPILE=0`` keeps the virtual machine, for
-a comparison).
+On the closed-form NLP nearly all of Ipopt's time goes into the constraint Jacobian and
+the Hessian of the Lagrangian, which CasADi's virtual machine interprets one SX
+instruction at a time; compiled, the same instructions run natively, with the same
+numbers.  What is compiled is the closed form's arc (``rectified.end_function``) with the
+derivatives an NLP's ``map`` asks of it (``jac_<name>``, ``adj1_<name>``,
+``jac_adj1_<name>``), not whole segments: a segment's Hessian block is far longer to
+compile and would need one library per segment layout.  The segment's own MX graph is
+compiled too, linked against the arc's library (``compiled(segment, calls=(panel,))``;
+Linux only, by GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).
 
-What is compiled is one small SX Function, the closed form's arc (the NLP's second-order
-``rectified.end_function``, about 1,200 instructions), with the three derivatives
-an NLP asks of it through a ``map``: its Jacobian (constraint Jacobian), its first
-reverse derivative (gradient of the Lagrangian) and that one's Jacobian (Hessian of
-the Lagrangian).  CasADi's ``external`` finds them in the library by the names CasADi
-gives them (``jac_<name>``, ``adj1_<name>``, ``jac_adj1_<name>``), and the segments
-are chained from it in MX as before.  Compiling whole segments instead was rejected:
-a segment's Hessian block is hundreds of thousands of instructions, far longer for gcc
-to compile, and one per segment layout, where the arc's library is compiled once and
-serves every segment count, sub-arc count and extrapolation setting.
-
-The segment's own MX graph -- the arc calls and the chain rule between them, which on
-the virtual machine is still a large part of a Hessian of the Lagrangian and of a
-constraint Jacobian -- is compiled as well, with the arcs left as calls into their
-library (``compiled(segment, calls=(panel,))``): the segment's library is linked
-against the arc's, so gcc sees a few thousand small matrix operations, not the arcs'
-instructions again: one library per sub-arc count and extrapolation setting
-(Linux only: the link uses GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).  The 3-D
-polish's RK4 segments are compiled the same way, a step's library and a chain of steps
-over it (``segment_methods.rk4_time_segment3d``).
-
-The cache is a directory of shared libraries named by a hash of the Function's
-serialised graph, the CasADi version, the compiler's own version line and the flags
-(and the names of the libraries it calls).
-A library is built under a temporary name and renamed into place, then its SHA-256 is
-written beside it (``<key>.so.sha256``); a library is loaded only if it matches, since a
-truncated one would be mapped into the process and crash it with SIGBUS.  A damaged or
-unloadable library is removed and built again, with one line.  A lock file per hash
-makes parallel workers (``esail-opt sweep``) wait for one compile instead of each
-running their own.  An interrupted compile kills its compilers (each in a session of its
-own) and removes its ``.build-<pid>-*`` folder; for a process killed outright a watcher
-process does both (:data:`_REAPER`), and the next compile into the cache sweeps up what
-is left.  The compilers run with ``-pipe`` and their temporary folder in the build
-folder, so nothing of theirs is left in the system's temporary folder.  Without a C compiler, when a compile
-fails, or when the cache cannot be written (a full disk, a read-only folder), the
-Function stays on the virtual machine and one log line says so (once per run: a scan's
-workers do not repeat what its command said, :func:`check_cache`); a cache whose disk
-ran out of space, or of inodes, is not tried again until space is freed.
+The cache is a directory of shared libraries named by a hash of the serialised graph,
+the CasADi version, the compiler's version line, the flags and the libraries called.  A
+library is renamed into place whole and then its SHA-256 written beside it; it is loaded
+only if that matches, since a truncated one would crash the process with SIGBUS.  A lock
+per hash makes parallel workers wait for one compile.  An interrupted or killed compile's
+compilers and ``.build-<pid>-*`` folder are removed (:data:`_REAPER`, :func:`_sweep_builds`).
+Without a compiler, on a failed compile or an unwritable cache, the Function stays on the
+virtual machine with one log line per run (:func:`check_cache`); a cache that ran out of
+space is not tried again until space is freed.
 
 Environment:
 
@@ -81,8 +56,8 @@ except ImportError:  # pragma: no cover - not POSIX: parallel workers may compil
 
 log = logging.getLogger("esail_opt")
 
-#: -O1: -O0 compiles faster but the Hessian blocks then run several times slower, and
-#: -O2 or -O3 take longer to compile and run no faster.
+#: -O1: -O0 runs the Hessian blocks several times slower, -O2 and -O3 compile longer and
+#: run no faster.
 FLAGS = ("-O1", "-fPIC")
 #: Flags that change how the compiler runs but not the code (so not in the key): no
 #: assembler file in the temporary folder.
@@ -93,8 +68,7 @@ RECIPE = "segment+jac+adj1+jac_adj1 v2 checksummed"
 VALUE_RECIPE = "value v1 checksummed"
 #: Suffix of a library's checksum file, written after the library itself.
 CHECKSUM = ".sha256"
-#: Free space a compile needs in the cache (its objects and library are a few MB; the
-#: margin keeps the cache from filling a disk to the last block).
+#: Free space a compile needs in the cache (a few MB, and a margin).
 MIN_FREE_BYTES = 64 << 20
 #: Free inodes a compile needs in the cache (a build creates a dozen files).
 MIN_FREE_INODES = 64
@@ -136,8 +110,7 @@ def derivatives(fun):
 
 def _key(fun, identity, links=(), with_derivatives=True):
     """The library's name: ``fun``'s name and a hash of all that shapes its code, the keys
-    of the libraries it calls included (``links``; none for a Function that calls none,
-    whose key is then what it always was), and whether it holds the derivatives."""
+    of the libraries it calls (``links``) and whether it holds the derivatives."""
     digest = hashlib.sha256()
     recipe = RECIPE if with_derivatives else VALUE_RECIPE
     for part in (recipe, ca.__version__, identity[1], " ".join(FLAGS), fun.serialize(),
@@ -177,12 +150,8 @@ def _checksum_path(target):
 
 
 def _publish(partial, target):
-    """Rename the whole library ``partial`` onto ``target``, then write its checksum.
-
-    The checksum is written last (itself atomically), so a library without one, or
-    with one that does not match, was cut off or damaged after it was written: it is
-    never loaded (:func:`_damage`).
-    """
+    """Rename the whole library ``partial`` onto ``target``, then write its checksum,
+    atomically: a library without a matching one is never loaded (:func:`_damage`)."""
     digest = _digest(partial)
     with open(partial, "rb+") as handle:
         os.fsync(handle.fileno())
@@ -240,10 +209,9 @@ def _free_inodes(folder):
 def _unusable(folder):
     """Why nothing can be compiled into ``folder`` now, in words, or None.
 
-    A cache that failed for want of space is not tried again, every run paying for
-    a compile that cannot finish, until its disk has :data:`MIN_FREE_BYTES` more free
-    than at the failure (the marker :data:`FAILED_MARKER` records it), or a day has
-    passed.
+    A cache that ran out of space is not tried again until its disk has
+    :data:`MIN_FREE_BYTES` more free than at the failure (:data:`FAILED_MARKER`), or a
+    day has passed.
     """
     if not os.access(folder, os.W_OK | os.X_OK):
         return "it is not writable"
@@ -277,13 +245,8 @@ def _remember_no_space(folder):
 
 
 def _sweep_builds(folder):
-    """Remove the build folders of compiles that were killed, and their compilers.
-
-    A build folder is named ``.build-<pid>-...``: it is stale when that process is
-    gone.  Its compilers run in their own session (so that an interrupt can end them
-    all), and outlive a SIGKILL of the process that started them; on Linux those whose
-    command line names the stale folder are killed too.
-    """
+    """Remove the build folders ``.build-<pid>-...`` whose process is gone, and kill the
+    compilers that outlived it (on Linux)."""
     try:
         entries = [e for e in os.scandir(folder) if e.name.startswith(".build-")]
     except OSError:
@@ -340,10 +303,8 @@ def _one_line(err):
 
 
 #: A reaper of one build's compilers, run beside the process that compiles: it reads
-#: the compilers' process groups, one a line, until its input closes.  A build that ends
-#: says "done" first; any other end of the builder (SIGKILL, SIGTERM's default action,
-#: ``os._exit``) closes the input without it, and the reaper kills the compilers'
-#: groups (cc1 and as with their driver) and removes the build folder.
+#: their process groups, one a line; if its input closes without "done" (the builder was
+#: killed), it kills the groups and removes the build folder.
 _REAPER = """
 import os, shutil, signal, sys
 for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
@@ -361,14 +322,9 @@ if words[-1:] != ["done"]:
 
 class _Compilers:
     """The compiler processes of one build, each in a session of its own, so that an
-    interrupt ends them and what they started (cc1, as) at once: a compiler left
-    running would go on filling the cache's disk with nobody waiting for it.
-
-    A process that is killed outright cannot end them itself: a reaper process
-    (:data:`_REAPER`), told each compiler's group as it starts, ends them and removes
-    the build folder when this process goes without saying "done".  The compilers'
-    temporary files go into the build folder (``TMPDIR``), and ``-pipe`` spares them
-    the assembler file, so a killed compile leaves nothing in the temporary folder.
+    interrupt ends them and what they started at once: left running, they would go on
+    filling the cache's disk.  For a process killed outright, :data:`_REAPER` ends them.
+    Their temporary files go into the build folder (``TMPDIR``).
     """
 
     def __init__(self, build):
@@ -418,16 +374,11 @@ class _Compilers:
 
 
 def _build(fun, compiler, target, links=(), with_derivatives=True):
-    """Generate C for ``fun`` and its derivatives (unless not ``with_derivatives``) and
-    link them into ``target``.
-
-    Each Function is its own translation unit, compiled in parallel (the Hessian block
-    is most of the time), and the library is renamed into place only when it is whole,
-    then its checksum written (:func:`_publish`).  ``links`` are the keys of cached
-    libraries (in ``target``'s folder) whose Functions ``fun`` calls: the generated
-    code calls their symbols, and the library finds them beside itself when it is
-    loaded (an rpath of ``$ORIGIN``).  An interrupt or an error kills the compilers
-    and removes the build folder before it propagates.
+    """Generate C for ``fun`` and its derivatives (with ``with_derivatives``), one
+    translation unit each, compiled in parallel, and link them into ``target``
+    (:func:`_publish`).  ``links`` are the keys of cached libraries beside ``target``
+    whose Functions ``fun`` calls.  An interrupt or an error kills the compilers and
+    removes the build folder before it propagates.
     """
     with tempfile.TemporaryDirectory(dir=target.parent,
                                      prefix=f".build-{os.getpid()}-") as tmp:
@@ -466,8 +417,7 @@ def _build(fun, compiler, target, links=(), with_derivatives=True):
 
 def _said(key):
     """Whether the line about ``key`` (a compiler, a cache folder) was said already in
-    this process (or, for a worker, by its run: :func:`said_already`); it counts as
-    said now."""
+    this process or its run (:func:`said_already`); it counts as said now."""
     before = (key, True) in _loaded
     _loaded[(key, True)] = None
     return before
@@ -490,13 +440,8 @@ def _warn_no_compiler(compiler):
 
 def check_cache():
     """Say now, once, why nothing will compile (no compiler, an unusable cache), so that
-    a run's workers need not each say it; what was said, for :func:`said_already`.
-
-    Returns
-    -------
-    tuple of str
-        The compiler's name or the cache folder that a line was said about (empty when
-        compiling is off or the cache is usable).
+    a run's workers need not each say it.  Returns the compiler's name or the cache folder
+    a line was said about, for :func:`said_already` (empty when there was nothing to say).
     """
     if not enabled():
         return ()
@@ -527,12 +472,9 @@ def _warn_unusable(folder, reason):
 
 
 def _load(fun, folder, target, key, build):
-    """``external`` of the cached library ``target``, built by ``build()`` if missing.
-
-    A library that fails its checksum, or that CasADi cannot load, is removed and
-    built again once, with one line saying so; None when nothing can be built into
-    ``folder`` (one line says why).
-    """
+    """``external`` of the cached library ``target``, built by ``build()`` if missing;
+    a damaged or unloadable one is built again once, with one line; None when nothing
+    can be built into ``folder`` (one line says why)."""
     unloadable = None  # the checksum record of a library that would not load
     if target.exists() and _damage(target) is None:
         try:
@@ -589,32 +531,14 @@ def _record(target):
 def compiled(fun, calls=(), with_derivatives=True):
     """``fun`` backed by its cached C library, or ``fun`` itself on the virtual machine.
 
-    Parameters
-    ----------
-    fun : casadi.Function
-        An SX Function (the closed form's arc), or an MX Function over the compiled
-        versions of the Functions in ``calls`` (the NLP's segment over its arcs); its
-        name names the library's symbols.
-    calls : sequence of casadi.Function
-        The Functions, as given to this function, whose libraries ``fun``'s code calls
-        (each compiled first if it is not yet).  Its library is linked against theirs,
-        so their code is not compiled again.  If any of them stays on the virtual
-        machine, so does ``fun``.
-    with_derivatives : bool
-        False for a Function that is only evaluated (a batch of flights): its library
-        holds its value alone, which compiles in a fraction of the time.
-
-    Returns
-    -------
-    casadi.Function
-        An ``external`` with the same inputs and outputs, whose Jacobian, reverse
-        derivative and Hessian block are compiled too (with ``with_derivatives``); or
-        ``fun`` when compiling is off
-        (``ESAIL_OPT_COMPILE=0``), no C compiler runs, the cache cannot be written (a
-        full disk, a read-only folder: not retried on every run), or the compile fails
-        (one warning on the ``esail_opt`` logger for all but the first).
-    A cached library is loaded only if its checksum matches (a truncated library mapped
-    into the process would crash it); a damaged one is compiled again, with one line.
+    ``fun`` is an SX Function (the closed form's arc) or an MX Function over the
+    Functions in ``calls`` (the NLP's segment over its arcs), which are compiled first and
+    linked against, not compiled again; if any of them stays on the virtual machine, so
+    does ``fun``.  Without ``with_derivatives`` (a Function only evaluated) the library
+    holds its value alone, a fraction of the compile.  Returns an ``external`` with the
+    same inputs and outputs, or ``fun`` when compiling is off, no C compiler runs, the
+    cache cannot be written or the compile fails (one warning on the ``esail_opt``
+    logger).
     """
     if not enabled():
         return fun
@@ -624,8 +548,7 @@ def compiled(fun, calls=(), with_derivatives=True):
         _warn_no_compiler(compiler)
         return fun
     if calls and not sys.platform.startswith("linux"):
-        # Its library finds theirs by an rpath of $ORIGIN and GNU ld's -l:name, which
-        # only Linux's toolchain is known here to take: elsewhere it stays on the VM.
+        # Linked by GNU ld's -l:name and an rpath of $ORIGIN: Linux only.
         return fun
     links = []
     for callee in calls:

@@ -1,13 +1,10 @@
 """Many flights of one schedule on the closed form, in time, in compiled batches.
 
-A Monte Carlo of a schedule flies the same K pieces (each of constant pitch, clock and
-a_c) thousands of times, each flight with its own a_c per piece and, under guidance,
-its own angles from some piece on.  :class:`Ensemble` is that: the batched closed form
-of :mod:`.batch` over pieces given in time (the attitude changes on the spacecraft's
-clock, as a flown schedule does), compiled once for K pieces, with larger ensembles
-cut into calls of at most ``chunk`` flights.  A flight that starts part-way, at a
-guidance waypoint, flies its remaining pieces first and then pieces of zero length,
-which leave a state unchanged to the bit, so one compiled function serves every
+A Monte Carlo flies the same K pieces (each of constant pitch, clock and a_c) thousands
+of times, each flight with its own a_c and angles per piece.  :class:`Ensemble` flies
+them on :mod:`.batch`'s closed form over pieces given in time, compiled once for K
+pieces.  A flight that starts part-way, at a guidance waypoint, ends with pieces of zero
+length, which leave a state unchanged to the bit, so one compiled function serves every
 waypoint.
 """
 
@@ -20,8 +17,8 @@ from esail_opt.propagation.arcs import ArcModel
 from esail_opt.propagation.batch import batch3d_function, batch_function
 from esail_opt.propagation.rectified3d import STATE, cartesian_states
 
-#: Flights per call at most (a call of 1,000 flights of an 80-arc schedule costs about
-#: 0.25 s), so that a large ensemble's calls share the cores.
+#: Flights per call at most (1,000 flights of 80 arcs take about 0.25 s), so that a large
+#: ensemble's calls share the cores.
 CHUNK = 1000
 #: The rows of a three-dimensional flight's Cartesian state.
 CARTESIAN = slice(STATE, STATE + 6)
@@ -32,14 +29,13 @@ PIECE = ArcModel(sub_arcs=1)
 class Ensemble:
     """The flights of ``pieces`` pieces in three dimensions (``three_d``) or in the
     plane, ``chunk`` flights a compiled call, calls on ``threads`` threads at once
-    (CasADi releases the interpreter's lock while compiled code runs; each call writes
-    its own flights, so the states are the same on any number of threads).
+    (CasADi releases the interpreter's lock in compiled code; the states are the same on
+    any number of threads).
 
-    States are rows [r, theta, v_r, v_theta, t] (canonical units, the in-plane polar
-    state and the time), followed in three dimensions by the plane's unit quaternion
-    [qw, qx, qy, qz] (``rectified3d``'s convention) and the Cartesian state [x, y, z,
-    vx, vy, vz] in the quaternions' fixed frame (rows :data:`CARTESIAN`), converted in
-    the same compiled call.  A flight may start from a row of either width.
+    States are rows [r, theta, v_r, v_theta, t] (canonical), followed in three dimensions
+    by the plane's unit quaternion [qw, qx, qy, qz] (``rectified3d``'s convention) and
+    the Cartesian state [x, y, z, vx, vy, vz] in its fixed frame (rows
+    :data:`CARTESIAN`).  A flight may start from a row with or without the Cartesian rows.
     """
 
     def __init__(self, pieces, three_d, chunk=CHUNK, threads=os.cpu_count() or 1):
@@ -62,33 +58,18 @@ class Ensemble:
         return np.column_stack([starts, cartesian_states(starts.T)[:6].T])
 
     def fly(self, starts, alphas, durations, acs, deltas=None):
-        """Every flight from its start through its pieces.
-
-        Parameters
-        ----------
-        starts : array_like, shape (M, 9), (M, 15) or (M, 5)
-            Start states (see the class).
-        alphas, deltas : array_like, shape (M, K)
-            Pitch and clock of each piece, rad (``deltas`` only in three dimensions).
-        durations : array_like, shape (K,) or (M, K)
-            Each piece's duration, TU (0 leaves the state as it is).
-        acs : array_like, shape (M, K)
-            Each piece's characteristic acceleration, canonical (throttle and factor
-            included).
-
-        Returns
-        -------
-        numpy.ndarray, shape (M, width, K + 1)
-            Each flight's state at its start and at every piece's end.
+        """Every flight's state at its start and every piece's end, (M, width, K + 1), from
+        ``starts`` (M, 9), (M, 15) or (M, 5); ``alphas`` and ``deltas`` (three dimensions
+        only) (M, K) are the pitch and clock, rad, ``durations`` (K,) or (M, K) in TU (0
+        leaves the state as it is), ``acs`` (M, K) canonical, throttle and factor included.
         """
         starts = self._with_cartesian(np.atleast_2d(np.asarray(starts, float)))
         m, k = starts.shape[0], self.pieces
         rows = [np.broadcast_to(np.asarray(v, float), (m, k))
                 for v in (acs, alphas, *((deltas,) if self.three_d else ()), durations)]
-        # In three dimensions a call maps one compiled flight, so the flights are cut
-        # into as many calls as there are threads, or more; the planar batch is
-        # compiled across cases for one width, so its calls all have that width, the
-        # last one padded.
+        # In three dimensions a call maps one compiled flight, so there are at least as
+        # many calls as threads; the planar batch is compiled across cases for one
+        # width, so every call has that width, the last one padded.
         cases = (min(self.chunk, -(-m // self.threads)) if self.three_d else self.chunk)
         fun = self._function(cases)
         out = np.empty((m, self.width, k + 1))

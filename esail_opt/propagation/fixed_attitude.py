@@ -1,14 +1,9 @@
 """One fixed attitude flown from a parking orbit: the paper's closed form (one arc, no
 rectification) against CVODES, over the horizon.
 
-The closed form is flown to where its own clock reaches the horizon, CVODES to the
-horizon.  The paper's Figs. 3-4 measure Eq. 27 over the numerical integration's swept
-angle in the horizon (the closed form, a function of theta, has no clock there):
-:func:`eps_over_swept_angle`, and :func:`eps_over_swept_angles` for many cases with the
-closed forms in one batched call.  theta is measured from the parking orbit's apse line
-(the paper's convention), so theta0 = nu0.  Cases are given in the boundary's units
-(:class:`FixedAttitudeCase`); ``esail-opt propagate`` (:mod:`esail_opt.app.propagate`)
-writes what these return.
+The paper's Figs. 3-4 measure Eq. 27 over the angle CVODES sweeps in the horizon
+(:func:`eps_over_swept_angle`, :func:`eps_over_swept_angles`).  theta is measured from the
+parking orbit's apse line, as in the paper, so theta0 = nu0.
 """
 
 import math
@@ -26,10 +21,9 @@ from esail_opt.propagation.batch import arcs_at_angles
 from esail_opt.propagation.rectified import rectified_function
 from esail_opt.propagation.simulate import SimulationError, simulate
 
-#: Beyond theta_max (q3 = 0), or where the transverse speed s of Eq. 11 reaches 0,
-#: r = r0 / (q3 s) of Eq. 9 leaves (0, inf) and the clock diverges.  Near those
-#: points the first-order arc is meaningless long before the divergence, so an arc
-#: counts as valid only while every sample keeps r within (0, r0 / VALIDITY_FLOOR].
+#: The first-order arc is meaningless well before r = r0 / (q3 s) of Eq. 9 diverges
+#: (q3 = 0 or s = 0), so it counts as valid only while every sample keeps r within
+#: (0, r0 / VALIDITY_FLOOR].
 VALIDITY_FLOOR = 0.01
 #: Samples per revolution: enough to resolve the short-period oscillation of r.
 PER_REVOLUTION = 32
@@ -38,24 +32,12 @@ MIN_SAMPLES = 200
 
 @dataclass(frozen=True)
 class FixedAttitudeCase:
-    """A parking orbit, a sail and a horizon, in the boundary's units.
-
-    Attributes
-    ----------
-    a0_au : float
-        Parking orbit semimajor axis, au.
-    e0 : float
-        Parking orbit eccentricity, [0, 1).
-    nu0_deg : float
-        Departure true anomaly, deg.
-    ac_mm_s2 : float
-        Characteristic acceleration, mm/s^2, > 0.
-    alpha_deg : float
-        Pitch angle alpha_n, deg, in [-90, 90].
-    years : float
-        Horizon, years (365.25 days), > 0.
-    coefficients : tuple
-        The thrust model's (b1, b2) of Eqs. 3-4.
+    """A parking orbit, a sail and a horizon, in the boundary's units: ``a0_au``, the
+    parking orbit's semimajor axis (au, > 0); ``e0``, its eccentricity, in [0, 1);
+    ``nu0_deg``, the departure true anomaly (deg, in [-360, 360]); ``ac_mm_s2``, the
+    characteristic acceleration (mm/s^2, > 0); ``alpha_deg``, the pitch alpha_n (deg, in
+    [-90, 90]); ``years``, the horizon (years of 365.25 days, > 0); ``coefficients``, the
+    (b1, b2) of Eqs. 3-4.
     """
 
     a0_au: float
@@ -96,14 +78,14 @@ class FixedAttitudeCase:
 
 
 def samples_for(case, minimum=MIN_SAMPLES, per_revolution=PER_REVOLUTION):
-    """Sample count resolving the short-period oscillation over the horizon:
-    ``per_revolution`` per parking-orbit period, at least ``minimum``."""
+    """Samples over the horizon: ``per_revolution`` per parking-orbit period, at least
+    ``minimum``."""
     period = 2 * math.pi * case.a0_au**1.5
     return max(minimum, int(math.ceil(per_revolution * case.horizon / period)))
 
 
 def samples_over(span, minimum=MIN_SAMPLES, per_revolution=PER_REVOLUTION):
-    """Sample count resolving the short-period oscillation over ``span`` rad of theta."""
+    """Samples over ``span`` rad of theta, as :func:`samples_for`."""
     return max(minimum, int(math.ceil(per_revolution * span / (2 * math.pi))))
 
 
@@ -138,15 +120,8 @@ def _validity_limit(run, good, bad):
 
 
 def _horizon_bracket(case, run):
-    """Angles (low, high) whose closed-form clock straddles the horizon.
-
-    The angle doubles until the clock passes the horizon or the arc stops holding.
-
-    Raises
-    ------
-    InputError
-        If the arc stops holding before its clock reaches the horizon.
-    """
+    """Angles (low, high) whose closed-form clock straddles the horizon, by doubling;
+    InputError if the arc stops holding before its clock reaches the horizon."""
     horizon = case.horizon
     x0 = case.state0()
     low, high = 0.0, horizon * x0[3] / x0[0]
@@ -169,20 +144,10 @@ def _horizon_bracket(case, run):
 
 
 def closed_form(case, samples):
-    """The paper's single first-order arc, sampled at ``samples`` equal steps of theta.
-
-    The arc angle is the root of the closed form's own clock t(theta) = horizon.
-
-    Returns
-    -------
-    numpy.ndarray, shape (5, samples + 1)
-        [r, theta, v_r, v_theta, t], canonical units.
-
-    Raises
-    ------
-    InputError
-        If the horizon lies past the arc's validity (see VALIDITY_FLOOR).
-    """
+    """The paper's single first-order arc to where its own clock reaches the horizon,
+    [r, theta, v_r, v_theta, t] (canonical) at ``samples`` equal steps of theta, shape
+    (5, samples + 1); InputError if the horizon lies past the arc's validity
+    (:data:`VALIDITY_FLOOR`)."""
     run = _arc(case, samples)
     horizon = case.horizon
     low, high = _horizon_bracket(case, run)
@@ -207,13 +172,10 @@ def cvodes_at_theta(case, angle, samples):
 
 
 def relative_error(case, closed):
-    """Eq. 27 over the closed form's own arc: max of |r_n - r| / r0 at its angles.
-
-    r_n is CVODES at the same theta.  Returns eps, whether it covers the whole
-    arc, and the last angle it covers (rad).  It does not cover the whole arc
-    when the true trajectory escapes short of the closed form's span (an escaping
-    orbit's theta tends to a finite limit, and CVODES in theta fails): the maximum
-    is then over the angles it reaches by the horizon.
+    """Eq. 27 over the closed form's own arc: max of |r_n - r| / r0 at its angles, r_n
+    CVODES at the same theta.  Returns eps, whether it covers the whole arc, and the last
+    angle it covers (rad): an orbit that escapes short of the arc's span (its theta tends
+    to a finite limit) is compared over the angles it reaches by the horizon.
     """
     samples = closed.shape[1] - 1
     span = closed[1, -1] - closed[1, 0]
@@ -228,19 +190,11 @@ def relative_error(case, closed):
 
 @dataclass(frozen=True)
 class SweptEps:
-    """Eq. 27 of one case over the angle CVODES sweeps in the horizon.
-
-    Attributes
-    ----------
-    eps : float
-        max over theta of |r_n - r| / r0 (NaN where ``error`` is set).
-    span : float
-        The swept angle theta_end - theta0, rad.
-    closed, numeric : numpy.ndarray or None
-        The closed form and CVODES in theta at the same equal steps of theta,
-        [r, theta, v_r, v_theta, t] (canonical; the closed form's t is its own clock).
-    error : InputError or None
-        Why the closed form does not hold over the span, if it does not.
+    """Eq. 27 of one case over the angle CVODES sweeps in the horizon: ``eps``, the max
+    over theta of |r_n - r| / r0 (NaN with ``error``); ``span``, the swept angle, rad;
+    ``closed`` and ``numeric``, the closed form (t on its own clock) and CVODES in theta,
+    [r, theta, v_r, v_theta, t] at the same steps of theta; ``error``, the InputError
+    saying why the closed form does not hold over the span, if it does not.
     """
 
     eps: float
@@ -251,24 +205,14 @@ class SweptEps:
 
 
 def eps_over_swept_angles(cases, samples=None):
-    """Eq. 27 as the paper's Figs. 3-4 measure it, for many cases at once.
+    """Eq. 27 as the paper's Figs. 3-4 measure it, for many ``cases`` at once (all with
+    the same thrust coefficients).
 
-    Per case, CVODES on Eqs. 1-2 flies the horizon in time; its angle at the end bounds
-    the comparison, and the closed form (a function of theta) and CVODES in theta are
-    sampled at the same ``samples`` equal steps of theta up to there (default
-    :func:`samples_over` the span).  The closed forms of all cases are one call
-    (``propagation.batch.arcs_at_angles``); CVODES flies case by case.
-
-    Parameters
-    ----------
-    cases : sequence of FixedAttitudeCase
-        All with the same thrust coefficients.
-
-    Returns
-    -------
-    list of SweptEps
-        One per case, in order; a case whose closed form does not hold over its span
-        (see VALIDITY_FLOOR) carries the InputError and no eps.
+    Per case, the angle CVODES sweeps in the horizon bounds the comparison, the closed
+    form and CVODES in theta sampled at the same ``samples`` equal steps of theta up to
+    there (default :func:`samples_over` the span); the closed forms are one batched call.
+    Returns one :class:`SweptEps` per case, in order; a case whose closed form does not
+    hold over its span carries the InputError and no eps.
     """
     cases = list(cases)
     if len({c.coefficients for c in cases}) > 1:
@@ -294,21 +238,9 @@ def eps_over_swept_angles(cases, samples=None):
 
 
 def eps_over_swept_angle(case, samples=None):
-    """Eq. 27 as the paper's Figs. 3-4 measure it: over CVODES's swept angle
-    (:func:`eps_over_swept_angles` for one case).
-
-    Returns
-    -------
-    eps : float
-        max over theta of |r_n - r| / r0.
-    span : float
-        The swept angle theta_end - theta0, rad.
-
-    Raises
-    ------
-    InputError
-        If the closed form does not hold over the swept angle.
-    """
+    """:func:`eps_over_swept_angles` for one case: ``(eps, span)``, eps the max over theta
+    of |r_n - r| / r0 and span the swept angle, rad; InputError if the closed form does
+    not hold over it."""
     (result,) = eps_over_swept_angles([case], samples)
     if result.error is not None:
         raise result.error

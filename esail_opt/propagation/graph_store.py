@@ -1,16 +1,10 @@
 """The closed form's SX Functions, built once per machine and read back from disk.
 
-Why: building the arc Functions of :mod:`esail_opt.propagation.rectified` (the
-first-order panel and the NLP's second-order arc end) is CasADi's symbolic work in
-Python, redone by every process, and a noticeable part of a short solve's whole run;
-reading one back from its serialised graph is a small fraction of that.
-
-A stored graph is named by a hash of what decides it: the builder's name and keyword
-arguments, the CasADi version, and the source of every module the closed form's
-formulas live in (:data:`SOURCES`).  Any edit to those modules therefore names new
-graphs.  How a graph is kept on disk, and what happens to a damaged one or a folder that
-cannot be written, is :mod:`esail_opt.runtime.function_store`'s (a ``graphs`` folder in the
-package's cache).
+Building the arc Functions of :mod:`.rectified` is symbolic work in Python, redone by
+every process and a noticeable part of a short solve; reading one back is a small
+fraction of that.  A stored graph is named by a hash of the builder's name and keyword
+arguments, the CasADi version and the source of :data:`SOURCES`, so any edit to those
+modules names new graphs.  Storage is :mod:`esail_opt.runtime.function_store`'s.
 """
 
 import functools

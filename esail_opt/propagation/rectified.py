@@ -1,27 +1,13 @@
 """The rectified closed-form propagator: closed-form arcs restarted arc by arc.
 
-How the arcs are flown -- the paper's first-order arc or the second-order one, the exact
-angular momentum imposed or not, sub-arcs, Richardson extrapolation, the quadrature's
-nodes -- is one value, :class:`.arcs.ArcModel`, which every builder here takes as
-``model``; its default is the NLP's model (second-order arcs), and the paper's
-first-order rectification is ``arcs.FIRST_ORDER``.
-
-At each rectification point the arc is restarted from the current
-osculating orbit: new r0, new a~_c, and a new reference direction, here the
-current radius (``esail_opt.physics.closed_form.arc_frame``), which is defined
-for every orbit, circular ones included.  The pitch and the throttle may change
-there.  A segment's length is an angle, or a duration, which a first-order arc meets
-on the closed form's own clock by Newton's method and a second-order arc by a short
-Taylor series of Eqs. 1-2 from the angle a cheap clock guesses
-(:func:`timed_arc_function`).
-
-The chain is one ``casadi.Function``: an SX arc (for durations with its root or its
-series unrolled inside), accumulated over the segments with ``mapaccum``.  Its state is
-``[r, theta, v_r, v_theta, t]``, canonical units, as in :mod:`.simulate`.
-
-With N first-order arcs the error falls like 1/N, with second-order ones like 1/N^2;
-``model.extrapolate`` cancels that leading term by Richardson extrapolation from N and
-2N arcs (:func:`rectified_function`).
+Every builder takes how the arcs are flown as one ``model`` (:class:`.arcs.ArcModel`;
+default the NLP's, ``arcs.FIRST_ORDER`` the paper's).  Each arc restarts from the
+current osculating orbit, its reference direction the current radius
+(``closed_form.arc_frame``), defined for circular orbits too; the pitch and throttle may
+change there.  A segment's length is an angle or a duration (:func:`timed_arc_function`).
+The chain is one ``casadi.Function`` of state ``[r, theta, v_r, v_theta, t]``, canonical,
+as in :mod:`.simulate`.  With N arcs the error falls like 1/N at first order, 1/N^2 at
+second; ``model.extrapolate`` cancels that term (:func:`rectified_function`).
 """
 
 import functools
@@ -75,9 +61,8 @@ def end_function(*, coefficients=EXACT, nodes=PANEL_NODES):
 
 
 def piece_function(*, coefficients=EXACT, model=ArcModel()):
-    """The Function an arc of ``model.order`` is sampled with, at ``model.nodes``:
-    :func:`panel_function` (order 1, from one sample to the next) or
-    :func:`end_function` (order 2, from the arc's start)."""
+    """:func:`panel_function` (order 1) or :func:`end_function` (order 2) at
+    ``model.nodes``: the Function an arc of ``model`` is sampled with."""
     if model.order == 1:
         return panel_function(coefficients=coefficients, nodes=model.nodes)
     return end_function(coefficients=coefficients, nodes=model.nodes)
@@ -101,16 +86,11 @@ def flies_native(*, coefficients=EXACT, model=ArcModel(), length_in="theta"):
 
 @functools.lru_cache(maxsize=None)
 def angles_function(samples, *, coefficients=EXACT, nodes=PANEL_NODES):
-    """One first-order arc (the paper's, by construction: free panels between the
-    caller's angles) sampled at angles the caller gives.
-
-    ``(x0[5], ac, alpha, phis[1 x (samples + 1)]) -> (states[4 x samples],
-    elapsed[1 x samples], q3[1 x samples])``: the panels run from ``phis[k]`` to
-    ``phis[k + 1]`` (angles from the arc's start, rad), ``elapsed`` is the time from
-    ``phis[0]`` to each panel's end and ``q3`` the validity margin there.  It is the
-    sampling :func:`arc_function` does with equal steps; here the steps are free, so that
-    arcs of different sample counts can share one mapped call (pad a shorter arc with
-    repeats of its last angle: an empty panel adds no time and keeps the state).
+    """One first-order arc sampled at angles the caller gives: ``(x0[5], ac, alpha,
+    phis[1 x (samples + 1)]) -> (states[4 x samples], elapsed[1 x samples],
+    q3[1 x samples])``, panels from ``phis[k]`` to ``phis[k + 1]`` (rad from the arc's
+    start), ``elapsed`` the time from ``phis[0]``, ``q3`` the validity margin.  A shorter
+    arc may be padded with its last angle: an empty panel adds no time and keeps the state.
     """
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, phis = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("phis", 1, samples + 1)
@@ -120,33 +100,24 @@ def angles_function(samples, *, coefficients=EXACT, nodes=PANEL_NODES):
                        ["x0", "ac", "alpha", "phis"], ["states", "elapsed", "q3"])
 
 
-#: Options of the MX Functions built over compiled panels.  Inlined, an NLP segment is
-#: one flat MX graph of panel calls, whose derivatives are cheaper to evaluate than those
-#: through nested map and mapaccum Functions.
+#: Options of the MX Functions built over compiled panels: inlined, a segment's
+#: derivatives are cheaper than through nested map and mapaccum Functions.
 FLAT = {"always_inline": True}
 
 
 @functools.lru_cache(maxsize=None)
 def arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
     """One closed-form arc of ``model`` sampled at phi_k = dtheta k / samples,
-    k = 1..samples.
+    k = 1..samples: ``(x0[5], ac, alpha, dtheta) -> (xs[5 x samples], q3)``, ``ac``
+    including any throttle, the time row continuing from x0's, ``q3`` the first-order
+    validity margin at the end (positive is valid).
 
-    Returns a Function ``(x0[5], ac, alpha, dtheta) -> (xs[5 x samples], q3)``
-    where ``ac`` already includes any throttle, the time row of ``xs`` continues from
-    x0's, and ``q3`` is the validity margin at the arc's end (positive is valid).
-    One arc: ``model.sub_arcs`` and ``model.extrapolate`` belong to the chains of
-    :func:`rectified_function`.  With ``model.order`` 1 the sample intervals double as
-    the panels of the time quadrature.  ``model.order`` 2 flies the second-order arc
-    (:func:`end_function`): each sample is then its own arc end from x0, with the
-    nodes of its own quadratures, so the arc's end does not depend on ``samples``.
-    The samples are a ``map`` of one panel Function, so building it costs the same for
-    any count; ``expand()`` it where one flat SX expression is wanted.  With
-    ``model.invariant`` every sample's v_theta is replaced by h / r, h the exact
-    angular momentum at the sample's (quadrature) time; r, v_r and t stay the closed
-    form's, and so does q3, which measures the first-order arc's validity.  With
-    ``model.native`` (where :func:`flies_native`) the panels are the compiled ones
-    (:func:`native_panel`), called once per sample, and the arc is inlined wherever it
-    is called (see :data:`FLAT`).
+    ``model.sub_arcs`` and ``model.extrapolate`` are ignored (:func:`rectified_function`).
+    At order 1 the sample intervals are the time quadrature's panels; at order 2 each
+    sample is its own arc end from x0, so the end does not depend on ``samples``.  With
+    ``model.invariant`` v_theta is h / r, h the exact angular momentum at the sample's
+    time.  With ``model.native`` (where :func:`flies_native`) the compiled panels are
+    called once per sample and the arc is inlined (:data:`FLAT`).
     """
     order, nodes, invariant = model.order, model.nodes, model.invariant
     native = flies_native(coefficients=coefficients, model=model)
@@ -183,35 +154,28 @@ def arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
     )
 
 
-#: Order of the Taylor series of Eqs. 1-2 (``physics.dynamics.taylor_step``) that flies
-#: a timed second-order arc from the angle :func:`clock_guess` finds to the asked
-#: duration (see :func:`timed_arc_function`).  The series' truncation falls like the
-#: step to the sixth power, far below the closed form's own error even at the guess's
-#: largest misses (arcs of two revolutions); order 3 would save a tenth of the arc's
-#: instructions for a truncation that falls only like the fourth.
+#: Order of the Taylor series of Eqs. 1-2 that flies a timed second-order arc from
+#: :func:`clock_guess`'s angle to the asked duration: its truncation, like the step^6, is
+#: far below the closed form's error at the guess's largest misses; order 3 would save
+#: only a tenth of the arc's instructions.
 TAYLOR_ORDER = 5
-#: Newton steps of the first-order arcs' clock, from the Keplerian guess alone.  There
-#: the rate is the clock's derivative to its quadrature, so Newton's method converges
-#: quadratically: on the paper's scenario the residual is at rounding level; on an
-#: e = 0.53 arc of 9 rad (4 panels) it is 1e-11 rad, where the old starting-rate guess
-#: left 1e-3 rad after the same five steps (tests check both).
+#: Newton steps of the first-order arcs' clock from the Keplerian guess: the rate is the
+#: clock's derivative to its quadrature, so they converge quadratically (1e-11 rad left
+#: on an e = 0.53 arc of 9 rad).
 NEWTON_STEPS = 5
-#: Newton iterations of Kepler's equation inside the guess.  It is only a guess, so
-#: a case where these have not converged (e near 1) costs accuracy of the start only.
+#: Newton iterations of Kepler's equation inside the guess; unconverged (e near 1), they
+#: cost only the start's accuracy.
 KEPLER_STEPS = 6
 
 
 def kepler_angle(arc, duration):
-    """Angle the arc's osculating Keplerian orbit sweeps in ``duration`` (units sqrt(r0^3/mu)).
+    """Angle the arc's osculating Keplerian orbit sweeps in ``duration`` (units sqrt(r0^3/mu)),
+    where Newton's method on the closed form's clock starts.  It is written in the
+    differences of the anomalies from the arc's start, with e sin E0 and e cos E0 from the
+    eccentricity vector, so that it is smooth, derivatives included, at e = 0:
 
-    The first-order clock differs from Kepler's by O(a~_c), so this is where
-    Newton's method on the closed form's clock starts.  It is written in the
-    differences of the anomalies from the arc's start, with e sin E0 and e cos E0
-    formed from the eccentricity vector, so that it is smooth (derivatives
-    included) at e = 0, where the anomalies themselves are undefined:
-
-    * Delta M = duration (1 - e^2)^{3/2} / h0^3 (the mean motion in the arc's units);
-    * Kepler's equation in Delta E: Delta E - e sin(E0 + Delta E) + e sin E0 = Delta M;
+    * Delta M = duration (1 - e^2)^{3/2} / h0^3;
+    * Delta E - e sin(E0 + Delta E) + e sin E0 = Delta M;
     * f - E = 2 atan2(beta sin E, 1 - beta cos E), beta = e / (1 + sqrt(1 - e^2)).
     """
     kep = arc.kepler
@@ -235,23 +199,16 @@ def kepler_angle(arc, duration):
     return delta + 2 * (ca.atan2(b * e_sin, 1 - b * e_cos) - ca.atan2(b * e_sin0, 1 - b * e_cos0))
 
 
-#: Simpson panels of the cheap clock in :func:`clock_guess` (even).
+#: Simpson panels of the cheap clock in :func:`clock_guess` (even; 2 alias the orbit's
+#: period on arcs of two revolutions).
 GUESS_PANELS = 6
 
 
 def clock_guess(arc, duration):
-    """Starting angle for the root of the clock: :func:`kepler_angle`, then one Newton
-    step on a cheap first-order clock (``duration`` in units sqrt(r0^3/mu)).
-
-    The Keplerian sweep misses the thrust's drift of the clock, O(a~_c) of the arc's
-    time (up to 0.26 TU on the bench's grid).  The cheap clock keeps the Keplerian part
-    exact and integrates the first-order remainder rate(q_1) - h0^3 / w^2, which
-    vanishes at 0, by the composite Simpson rule on :data:`GUESS_PANELS` panels of
-    [0, phi]: that many evaluations of the first-order elements, against the clock's
-    2 x nodes of first- and second-order ones.  On the bench's grid the guess's
-    residual falls from 8e-2 to 3e-4 TU (median) and from 0.26 to 3e-2 TU (largest;
-    2 panels left 0.1 TU, from arcs of two revolutions, where few panels alias the
-    orbit's period).
+    """Starting angle for the root of the clock: :func:`kepler_angle`, which misses the
+    thrust's O(a~_c) drift of the clock, then one Newton step on a cheap first-order clock
+    (``duration`` in units sqrt(r0^3/mu)): the Keplerian part exact, the first-order
+    remainder by the composite Simpson rule on :data:`GUESS_PANELS` panels.
     """
     kep = arc.kepler
     angle = kepler_angle(arc, duration)
@@ -283,29 +240,18 @@ def angle_for_duration(arc, r0, duration, order, samples, nodes):
 
 
 def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
-    """As :func:`arc_function` (``model`` as there, never compiled), but the last input
-    is a duration (TU), and the arc ends exactly that long after x0.
+    """As :func:`arc_function` (never compiled), but the last input is a duration (TU),
+    and the arc ends that long after x0: ``-> (xs, q3, remainder)``.
 
-    * Order 1: the arc angle is the root of t(dtheta) = duration on the closed form's
-      clock, by :data:`NEWTON_STEPS` Newton steps from :func:`kepler_angle`, unrolled
-      in SX, on the rate dt/dtheta = r0^{3/2} / (q3 s^2) of the first-order elements,
-      which is the clock's derivative to its quadrature.
-    * Order 2: the arc is flown to the angle of :func:`clock_guess`, and the part of
-      the duration that its clock did not cover (the third output) is flown by the
-      Taylor series of Eqs. 1-2 to :data:`TAYLOR_ORDER` (``dynamics.taylor_step``).
-      Each evaluation of the second-order clock costs as much as the arc, so a root
-      on it cost four arcs' worth (a Newton step and secant steps) where this costs
-      one and a short series.  The part left is the guess's miss, a small fraction of
-      the arc, and it is flown on the exact equations: the arc's end differs from
-      the end at the clock's root by how far the closed form's own error moves over
-      that part, not by the series' truncation.  With ``model.invariant`` v_theta is
-      then h / r at the asked time.
+    * Order 1: the angle is the root of the closed form's clock by :data:`NEWTON_STEPS`
+      Newton steps from :func:`kepler_angle`, unrolled in SX; ``remainder`` is what they
+      left (TU; the end is that early).
+    * Order 2: the arc is flown to :func:`clock_guess`'s angle and ``remainder``, the
+      guess's miss, by the Taylor series of Eqs. 1-2 (:data:`TAYLOR_ORDER`): a root on
+      the second-order clock would cost about four arcs, this one arc and a short series.
+      With ``model.invariant`` v_theta is then h / r at the asked time.
 
     Intermediate samples stay at equal fractions of the angle the arc was flown to.
-    The outputs are ``(xs, q3, remainder)``: the states, the validity margin at the
-    arc's end, and the part of the duration the closed form's clock did not cover
-    (TU): for order 1 what the Newton steps left (the end is then that early), for
-    order 2 what the series flew.
     """
     order, nodes = model.order, model.nodes
     x0 = ca.SX.sym("x0", 5)
@@ -322,9 +268,7 @@ def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
         if model.invariant:
             end = ca.vertcat(end[:3], angular_momentum(x0, ac, T, duration) / end[0])
         xs = ca.horzcat(xs[:, :-1], ca.vertcat(end, x0[4] + duration))
-    # The expanded arc rebuilds the arc's constants that the guess already formed;
-    # eliminating common subexpressions saves instructions without changing any
-    # arithmetic.
+    # The expanded arc rebuilds the constants the guess formed: cse removes them.
     return ca.Function(
         "timed_arc", [x0, ac, alpha, duration], [xs, q3, remainder],
         ["x0", "ac", "alpha", "duration"], ["xs", "q3", "remainder"], {"cse": True},
@@ -334,30 +278,21 @@ def timed_arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
 @functools.lru_cache(maxsize=None)
 def rectified_function(segments, *, samples=1, length_in="theta", coefficients=EXACT,
                        model=ArcModel()):
-    """A schedule of ``segments`` constant-pitch segments flown on ``model``'s arcs, as
-    one Function.
+    """A schedule of ``segments`` constant-pitch segments on ``model``'s arcs, as one
+    Function ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) -> (xs[5 x N S samples],
+    q3[1 x N S])``, ``ac`` per segment (times the throttle), S = ``model.sub_arcs`` equal
+    arcs a segment, each sampled at ``samples`` points (:func:`arc_function`, or
+    :func:`timed_arc_function` for ``length_in="time"``), q3 each arc's margin at its end.
 
-    ``(x0[5], ac[1 x N], alpha[1 x N], length[1 x N]) -> (xs[5 x N S samples],
-    q3[1 x N S])`` with ``ac`` per segment (characteristic acceleration times throttle)
-    and S = ``model.sub_arcs``: every segment is S arcs of a S-th of its length, each
-    sampled at ``samples`` points (:func:`arc_function`, or :func:`timed_arc_function`
-    for ``length_in="time"``, where a sub-arc lasts a S-th of the segment's duration),
-    and q3 is each arc's validity margin at its end.
-
-    With ``model.extrapolate`` the whole chain is flown twice, as it is and with every
-    arc halved, and the two are combined at every sample they share, which are all of
-    them in theta: (2^p x_halves - x_whole) / (2^p - 1), p = ``model.order``, the order
-    in the arcs' length of the error at a fixed point of the trajectory (THEORY.md
-    §5.2-5.3); q3 is then the smallest margin of an arc and its two halves.  The chains
-    restart from their own arcs' ends, not from the combined states: the extrapolation
-    is of the chain, and a caller that restarts every segment from a node of its own
-    (the NLP) calls this per segment.  The cost is three times the arcs.  In time the
-    samples inside an arc are at angles the whole and the halves do not share, so there
-    an extrapolated chain has one sample per arc.
+    With ``model.extrapolate`` the chain is also flown with every arc halved, and the two
+    are combined at the samples they share as (2^p x_halves - x_whole) / (2^p - 1),
+    p = ``model.order`` (THEORY.md §5.2-5.3); q3 is the smallest of an arc and its halves.
+    Each chain restarts from its own arcs' ends, so a caller that restarts every segment
+    from its own node (the NLP) calls this per segment.  In time, the whole and the
+    halves share only the arcs' ends, so an extrapolated chain has one sample per arc.
 
     With ``model.native`` (where :func:`flies_native`) the chain is unrolled over the
-    compiled arcs and inlined (:data:`FLAT`); otherwise the accumulated map holds one
-    copy of the arc for any N.
+    compiled arcs and inlined (:data:`FLAT`); otherwise one ``mapaccum`` holds one arc.
     """
     if length_in not in ("theta", "time"):
         raise ValueError(f"length_in must be 'theta' or 'time', not {length_in!r}")
@@ -400,7 +335,6 @@ def _chain(arcs, samples, length_in, coefficients, model):
             x = xs[:, -1]
         blocks, q3s = ca.horzcat(*blocks), ca.horzcat(*q3s)
     else:
-        # One graph for any N: the accumulated map holds one copy of the arc.
         xa = ca.MX.sym("x0", 5)
         ac, alpha, length = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("length")
         xs, q3 = arc(xa, ac, alpha, length)[:2]
@@ -413,9 +347,8 @@ def _chain(arcs, samples, length_in, coefficients, model):
 
 
 def _repeated(row, times):
-    """Each column of ``row`` ``times`` times, side by side.  Slices of the result are the
-    original entries again (no matrix product between them), which keeps an inlined
-    graph small."""
+    """Each column of ``row`` ``times`` times, side by side, by slices, not a matrix
+    product, which keeps an inlined graph small."""
     return ca.horzcat(*[row[:, k] for k in range(row.shape[1]) for _ in range(times)])
 
 
@@ -432,8 +365,7 @@ def _extrapolated(arcs, samples, length_in, coefficients, model):
     fine, q3_fine = halves(x0, _repeated(ac, 2), _repeated(alpha, 2), _repeated(length, 2) / 2)
     # Sample j of a whole arc sits where sample 2j + 1 of its two halves does.
     shared = fine[:, 1::2]
-    # The smallest validity margin met by either run: an extrapolation is only as
-    # valid as the arcs it is built from.
+    # An extrapolation is only as valid as the arcs it is built from.
     q3 = ca.fmin(q3_coarse, ca.fmin(q3_fine[:, 0::2], q3_fine[:, 1::2]))
     combined = 2 * shared - coarse if model.order == 1 else (4 * shared - coarse) / 3
     return ca.Function(
@@ -446,37 +378,14 @@ def propagate(x0, alphas, lengths, ac, *, throttles=None, samples=1, length_in="
               coefficients=EXACT, model=ArcModel()):
     """Rectified closed-form propagation of a piecewise-constant pitch schedule.
 
-    Parameters
-    ----------
-    x0 : array_like, shape (4,)
-        Polar state [r, theta, v_r, v_theta], canonical units.
-    alphas, lengths : array_like, shape (N,)
-        Pitch (rad) and length of each segment: an angle (rad) if ``length_in`` is
-        ``"theta"``, a duration (TU) if ``"time"``.
-    ac : float
-        Characteristic acceleration, canonical units.
-    throttles : array_like, shape (N,), optional
-        Factor on ac per segment (0 is a coast), default 1.
-    samples : int
-        Points per arc, equally spaced in theta; with first-order arcs they also set
-        the time quadrature's panels.
-    coefficients : tuple
-        (b1, b2) of Eqs. 3-4.
-    model : ArcModel
-        How the arcs are flown (:func:`rectified_function`); default the NLP's.  The
-        paper's plain rectification is ``arcs.FIRST_ORDER``.
-
-    Returns
-    -------
-    xs : numpy.ndarray, shape (5, N * S * samples + 1)
-        [r, theta, v_r, v_theta, t] at the start and at every sample, S =
-        ``model.sub_arcs``: the rectification points are every ``samples``-th column,
-        the segments' ends every ``S * samples``-th.  Extrapolated, the independent
-        variable's row (t for lengths in time, theta for angles) is exact and the
-        others carry the extrapolated estimate.
-    q3 : numpy.ndarray, shape (N * S,)
-        Validity margin at each arc's end (extrapolated: the smallest of the arc and its
-        halves); non-positive means the first-order arc went past theta_max.
+    ``x0`` (4,) is the polar state [r, theta, v_r, v_theta], canonical; ``alphas`` (rad),
+    ``lengths`` (angles, rad, or with ``length_in="time"`` durations, TU) and
+    ``throttles`` (factors on ``ac``, 0 a coast, default 1) are (N,); ``ac`` is canonical;
+    ``samples`` are points per arc, equal in theta; ``coefficients`` are (b1, b2) of
+    Eqs. 3-4; ``model`` says how the arcs are flown (default the NLP's).  Returns ``xs``
+    (5, N S samples + 1), [r, theta, v_r, v_theta, t] at the start and every sample
+    (S = ``model.sub_arcs``; extrapolated, the independent variable's row is exact), and
+    ``q3`` (N S,), each arc's margin at its end, non-positive past theta_max.
     """
     n = np.size(alphas)
     fun = rectified_function(n, samples=samples, length_in=length_in,

@@ -1,22 +1,13 @@
 """The rectified closed form in three dimensions: the planar rectified arc inside a plane
 that turns, arc after arc (THEORY.md §9).
 
-An arc of pitch alpha and clock delta has the thrust factors (R, T, N)
-(``thrust.radial_transverse_normal``).  Its polar state is the planar arc's with
-(R, T), exactly as :mod:`.rectified` flies it (the same ``closed_form`` arc, the same
-clock and the same invariant), and its plane turns by ``plane_turn.arc_turn`` with N
-at the arc model's order, composed onto the plane's quaternion at the arc's end.  The
-state is ``[r, theta, v_r, v_theta, t, qw, qx, qy, qz]``: the polar state and time of
-:mod:`.rectified`, theta measured inside the turning plane, and the unit quaternion of
-the plane (``physics.rotation``'s convention; ``elements.cartesian_from_polar3d``
-gives the Cartesian state).  At delta = 0 the plane never turns and the polar rows are
-:mod:`.rectified`'s.
-
-Lengths are angles (rad), as the NLP's closed-form segments are, or durations; the
-chain is one Function over SX arcs, compiled with their derivatives where
-``model.native`` and a compiler allow (``propagation.compiled``; angles only), as the
-planar NLP's arcs are.  Richardson extrapolation is the planar propagator's only
-(``model.extrapolate`` is refused here).
+An arc's polar state is :mod:`.rectified`'s with the (R, T) of
+``thrust.radial_transverse_normal``, and its plane turns by ``plane_turn.arc_turn`` with
+N.  The state is ``[r, theta, v_r, v_theta, t, qw, qx, qy, qz]``, theta inside the
+turning plane, the plane's unit quaternion in ``physics.rotation``'s convention
+(``elements.cartesian_from_polar3d`` gives the Cartesian state); at delta = 0 the polar
+rows are :mod:`.rectified`'s.  Lengths are angles (rad) or durations; arcs are compiled
+where ``model.native`` allows (angles only); ``model.extrapolate`` is refused.
 """
 
 import functools
@@ -47,9 +38,8 @@ def _inputs():
 @functools.lru_cache(maxsize=None)
 def panel_function3d(*, coefficients=EXACT, nodes=8):
     """A first-order arc between two of its angles: ``(x0[9], ac, alpha, delta, phi_a,
-    phi_b) -> (state at phi_b [9], time from phi_a to phi_b, q3 at phi_b)``; the state's
-    time row is x0's (the caller adds the panels' times) and its plane has turned from
-    x0's by the first-order turn over [0, phi_b]."""
+    phi_b) -> (state at phi_b [9], time from phi_a to phi_b, q3 at phi_b)``, the state's
+    time row x0's (the caller adds the panels' times), its plane turned over [0, phi_b]."""
     x0, ac, alpha, delta = _inputs()
     phi_a, phi_b = ca.SX.sym("phi_a"), ca.SX.sym("phi_b")
     R, T, N = radial_transverse_normal(alpha, delta, coefficients)
@@ -64,9 +54,7 @@ def panel_function3d(*, coefficients=EXACT, nodes=8):
 @functools.lru_cache(maxsize=None)
 def end_function3d(*, coefficients=EXACT, nodes=2):
     """A second-order arc from its start to an angle: ``(x0[9], ac, alpha, delta, phi) ->
-    (state at phi [9], time from 0 to phi, q3 at phi)``, the planar part
-    ``closed_form.SecondOrderArc``'s and the turn ``plane_turn.second_order_turn``'s,
-    both on the same ``nodes`` Gauss-Legendre points; q3 is the first-order margin."""
+    (state at phi [9], time from 0 to phi, q3 at phi)``, q3 the first-order margin."""
     x0, ac, alpha, delta = _inputs()
     phi = ca.SX.sym("phi")
     R, T, N = radial_transverse_normal(alpha, delta, coefficients)
@@ -89,9 +77,8 @@ def piece_function3d(*, coefficients=EXACT, model=ArcModel()):
 
 @functools.lru_cache(maxsize=None)
 def native_piece3d(*, coefficients=EXACT, model=ArcModel()):
-    """The compiled :func:`piece_function3d` (``propagation.compiled``, with its
-    derivatives), or None where it stays on the virtual machine (``model.native``
-    off, compiling off, no compiler, a failed compile)."""
+    """The compiled :func:`piece_function3d` (with its derivatives), or None where it
+    stays on the virtual machine."""
     if not model.native:
         return None
     piece = piece_function3d(coefficients=coefficients, model=model)
@@ -124,10 +111,8 @@ def _samples(x0, ac, alpha, delta, dtheta, samples, coefficients, model):
 def arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
     """One 3-D arc of ``model`` sampled at phi_k = dtheta k / samples, k = 1..samples:
     ``(x0[9], ac, alpha, delta, dtheta) -> (xs[9 x samples], q3)``, as
-    ``rectified.arc_function`` (order 1: the samples are the time's panels; order 2:
-    every sample is its own arc end from x0; ``model.invariant``: v_theta = h / r with
-    the exact h of Eq. 2 and the in-plane T; ``model.native``: compiled pieces, the arc
-    inlined where it is called), with the plane turned from x0's at each sample."""
+    ``rectified.arc_function`` (the invariant with the in-plane T), the plane turned from
+    x0's at each sample."""
     x0, ac, alpha, delta, dtheta = (ca.MX.sym(n, s) for n, s in (
         ("x0", STATE), ("ac", 1), ("alpha", 1), ("delta", 1), ("dtheta", 1)))
     states, elapsed, q3s = _samples(x0, ac, alpha, delta, dtheta, samples, coefficients,
@@ -146,17 +131,9 @@ def arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
 @functools.lru_cache(maxsize=None)
 def timed_arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
     """As :func:`arc_function3d` (never compiled), but the last input is a duration (TU)
-    and the arc ends that long after x0, as ``rectified.timed_arc_function`` does it:
-
-    * order 1: the angle is the root of the closed form's clock by
-      ``rectified.NEWTON_STEPS`` Newton steps from ``rectified.kepler_angle``;
-    * order 2: the arc is flown to ``rectified.clock_guess``'s angle and the part of the
-      duration left is flown by the Taylor series of Eqs. 1-2
-      (``dynamics.taylor_step``), the plane turning meanwhile at its rate at the
-      remainder's midpoint (``dynamics.plane_rate``), an error third order in that
-      remainder.
-
-    Returns ``(x0[9], ac, alpha, delta, duration) -> (xs[9 x samples], q3, remainder)``.
+    and the arc ends that long after x0, as ``rectified.timed_arc_function`` does it: ``->
+    (xs[9 x samples], q3, remainder)``.  At order 2 the plane turns over the remainder at
+    its rate at the remainder's midpoint, an error third order in the remainder.
     """
     order, nodes = model.order, model.nodes
     x0, ac, alpha, delta = _inputs()
@@ -186,14 +163,10 @@ def timed_arc_function3d(samples, *, coefficients=EXACT, model=ArcModel()):
 def rectified3d_function(segments, *, samples=1, length_in="theta", coefficients=EXACT,
                          model=ArcModel()):
     """A schedule of ``segments`` segments of constant pitch and clock, each
-    ``model.sub_arcs`` arcs of equal angle, as one Function:
-    ``(x0[9], ac[1 x N], alpha[1 x N], delta[1 x N], length[1 x N]) ->
-    (xs[9 x N S samples], q3[1 x N S])``, lengths in theta (rad) or, with
-    ``length_in="time"``, durations (TU, :func:`timed_arc_function3d`, never compiled),
-    ``ac`` per segment (times any throttle).  The arcs restart from each other's ends: the plane's turns
-    compose by quaternion products, arc after arc.  On compiled pieces the chain is
-    unrolled and inlined, as ``rectified``'s (``rectified.FLAT``); otherwise one
-    ``mapaccum`` holds one copy of the arc for any N."""
+    ``model.sub_arcs`` equal arcs, as one Function: ``(x0[9], ac[1 x N], alpha[1 x N],
+    delta[1 x N], length[1 x N]) -> (xs[9 x N S samples], q3[1 x N S])``, lengths in
+    theta (rad) or, with ``length_in="time"``, durations (TU, never compiled), ``ac`` per
+    segment (times any throttle).  InputError with ``model.extrapolate``."""
     if model.extrapolate:
         raise InputError("arc_model.extrapolate = True is not available in three "
                          "dimensions; use False")
@@ -235,33 +208,11 @@ def rectified3d_function(segments, *, samples=1, length_in="theta", coefficients
 
 def propagate3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
                 length_in="theta", coefficients=EXACT, model=ArcModel()):
-    """Rectified closed-form propagation in three dimensions of a schedule of pitch and
-    clock angles.
-
-    Parameters
-    ----------
-    x0 : array_like, shape (4,)
-        Polar state [r, theta, v_r, v_theta] inside the plane of ``quat0``, canonical.
-    quat0 : array_like, shape (4,)
-        The plane's unit quaternion (``elements.polar3d_from_cartesian`` gives both from
-        a Cartesian state).
-    alphas, deltas, lengths : array_like, shape (N,)
-        Pitch and clock (rad) and length of each segment: an angle (rad) for
-        ``length_in="theta"``, a duration (TU) for ``"time"``.
-    ac : float
-        Characteristic acceleration, canonical units.
-    throttles : array_like, shape (N,), optional
-        Factor on ac per segment (0 is a coast), default 1.
-    samples, coefficients, model
-        As ``rectified.propagate`` (no extrapolation).
-
-    Returns
-    -------
-    xs : numpy.ndarray, shape (9, N * S * samples + 1)
-        [r, theta, v_r, v_theta, t, qw, qx, qy, qz] at the start and at every sample,
-        S = ``model.sub_arcs``.
-    q3 : numpy.ndarray, shape (N * S,)
-        First-order validity margin at each arc's end.
+    """Rectified closed-form propagation in three dimensions, as ``rectified.propagate``
+    (no extrapolation) with ``quat0`` (4,) the start plane's unit quaternion (``x0`` inside
+    it; ``elements.polar3d_from_cartesian`` gives both) and ``deltas`` (N,) the clock
+    angles, rad.  Returns ``xs`` (9, N S samples + 1), [r, theta, v_r, v_theta, t, qw, qx,
+    qy, qz] at the start and every sample, and ``q3`` (N S,), the margin at each arc's end.
     """
     alphas = np.atleast_1d(np.asarray(alphas, float))
     n = alphas.size
@@ -283,8 +234,7 @@ def cartesian_function():
 
 
 def cartesian_states(xs):
-    """[x, y, z, vx, vy, vz, t] of every column of a 3-D state array ``xs`` (9 x K, as
-    :func:`propagate3d` returns), in the fixed frame of the planes' quaternions
-    (``elements.cartesian_from_polar3d``); shape (7, K)."""
+    """[x, y, z, vx, vy, vz, t] (7, K) of every column of a 3-D state array ``xs`` (9, K),
+    in the fixed frame of the planes' quaternions."""
     xs = np.asarray(xs, float)
     return np.array(cartesian_function().map(xs.shape[1])(xs))

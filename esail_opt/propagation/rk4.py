@@ -1,12 +1,8 @@
-"""A fixed-step Runge-Kutta segment of Eqs. 1-2, expanded into one SX graph.
-
-Two users need it.  The exact polish (``optimisation.polish``) transcribes Eqs. 1-2 with
-it and removes its truncation error by defect correction against CVODES, which is far
-cheaper per Ipopt iteration than differentiating CVODES itself.  The precision benchmark
-(``esail_opt.bench.precision``) uses it as the baseline a generic optimal-control tool
-gives: the classic RK4 at a fixed number of steps per shooting segment.  Either way it
-has the signature of ``segment_methods.closed_form_segment``, so the same multiple-shooting
-NLP takes it.
+"""A fixed-step Runge-Kutta segment of Eqs. 1-2, expanded into one SX graph, with the
+signature of ``segment_methods.closed_form_segment`` so the same multiple-shooting NLP
+takes it: for the exact polish (its truncation error removed by defect correction
+against CVODES, far cheaper than differentiating CVODES) and as the precision
+benchmark's generic baseline.
 """
 
 import functools
@@ -20,27 +16,13 @@ from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse
 
 @functools.lru_cache(maxsize=None)
 def rk4_segment(steps, coefficients=EXACT, length_in="theta"):
-    """One constant-pitch segment of Eqs. 1-2 by ``steps`` equal classic RK4 steps.
-
-    Parameters
-    ----------
-    steps : int
-        RK4 steps over the segment, >= 1.  The global error falls like steps^-4.
-    coefficients : tuple of float
-        (b1, b2) of Eqs. 3-4.
-    length_in : {"theta", "time"}
-        The independent variable and what the segment's length is: its angle (rad), with
-        time carried as the fifth state through dt/dtheta = r / v_theta
-        (``dynamics.rhs_in_theta``), or its duration (TU), with t advancing by it.
-
-    Returns
-    -------
-    casadi.Function
-        ``(x0[5], ac, alpha, length) -> (x1[5], q3[0])``, SX and expanded:
-        x = [r, theta, v_r, v_theta, t] canonical, ac the characteristic acceleration
-        (times the throttle), alpha the pitch in rad.  An integrator of the exact
-        equations has no first-order validity margin, so q3 is empty and
-        ``transcription.transcribe`` adds no q3 rows for it.
+    """One constant-pitch segment of Eqs. 1-2 by ``steps`` (>= 1) equal classic RK4 steps,
+    global error like steps^-4: ``(x0[5], ac, alpha, length) -> (x1[5], q3[0])``, SX and
+    expanded, x = [r, theta, v_r, v_theta, t] canonical, ``ac`` times the throttle,
+    ``alpha`` in rad, ``length`` an angle (rad) or, with ``length_in="time"``, a duration
+    (TU).  ``coefficients`` are (b1, b2) of Eqs. 3-4.  An integrator of the exact
+    equations has no validity margin: q3 is empty, and ``transcription.transcribe`` adds
+    no q3 rows for it.
     """
     if int(steps) != steps or steps < 1:
         raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
@@ -64,8 +46,7 @@ def rk4_segment(steps, coefficients=EXACT, length_in="theta"):
     x1 = x0
     for _ in range(steps):
         x1 = step(x1, ac, alpha, length / steps)
-    # expand() inlines the step calls: one flat SX graph, which the NLP maps over its N
-    # segments exactly as it maps the closed form's.
+    # expand(): one flat SX graph, which the NLP maps as it maps the closed form's.
     return ca.Function("segment_rk4", [x0, ac, alpha, length], [x1, ca.SX(0, 1)],
                        ["x0", "ac", "alpha", "length"], ["x1", "q3"]).expand()
 
@@ -80,13 +61,10 @@ def _classic_step(f, x, h):
 
 @functools.lru_cache(maxsize=None)
 def rk4_segment3d(steps, coefficients=EXACT, length_in="theta"):
-    """One segment of constant pitch and clock on the Cartesian equations
-    (``dynamics.rhs_cartesian``) by ``steps`` equal classic RK4 steps.
-
-    Returns ``(y0[7], ac, alpha, delta, length) -> (y1[7], q3[0])``, SX and expanded,
-    y = [x, y, z, vx, vy, vz, t] canonical; ``length`` is the angle the Sun-sail line
-    sweeps (rad, ``dynamics.rhs_cartesian_in_theta``) or a duration (TU), as
-    :func:`rk4_segment`'s.  The global error falls like steps^-4.
+    """One segment of constant pitch and clock on the Cartesian equations by ``steps``
+    equal classic RK4 steps: ``(y0[7], ac, alpha, delta, length) -> (y1[7], q3[0])``, SX
+    and expanded, y = [x, y, z, vx, vy, vz, t] canonical, ``length`` the angle the
+    Sun-sail line sweeps (rad) or a duration (TU), as :func:`rk4_segment`'s.
     """
     if int(steps) != steps or steps < 1:
         raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
@@ -121,13 +99,10 @@ def rk4_step3d(coefficients=EXACT, length_in="theta", swept=False):
 @functools.lru_cache(maxsize=None)
 def rk4_segment_turning(steps, coefficients=EXACT):
     """One segment of constant pitch and clock on the turning-plane equations
-    (``dynamics.rhs_turning``: Eqs. 1-2 inside a plane whose quaternion turns) in theta,
-    by ``steps`` equal classic RK4 steps: the node layout of the 3-D NLP.
-
-    Returns ``(x0[9], ac, alpha, delta, dtheta) -> (x1[9], q3[0])``, SX and expanded,
-    x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] as ``segment_methods.closed_form_segment3d``
-    takes it.  What a generic transcription of the same state would fly; the quaternion's
-    norm drifts by the method's error, as any component does.
+    (``dynamics.rhs_turning``) in theta by ``steps`` equal classic RK4 steps:
+    ``(x0[9], ac, alpha, delta, dtheta) -> (x1[9], q3[0])``, SX and expanded,
+    x = [r, theta, v_r, v_theta, t, qw, qx, qy, qz] as ``closed_form_segment3d`` takes it.
+    The quaternion's norm drifts by the method's error, as any component does.
     """
     if int(steps) != steps or steps < 1:
         raise ValueError(f"steps = {steps!r} is not a whole number >= 1")
@@ -145,9 +120,8 @@ def rk4_segment_turning(steps, coefficients=EXACT):
 
 
 def _stepped3d(name, step, rows, steps, ends, length_name):
-    """A segment of ``steps`` equal calls of the 3-D RK4 ``step`` ``(y, ac, alpha,
-    delta, h) -> y``: ``(start, ac, alpha, delta, length) -> (end, q3[0])``, SX and
-    expanded, its inputs and outputs named ``ends`` and ``length_name``."""
+    """A segment of ``steps`` equal calls of the 3-D RK4 ``step``: ``(start, ac, alpha,
+    delta, length) -> (end, q3[0])``, SX and expanded."""
     y0 = ca.SX.sym(ends[0], rows)
     ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", length_name))
     y1 = y0

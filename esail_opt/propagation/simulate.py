@@ -1,12 +1,9 @@
 """The reference: Eqs. 1-2 integrated by CVODES under a piecewise-constant attitude.
 
-Every segment is one call of a CVODES integrator on a normalised interval
-tau in [0, 1]; its length (a time, or an angle when theta is the independent
-variable) is a parameter, so one compiled integrator serves every segment, and a
-``mapaccum`` chains the segments into a single ``casadi.Function``.  The state
-carried is ``[r, theta, v_r, v_theta, t]`` in canonical units; in three dimensions a
-flight takes and returns Cartesian states, whichever form it integrates
-(:data:`FORMS_3D`).
+Every segment is one CVODES call on tau in [0, 1] with its length (a time, or an angle)
+as a parameter, so one integrator serves every segment, chained by ``mapaccum``.  The
+state is ``[r, theta, v_r, v_theta, t]``, canonical; in three dimensions a flight takes
+and returns Cartesian states, whichever form it integrates (:data:`FORMS_3D`).
 """
 
 import contextlib
@@ -25,10 +22,8 @@ from esail_opt.physics.thrust import EXACT, radial_transverse, radial_transverse
 #: Tight enough that the reference is not the error being measured (THEORY.md §5.5).
 TOLERANCE = 1e-12
 #: The verifier's tolerances: it flies every schedule twice and reports the difference as
-#: its own error.  Final positions of CVODES (Adams) against scipy's DOP853 at rtol 1e-13
-#: on the polished Earth-Venus, Earth-Mars and 0.1 mm/s^2 Earth-Mars schedules: 5-13 m at
-#: 1e-13, 0.2-1.0 m at 1e-14, 0.06-0.5 m at 1e-15 and 0.03-0.25 m at 3e-16; so 1e-12,
-#: where this module used to stop, cannot judge a 1 m bound.
+#: its own error.  Against DOP853 (rtol 1e-13), CVODES's final positions on the shipped
+#: schedules were off by up to 13 m at 1e-13 and 0.25 m at 3e-16: 1e-12 cannot judge 1 m.
 VERIFY_TOLERANCE = 3e-16
 CHECK_TOLERANCE = 1e-15
 MAX_STEPS = {"time": 10_000_000, "theta": 200_000}
@@ -54,12 +49,9 @@ def quiet_stderr():
 
 @functools.lru_cache(maxsize=None)
 def segment_integrator(samples, length_in="time", coefficients=EXACT, tol=TOLERANCE):
-    """CVODES over one constant-attitude segment, sampled at tau = k / samples.
-
-    Returns a Function ``(x0[5], ac, alpha, length) -> xs[5 x samples]``, where
-    ``length`` is the segment's duration (TU) or angle (rad) and ``ac`` is the
-    characteristic acceleration times the throttle, canonical units.
-    """
+    """CVODES over one constant-attitude segment, sampled at tau = k / samples:
+    ``(x0[5], ac, alpha, length) -> xs[5 x samples]``, ``length`` the duration (TU) or
+    angle (rad), ``ac`` canonical, times the throttle."""
     x = ca.SX.sym("x", 5)
     ac, alpha, length = ca.SX.sym("ac"), ca.SX.sym("alpha"), ca.SX.sym("length")
     R, T = radial_transverse(alpha, coefficients)
@@ -70,10 +62,9 @@ def segment_integrator(samples, length_in="time", coefficients=EXACT, tol=TOLERA
     else:
         raise ValueError(f"length_in must be 'time' or 'theta', not {length_in!r}")
     grid = [k / samples for k in range(1, samples + 1)]
-    # In theta, an escaping orbit's angle tends to a finite limit and dt/dtheta to
-    # infinity: fail fast there instead of grinding through the time domain's budget.
-    # Adams, as the paper's reference: on these non-stiff orbits it is ~50x more
-    # accurate than CVODES's default BDF at the same tolerance, and faster.
+    # In theta an escaping orbit's angle tends to a finite limit: a smaller step budget
+    # fails fast.  Adams, as the paper's reference: on these non-stiff orbits ~50x more
+    # accurate than BDF at the same tolerance, and faster.
     opts = {"abstol": tol, "reltol": tol, "max_num_steps": MAX_STEPS[length_in],
             "linear_multistep_method": "adams",
             "disable_internal_warnings": True, "show_eval_warnings": False}
@@ -113,17 +104,10 @@ def _segments_function(segments, length_in, coefficients, tol):
 
 def fly_segments(starts, ac, alphas, lengths, length_in="time", coefficients=EXACT,
                  tol=TOLERANCE):
-    """Every segment flown on Eqs. 1-2 from its own start, not chained.
-
-    ``starts`` is [5 x N] (canonical, with t), ``ac`` per segment (times the throttle),
-    ``alphas`` and ``lengths`` per segment.  Returns the ends [5 x N]; a defect
-    correction compares them with a cheaper model's ends from the same starts.
-
-    Raises
-    ------
-    SimulationError
-        If CVODES cannot fly a segment (an escaping arc).
-    """
+    """Every segment flown on Eqs. 1-2 from its own start, not chained, for a defect
+    correction: ``starts`` [5 x N] (canonical, with t), ``ac`` (times the throttle),
+    ``alphas`` and ``lengths`` per segment; returns the ends [5 x N].  SimulationError
+    if CVODES cannot fly a segment (an escaping arc)."""
     n = np.shape(starts)[1]
     fun = _segments_function(n, length_in, coefficients, tol)
     try:
@@ -138,31 +122,13 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time
              coefficients=EXACT, tol=TOLERANCE):
     """Fly Eqs. 1-2 from ``x0`` under a piecewise-constant pitch schedule.
 
-    Parameters
-    ----------
-    x0 : array_like, shape (4,)
-        Polar state [r, theta, v_r, v_theta], canonical units.
-    alphas, lengths : array_like, shape (N,)
-        Pitch (rad) and length of each segment: duration (TU) if ``length_in`` is
-        ``"time"``, angle (rad) if ``"theta"``.
-    ac : float
-        Characteristic acceleration, canonical units.
-    throttles : array_like, shape (N,), optional
-        Factor on ac per segment, default 1.
-    samples : int
-        Output points per segment, equally spaced in its independent variable.
-    tol : float
-        CVODES's relative and absolute tolerance.
-
-    Returns
-    -------
-    numpy.ndarray, shape (5, N * samples + 1)
-        [r, theta, v_r, v_theta, t] at the start and at every sample.
-
-    Raises
-    ------
-    SimulationError
-        If CVODES stops short, e.g. in theta on an escaping orbit.
+    ``x0`` (4,) is the polar state [r, theta, v_r, v_theta], canonical; ``alphas`` (rad),
+    ``lengths`` (durations, TU, or with ``length_in="theta"`` angles, rad) and
+    ``throttles`` (factors on ``ac``, default 1) are (N,); ``ac`` is canonical;
+    ``samples`` are output points per segment, equal in its independent variable; ``tol``
+    is CVODES's relative and absolute tolerance.  Returns [r, theta, v_r, v_theta, t] at
+    the start and every sample, (5, N samples + 1); SimulationError if CVODES stops short,
+    e.g. in theta on an escaping orbit.
     """
     alphas = np.atleast_1d(np.asarray(alphas, float))
     lengths = np.atleast_1d(np.asarray(lengths, float))
@@ -179,18 +145,16 @@ def simulate(x0, alphas, lengths, ac, throttles=None, samples=1, length_in="time
     return np.column_stack([start, xs])
 
 
-#: The forms a 3-D flight can integrate.  ``"turning"``: Eqs. 1-2 in a plane whose
-#: quaternion turns about r_hat (``dynamics.rhs_turning``, THEORY.md §9.2), the form the
-#: verifier judges by and the polish lands on, as the planar verifier flies Eqs. 1-2.
-#: ``"cartesian"``: the Cartesian equations (``dynamics.rhs_cartesian``), which use no
-#: plane and no polar state, so that a flight on them checks the decomposition, and
-#: the gap between the two forms is part of the verifier's error (THEORY.md §5.5).
+#: The forms a 3-D flight can integrate: ``"turning"``, Eqs. 1-2 in a turning plane
+#: (``dynamics.rhs_turning``), which the verifier judges by and the polish lands on;
+#: ``"cartesian"`` (``dynamics.rhs_cartesian``), which checks that decomposition, the gap
+#: between the two being part of the verifier's error (THEORY.md §5.5).
 FORMS_3D = ("turning", "cartesian")
 
 
 def _rates3d(form, ac, R, T, N):
-    """The state of a 3-D flight in ``form``, its time derivative (its last row, t, has
-    rate 1) and dt/dtheta, theta the angle the Sun-sail line sweeps."""
+    """The state of a 3-D flight in ``form`` (t last), its time derivative and dt/dtheta,
+    theta the angle the Sun-sail line sweeps."""
     if form == "turning":
         z = ca.SX.sym("z", 9)  # [r, theta, v_r, v_theta, quaternion, t]
         rates = ca.vertcat(rhs_turning(z[:4], z[4:8], ac, R, T, N), 1)
@@ -223,12 +187,9 @@ def _to_cartesian(form, zs):
 def segment_integrator3d(samples, length_in="time", coefficients=EXACT, tol=TOLERANCE,
                          form="turning"):
     """CVODES over one segment of constant pitch and clock in three dimensions, sampled
-    at tau = k / samples, integrating ``form`` (:data:`FORMS_3D`).
-
-    Returns ``(y0[7], ac, alpha, delta, length) -> ys[7 x samples]``, y = [x, y, z, vx,
-    vy, vz, t] canonical (any fixed frame, the ecliptic of J2000 for real bodies), so
-    that both forms are called alike; ``length`` is a duration (TU) or the angle the
-    Sun-sail line sweeps (rad, ``dynamics.swept_angle_rate``).
+    at tau = k / samples, integrating ``form`` (:data:`FORMS_3D`): ``(y0[7], ac, alpha,
+    delta, length) -> ys[7 x samples]``, y = [x, y, z, vx, vy, vz, t] canonical in any
+    fixed frame, ``length`` a duration (TU) or the angle the Sun-sail line sweeps (rad).
     """
     ac, alpha, delta, length = (ca.SX.sym(n) for n in ("ac", "alpha", "delta", "length"))
     R, T, N = radial_transverse_normal(alpha, delta, coefficients)
@@ -264,32 +225,13 @@ def schedule_function3d(segments, samples, length_in="time", coefficients=EXACT,
 
 def simulate3d(y0, alphas, deltas, lengths, ac, throttles=None, samples=1, length_in="time",
                coefficients=EXACT, tol=TOLERANCE, form="turning"):
-    """Fly the motion in three dimensions from ``y0`` under a schedule of pitch and clock
-    angles, integrating ``form`` (:data:`FORMS_3D`).
+    """:func:`simulate` in three dimensions, integrating ``form`` (:data:`FORMS_3D`).
 
-    Parameters
-    ----------
-    y0 : array_like, shape (6,)
-        Cartesian state [x, y, z, vx, vy, vz], canonical units.
-    alphas, deltas, lengths : array_like, shape (N,)
-        Pitch and clock (rad) and length of each segment: duration (TU) if
-        ``length_in`` is ``"time"``, the angle the Sun-sail line sweeps (rad) if
-        ``"theta"``.
-    ac, throttles, samples, coefficients, tol
-        As :func:`simulate`.
-    form : str
-        What CVODES integrates (:data:`FORMS_3D`); the states given and returned are
-        Cartesian either way.
-
-    Returns
-    -------
-    numpy.ndarray, shape (7, N * samples + 1)
-        [x, y, z, vx, vy, vz, t] at the start and at every sample.
-
-    Raises
-    ------
-    SimulationError
-        If CVODES stops short.
+    ``y0`` (6,) is the Cartesian start state, canonical; ``alphas``, ``deltas`` (rad) and
+    ``lengths`` (N,) per segment, a length the duration (TU) or, with
+    ``length_in="theta"``, the angle the Sun-sail line sweeps (rad).  Returns
+    [x, y, z, vx, vy, vz, t] at the start and every sample, (7, N samples + 1);
+    SimulationError if CVODES stops short.
     """
     alphas = np.atleast_1d(np.asarray(alphas, float))
     n = alphas.size
@@ -313,17 +255,9 @@ def _segments_function3d(segments, length_in, coefficients, tol, form):
 
 def fly_segments3d(starts, ac, alphas, deltas, lengths, length_in="time",
                    coefficients=EXACT, tol=TOLERANCE, form="turning"):
-    """Every segment flown in ``form`` from its own start, not chained
-    (:func:`fly_segments` in three dimensions).
-
-    ``starts`` is [7 x N] Cartesian states with t; ``ac`` (times the throttle),
-    ``alphas``, ``deltas`` and ``lengths`` per segment.  Returns the ends [7 x N].
-
-    Raises
-    ------
-    SimulationError
-        If CVODES cannot fly a segment.
-    """
+    """:func:`fly_segments` in three dimensions and in ``form``: ``starts`` [7 x N]
+    Cartesian states with t, ``deltas`` per segment too; returns the ends [7 x N], or
+    raises SimulationError as there."""
     n = np.shape(starts)[1]
     fun = _segments_function3d(n, length_in, coefficients, tol, form)
     rows = [np.reshape(v, (1, -1)) for v in (ac, alphas, deltas, lengths)]

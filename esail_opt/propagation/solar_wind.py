@@ -1,28 +1,19 @@
 """The solar wind as it blows: a random factor on the E-sail's thrust.
 
-An E-sail's thrust follows the solar wind's dynamic pressure, which varies by factors of
-several over hours to days.  The model here is what a schedule of fixed-attitude arcs
-can feel: the thrust is the nominal a_c (times the schedule's throttle) times a factor
-f(t), a stationary Gauss-Markov (Ornstein-Uhlenbeck) process of mean 1, standard
-deviation ``sigma`` and correlation time ``corr_days``,
+The thrust is the nominal a_c (times the throttle) times a factor f(t), a stationary
+Gauss-Markov (Ornstein-Uhlenbeck) process of mean 1, standard deviation ``sigma`` and
+correlation time ``corr_days``:
 
     Cov[f(t), f(u)] = sigma^2 exp(-|t - u| / corr_days).
 
-``sigma`` is the thrust's spread after whatever the sail does about it: an E-sail whose
-tether voltage is lowered in strong wind (self-reefing, or a power-limited gun) sees
-a narrower spread than the wind's pressure has, and that narrowing is stated by
-choosing a smaller ``sigma``, not modelled apart.  Studies of E-sail flights on observed
-wind (Toivanen and Janhunen, 2009) found the thrust's spread over hours to days to be
-tens of per cent even with the sail's own damping; :data:`SIGMA` and
-:data:`CORR_DAYS` are round values of that order, defaults to be replaced by the
-analyst's own.
+``sigma`` is the spread after whatever the sail does about it (such as lowering its
+tether voltage in strong wind).  :data:`SIGMA` and :data:`CORR_DAYS` are round values
+of the order Toivanen and Janhunen (2009) found, to be replaced by the analyst's own.
 
-A closed-form arc flies one constant a_c, so a flight samples the process by pieces:
-each piece (an arc of the schedule) gets the mean of f over its span.  Those means
-are jointly Gaussian with the covariance computed here exactly, so a flight's total
-impulse, the sum of piece means times their durations, has the variance of the
-continuous process's integral, whatever the pieces' lengths.  A piece mean below 0 (for
-sigma far above the defaults) is flown as 0: the sail cannot pull toward the Sun.
+Each piece of a flight (a closed-form arc of constant a_c) gets the mean of f over its
+span.  Those means are jointly Gaussian with the exact covariance, so a flight's total
+impulse has the continuous process's variance whatever the pieces' lengths.  A piece
+mean below 0 is flown as 0: the sail cannot pull toward the Sun.
 """
 
 from dataclasses import dataclass
@@ -60,8 +51,7 @@ class SolarWind:
         starts = ends - span
         x = span / tau
         # The mean of exp(-|t - u| / tau) over one piece with itself, and the factor
-        # (1 - exp(-x)) / x by which a piece's mean decays toward a later instant;
-        # both tend to 1 as the piece shrinks.
+        # (1 - exp(-x)) / x by which a piece's mean decays toward a later instant.
         small = x < 1e-8
         safe = np.where(small, 1.0, x)
         own = np.where(small, 1.0 - x / 3, 2 * (safe - 1 + np.exp(-safe)) / safe ** 2)
