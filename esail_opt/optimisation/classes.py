@@ -15,7 +15,9 @@ from typing import Callable, Optional
 import casadi as ca
 
 from esail_opt.optimisation import ipopt, multistart
-from esail_opt.optimisation.ipopt import AT_CAP, STOPPED, NLPResult
+from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, per_revolution_mesh,
+                                                  sub_arcs_within_cap)
+from esail_opt.optimisation.ipopt import AT_CAP, STOPPED, NLPResult, solve_problem
 from esail_opt.optimisation.problem import Problem
 from esail_opt.optimisation.seed import initial_guess
 from esail_opt.optimisation.transcription import Transcription, segment_threads
@@ -89,6 +91,28 @@ class ClassSearch:
     looked_at: list = dataclasses.field(default_factory=list)
     skipped: str = ""
     solves: list = dataclasses.field(default_factory=list)
+
+    @classmethod
+    def on_projected_model(cls, problem, say):
+        """The search of a 3-D ``problem``'s counts on its projected model
+        (``multistart.probe_model``), the best lifted into 3-D (``multistart.lift``).
+        Why: a 3-D iteration costs about twice a projected one, and the ranking of the
+        counts barely moves between the two."""
+        def seed():
+            model = multistart.probe_model(problem)
+            guess = initial_guess(model)
+            model = sub_arcs_within_cap(model, guess, MAX_SUB_ARCS)
+            say(f"{problem.name}: searching the turn counts on the projected model "
+                f"({model.segments.sub_arcs} sub-arcs), then lifting the best into 3-D")
+            result, tr = solve_problem(model, guess=guess, progress=say)
+            return (model,) + per_revolution_mesh(model, result, tr, say)
+
+        def lift(on_mesh, projected, cap):
+            result, tr = multistart.lift(on_mesh, projected.result, cap, say)
+            return Candidate(on_mesh, f"{projected.label}, solved on the projected model "
+                             "and lifted into 3-D", result, tr)
+
+        return cls(problem, seed=seed, lift=lift, say=say)
 
     def run(self, starts=()):
         """The candidates, ranked best first (solved first, then by objective): the

@@ -44,10 +44,12 @@ from typing import Optional
 import casadi as ca
 import numpy as np
 
-from esail_opt.optimisation.ipopt import build_solver, solve_transcription
+from esail_opt.optimisation.ipopt import (build_solver, ipopt_options, primal_warm_options,
+                                          solve_problem, solve_transcription)
 from esail_opt.optimisation.goals import cartesian_miss, state_miss
 from esail_opt.optimisation.segment_methods import ClosedForm
 from esail_opt.optimisation.nodes import node_cartesian, start_node
+from esail_opt.optimisation.seed import split_guess
 from esail_opt.optimisation.transcription import transcribe
 from esail_opt.optimisation.verify import verify
 from esail_opt.physics import constants as units
@@ -248,6 +250,39 @@ def _flown_miss(problem, check):
     m = check.misses
     value = m.get("target_miss_r_km") if problem.target is not None else m.get("miss_r_km")
     return np.inf if value is None else value
+
+
+#: How far below its asked density a ``Segments(per_revolution=K)`` mesh may fall on
+#: the turns its optimum flies before that optimum is solved again on a finer mesh.
+DENSITY_SLACK = 1.25
+
+
+def per_revolution_mesh(problem, result, tr, say):
+    """A ``Segments(per_revolution=K)`` optimum solved again from itself, each segment
+    cut into as many as the turns it flies need: (NLPResult, Transcription).
+
+    The count is set on the seed's angle, and an optimum may fly far more turns than
+    its seed (an Earth-Laurel minimum time asked for 10 segments a turn flew 2.49 turns
+    on 10, where its best turn count found no point).  The first optimum stands where
+    the finer mesh finds none, or where it was not found itself."""
+    seg, n = problem.segments, result.alpha.size
+    wanted = seg.count_for(float(np.sum(result.lengths))) if result.outcome.found else n
+    if seg.per_revolution is None or wanted <= DENSITY_SLACK * n:
+        return result, tr
+    parts = math.ceil(wanted / n)
+    say(f"{problem.name}: the optimum flies {np.sum(result.lengths) / (2 * math.pi):.3g} "
+        f"turns on {n} segments; solving it again on {n * parts} "
+        f"({seg.per_revolution} a turn asked)")
+    guess = split_guess(problem, result.as_guess(), result.x_start, parts)
+    finer, finer_tr = solve_problem(problem, guess=guess, progress=say, staged=False,
+                                    options=primal_warm_options(ipopt_options()))
+    finer.iterations += result.iterations
+    finer.solve_seconds += result.solve_seconds
+    if not finer.outcome.found:
+        say(f"{problem.name}: the finer mesh found no point; keeping {n} segments")
+        result.iterations, result.solve_seconds = finer.iterations, finer.solve_seconds
+        return result, tr
+    return finer, finer_tr
 
 
 def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,

@@ -16,24 +16,20 @@ decides what runs next and adds up Ipopt's iterations and seconds over the run.
 """
 
 import dataclasses
-import functools
-import math
 from dataclasses import dataclass
 from typing import Optional, Tuple
-
-import numpy as np
 
 from esail_opt.errors import InputError
 from esail_opt.optimisation import edge, multistart, scan
 from esail_opt.optimisation import polish as polishing
-from esail_opt.optimisation.classes import Candidate, ClassSearch, finish_best_first
+from esail_opt.optimisation.classes import ClassSearch, finish_best_first
 from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, ErrorControl, Round, control_error,
-                                                  sub_arcs_within_cap)
+                                                  per_revolution_mesh, sub_arcs_within_cap)
 from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
                                           solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
-from esail_opt.optimisation.seed import initial_guess, split_guess
+from esail_opt.optimisation.seed import initial_guess
 from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import Verification, verify, within
 
@@ -266,8 +262,7 @@ def _lone(problem, say, walk=True):
     lifted (``classes.ClassSearch``), and in 3-D where that leaves no candidate."""
     spent = []
     if problem.three_d() and multistart.searches_classes(problem):
-        search = ClassSearch(problem, seed=functools.partial(_projected_seed, problem, say),
-                             lift=functools.partial(_lift, say), say=say)
+        search = ClassSearch.on_projected_model(problem, say)
         run = _best_verified(search, say)
         if run is not None:
             return run
@@ -318,7 +313,7 @@ def _first_solve(problem, say):
     starts = ()
     if not result.outcome.found:
         result, tr, starts = _other_starts(problem, result, tr, say)
-    result, tr = _per_revolution(problem, result, tr, say)
+    result, tr = per_revolution_mesh(problem, result, tr, say)
     if seed is not None:
         # The scan that chose the date is part of the run's Ipopt record.
         result.iterations += seed.iterations
@@ -370,59 +365,6 @@ def _other_starts(problem, result, tr, say):
     result.iterations = sum(r.iterations for r in records)
     result.solve_seconds = seconds
     return result, tr, tuple(records)
-
-
-#: How far below its asked density a ``Segments(per_revolution=K)`` mesh may fall on
-#: the turns its optimum flies before that optimum is solved again on a finer mesh.
-DENSITY_SLACK = 1.25
-
-
-def _per_revolution(problem, result, tr, say):
-    """A ``Segments(per_revolution=K)`` optimum solved again from itself, each segment
-    cut into as many as the turns it flies need: (NLPResult, Transcription).
-
-    The count is set on the seed's angle, and an optimum may fly far more turns than
-    its seed: an Earth-Laurel minimum time asked for 10 segments a turn flew 2.49 turns
-    on 10, and on that mesh its best turn count found no point (1778.7 d against
-    1520.0 d on 40).  The first optimum stands where it found none, or was not found."""
-    seg, n = problem.segments, result.alpha.size
-    wanted = seg.count_for(float(np.sum(result.lengths))) if result.outcome.found else n
-    if seg.per_revolution is None or wanted <= DENSITY_SLACK * n:
-        return result, tr
-    parts = math.ceil(wanted / n)
-    say(f"{problem.name}: the optimum flies {np.sum(result.lengths) / (2 * math.pi):.3g} "
-        f"turns on {n} segments; solving it again on {n * parts} "
-        f"({seg.per_revolution} a turn asked)")
-    guess = split_guess(problem, result.as_guess(), result.x_start, parts)
-    finer, finer_tr = solve_problem(problem, guess=guess, progress=say, staged=False,
-                                    options=primal_warm_options(ipopt_options()))
-    finer.iterations += result.iterations
-    finer.solve_seconds += result.solve_seconds
-    if not finer.outcome.found:
-        say(f"{problem.name}: the finer mesh found no point; keeping {n} segments")
-        result.iterations, result.solve_seconds = finer.iterations, finer.solve_seconds
-        return result, tr
-    return finer, finer_tr
-
-
-def _projected_seed(problem, say):
-    """The seed's solve of ``problem``'s projected model, the start of its turn-count
-    search: (model, NLPResult, Transcription)."""
-    model = multistart.probe_model(problem)
-    guess = initial_guess(model)
-    model = sub_arcs_within_cap(model, guess, MAX_SUB_ARCS)
-    say(f"{problem.name}: searching the turn counts on the projected model "
-        f"({model.segments.sub_arcs} sub-arcs), then lifting the best into 3-D")
-    result, tr = solve_problem(model, guess=guess, progress=say)
-    result, tr = _per_revolution(model, result, tr, say)
-    return model, result, tr
-
-
-def _lift(say, problem, projected, cap):
-    """A projected class lifted into 3-D (``multistart.lift``, ``cap`` iterations)."""
-    result, tr = multistart.lift(problem, projected.result, cap, say)
-    return Candidate(problem, f"{projected.label}, solved on the projected model and "
-                     "lifted into 3-D", result, tr)
 
 
 def _best_verified(search, say, starts=(), requested=None):
@@ -503,7 +445,7 @@ def finish(problem, result, tr=None, polish=False, progress=None, starts=(),
     controlled = None
     if result.outcome.found:
         # A class other than the first solve's may fly more turns on the same mesh.
-        result, tr = _per_revolution(problem, result, tr, say)
+        result, tr = per_revolution_mesh(problem, result, tr, say)
         # Its last round's verification is the run's.
         controlled = control_error(problem, result, tr, say)
         # The run's Ipopt record covers the first solve and every round after it.

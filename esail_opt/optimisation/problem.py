@@ -360,7 +360,7 @@ class Segments:
         whose turns are not known beforehand: N = ceil(K angle / 2 pi), ``angle`` being
         what the constant-pitch seed flies (``seed.initial_guess``); an optimum of more
         than 1.25 N / K turns is solved again on K a turn of its own
-        (``pipeline.DENSITY_SLACK``).
+        (``error_control.DENSITY_SLACK``).
     """
 
     count: Optional[int] = None
