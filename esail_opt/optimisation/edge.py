@@ -75,14 +75,12 @@ def nearest_feasible(problem, lone, fly, start=None, progress=None):
     point at its time of flight), or None when the walk found no time of flight at which
     the closed form converges.
 
-    ``lone(problem, progress)`` -> ``pipeline.Run`` is a lone solve without a walk of its
-    own, for a rung whose single solve found no point; ``fly(problem, result,
-    transcription, progress=)`` -> ``pipeline.Run`` error-controls and verifies the walk's
-    flight (``pipeline.finish``).  ``start``, a verified flight from the same departure at
-    a longer time of flight (with ``problem``, ``result``, ``transcription``), replaces the
-    ladder and stays the edge unless a shorter flight verifies; without it the walk's
-    flight is returned even when it does not verify (``verified`` says so).
-    ``progress(text)`` gets one line per solve.
+    ``lone(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk, for a
+    rung whose single solve found no point; ``fly(problem, result, transcription,
+    progress=)`` -> ``pipeline.Run``: ``pipeline.finish``.  ``start``, a verified flight
+    from the same departure at a longer time of flight, replaces the ladder and stays the
+    edge unless a shorter flight verifies; without it the walk's flight is returned even
+    when it does not verify.  ``progress(text)`` gets one line per solve.
     """
     say = progress or (lambda text: None)
     walked = walk(problem, lone, start, say)

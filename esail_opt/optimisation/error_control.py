@@ -2,19 +2,15 @@
 problem's tolerance.
 
 Each round: (1) fly the schedule on Eqs. 1-2 and judge it (``verify``); met, stop.
-(2) Fly every segment from its own start node on Eqs. 1-2 (CVODES in theta) and on the
-closed form: the difference is its *defect*, whose position part is the reported local
-error.  (3) Where a segment breaks :data:`STRAIN_CAP`, or the last round did not halve
-the flown miss, add sub-arcs to all segments (they share one count).  (4) Re-solve warm
-with every segment's end shifted by its defect (``transcribe``'s parameter): at a fixed
-point the closed-form chain lands where Eqs. 1-2 do, while the closed form still gives
-the derivatives.  A correction that finds no point ends the rounds with the last that
-found one; rounds all short of the tolerance answer with the closest converged one.
-
-Why: a defect correction is a warm re-solve that cuts the flown miss by orders of
-magnitude, where refining the mesh alone gains (m'/m)^2 for a cold solve of a larger NLP;
-sub-arcs are still added where strained, since a correction on an arc far outside its
-regime has wrong derivatives and converges slowly or not at all.
+(2) Fly every segment from its own start node on Eqs. 1-2 and on the closed form: the
+difference is its *defect*, whose position part is the reported local error.  (3) Where
+a segment breaks :data:`STRAIN_CAP` (a correction there has wrong derivatives), or the
+miss stalls, add sub-arcs.  (4) Re-solve warm with every segment's end shifted by its
+defect, so that at a fixed point the closed-form chain lands where Eqs. 1-2 do.  A
+correction that finds no point ends the rounds with the last that found one; rounds all
+short of the tolerance answer with the closest one.  Why: a defect correction is a warm
+re-solve that cuts the miss by orders of magnitude, where refining the mesh alone gains
+(m'/m)^2 for a cold solve of a larger NLP.
 """
 
 import dataclasses
@@ -142,11 +138,9 @@ def _node_near():
 def node_near(y, ref):
     """The Cartesian state ``y`` (7 rows, with t) as a 3-D node (9 rows) in the gauge of
     the node ``ref``: its plane's frame is ref's turned by the smallest rotation that
-    takes ref's normal to y's, and its theta is on ref's branch.  A node's plane frame
-    is free up to a turn about the normal (traded against theta); this picks the one
-    next to ``ref``, so that ``node_near(y, ref) - ref`` is a small defect.  ``y`` and
-    ``ref`` may also be [7 x N] and [9 x N], column by column (one call for a whole
-    schedule: the verification converts every segment's end)."""
+    takes ref's normal to y's, and its theta is on ref's branch, so that
+    ``node_near(y, ref) - ref`` is a small defect (a node's frame is free up to a turn
+    about the normal).  ``y`` and ``ref`` may also be [7 x N] and [9 x N]."""
     y, ref = np.asarray(y, float), np.asarray(ref, float)
     if y.ndim == 1:
         return np.array(_node_near()(y, ref), float).ravel()
@@ -282,10 +276,9 @@ def _said_miss(rnd, problem, check, say):
 
 
 def _judge(problem, result, local_km, say):
-    """One round's flights of ``result``: its verification (``verify``) and every
-    segment flown from its own start node.  Returns
-    (check, exact ends, model ends, local errors in km); the ends are None, and the
-    local errors those of the last round, when a segment cannot be flown on Eqs. 1-2."""
+    """One round's flights of ``result``: (check, exact ends, model ends, local errors
+    in km); the ends are None, and the local errors the last round's, when a segment
+    cannot be flown on Eqs. 1-2."""
     check = verify(problem, result)
     try:
         exact, plain = segment_ends(problem, result)
@@ -297,10 +290,9 @@ def _judge(problem, result, local_km, say):
 
 
 def _grown(problem, result, miss, last_miss):
-    """The sub-arcs the next round needs, or None to keep the mesh: more where a
-    segment breaks the strain cap (enough to keep it), double where the last round did
-    not cut the flown miss by :data:`STALL`, never past :data:`MAX_SUB_ARCS`: with the
-    sub-arcs whether the strain cap asked for them."""
+    """``(sub_arcs, strained)`` for the next round, or None to keep the mesh: enough to
+    keep the strain cap, else double where the last round did not cut the flown miss by
+    :data:`STALL`, never past :data:`MAX_SUB_ARCS`."""
     sub = problem.segments.sub_arcs
     worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,
                                 result.accelerations(problem) / problem.sail.ac)))

@@ -220,15 +220,12 @@ NO_BETTER = object()
 
 
 def descend_turns(k0, best, solve, better, steps=TURN_STEPS, gaps=0):
-    """The best solve over the turn counts k on a body reached from ``k0`` one turn at a
-    time, each way, while each does better than the best so far (the a_c needed can
-    change by whole factors from one k to the next).
-
-    ``best`` is the solve at ``k0``; ``solve(k)`` returns a solve of class k, None when it
-    found no point, or :data:`NO_BETTER`; ``better(a, b)`` whether a beats b.  A direction
-    stops at the first k that does no better, or at a k with no point once ``gaps`` such
-    counts in a row were stepped over (no point at one count says nothing of the next).
-    Returns the best and every solve made, in order.
+    """(best, every solve made in order) over the turn counts k on a body, from ``k0``
+    (solved as ``best``) one turn at a time each way while each does better: the a_c
+    needed can change by whole factors from one k to the next.  ``solve(k)`` returns a
+    solve of class k, None when it found no point, or :data:`NO_BETTER`; ``better(a, b)``
+    whether a beats b.  A direction stops at the first k that does no better, or at a k
+    with no point once ``gaps`` such counts in a row were stepped over.
     """
     made = []
     for step in (-1, 1):
@@ -326,13 +323,10 @@ def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seed
 
 def probe_start(problem, start, cap, progress=None, checkpoint=None):
     """:func:`probe` of ``problem`` from ``start`` (a :class:`Start` of
-    :func:`probe_model`); returns (NLPResult, Transcription, label of the start).
-
-    A 3-D problem's start is probed on the projected model, ``checkpoint`` included, and
-    its optimum lifted into 3-D (:func:`lift`) within ``cap``: from a constant-pitch seed
-    in 3-D, Ipopt first swings the clock angles far, and a class with a transfer could
-    still be short of feasible at its cap.  A start whose projection finds no point is
-    not solved in 3-D: the result is the projection's, and the label says so."""
+    :func:`probe_model`); returns (NLPResult, Transcription, label of the start).  A 3-D
+    start is probed on the projected model and its optimum lifted (:func:`lift`): from a
+    constant-pitch seed in 3-D, Ipopt first swings the clock angles far and may end short
+    of feasible at its cap.  A projection with no point is not solved in 3-D."""
     model = probe_model(problem)
     result, tr = probe(model, start.guess, cap, progress, checkpoint)
     if model is problem:
@@ -348,11 +342,8 @@ def second_start(problem, k, seeds, seed_k):
     from: the last of ``seeds`` (:func:`constant_pitch_seeds` of :func:`probe_model`,
     in :func:`seed_pitches`'s order) whose own count is k, leaving out the pitch that
     solved it (the problem's own for ``seed_k``, the seed's class; else the first seed
-    that winds k, which :func:`rendezvous_starts` takes); None when no other winds k.
-
-    One class holds several local optima and a constant pitch can start in a poor one;
-    the last seed is the furthest from the first in pitch, so the likeliest to start in
-    another basin."""
+    that winds k); None when no other winds k.  One class holds several local optima,
+    and the last seed, furthest in pitch from the first, is likeliest in another basin."""
     winding = [(a, g) for a, g in seeds.items() if g.revolutions_k == k]
     if not winding:
         return None

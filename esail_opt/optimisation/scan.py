@@ -230,9 +230,8 @@ class CellSolver:
     def estimate(self, problem, neighbour):
         """The objective of ``problem`` in ``neighbour``'s class, to first order by the
         envelope theorem: the neighbour's optimum plus its multipliers times the change of
-        its constraints at its own point when the parameters move to ``problem``'s (only
-        they differ between a class's cells).  None where the neighbour cannot start the
-        cell (:meth:`warm`)."""
+        its constraints when the parameters move to ``problem``'s.  None where the
+        neighbour cannot start the cell (:meth:`warm`)."""
         if neighbour is None or neighbour.on_scan_nlp is None:
             return None
         tr = self.nlps[neighbour.on_scan_nlp.revolutions_k][0]
@@ -261,11 +260,10 @@ class CellSolver:
         return (model, *solve_problem(model, guess=initial_guess(model)))
 
     def from_projected(self, problem, k):
-        """A 3-D cell solved in count ``k`` from its projected model's optimum (warm
-        from the count's last projected cell, :attr:`projected`), lifted, as a list: its
-        own solves would stay in its 3-D neighbour's basin of the count, which ended up
-        to 5 % above a lone solve.  Empty where the projected model found no point in
-        that count (or another segment count than the scan's)."""
+        """A list of the 3-D cell solved in count ``k`` from its projected model's optimum
+        (warm from the count's last projected cell), lifted; empty where the projected
+        model found no point in that count on the scan's segments.  A warm 3-D solve would
+        stay in its neighbour's basin, which ended up to 5 % above a lone solve."""
         flat = self.projected
         model = multistart.probe_model(problem)
         start = flat.warm(model, flat.last.get(k), "projected")
@@ -433,11 +431,9 @@ class Seed:
 
 def seed_free_date(problem, progress=None):
     """A start for a problem whose departure date is free in a window: the best cell of
-    a coarse scan of the window at fixed dates (a :class:`Seed`).
-
-    In three dimensions the dates are ranked on the projected model first
-    (:func:`_lifted_seed`), and the 3-D model scans them itself only when the projected
-    best does not converge in 3-D."""
+    a coarse scan of the window at fixed dates (a :class:`Seed`).  In 3-D the dates are
+    ranked on the projected model (:func:`_lifted_seed`) unless its best does not
+    converge in 3-D."""
     if problem.three_d():
         seed = _lifted_seed(problem, progress)
         if seed.guess is not None:

@@ -222,9 +222,8 @@ def _failed():
 
 def polar_view(flight, x_start):
     """A 3-D flight's Cartesian samples (7 x M) as [r, theta, v_r, v_theta, t] for the
-    plots: theta is the angle swept, unwrapped from the departure's own theta (the
-    8-row ``x_start``), v_theta = |r x v| / r.  The samples must lie less than half a
-    turn apart.  A view, not a model: nothing here is flown."""
+    plots: theta is the angle swept from the 8-row ``x_start``'s theta (samples less
+    than half a turn apart), v_theta = |r x v| / r."""
     pos, vel = flight[:3], flight[3:6]
     r = np.linalg.norm(pos, axis=0)
     h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
@@ -251,13 +250,10 @@ def _node_view(flight, result):
 
 
 def verify3d(problem, result):
-    """:func:`verify` in three dimensions: the final state, in Cartesian coordinates of
-    the ecliptic of J2000, is held to the NLP's final node and to the target body's exact
-    state at the flown arrival (``miss3d``).
-
-    The judged flight integrates Eqs. 1-2 in the turning plane (``simulate.FORMS_3D``);
-    the verifier's error adds to the gap to a flight at ``CHECK_TOLERANCE`` the gap to a
-    flight of the Cartesian equations, since two forms do not share each other's
+    """:func:`verify` in three dimensions, in the turning plane (``simulate.FORMS_3D``),
+    held in Cartesian coordinates of the ecliptic of J2000 to the NLP's final node and to
+    the target body's state at the flown arrival (``miss3d``).  The verifier's error adds
+    the gap to a flight of the Cartesian equations, as two forms do not share their
     integration errors (THEORY.md §5.5)."""
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     args = (problem.start_state(result), result.alpha, result.delta, result.durations, ac)
