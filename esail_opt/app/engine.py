@@ -1,23 +1,9 @@
 """The scan engine: a grid of independent members run, journaled and resumed.
 
-A sweep (:mod:`esail_opt.app.sweep`) and a porkchop (:mod:`esail_opt.app.porkchop`)
-only describe their members and their outputs, as a :class:`Scan`; this module runs
-them.  The members' jobs run on :mod:`esail_opt.runtime.pool` (a local process pool or
-Dask, the retries of lost workers, the stop on Ctrl-C or SIGTERM), and every row that
-ends is appended at once to the scan's journal (:mod:`esail_opt.runtime.journal`) in
-its output folder, so that ``--resume`` runs only the rows the journal lacks.
-
-Contract of a run (:func:`run`):
-
-- everything that can refuse it -- the options (:func:`check_options`), the scheduler
-  (reached before anything else), a journal that ``--resume`` cannot continue, or any
-  of its rows -- is checked before anything on disk changes: a refused run leaves the
-  journal, its torn line included, as it found it;
-- a journal row is validated as it is read (its fields' types, finite numbers); a bad
-  row is one line naming the file and the line;
-- a member's problem file is written into a folder named after the worker's pid, and a
-  folder whose worker is gone (it died, or its file called ``os._exit``) is removed by
-  the next member and at the end of the run.
+A sweep and a porkchop describe their members as a :class:`Scan`; :func:`run` runs its
+jobs on :mod:`esail_opt.runtime.pool` and journals every row as it ends
+(:mod:`esail_opt.runtime.journal`), so ``--resume`` runs only the rows the journal lacks.
+Everything that can refuse a run is checked before anything on disk changes.
 """
 
 import dataclasses
@@ -121,12 +107,9 @@ def header(kind, problem, source, param, values, polish=False, **more):
 
 def load_source(source, filename):
     """The problem of a problem file's text ``source`` (named ``filename``), loaded as
-    the command line loads a file.
-
-    The file is written into a folder named after this process; folders of processes
-    that are gone are removed first, so that a member whose file ended its worker
-    (``os._exit``) leaves no folder per try.
-    """
+    the command line loads a file, from a folder named after this process; folders of
+    processes that are gone are removed first (a file may end its worker by
+    ``os._exit``)."""
     from esail_opt.optimisation.problem_file import load_problem
 
     remove_orphans()
@@ -148,28 +131,13 @@ def remove_orphans():
 class Scan:
     """What a scan is, for :func:`run`: its rows, its jobs and its journal.
 
-    Attributes
-    ----------
-    journal_name : str
-        The journal's file name in the output folder (``sweep.jsonl``).
-    header : dict
-        What identifies the scan in its journal (see :class:`~esail_opt.runtime.journal.Journal`).
-    row_type : type
-        The rows' frozen dataclass (see :class:`~esail_opt.runtime.journal.Journal`).
-    count : int
-        The rows of the grid.
-    function : callable
-        A module-level function ``function(job, *args)`` returning one row (a dict) or
-        a list of rows, each with its ``index``; it never raises for a row.
-    jobs : dict
-        Job index -> (indices of its rows, args).
-    failed_row : callable
-        ``failed_row(index, message)``: the row of a row whose job did not end.
-    belongs : callable, optional
-        ``belongs(index, row)``: whether a journal row is this grid's.
-    part : callable, optional
-        ``part(job, missing)``: the (indices, args) of a job that needs only its rows
-        ``missing`` (a resumed job that had journaled some); by default the whole job.
+    ``journal_name`` (``sweep.jsonl``), ``header`` and ``row_type`` (a frozen dataclass)
+    are the journal's (:class:`~esail_opt.runtime.journal.Journal`); ``count`` rows;
+    ``function(job, *args)``, module-level, returns one row (a dict) or a list, each with
+    its ``index``, and never raises for a row; ``jobs``: job index -> (row indices, args);
+    ``failed_row(index, message)``: row ``index`` when its job did not end; optional
+    ``belongs(index, row)``: whether a journal row is this grid's; optional ``part(job,
+    missing)``: the (indices, args) of a job needing only rows ``missing``.
     """
 
     journal_name: str
@@ -218,10 +186,9 @@ class ScanRun:
 
 
 class _Rows:
-    """The scan's rows, filled in as its jobs end, each journaled at once, and reported
-    as soon as a job tells of them (:func:`esail_opt.runtime.pool.tell`).  A verified
-    row a job tells of is journaled at once too, so that an interrupted job keeps it;
-    the job's end replaces it."""
+    """The scan's rows, journaled as its jobs end and reported as soon as a job tells of
+    them (:func:`esail_opt.runtime.pool.tell`); a verified row told of is journaled then
+    too, so that an interrupted job keeps it."""
 
     def __init__(self, scan, kept, journal, progress):
         self.scan, self.journal, self.progress = scan, journal, progress
@@ -235,10 +202,9 @@ class _Rows:
         self.todo = scan.todo(self.rows)  # the jobs this run runs
 
     def news(self, row):
-        """A row its job told of before ending: reported, and journaled if verified
-        (kept by an interrupted run; one that failed may yet be judged otherwise, so a
-        resumed run solves it again); not reported again unless the job's end changes
-        it."""
+        """A row its job told of before ending: reported, and journaled if verified (a
+        failed one a resumed run solves again); not reported again unless the job's end
+        changes it."""
         i = row["index"]
         if i in self.told:
             return
@@ -258,8 +224,7 @@ class _Rows:
             self._end(i, row)
 
     def unfinished(self, job, message):
-        # Not journaled: it did not finish, so a resumed scan runs it again (all but
-        # the verified rows it told of, which the journal holds).
+        # Not journaled, so a resumed scan runs it again.
         for i in self.todo[job][0]:
             self._end(i, self.told[i] if i in self.early else self.scan.failed_row(i, message))
 
@@ -277,25 +242,15 @@ class _Rows:
 
 def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
         retries=pool.RETRIES, progress=None):
-    """Run the jobs of ``scan`` that the journal lacks; their rows, journaled.
+    """Run the jobs of ``scan`` that the journal in ``out_dir`` (checked; None: no
+    journal) lacks, keeping its rows with ``resume``: a :class:`ScanRun`.  ``workers``:
+    the local pool's size; ``scheduler``: a Dask address (:func:`check_scheduler`);
+    ``retries``: reruns of a job lost with its worker; ``progress(row, done, total)`` as
+    each row ends or is told of (again if its job's end changed it).
 
-    ``out_dir`` is the journal's folder (already checked; None keeps no journal);
-    ``resume`` keeps the rows the journal holds, else it starts afresh; ``workers`` is
-    the local pool's size, ``scheduler`` a Dask scheduler's address (checked by
-    :func:`check_scheduler`), ``retries`` the times a job lost with its worker runs
-    again, and ``progress(row, done, total)`` is called as each row ends (or as its job
-    tells of it, and again at the job's end if that changed it).  Returns an
-    :class:`ScanRun`.
-
-    Raises
-    ------
-    InputError
-        A journal ``resume`` cannot continue, or an unreachable scheduler: before the
-        journal changes.
-    esail_opt.runtime.pool.ClusterLost
-        The Dask cluster was lost (one line saying what the journal keeps).
-    KeyboardInterrupt
-        After stopping the workers; the journal holds every row that ended.
+    Raises InputError, before the journal changes, for a journal ``resume`` cannot
+    continue or an unreachable scheduler; ``pool.ClusterLost`` (one line saying what the
+    journal keeps); KeyboardInterrupt after stopping the workers.
     """
     journal = scan.journal(out_dir)
     kept = journal.read(resume) if journal is not None else {}

@@ -1,33 +1,13 @@
 """Plots of a :class:`~esail_opt.app.solution.Solution`, drawn from its record alone
 (a solution loaded from its file plots as the fresh one did).
 
-``trajectory.png``: the closed-form and CVODES trajectories in the ecliptic plane, with
-the departure and target orbits (or the bodies over the flight, marked at the departure
-and at the arrival) and the segment starts.  A solution flown in three dimensions (its
-schedule has a clock angle, solution.json schema 5) is drawn in two views of its
-CVODES flight in the ecliptic's Cartesian coordinates: from above (x, y) and from the
-side (z against time); the closed form's samples are polar in their own turning plane,
-and the record holds no Cartesian form of them.
-
-``timeline.png``: against time, r, v_r, v_theta and the osculating a and e (and, in
-3-D, the osculating inclination), the sail's attitude (pitch, with the throttle on a
-second axis when the problem has one, and the clock in 3-D), the thrust acceleration
-along the flight (:func:`thrust_acceleration`), and the closed form's local error per
-segment; under them the flown miss of each error-control round, when there was more
-than one.  A panel without data is not drawn.  A polished solution adds the CVODES
-flight of its polished schedule, and the attitude and thrust panels show that
-schedule, the one that flies.
-
-A dated solution's time axes are calendar dates (TDB), an undated one's the days since
-departure.  The titles say in words whether the flight is verified, its time of
-flight, a_c and dates (:func:`headline`).
-
-Every figure function here and in :mod:`esail_opt.app.reproduce` draws into the
-caller's axes or, given none, into a Figure of its own made by :func:`axes_or_new`.
-The figures are drawn in the calling process, one after the other, and saved by
-matplotlib's own ``savefig`` (:func:`write_plots`).  Titles and legends, which hold the
-names a user chose, are drawn as plain text, never parsed as math.  This module imports
-matplotlib: the rest of the package imports it only when a figure is drawn.
+``trajectory.png`` (:func:`trajectory_figure`) and ``timeline.png``
+(:func:`timeline_figure`), titled by :func:`headline`; time axes are calendar dates (TDB)
+for a dated solution, else days since departure.  Every figure function here and in
+:mod:`esail_opt.app.reproduce` draws into the caller's axes or a Figure of its own
+(:func:`axes_or_new`).  Titles and legends, which hold names a user chose, are never
+parsed as math.  This module imports matplotlib: the rest of the package imports it only
+when a figure is drawn.
 """
 
 import functools
@@ -50,38 +30,14 @@ from esail_opt.physics import thrust
 
 
 def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
-    """The figure of the caller's ``axes`` and those axes, or a new figure and its axes.
-
-    The new figure is a bare :class:`matplotlib.figure.Figure`, made without
-    pyplot: drawing it selects no backend and opens no window, and nothing holds
-    it once its last reference goes.  Without ``margins`` it has constrained
-    layout; with them its grid is placed by those margins and the figure is made at
-    :data:`DPI`.  Constrained layout measures every label in both directions and
-    then draws the figure a second time when it is saved, a second drawing of the
-    two figures that every solve writes: those are placed by margins chosen for
-    their fixed size and panels, with the left ones fitted by :func:`_fit_columns`.
-
-    Parameters
-    ----------
-    axes : matplotlib.axes.Axes, array of Axes, or None
-        Where to draw; None for a new figure.
-    nrows, ncols, figsize, **subplots
-        The new figure's grid, size (inches) and ``Figure.subplots`` options.
-    margins : dict, optional
-        ``left``, ``right``, ``bottom``, ``top``, ``wspace`` and ``hspace`` of the
-        new figure's grid, as :meth:`matplotlib.figure.Figure.subplots_adjust` takes
-        them (fractions of the figure); None for constrained layout.
-
-    Returns
-    -------
-    fig : matplotlib.figure.Figure
-        The top-level figure (the one to save).
-    axes : matplotlib.axes.Axes or numpy.ndarray
-        ``axes`` as given, or the new ones as ``Figure.subplots`` returns them.
-    """
+    """``(fig, axes)``: the top-level figure of the caller's ``axes`` (an Axes, an array
+    of them) and those axes, or, with None, a new bare Figure (no pyplot: no backend, no
+    window) and its ``Figure.subplots(nrows, ncols, **subplots)``, ``figsize`` in inches.
+    ``margins`` (``Figure.subplots_adjust``'s) place the grid at :data:`DPI`; without
+    them it has constrained layout, which draws the figure twice when saved."""
     if axes is not None:
-        # An Axes' figure may be a SubFigure, whose .figure is the top-level Figure (a
-        # Figure's is itself); Artist.get_figure(root=True) would need matplotlib 3.10.
+        # A SubFigure's .figure is the top-level Figure, a Figure's itself
+        # (get_figure(root=True) needs matplotlib 3.10).
         return np.ravel(axes)[0].figure.figure, axes
     if margins is None:
         fig = Figure(figsize=figsize, layout="constrained")
@@ -91,27 +47,22 @@ def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
     return fig, fig.subplots(nrows, ncols, **subplots)
 
 
-#: Where the trajectory's axes sit on its 6.4 in square (fractions of the figure):
-#: room for the y tick labels and label on the left, the x ones below and a two-line
-#: title above; the legend is inside.  Constrained layout chose about these.
+#: Where the trajectory's axes sit on its 6.4 in square (fractions of the figure).
 TRAJECTORY_MARGINS = dict(left=0.106, right=0.993, bottom=0.094, top=0.925)
 #: The trajectory's title size (points), for its two lines of :func:`headline`.
 TRAJECTORY_TITLE_SIZE = 10
 
-#: The timeline's columns on its 10 in width: room for the left column's y labels, and
-#: between the columns for the right column's.
+#: The timeline's columns on its 10 in width (fractions).
 TIMELINE_COLUMNS = dict(left=0.067, right=0.987, wspace=0.185)
 #: The timeline's right edge when the pitch panel carries the throttle's own axis.
 TIMELINE_RIGHT_WITH_THROTTLE = 0.944
-#: The timeline's rows, inches: above the first (the two-line title), each panel,
-#: between two rows (the rows share the last one's time labels), and below the last
-#: (its tick labels and the time label); the error-control rounds' strip, under a gap
-#: as wide as the foot, when drawn.
+#: The timeline's rows, inches: the title, each panel, the gap between rows (they share
+#: the last one's time labels), the foot below the last, and the error-control rounds'
+#: strip (under a gap as wide as the foot).
 TIMELINE_ROWS_IN = dict(title=0.75, panel=1.9, gap=0.12, foot=0.5, rounds=1.6)
 
 
-#: The resolution the two figures are made and written at: the labels that
-#: :func:`_fit_columns` measures are then not measured again when the figure is saved.
+#: The resolution the figures are made and written at (labels are measured once).
 DPI = 150
 #: Room kept left of a column's widest y labels, inches (constrained layout's pad).
 LABEL_PAD_IN = 3 / 72
@@ -120,14 +71,7 @@ LABEL_PAD_IN = 3 / 72
 def _fit_columns(fig, left, right=()):
     """Set the left margin to the widest y labels of the Axes ``left`` (those at the
     figure's left edge), and the gap between the columns of a two-column grid to those
-    of the Axes ``right`` (its right column).
-
-    A panel's y tick labels depend on its height only, which this leaves alone, so one
-    measurement is final.  It is a small part of what constrained layout does to the
-    same end (that measures both directions, then draws the whole figure once more),
-    and margins fixed in advance would clip labels wider than the usual ones (a log
-    axis under a decade reads 4×10⁰).
-    """
+    of the Axes ``right``: one measurement is final, the panels' heights unchanged."""
     renderer = FigureCanvasAgg(fig).get_renderer()
     width = fig.bbox.width
     pad = LABEL_PAD_IN * fig.dpi / width
@@ -149,19 +93,15 @@ def _fit_columns(fig, left, right=()):
         if grid.ncols == 2:
             panel = (grid.get_subplot_params(fig).right - margin - gap) / 2
             grid.update(wspace=gap / panel)
-    # GridSpec.update moves the Axes of pyplot's figures only; these (twins too) are
-    # moved here.
+    # GridSpec.update moves the Axes of pyplot's figures only.
     for ax in placed:
         ax.set_position(ax.get_subplotspec().get_position(fig))
 
 
 def _fit_right(fig, renderer, grids, pad, right):
     """Move the right edge of ``grids`` left by as much as an x tick label of the Axes
-    ``right`` (those at the right edge, the only ones whose labels can reach it)
-    reaches past the figure's right edge less ``pad`` (a fraction of its width), and not
-    at all when none does: the last label is centred on a panel's right end, and a time
-    axis that ends at 1000 days puts half of its "1000" beyond a margin fixed for
-    shorter ones."""
+    ``right`` (those at the right edge) reaches past the figure's right edge less
+    ``pad`` (a fraction of its width): the last label is centred on a panel's end."""
     width = fig.bbox.width
     boxes = [ax.xaxis.get_tightbbox(renderer) for ax in right]
     reach = max((box.x1 for box in boxes if box is not None), default=0.0) / width
@@ -179,12 +119,9 @@ _EXPONENT = re.compile(r"\^\{(-?\d+)\}")
 
 
 class PlainLogFormatter(LogFormatterSciNotation):
-    """The tick labels of matplotlib's log axes (the same ticks labelled, the same
-    ``10^k`` and ``c x 10^k``), written with Unicode superscripts instead of mathtext.
-
-    Mathtext's parser is built and run once per process for each new label, which
-    cost a solve's timeline a noticeable part of its drawing time; DejaVu Sans, the
-    default font, has every superscript used here, so the labels read the same.
+    """The tick labels of matplotlib's log axes (``10^k``, ``c x 10^k``) written with
+    Unicode superscripts (all in DejaVu Sans) instead of mathtext, whose parser costs
+    a noticeable part of a timeline's drawing time.
     """
 
     def __call__(self, x, pos=None):
@@ -239,10 +176,9 @@ def _xy(r_au, theta_deg):
 
 
 def headline(sol):
-    """A figure's title in two lines of words: the problem's name (with "in 3-D" when so
-    flown) and whether its flight is verified (and the polished one's), then the time of
-    flight, a_c (the one needed, for MinAcceleration) and the dates of a dated problem;
-    after a polish, the polished flight's."""
+    """A figure's title in two lines of words: the problem's name and whether its
+    flight (and the polished one) is verified, then the flight's (after a polish, the
+    polished flight's) time of flight, a_c and dates."""
     verdict = _verdict(sol.flight_verified, sol.outcome)
     if sol.polished:
         verdict = (f"closed form {verdict}, polished "
@@ -267,10 +203,9 @@ def _verdict(verified, outcome):
 
 
 def _flown(sol):
-    """The flight that flies, which the attitude and thrust panels show: after a polish
-    its schedule and CVODES samples, else the closed form's schedule and its CVODES
-    flight (the closed form's samples when CVODES failed); with its time of flight,
-    a_c (``ac_mm_s2_required`` for MinAcceleration) and dates."""
+    """The flight that flies, which the attitude and thrust panels show: the polished
+    schedule and samples, else the closed form's schedule and CVODES flight (its own
+    samples when CVODES failed); with its time of flight, a_c (mm/s²) and dates."""
     ac = sol.ac_mm_s2_required if sol.ac_mm_s2_required is not None else sol.problem.ac_mm_s2
     if sol.trajectory_polished is None:
         cv = sol.trajectory_cvodes
@@ -314,16 +249,11 @@ def _time_axis(ax, sol):
 
 def thrust_acceleration(sol):
     """The sail's thrust acceleration along the flight that flies (:func:`_flown`):
-    |a| = kappa a_c (r_E / r) |(R, T, N)|, with r_E = 1 au (a_c is the acceleration at
-    1 au), (R, T, N) of each segment's pitch and clock
-    (:func:`esail_opt.physics.thrust.radial_transverse_normal`) and r of the samples.
+    |a| = kappa a_c (r_E / r) |(R, T, N)|, r_E = 1 au, (R, T, N) of each segment's pitch
+    and clock (:func:`esail_opt.physics.thrust.radial_transverse_normal`).
 
-    Returns
-    -------
-    t_days, a_mm_s2 : numpy.ndarray
-        Days since departure and |a| (mm/s²) at each sample; a sample on a segment's
-        start comes twice, with the segment it ends and the one it starts, so the steps
-        of the piecewise-constant schedule are drawn upright.
+    Returns ``(t_days, a_mm_s2)``: days since departure and |a| (mm/s²) at each sample;
+    a sample on a segment's start comes twice, once per segment, so steps draw upright.
     """
     flown = _flown(sol)
     sched = flown.schedule
@@ -353,11 +283,9 @@ def thrust_acceleration(sol):
 
 
 def _draw_bodies(sol, top, side=None):
-    """The departure and target bodies on their real tracks over the flight (DE421, or
-    a small body's elements, in the ecliptic of J2000): x, y into ``top`` (for a planar
-    solution, the projection on the ecliptic), and z against the date into ``side``;
-    each marked at the departure (circle) and at the arrival (square), as
-    :func:`_legend` explains."""
+    """The departure and target bodies on their real tracks over the flight (ecliptic
+    of J2000): x, y into ``top`` and z against the date into ``side``, each marked at
+    the departure (circle) and the arrival (square)."""
     from esail_opt.bodies import dates, lookup
 
     prob = sol.problem
@@ -367,8 +295,6 @@ def _draw_bodies(sol, top, side=None):
     if sol.target_body is not None:
         pairs.append((sol.target_body.name, prob.target.body, "tab:green"))
     for label, body, colour in pairs:
-        # All the dates in one call (the polar states put theta on the track's branch,
-        # one by one).
         x, y, z = lookup.ecliptic_state(lookup.resolve(body), jd)[:3]
         views = [(top, x, y)]
         if side is not None:
@@ -423,11 +349,9 @@ def _sun(ax):
 
 
 def trajectory_figure(solution, ax=None):
-    """The trajectory in the plane (au), closed form and CVODES, with orbits and nodes;
-    a solution flown in three dimensions is drawn by :func:`_trajectory3d_figure`.
-
-    Drawn into ``ax`` if given (in 3-D a pair of Axes: from above, from the side), else
-    into a new figure; returns the figure.
+    """The trajectory in the plane (au), closed form, CVODES and polished, with orbits
+    and segment starts, into ``ax`` or a new figure; returns the figure.  A 3-D solution
+    is drawn by :func:`_trajectory3d_figure` (``ax`` a pair: from above, from the side).
     """
     sol = solution
     if three_d(sol):
@@ -454,8 +378,7 @@ def trajectory_figure(solution, ax=None):
     ax.set_aspect("equal")
     ax.set_xlabel("x (au)")
     ax.set_ylabel("y (au)")
-    # A title at a given height is not moved clear of ticks above the axes (there are
-    # none): matplotlib skips measuring the y axis for it, once per title and draw.
+    # A title at a given height spares matplotlib measuring the y axis at every draw.
     ax.set_title(headline(sol), y=1.0, fontsize=TRAJECTORY_TITLE_SIZE, parse_math=False)
     _legend(ax, sol)
     ax.grid(alpha=0.3)
@@ -472,10 +395,8 @@ def three_d(sol):
 
 def _flight3d(sol):
     """The CVODES flight's Cartesian samples (``Samples.three_d``) as float arrays, with
-    its ``t_days``; None when the flight failed.  The closed form's samples are polar in
-    their own turning plane and have no place in the ecliptic's frame, so the 3-D views
-    show the CVODES flight (a verified one is within the tolerance
-    of the closed form's nodes)."""
+    its ``t_days``; None when the flight failed.  The 3-D views show only it: the closed
+    form's samples are polar in their own turning plane."""
     cv = sol.trajectory_cvodes
     if cv is None or cv.three_d is None:
         return None
@@ -484,9 +405,8 @@ def _flight3d(sol):
     return out
 
 
-#: The 3-D trajectory's figure (inches) and where its two views sit on it (fractions):
-#: under the two-line title, from above, square, and under it from the side, z against
-#: time.
+#: The 3-D trajectory's figure (inches), where its two views sit (fractions) and their
+#: heights' ratio: from above, and under it from the side.
 TRAJECTORY3D_SIZE = (6.4, 9.4)
 TRAJECTORY3D_MARGINS = dict(left=0.12, right=0.965, bottom=0.06, top=0.912, hspace=0.22)
 TRAJECTORY3D_HEIGHTS = (3.0, 1.15)
@@ -551,9 +471,8 @@ ROUNDS_LABEL = "position miss (km)"
 
 def timeline_panels(sol):
     """The timeline's panels that have data, in the order drawn (two a row): pairs of
-    the y label and ``draw(ax, sol)``.  The state, the attitude, the local error and
-    the thrust: the pitch in the right column (its throttle's axis is at the figure's
-    edge), the thrust under it."""
+    the y label and ``draw(ax, sol)``; the pitch goes in the right column, where its
+    throttle's axis is at the figure's edge."""
     panels = [(label, functools.partial(_series, key=key)) for key, label in SERIES.items()]
     if three_d(sol) and _flight3d(sol) is not None:
         panels.append((INCLINATION_LABEL, _inclination_panel))
@@ -566,9 +485,8 @@ def timeline_panels(sol):
 def _timeline_axes(count, rounds, throttled):
     """A new timeline figure and its Axes: ``count`` panels two a row (the last across
     both columns when ``count`` is odd), then, with ``rounds``, the error-control
-    rounds' strip across both; placed once by fixed margins (see :func:`axes_or_new`
-    on why not constrained layout).  ``throttled`` widens the right margin for the
-    throttle's axis."""
+    rounds' strip across both; placed by fixed margins (:func:`axes_or_new`).
+    ``throttled`` widens the right margin for the throttle's axis."""
     inch = TIMELINE_ROWS_IN
     rows = -(-count // 2)
     strip = inch["foot"] + inch["rounds"] if rounds else 0.0
@@ -592,13 +510,9 @@ def _timeline_axes(count, rounds, throttled):
 
 
 def timeline_figure(solution, axes=None):
-    """The :func:`timeline_panels` against time (calendar dates when dated), and under
-    them the flown miss of each error-control round when there was more than one.
-
-    Drawn into ``axes`` (as many Axes as panels, and one for the rounds) if given, else
-    into a new figure placed by fixed margins (:func:`_timeline_axes`); returns the
-    figure.  Each series panel's limits span every flight it shows, with matplotlib's
-    margins.
+    """The :func:`timeline_panels` against time, and under them the flown miss of each
+    error-control round when there was more than one, into ``axes`` (one per panel, and
+    one for the rounds) or a new figure (:func:`_timeline_axes`); returns the figure.
     """
     sol = solution
     panels = timeline_panels(sol)
@@ -623,8 +537,7 @@ def timeline_figure(solution, axes=None):
         if ax in last_row:
             ax.set_xlabel(time_label)
         else:
-            # The panels share one time axis, read off the last row: dates written under
-            # every row were most of the figure's text to lay out and draw.
+            # One shared time axis: dates under every row were most of the text to draw.
             ax.tick_params(labelbottom=False)
     if rounds:
         _rounds_panel(axes[len(panels)], sol, misses)
@@ -659,8 +572,7 @@ def _throttled(sched):
 
 def _steps(ax, sol, name, **style):
     """The flown schedule's column ``name`` as steps against time, held to the arrival;
-    the time axis is the series' (shared), set by the flights alone: a polished
-    schedule ends a hair away."""
+    the shared time axis is set by the flights alone."""
     flown = _flown(sol)
     x = _day_zero(flown.departure_date) + np.array(
         [row.t_days for row in flown.schedule] + [flown.tof_days])
@@ -669,9 +581,8 @@ def _steps(ax, sol, name, **style):
 
 
 def _pitch_panel(ax, sol):
-    """The pitch of the flown schedule (the polished one when there is one) and, on an
-    axis of its own at the right, its throttle when the problem has one: it switches at
-    the same times, and a coast (kappa = 0) explains a pitch that wanders."""
+    """The pitch of the flown schedule and, on an axis of its own at the right, its
+    throttle, if any: a coast (kappa = 0) explains a pitch that wanders."""
     _steps(ax, sol, "alpha_deg", color="k")
     ax.set_ylim(-95, 95)
     ax.set_yticks(range(-90, 91, 45))
@@ -754,17 +665,10 @@ def write_plots(solution, out_dir):
 
 def write_figures(figures, out_dir):
     """Draw each of ``figures``, pairs (file name, ``make()`` returning a Figure), and
-    write it into ``out_dir`` atomically, at :data:`DPI`, one after the other.
-
-    A figure that cannot be made or drawn (any exception but an OSError, which is the
-    disk's and raises) is skipped, and the others are still written.
-
-    Returns
-    -------
-    written : list of Path
-        The files written.
-    failures : list of str
-        One line per figure that could not be drawn (:func:`figure_failure`).
+    write it into ``out_dir`` atomically, at :data:`DPI`, one after the other.  A figure
+    that cannot be drawn (any exception but an OSError, which raises) is skipped.
+    Returns ``(written, failures)``: the Paths written, and one line per figure not
+    drawn (:func:`figure_failure`).
     """
     out = Path(out_dir)
     written, failures = [], []

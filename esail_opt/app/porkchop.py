@@ -1,27 +1,13 @@
 """Launch-window scans: one problem over departure dates, or dates x times of flight.
 
 ``esail-opt porkchop PROBLEM.py --depart 2030-01-01:2033-01-01:24`` solves the problem
-at every departure date (its own objective: minimum time, say); with ``--tof
-200:400:12`` every (date, time of flight) cell is solved with the objective's time of
-flight replaced, which with ``MinAcceleration`` is the sail designer's porkchop: the
-characteristic acceleration a transfer needs, per launch date and duration.
-
-This module describes the cells and the outputs; the scan engine
-(:mod:`esail_opt.app.engine`) runs them: a process pool or Dask, a journal of finished
-cells, ``--resume``, retries of lost workers, Ctrl-C.  A job is a run of neighbouring cells
--- a block of dates, each with all its flight times -- solved in order by
-:func:`esail_opt.optimisation.scan.scan` on one NLP, each cell warm from its solved
-neighbour.  A progress line tells of each cell as the forward pass ends it, and the
-journal takes the cell then if it is verified; the job's end journals its cells again
-after its repair pass.  ``--resume`` of an interrupted job solves again the dates that
-lack a verified cell, and keeps the others' forward-pass cells, which that repair pass
-had not revisited.
-
-Every cell is verified on Eqs. 1-2 against the body's ephemeris at its flown arrival,
-as a lone solve is; the map marks the cells that are not, and the run exits 1 if any.
-A fixed-time cell where no point was found, shorter than the shortest verified flight
-from its date, is marked ``"no_sail": true`` rather than left a failed solve, and the
-chart draws that edge of the feasible per date (:func:`mark_no_sail`).
+at every departure date; with ``--tof 200:400:12``, at every (date, time of flight) cell,
+which with ``MinAcceleration`` is the sail designer's porkchop.  The scan engine
+(:mod:`esail_opt.app.engine`) runs jobs of whole dates, each solved by
+:func:`esail_opt.optimisation.scan.scan` on one NLP; ``--resume`` of an interrupted job
+keeps its journaled verified cells.  Every cell is verified as a lone solve is; a
+fixed-time cell with no point shorter than its date's edge of the feasible is marked
+``"no_sail": true`` (:func:`mark_no_sail`).
 """
 
 import dataclasses
@@ -76,9 +62,7 @@ class PorkchopRow:
     edge_infeasible_tof_days: Optional[float]
     edge_ac_mm_s2: Optional[float]
     # Beyond the CSV's columns, in porkchop.json and its journal: the cell's flight as
-    # solution.json gives it (the state its schedule is flown from, the schedule, and
-    # for MinAcceleration the a_c it is flown at), so that a cell can be flown, or
-    # used, without solving it again.
+    # solution.json gives it, so that a cell can be flown without solving it again.
     ac_mm_s2_required: Optional[float]
     departure_state: Optional[dict]
     schedule: Optional[list]
@@ -96,8 +80,6 @@ def parse_dates(text, field="depart"):
     """``START:STOP:COUNT`` with ISO 8601 dates -> list of Julian dates (TDB), ends
     included."""
     parts = str(text).split(":")
-    # An ISO time of day has colons of its own: START and STOP are then split apart
-    # at the last two separators that are not inside a date.
     if len(parts) < 3:
         raise InputError(f"{field} = {text!r}: expected START:STOP:COUNT, e.g. "
                          "2030-01-01:2033-01-01:24")
@@ -118,8 +100,8 @@ def parse_dates(text, field="depart"):
 
 
 def _split_pair(rest, text, field):
-    # Dates are YYYY-MM-DD[THH:MM[:SS]]: the second date starts at the last
-    # occurrence of ':YYYY-'.
+    # Dates are YYYY-MM-DD[THH:MM[:SS]], with colons of their own: the second date
+    # starts at the last occurrence of ':YYYY-'.
     for i in range(len(rest) - 1, 0, -1):
         if rest[i] == ":" and len(rest) > i + 5 and rest[i + 1:i + 5].isdigit() \
                 and rest[i + 5] == "-":
@@ -194,10 +176,9 @@ class Grid:
         return out
 
     def jobs(self, workers):
-        """The path cut into one run of neighbouring cells per worker: every cell but a
-        run's first starts warm, so fewer, longer runs reuse more.  In two dimensions a
-        run holds whole dates (all their times of flight), so that one job judges a
-        date's cells against its edge of the feasible (:func:`mark_no_sail`)."""
+        """The path cut into one run of neighbouring whole dates per worker (every cell
+        but a run's first starts warm), so that one job judges a date's cells against
+        its edge of the feasible (:func:`mark_no_sail`)."""
         path = self.path()
         column = 1 if self.tofs is None else len(self.tofs)
         dates_per_job = math.ceil(len(self.departures)
@@ -260,18 +241,16 @@ def _ac_mm_s2(problem, result):
 
 def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departures=(),
               tofs=None, cells_out=None):
-    """Solve one run of neighbouring cells on one NLP; their rows.  Never raises for a
-    cell: a failure is in its row.  The cells of a date where no point was found are
-    judged against the edge of the feasible (:func:`mark_no_sail`); a job holds whole
-    dates (:meth:`Grid.jobs`), so each date's edge is walked once.  With ``cells_out``,
-    each verified cell's solution folder is written there as its job ends
+    """Solve one run of neighbouring cells on one NLP; their rows, marked by
+    :func:`mark_no_sail`.  Never raises for a cell: a failure is in its row.  With
+    ``cells_out``, each verified cell's solution folder is written there
     (:func:`write_cell`)."""
     grid = Grid(tuple(departures), None if tofs is None else tuple(tofs))
     try:
         problem = engine.load_source(source, filename).with_tolerance(tol_km, tol_m_s)
         problems = [cell_problem(problem, grid, i) for i in indices]
-        # Each cell is told of as the forward pass ends it (the progress line); the
-        # rows returned, after the repair pass, are the ones journaled.
+        # Told of as the forward pass ends each; the rows after the repair pass are
+        # the ones journaled.
         cells = scan.scan(problems, neighbours=grid.neighbours(indices),
                           on_cell=lambda k, cell: pool.tell(_row(indices[k], grid, cell)))
         rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
@@ -290,21 +269,14 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
 def mark_no_sail(problems, cells, rows):
     """Mark the rows (in place) of the cells where no sail exists, date by date.
 
-    The rule: a cell has no sail when its own solve found no point (Ipopt ended without
-    one, not a flight that missed) and a verified flight from the same departure date
-    needs a longer time of flight than the cell's.  That flight is the edge of the
-    feasible, found by one walk per date in the time of flight
-    (:func:`esail_opt.optimisation.pipeline.nearest_feasible`), down from the date's
-    shortest verified cell to its longest cell with no point below it, warm: the grid
-    already brackets the edge there, and the walk narrows it.  A date with no verified
-    cell walks up from its longest cell with no point, cold, as a lone solve does.  A
-    walk's flight counts only once verified (error control and CVODES, as any cell);
-    when it is not, the date's shortest verified cell is the edge.  A cell with no point
-    longer than a verified cell of its date is a failed solve, not a cell with no sail.
-
-    Every row of a date walked carries the edge (``edge_tof_days``, ``edge_ac_mm_s2``,
-    ``edge_infeasible_tof_days``), for the chart's line; a walk that fails leaves its
-    date's rows unmarked, with why in the error of its cells with no point.
+    A cell has no sail when its own solve found no point (not a flight that missed) and
+    the date's edge of the feasible, a verified flight, is longer.  The edge is walked
+    once per date (:func:`esail_opt.optimisation.pipeline.nearest_feasible`) down from
+    the shortest verified cell, else up from the longest cell with no point; an edge
+    flight that does not verify leaves the shortest verified cell as the edge.  Every
+    row of a date walked carries the edge (``edge_tof_days``, ``edge_ac_mm_s2``,
+    ``edge_infeasible_tof_days``); a walk that fails leaves its rows unmarked, with why
+    in the error of its cells with no point.
     """
     dates_of = {}
     for k, problem in enumerate(problems):
@@ -358,14 +330,10 @@ def cell_folder(row):
 
 
 def write_cell(cell, row, folder):
-    """Write a verified cell's solution folder (solution.json and schedule.csv, as
-    ``esail-opt solve --no-plots`` would) into ``folder``/:func:`cell_folder`.
-
-    The cell's optimum is handed to the pipeline's last stages
-    (:func:`esail_opt.optimisation.pipeline.finish`): the error control finds it within
-    its tolerance already, and the verification flies it once more with the
-    solution's samples.
-    """
+    """Write a verified cell's solution folder (as ``esail-opt solve --no-plots``
+    would) into ``folder``/:func:`cell_folder`, through
+    :func:`esail_opt.optimisation.pipeline.finish`, which finds it within tolerance
+    already."""
     from esail_opt.app.solution import Solution
 
     run = pipeline.finish(cell.problem, cell.result, cell.transcription)
@@ -391,12 +359,9 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
         cells_out=None):
     """Scan ``problem_file`` over ``depart`` (and ``tof``) on the scan engine
     (:func:`esail_opt.app.engine.run`); the table as a dict.  With ``cells_out`` (a
-    folder on the machine of the local pool), each verified cell's solution folder is
-    written there as its job ends.
-
-    Raises InputError on bad input (the problem, the grid, the options, a journal that
-    ``resume`` cannot continue, an unreachable scheduler) before any solve and before
-    the journal changes.
+    folder on the local pool's machine), each verified cell's solution folder is written
+    there.  Raises InputError on bad input (problem, grid, options, journal, scheduler)
+    before any solve and before the journal changes.
     """
     request = _request(problem_file, depart, tof, workers, scheduler, retries, resume,
                        out_dir, tol_km, tol_m_s, cells_out)
@@ -452,8 +417,7 @@ def _scan(request):
     column = 1 if grid.tofs is None else len(grid.tofs)
 
     def part(j, missing):
-        # Whole dates, as every job holds them: a date's cells are judged together
-        # against its edge of the feasible (mark_no_sail).
+        # Whole dates, judged together against their edge (mark_no_sail).
         dates_missing = {i // column for i in missing}
         cells = [i for i in request.jobs[j] if i // column in dates_missing]
         return cells, (cells, *common)
@@ -526,14 +490,12 @@ ARRIVAL_LABEL = "arrival date"
 def figure(result):
     """The porkchop, drawn from ``result`` alone, for a grid of any shape.
 
-    Dates x flight times: the objective's contours, every cell marked, lines of constant
-    arrival date and the edge of the feasible (the shortest feasible flight per date,
-    :func:`edge_line`).  One date: the objective against the time of flight, the edge a
-    vertical line; dates alone, or one flight time: the objective against the date.
-    With three verified cells or fewer, each value is written beside its cell.  Cells
-    not verified are marked with a cross, cells with no sail (``no_sail``) with a hollow
-    square, the best cell with a star; the axes are padded so that every mark sits
-    inside them.  A record written before the edge was walked draws without it.
+    Dates x flight times: the objective's contours, lines of constant arrival date and
+    the edge of the feasible (:func:`edge_line`).  One date: the objective against the
+    time of flight, the edge a vertical line; else against the date.  Without contours,
+    values are written beside the verified cells (in one dimension, only if three or
+    fewer).  Crosses mark cells not verified, hollow squares cells with no sail, a star
+    the best.
     """
     from matplotlib.figure import Figure
 
@@ -662,8 +624,7 @@ def _dates_tofs_chart(fig, ax, shape, marks, label):
     (whether drawn is returned: four verified cells and more, not all one value), the
     edge of the feasible and lines of constant arrival date."""
     x, tofs = marks["date"].reshape(shape)[:, 0], marks["tof"].reshape(shape)[0]
-    # One point per date, NaN where no edge was walked: the line breaks there rather
-    # than join dates it knows nothing between.
+    # NaN where no edge was walked: the line breaks rather than join unknown dates.
     edge = marks["edge"].reshape(shape)[:, 0]
     _fit(ax.set_xlim, x, 10.0)
     _fit(ax.set_ylim, np.r_[tofs, edge], 5.0)

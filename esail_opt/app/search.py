@@ -1,15 +1,9 @@
 """The global search job: every revolution class of a minimum-time problem, flown and ranked.
 
-``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`
-(one start per revolution class), then runs the rest of the pipeline on every distinct
-optimum (:func:`esail_opt.optimisation.pipeline.finish`: error control, CVODES
-verification, polish), keeps each one's :class:`~esail_opt.app.solution.Solution`, and
-ranks those whose flight meets the problem's tolerance first, fastest first (the exact
-time of flight where the polish flies to within 1 m and 1 mm/s, else the closed form's),
-then the others on the closed-form time. It writes
-``search.json`` and ``search.csv`` (one row per optimum, all kept), ``search.png``
-(revolutions against time of flight) and the best optimum's ``solution.json``,
-``schedule.csv`` and plots under ``best/``.
+``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`,
+finishes every distinct optimum (:func:`esail_opt.optimisation.pipeline.finish`), ranks
+them (:func:`_rank_key`) and writes ``search.json``, ``search.csv``, ``search.png`` and
+the best optimum's solution files under ``best/``.
 """
 
 from pathlib import Path
@@ -33,35 +27,20 @@ FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous
 def _rank_key(row):
     """Optima whose flight meets the problem's tolerance first, as a lone solve holds
     its answer, fastest first: on the exact (polished) time where the polish is
-    verified, else the closed form's.  A polish that the verifier cannot judge to 1 m
-    does not put a faster transfer below a slower one (a 3-D Earth-Mars search ranked
-    1,116.8 d above 941.0 d so); the best's own verdict then says that its polish is not
-    verified."""
+    verified, else the closed form's, so that a polish the verifier cannot judge to 1 m
+    does not put a faster transfer below a slower one."""
     exact = row["tof_days_exact"] if row["verified"] else None
     return (not row["flight_verified"],
             exact if exact is not None else row["tof_days_closed_form"])
 
 
 def run(problem, extra_revolutions=2, polish=True, progress=None):
-    """Search ``problem`` over its revolution classes; verify, polish and rank the optima.
+    """Search ``problem`` over its revolution classes (``multistart.search``, whose
+    ``extra_revolutions`` this is); verify, ``polish`` (on Eqs. 1-2; else the ranking uses
+    closed-form times) and rank the optima.  ``progress(text)`` at each stage.
 
-    Parameters
-    ----------
-    problem : Problem
-        Minimum time, fixed departure angle (``multistart.search``).
-    extra_revolutions : int
-        Revolution classes above the free optimum's (and one below).
-    polish : bool
-        Polish every optimum on the exact Eqs. 1-2; without it the ranking uses the
-        closed-form times, and ``verified`` is False throughout.
-    progress : callable, optional
-        ``progress(text)`` at each stage.
-
-    Returns
-    -------
-    (dict, list of Solution)
-        The table (``rows`` ranked, best first; ``starts``, one record per start) and
-        the Solution of each row, in the same order.
+    Returns (dict, list of Solution): the table (``rows`` ranked, best first;
+    ``starts``, one record per start) and the Solution of each row, in the same order.
     """
     say = progress or (lambda text: None)
     candidates, starts = multistart.search(problem, extra_revolutions, progress)
@@ -103,14 +82,11 @@ def _row(candidate, sol, index):
         "tof_days_closed_form": sol.tof_days,
         "tof_days_exact": None if p is None else p.tof_days,
         "verified": sol.verified,
-        # The closed-form flight meets the problem's tolerance (the polish aside).
         "flight_verified": sol.flight_verified,
         "polish_status": None if p is None else p.status,
         "closed_form_target_miss_km": sol.verification.target_miss_r_km,
         "polished_target_miss_km": (None if p is None or p.verification is None
                                     else p.verification.target_miss_r_km),
-        # Why it is verified or not: the polish's verdict (a miss under 1 m may still
-        # fail it by the verifier's own error), else the closed form's.
         "note": sol.verification_note if p is None else p.note,
         "found_from": c.found_from,
         "candidate": index,
@@ -145,20 +121,9 @@ def table_csv(data):
 
 
 def figure(data, ax=None):
-    """Revolutions against time of flight: free local optima filled, window-bound
-    results hollow, the best ringed; exact (polished) times where verified.
-
-    Parameters
-    ----------
-    data : dict
-        The search's table, as :func:`run` returns it.
-    ax : matplotlib Axes, optional
-        Where to draw; by default on a new Figure.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """The Figure of revolutions against time of flight of :func:`run`'s table, on
+    ``ax`` or a new Figure: free local optima filled, window-bound results hollow, the
+    best ringed; exact (polished) times where verified (:func:`_tof`)."""
     fresh = ax is None
     if fresh:
         from matplotlib.figure import Figure
@@ -197,8 +162,8 @@ def figure(data, ax=None):
 
 
 def _tof(row):
-    """The time of flight a row is plotted at: exact where polished and verified, else
-    closed form (a search without the polish has verified rows with no exact time)."""
+    """The time of flight a row is plotted at, days: exact where polished and verified,
+    else closed form."""
     exact = row["tof_days_exact"]
     return exact if row["verified"] and exact is not None else row["tof_days_closed_form"]
 

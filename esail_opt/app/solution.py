@@ -1,22 +1,9 @@
 """A solved problem in the boundary's units: the typed record of ``solution.json``.
 
-:func:`solve` runs the pipeline (``optimisation.pipeline``) and returns the
-:class:`Solution` of its :class:`~esail_opt.optimisation.pipeline.Run`; it is what
-``esail-opt solve`` and scripts call.
-
-Every part of ``solution.json`` is a field of a frozen record (the parts'
-records are :mod:`esail_opt.app.solution_parts`'s), and each key of the file is
-spelled once, on its field (:mod:`esail_opt.app.record` writes and reads the
-JSON from the fields; :mod:`esail_opt.app.schema` documents the keys).  A Solution is
-built from a Run directly (:mod:`esail_opt.app.from_run`), with the same plain values a
-file read back gives, so a solution loaded from disk prints, plots and writes exactly
-as the one that wrote it.  Its terminal summary is :mod:`esail_opt.app.report`'s, its
-folder :mod:`esail_opt.app.solution_files`'s.
-
-Files of schema versions 2 to 5 read through the same fields: every key added since
-version 2 is a field that may be absent (None, or empty, when it is), so no version needs
-a step of its own (:data:`esail_opt.app.schema.READABLE`) but version 5, whose one key
-of another meaning :func:`esail_opt.app.schema.upgrade` renames.
+Each key of the file is spelled once, on its field (:mod:`esail_opt.app.schema`
+documents them), and a Solution built from a Run holds the same plain values a file read
+back gives, so both print, plot and write alike.  Older readable versions
+(:data:`esail_opt.app.schema.READABLE`) read with the keys they lack None or empty.
 """
 
 import json
@@ -51,13 +38,10 @@ class Solution(Record):
     printing.
 
     Make one with :meth:`of` (from a pipeline Run), :func:`solve`, or :meth:`load`.
-    The fields follow the file's keys (:mod:`esail_opt.app.schema`), each field's key
-    written on it where the names differ: ``flight_verified`` is the file's ``verified``
-    (the closed form's flight alone; :attr:`verified` adds the polish's verdict),
-    ``rounds`` and ``starts`` are ``refinement.rounds`` and ``refinement.starts``,
-    ``trajectory_*`` are the parts of ``trajectory``, and ``classes`` and
-    ``classes_skipped`` are ``classes.looked_at`` and ``classes.not_looked_at``.  Fields
-    of the calendar and of the polish are None where the file leaves them out.
+    The fields follow the file's keys (:mod:`esail_opt.app.schema`), each key written on
+    its field where the names differ; ``flight_verified`` (the file's ``verified``) is the
+    closed form's flight alone, :attr:`verified` adds the polish's verdict.  Fields of the
+    calendar and of the polish are None where the file leaves them out.
     """
 
     schema_version: int
@@ -135,13 +119,8 @@ class Solution(Record):
 
     @classmethod
     def from_json(cls, data, source="solution.json"):
-        """A Solution from the content of a ``solution.json`` of a readable version.
-
-        Raises
-        ------
-        InputError
-            Another schema version, or a file that lacks a field of its version (one
-            line, naming ``source``).
+        """A Solution from the content of a ``solution.json`` of a readable version;
+        InputError (one line, naming ``source``) for another version or a missing field.
         """
         schema.check(data, source)
         try:
@@ -172,13 +151,9 @@ class Solution(Record):
 
 def solve(problem, segments=None, progress=None, polish=False):
     """Solve ``problem`` through the whole pipeline
-    (:func:`esail_opt.optimisation.pipeline.solve`, whose parameters these are) and
-    return its :class:`Solution`.
-
-    Raises
-    ------
-    InputError
-        ``segments`` is not an integer >= 1 (before any solve starts).
+    (:func:`esail_opt.optimisation.pipeline.solve`, whose parameters these are): its
+    :class:`Solution`.  InputError, before any solve, if ``segments`` is not an integer
+    >= 1.
     """
     return solve_with_nearest(problem, segments, progress, polish)[0]
 

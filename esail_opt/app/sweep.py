@@ -1,31 +1,14 @@
 """Sweeps: one problem file solved over a range of one parameter, on any executor.
 
 ``esail-opt sweep PROBLEM.py --param ac_mm_s2=0.2:2:10`` solves ten copies of the
-problem, each with ``sail.ac_mm_s2`` replaced, and writes ``sweep.csv``,
-``sweep.json`` and ``sweep.png``.  This module describes the members and the outputs;
-the scan engine (:mod:`esail_opt.app.engine`) runs them, on a local process pool by
-default or on Dask distributed when a scheduler address is given -- the same code path
-either way, so moving a sweep to a cluster changes one option and no numbers.
-
-With ``--robust RUNS``, each verified member of a dated 3-D rendezvous is also flown
-RUNS times under the varying solar wind (:mod:`esail_opt.app.robust`), so a sweep tells
-how a transfer's robustness changes with the parameter, on the same pool or cluster and
-under the same journal.
-
-Each member is independent and returns a plain dict row.  A member that raises, does
-not converge, or converges to a schedule whose CVODES flight misses the problem's
-tolerance is reported in its row (``error`` says why); it never stops the others.  Rows
-are ordered by parameter value, whatever order the members finish in.
-
-A sweep survives its faults (the engine's contract): every finished member is journaled
-in ``sweep.jsonl`` at once, ``--resume`` runs only the members it lacks, a member whose
-worker dies is run again a bounded number of times, and Ctrl-C stops the workers within
-seconds, keeping the journal and writing nothing else.  A value that no problem accepts
-is refused before any member runs.
-
-Only the names in :data:`SWEEPABLE` can be swept; each maps to one field of the
-:class:`~esail_opt.optimisation.problem.Problem` tree, so the mapping is explicit
-rather than a free-form attribute path a typo could send anywhere.
+problem, each with ``sail.ac_mm_s2`` replaced, and writes ``sweep.csv``, ``sweep.json``
+and ``sweep.png``; with ``--robust RUNS`` each verified member is also flown under the
+varying solar wind (:mod:`esail_opt.app.robust`).  The scan engine
+(:mod:`esail_opt.app.engine`) runs the members, locally or on Dask, and journals them.
+A member that fails is reported in its row (``error`` says why) and never stops the
+others; a value that no problem accepts is refused before any member runs.  Only the
+names in :data:`SWEEPABLE` can be swept, each mapped to one field of the
+:class:`~esail_opt.optimisation.problem.Problem` tree, so a typo cannot send one anywhere.
 """
 
 import dataclasses
@@ -46,17 +29,9 @@ from esail_opt.errors import InputError, check_range, number_range
 
 @dataclasses.dataclass(frozen=True)
 class Sweepable:
-    """One parameter a sweep may vary.
-
-    Attributes
-    ----------
-    path : str
-        Dotted field path inside :class:`Problem`, e.g. ``"sail.ac_mm_s2"``.
-    kind : type
-        ``float`` or ``int``; integer parameters need whole-number grid values.
-    unit : str
-        Unit at the boundary, for the table header and plot axis.
-    """
+    """One parameter a sweep may vary: its dotted field ``path`` inside :class:`Problem`
+    (``"sail.ac_mm_s2"``), ``kind`` (``float``, or ``int`` needing whole-number grid
+    values) and ``unit`` at the boundary, for the table header and plot axis."""
 
     path: str
     kind: type
@@ -111,23 +86,10 @@ JOURNAL = "sweep.jsonl"
 
 
 def parse_param(text):
-    """Parse ``NAME=START:STOP:COUNT`` into (name, values).
-
-    Parameters
-    ----------
-    text : str
-        E.g. ``"ac_mm_s2=0.2:2:10"``: COUNT values equally spaced from START to STOP,
-        both included (COUNT = 1 needs START = STOP).
-
-    Returns
-    -------
-    tuple
-        (name, list of float or int).
-
-    Raises
-    ------
-    InputError
-        One line naming what is wrong (and, for an unknown name, the allowed ones).
+    """Parse ``NAME=START:STOP:COUNT`` (``"ac_mm_s2=0.2:2:10"``: COUNT values equally
+    spaced from START to STOP, both included; COUNT = 1 needs START = STOP) into (name,
+    list of float or int).  InputError, one line naming what is wrong (and, for an
+    unknown name, the allowed ones).
     """
     form = "expected NAME=START:STOP:COUNT, e.g. ac_mm_s2=0.2:2:10"
     name, sep, spec = str(text).partition("=")
@@ -139,8 +101,7 @@ def parse_param(text):
     if len(spec.split(":")) != 3:
         raise InputError(f"param = {text!r}: {form}")
     grid = number_range("param", spec)
-    # 12 significant digits drop linspace's last-bit noise (0.6000000000000001), so a
-    # member solves, and its row shows, the value the user meant.
+    # 12 significant digits drop linspace's last-bit noise (0.6000000000000001).
     grid = [float(f"{v:.12g}") for v in grid]
     if SWEEPABLE[name].kind is int:
         if any(abs(v - round(v)) > 1e-9 for v in grid):
@@ -151,10 +112,8 @@ def parse_param(text):
 
 
 def check_applicable(problem, name):
-    """Raise InputError unless ``problem`` has the field that ``name`` sweeps.
-
-    E.g. ``target_radius_au`` on a problem with an (a, e) target, or ``tof_days`` on a
-    minimum-time problem: that is a mistake in the command, not a failed member.
+    """Raise InputError unless ``problem`` has the field that ``name`` sweeps (not
+    ``tof_days`` on a minimum-time problem, say): the command's mistake, not a member's.
     """
     obj = problem
     for attr in SWEEPABLE[name].path.split("."):
@@ -166,10 +125,8 @@ def check_applicable(problem, name):
 
 
 def variant(problem, name, value):
-    """The problem with the field that ``name`` maps to set to ``value``.
-
-    Rebuilding each dataclass on the path re-runs its range checks, so an invalid value
-    raises InputError here (the request's check builds every value's variant first).
+    """The problem with the field that ``name`` maps to set to ``value``; InputError for
+    a value out of its range (each dataclass on the path re-runs its checks).
     """
     if name == "segments":
         # A fixed count replaces a per-revolution rule, exactly as --segments does.
@@ -194,48 +151,23 @@ def _empty_row(index, value):
 
 def solve_member(index, name, value, source, filename, polish=False, tol_km=None,
                  tol_m_s=None, robust_runs=0):
-    """Solve one member of the family and return its row; never raises.
+    """Solve member ``index`` of the grid (``name``, a key of :data:`SWEEPABLE`, set to
+    ``value``) and return its row; never raises.
 
-    The problem file travels as text so that a worker on another machine (Dask) needs
-    nothing on its disk but the package; it is written to a private temporary folder
-    and loaded as the command line would.
+    The problem file travels as its text ``source`` (named ``filename``), so a Dask
+    worker needs nothing on its disk but the package.  ``polish``: also polish on Eqs.
+    1-2; ``tol_km``, ``tol_m_s``: bounds replacing the file's (None keeps them);
+    ``robust_runs`` > 0: fly a verified member's schedule that many times under the
+    varying solar wind (:func:`esail_opt.app.robust.run`), open loop and guided.
 
-    Parameters
-    ----------
-    index : int
-        Position of ``value`` in the grid (rows are sorted on it).
-    name : str
-        Key of :data:`SWEEPABLE`.
-    value : float or int
-    source : str
-        Text of the problem file.
-    filename : str
-        Its file name, so load errors read as they would for ``esail-opt solve``.
-    polish : bool
-        Also polish the member on the exact Eqs. 1-2 (``solution.solve(polish=True)``).
-    tol_km, tol_m_s : float, optional
-        Replace the problem's verification bounds (``Problem.with_tolerance``); None
-        keeps the problem file's.
-    robust_runs : int
-        With more than 0, a verified member's schedule is also flown that many times
-        under the varying solar wind (:func:`esail_opt.app.robust.run` with its
-        defaults), open loop and guided.
-
-    Returns
-    -------
-    dict
-        The fields of :data:`CSV_FIELDS`: ``converged`` is True only for Ipopt's
-        Solve_Succeeded; ``verified`` is the solve's own verdict on whether the CVODES
-        flight met the tolerance (None when the solve does not give one);
-        ``target_miss_*`` are the CVODES verification's misses against the target;
-        ``seconds`` is this member's wall time; ``error`` is None or one line saying
-        why the member failed, including "not verified: ..." for a converged member
-        whose flight missed the tolerance.  With ``polish``: ``tof_days_exact``,
-        ``exact_verified`` (the polished schedule flies to within 1 m and 1 mm/s) and
-        ``exact_target_miss_km``; None without.  With ``robust_runs``: the 95th
-        percentile of the arrival misses open loop and guided (``robust_open_p95_km``,
-        ``robust_guided_p95_km``), the guided flights' fraction within the tolerance
-        and whether the Monte Carlo's CVODES checks agreed (``robust_verified``).
+    The row has the fields of :data:`CSV_FIELDS`: ``converged``, Ipopt's Solve_Succeeded
+    only; ``verified``, the CVODES flight's verdict against the tolerance;
+    ``target_miss_*``, its misses; ``seconds``, wall time; ``error``, None or one line
+    why the member failed (not converged, not verified...); with ``polish``, the
+    polished ``tof_days_exact``, ``exact_verified`` (1 m, 1 mm/s) and
+    ``exact_target_miss_km``; with ``robust_runs``, the p95 arrival misses open loop and
+    guided, the guided fraction within tolerance and whether the Monte Carlo's CVODES
+    checks agreed (``robust_verified``).
     """
     from esail_opt.app import solution
 
@@ -296,14 +228,8 @@ def _fly(row, sol, runs):
 
 def default_out_dir(problem_file, param):
     """``results/<problem name>_sweep_<NAME>``: the command line's default folder.
-
-    Raises
-    ------
-    InputError
-        Bad ``param``, an unreadable problem file, or a problem name that makes no
-        safe folder name.
-    OutputError
-        The folder cannot be created or written.
+    InputError for a bad ``param``, an unreadable problem file or a problem name that
+    makes no safe folder name; OutputError if the folder cannot be created or written.
     """
     from esail_opt.optimisation.problem_file import load_problem
 
@@ -315,51 +241,24 @@ def default_out_dir(problem_file, param):
 def run(problem_file, param, workers=None, scheduler=None, progress=None, polish=False,
         out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=pool.RETRIES,
         robust_runs=0):
-    """Solve the family of ``problem_file`` over ``param`` and return the table.
+    """Solve the family of ``problem_file`` over ``param`` (:func:`parse_param`) on the
+    scan engine (:func:`esail_opt.app.engine.run`, whose contract covers ``out_dir``'s
+    journal, ``resume``, ``retries``, ``scheduler`` and KeyboardInterrupt) and return the
+    table.  ``workers`` in [1, 64] (default min(COUNT, CPUs)); ``progress(row, done,
+    total)`` after each member; ``polish``, ``tol_km``, ``tol_m_s`` and ``robust_runs``
+    (only a dated 3-D rendezvous takes it) as for :func:`solve_member`.
 
-    The members run on the scan engine (:func:`esail_opt.app.engine.run`, whose contract
-    covers the journal ``out_dir/sweep.jsonl``, ``resume``, the ``retries`` of members
-    lost with their worker, the Dask ``scheduler`` and KeyboardInterrupt).
+    The table: ``problem``, ``robust_runs``, ``problem_file``, ``param``, ``field``,
+    ``unit``, ``objective_meaning``, ``objective_shown_as`` ([factor, unit] of the
+    objective column), ``values``, ``executor``, ``wall_seconds``, ``polished``,
+    ``tolerance``, ``failed`` (rows with an error), ``rows`` (in grid order), ``journal``
+    (its path or None), ``resumed`` and ``solved`` (indices) and ``lost`` (``{"index",
+    "value", "losses", "cause"}`` per member charged with a lost worker).
 
-    Parameters
-    ----------
-    problem_file : str or Path
-        A problem file defining ``problem``.
-    param : str
-        ``NAME=START:STOP:COUNT`` (see :func:`parse_param`).
-    workers : int, optional
-        Process-pool size, in [1, 64] (default: min(COUNT, CPUs)).
-    progress : callable, optional
-        ``progress(row, done, total)`` after each member finished in this run.
-    polish : bool
-        Polish every member on the exact Eqs. 1-2 as well (see :func:`solve_member`).
-    tol_km, tol_m_s : float, optional
-        Verification bounds for every member (default: the problem file's).
-    robust_runs : int
-        Flights of every verified member under the varying solar wind (see
-        :func:`solve_member`); 0 for none.  Only a dated 3-D rendezvous takes it.
-
-    Returns
-    -------
-    dict
-        ``problem``, ``robust_runs``, ``problem_file``, ``param``, ``field``, ``unit``,
-        ``objective_meaning``, ``objective_shown_as`` ([factor, unit] of the objective
-        column), ``values``, ``executor``, ``wall_seconds``, ``polished``,
-        ``tolerance``, ``failed`` (rows with an error), ``rows`` (in grid order),
-        ``journal`` (its path or None), ``resumed`` and ``solved`` (indices) and
-        ``lost`` (``{"index", "value", "losses", "cause"}`` per member charged with a
-        lost worker).
-
-    Raises
-    ------
-    InputError
-        Bad input of any kind (a value no problem accepts included), a journal that
-        ``resume`` cannot continue, or an unreachable scheduler: before any solve and
-        before the journal changes.
-    OutputError
-        ``out_dir`` cannot be created or written (before any solve).
-    esail_opt.runtime.pool.ClusterLost
-        The Dask cluster was lost (one line saying what the journal keeps).
+    Raises, before any solve and before the journal changes, InputError for bad input
+    of any kind (a journal ``resume`` cannot continue, an unreachable scheduler) and
+    OutputError if ``out_dir`` cannot be written; ``pool.ClusterLost`` (one line saying
+    what the journal keeps) if the Dask cluster was lost.
     """
     request = _check(problem_file, param, workers, scheduler, retries, resume, out_dir,
                      polish, tol_km, tol_m_s, robust_runs)
@@ -371,27 +270,9 @@ def run(problem_file, param, workers=None, scheduler=None, progress=None, polish
 
 @dataclasses.dataclass(frozen=True)
 class _Request:
-    """A checked sweep request: the grid and what every member needs.
-
-    Attributes
-    ----------
-    problem_file : str
-    name : str
-        Key of :data:`SWEEPABLE`.
-    values : list
-        The grid, from :func:`parse_param`.
-    workers : int
-        Local process-pool size.
-    problem : Problem
-        The file's problem with the request's tolerance.
-    source : str
-        Text of the problem file.
-    polish : bool
-    tol_km, tol_m_s : float or None
-        Tolerance overrides, passed on to every member.
-    robust_runs : int
-        Monte Carlo flights of every verified member (0: none).
-    """
+    """A checked sweep request: the grid (``name``, ``values``), the pool's ``workers``,
+    the file's ``problem`` with the request's tolerance, its text ``source``, and what
+    every member is passed on."""
 
     problem_file: str
     name: str
@@ -418,8 +299,7 @@ def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, po
     name, values = parse_param(param)
     workers = engine.check_options(workers, scheduler, retries, resume, out_dir)
     workers = workers or min(len(values), os.cpu_count() or 1)
-    # Loaded here too, so a broken file, an inapplicable parameter or a bad tolerance
-    # is one line at once instead of COUNT identical failed rows.
+    # Loaded here too, so a bad file is one line instead of COUNT failed rows.
     problem = load_problem(problem_file).with_tolerance(tol_km, tol_m_s)
     check_applicable(problem, name)
     if check_range("--robust", robust_runs, 0, 10 ** 6):
@@ -431,9 +311,8 @@ def _check(problem_file, param, workers, scheduler, retries, resume, out_dir, po
             variant(problem, name, value)
         except InputError as err:
             raise InputError(f"param {name}: {err}") from None
-    if out_dir is not None:
-        check_output_dir(out_dir, files=SWEEP_FILES)  # before any member runs: a sweep that cannot be
-        # written must not solve first
+    if out_dir is not None:  # a sweep that cannot be written must not solve first
+        check_output_dir(out_dir, files=SWEEP_FILES)
     return _Request(str(problem_file), name, values, workers, problem,
                     Path(problem_file).read_text(), polish, tol_km, tol_m_s, int(robust_runs))
 
@@ -483,9 +362,8 @@ def _result(request, outcome):
 
 def table_csv(result):
     """The rows as CSV text (floats to 10 significant digits, empty for missing), the
-    parameter's column named after it, and the objective in a user's unit (days,
-    mm/s^2) with its ``objective_unit`` beside it, as porkchop.csv has it; the journal
-    and sweep.json keep the NLP's canonical objective (``objective_meaning``)."""
+    parameter's column named after it, the objective in a user's unit (days, mm/s^2)
+    with ``objective_unit`` beside it; sweep.json keeps the canonical objective."""
     factor, unit = result.get("objective_shown_as") or (1.0, "")
     unit = unit.strip() or result.get("objective_meaning", "")
     rows = [dict(r, objective=None if r["objective"] is None else r["objective"] * factor,
@@ -496,22 +374,10 @@ def table_csv(result):
 
 
 def figure(result, axes=None):
-    """Time of flight, objective and verified target miss against the parameter; failed
-    members in red; with a Monte Carlo (``robust_runs``), a fourth panel of the 95th
-    percentile arrival misses, open loop and guided, against the tolerance.
-
-    Parameters
-    ----------
-    result : dict
-        A sweep's table, as :func:`run` returns it.
-    axes : sequence of matplotlib Axes, optional
-        Where to draw the three panels (four with a Monte Carlo), top to bottom; by
-        default a new Figure.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """The Figure of time of flight, objective and verified target miss against the
+    parameter of :func:`run`'s table, failed members in red, and with a Monte Carlo a
+    fourth panel of p95 arrival misses against the tolerance; on ``axes`` (top to
+    bottom) or a new Figure."""
     fresh = axes is None
     windy = bool(result.get("robust_runs"))
     if fresh:
@@ -523,8 +389,7 @@ def figure(result, axes=None):
     panels = (("tof_days", "time of flight [days]", "linear"),
               ("objective", f"objective [{unit.strip()}]" if unit.strip()
                else "objective (canonical)", "linear"),
-              # The closed form is approximate: how far its schedule, flown on Eqs. 1-2,
-              # ends from the target belongs beside the optimum it claims.
+              # The closed form is approximate: its flown miss belongs beside its optimum.
               ("target_miss_r_km", "verified target miss [km]", "log"))
     for ax, (key, ylabel, scale) in zip(axes, panels):
         _panel(ax, result, key, scale, factor if key == "objective" else 1.0)

@@ -1,19 +1,10 @@
 """The edge of the feasible: the shortest flight found feasible from one departure.
 
-A fixed-time problem (``MinAcceleration``, say) whose solve finds no point may simply be
-too short a flight: an E-sail's thrust never points more than 19.5 deg from the outward
-radial.  :func:`nearest_feasible` then walks the time of flight to the shortest one at
-which the closed-form NLP converges, flies that flight as any run is flown, and returns
-an :class:`Edge`.  The lone solve (``pipeline.Run.nearest_feasible``) and the porkchop
-(its cells with no sail, per date) both take the edge from here, through
-``pipeline.nearest_feasible``, which hands in the pipeline's own stages.
-
-The walk has two parts.  Without a start, a ladder of single solves at
-:data:`LONGER` multiples of the asked time of flight finds one that converges
-(:func:`_ladder`).  From there, or from a start the caller gives (a porkchop's verified
-cell of the same date), the time of flight is halved towards the longest one found
-infeasible, each step warm on the same NLP, to within :data:`EDGE_DAYS`
-(:func:`_halve`).
+A fixed-time problem whose solve finds no point may simply be too short a flight (an
+E-sail's thrust never points more than 19.5 deg from the outward radial).
+:func:`nearest_feasible` walks its time of flight down to the shortest at which the
+closed-form NLP converges, from a ladder of longer solves (:func:`_ladder`) or a given
+start, by halving (:func:`_halve`), and flies that flight as any run is flown.
 """
 
 import dataclasses
@@ -32,10 +23,8 @@ __all__ = ["Edge", "EDGE_DAYS", "LONGER", "WALK_ITERATIONS", "at_tof", "nearest_
 #: The walk halves the interval between the longest time found infeasible and the
 #: shortest found feasible until it is this short, days.
 EDGE_DAYS = 4.0
-#: Ipopt iterations of each warm step of the walk.  A step that finds no point within
-#: them is taken as beyond the edge: the walk then reports a flight a little longer than
-#: the edge, never one that is not feasible (from 2035-06-01 to Mars, steps past the
-#: edge took 500 to 1,200 iterations to end infeasible, steps inside it 36 to 69).
+#: Ipopt iterations of each warm step of the walk; a step that finds no point within them
+#: counts as beyond the edge (steps inside it took under 70, steps past it 500 or more).
 WALK_ITERATIONS = 150
 #: Times of flight at which a fixed-time problem that found no point is solved again, as
 #: multiples of the asked one, until one converges: the walk to the edge starts there.
@@ -46,18 +35,11 @@ LONGER = (1.1, 1.25, 1.5, 2.0)
 class Edge:
     """The edge of the feasible from one departure.
 
-    Attributes
-    ----------
-    flight : Run or scan.Cell
-        The shortest flight found feasible, flown and judged: a ``pipeline.Run``
-        (error-controlled and verified as any run), or the verified start the caller
-        gave when the walk found nothing shorter that verifies.  Its ``problem``
-        carries the time of flight (``problem.objective.tof_days``).
-    infeasible_tof_days : float
-        The longest time of flight the walk found no point at: the edge lies between it
-        and the flight's.
-    iterations : int
-        Ipopt iterations the walk spent, its infeasible probes included.
+    ``flight`` is the shortest flight found feasible, flown and judged (a ``pipeline.Run``,
+    or the verified start the caller gave when nothing shorter verifies); its ``problem``
+    carries the time of flight.  The edge lies between it and ``infeasible_tof_days``, the
+    longest time of flight found with no point, days.  ``iterations``: Ipopt iterations
+    the walk spent, infeasible probes included.
     """
 
     flight: Any
@@ -89,33 +71,16 @@ def at_tof(problem, tof_days):
 
 
 def nearest_feasible(problem, lone, fly, start=None, progress=None):
-    """The :class:`Edge` from ``problem``'s departure, or None when the walk found no
-    time of flight at which the closed form converges.
+    """The :class:`Edge` from the departure of ``problem`` (fixed-time, :func:`walks`, no
+    point at its time of flight), or None when the walk found no time of flight at which
+    the closed form converges.
 
-    Parameters
-    ----------
-    problem : Problem
-        A fixed-time problem (:func:`walks`) that found no point at its time of flight.
-    lone : callable
-        ``lone(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk of
-        its own, for a rung of the ladder whose single solve found no point.
-    fly : callable
-        ``fly(problem, result, transcription, progress=)`` -> ``pipeline.Run``:
-        the error control and the verification of the walk's flight
-        (``pipeline.finish``).
-    start : optional
-        A verified flight from the same departure at a longer time of flight, with its
-        ``problem``, ``result`` and ``transcription`` (a porkchop's verified cell of the
-        date): the walk starts from it instead of the ladder, and it stays the edge
-        when the walk finds nothing shorter, or the shorter flight does not verify.
-    progress : callable, optional
-        ``progress(text)``: one line per solve.
-
-    Returns
-    -------
-    Edge or None
-        Without ``start``, the walk's flight even when it does not verify (``verified``
-        says so); with one, never a flight that does not verify.
+    ``lone(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk, for a
+    rung whose single solve found no point; ``fly(problem, result, transcription,
+    progress=)`` -> ``pipeline.Run``: ``pipeline.finish``.  ``start``, a verified flight
+    from the same departure at a longer time of flight, replaces the ladder and stays the
+    edge unless a shorter flight verifies; without it the walk's flight is returned even
+    when it does not verify.  ``progress(text)`` gets one line per solve.
     """
     say = progress or (lambda text: None)
     walked = walk(problem, lone, start, say)
@@ -133,18 +98,12 @@ def nearest_feasible(problem, lone, fly, start=None, progress=None):
 
 
 def walk(problem, lone, start=None, progress=None):
-    """The shortest time of flight from ``problem``'s departure at which its closed-form
-    NLP converges, at least ``problem``'s own, from ``start`` (its ``problem``, ``result``
-    and ``transcription``) or, without one, from the first rung of :func:`_ladder` that
-    converges (``lone`` as for :func:`nearest_feasible`).
+    """The shortest time of flight from ``problem``'s departure, at least its own, at
+    which its closed-form NLP converges, walked from ``start`` or else from the first rung
+    of :func:`_ladder` that converges (arguments as for :func:`nearest_feasible`).
 
-    Returns
-    -------
-    tuple or None
-        ``(Problem, NLPResult, Transcription, infeasible_tof_days, iterations)``: the
-        converged optimum at that time of flight with its problem and NLP, the longest
-        time of flight found infeasible, and the Ipopt iterations spent; None when no
-        rung converges.
+    Returns ``(Problem, NLPResult, Transcription, infeasible_tof_days, iterations)``, the
+    converged optimum there with its problem and NLP, or None when no rung converges.
     """
     say = progress or (lambda text: None)
     if start is None:
@@ -157,15 +116,11 @@ def walk(problem, lone, start=None, progress=None):
 
 
 def _halve(problem, cell, result, tr, iterations, lo, say):
-    """The continuation of :func:`walk` in the time of flight, from the converged
-    ``result`` of ``cell`` (its NLP ``tr``), with ``lo`` the longest time of flight found
-    infeasible and ``iterations`` already spent.
-
-    The time of flight is halved from ``cell``'s towards ``lo``, each step warm from the
-    last converged one on the same NLP (its time of flight is a parameter,
-    ``Transcription.at``), to within :data:`EDGE_DAYS`.  A step that does not converge
-    within :data:`WALK_ITERATIONS` counts as infeasible, so the edge may lie a little
-    shorter than reported, never longer."""
+    """The walk of :func:`walk`, from the converged ``result`` of ``cell`` (its NLP
+    ``tr``), ``lo`` the longest time of flight found infeasible: halve towards ``lo`` to
+    within :data:`EDGE_DAYS`, each step warm on the same NLP (the time of flight is a
+    parameter, ``Transcription.at``).  A step beyond :data:`WALK_ITERATIONS` counts as
+    infeasible, so the edge may lie a little shorter than reported, never longer."""
     solver = build_solver(tr, ipopt_options(max_iter=WALK_ITERATIONS), warm=True)
     while cell.objective.tof_days - lo > EDGE_DAYS:
         step = at_tof(cell, 0.5 * (lo + cell.objective.tof_days))
@@ -190,8 +145,7 @@ def _ladder(problem, lone, say):
         try:
             cell, result, tr, spent = _rung(at_tof(problem, asked * factor), lone, say)
         except NoStart as why:
-            # The rung's seed cannot be flown (it escapes before the time of flight):
-            # no point there, and a longer rung's seed flies longer still.
+            # The seed escapes before the time of flight; a longer rung's would too.
             say(f"{problem.name}: no seed at {asked * factor:.6g} d: {why}")
             return None
         iterations += spent
@@ -204,11 +158,9 @@ def _ladder(problem, lone, say):
 def _rung(problem, lone, say):
     """One rung of :func:`_ladder`: a single solve from ``problem``'s seed and, when
     that finds no point, ``lone(problem, say)``: (problem, NLPResult, Transcription,
-    Ipopt iterations of both).  Raises NoStart when the seed cannot be flown.
-
-    Why both: the single solve is cheap, and where it converges the walk has always
-    started from it; where it does not, the lone solve's turn-count search can still
-    find a point, and the walk from a longer rung may stop weeks above the edge."""
+    Ipopt iterations of both).  Raises NoStart when the seed cannot be flown.  The lone
+    solve's turn-count search finds points the cheap single solve misses, which would
+    otherwise leave the walk starting weeks above the edge."""
     guess = initial_guess(problem)
     problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
     result, tr = solve_problem(problem, guess=guess, progress=say)

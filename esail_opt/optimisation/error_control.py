@@ -1,37 +1,16 @@
 """Error control: the closed-form optimum refined until its flight on Eqs. 1-2 meets the
 problem's tolerance.
 
-The closed form is approximate, and an optimum found on it alone misses once flown, by
-far more where the optimiser stretched single arcs past their validity.  Each round
-here:
-
-1. **Judge.** Fly the schedule on Eqs. 1-2 (``verify``) and hold the flight to the
-   tolerance (``verify.judge``).  Met: stop, verified.
-2. **Local errors.** From every segment's own start node, fly the segment on Eqs. 1-2
-   (CVODES in theta, no sensitivities: N short integrations) and on the closed form.
-   Their difference is the segment's *defect*; its position part is the local error
-   the solution reports per segment.
-3. **Re-mesh where the closed form is strained.** If a segment breaks the cap on
-   a~_c dtheta per sub-arc (:data:`STRAIN_CAP`), every segment gets enough
-   sub-arcs to keep it; if the last round did not at least halve the flown miss, the
-   sub-arcs double (the segment Function is mapped over all segments, so they share one
-   count).  The cap is kept by adding sub-arcs, never by shortening segments: it bounds
-   the closed form's error, not the trajectory.
-4. **Defect correction.** Re-solve with every segment's end shifted by its defect, a
-   constant of the NLP (``transcribe``'s parameter), warm from the last optimum.  At a
-   fixed point the shifted closed-form chain lands exactly where Eqs. 1-2 do, so the
-   flown miss falls towards the verifier's own error; the closed form still supplies the
-   derivatives, so the optimum moves only by the difference of its gradients from the
-   true ones.  A correction that ends with no point (a restoration failure) ends the
-   rounds, and the last round that found one is the answer, judged as flown.  Rounds
-   that all end short of the tolerance answer with the closest converged one.
-
-Why this algorithm: a round of defect correction is a warm re-solve of the same NLP
-and cuts the flown miss by orders of magnitude, where refining the mesh alone gains
-only a factor (m'/m)^2 in m sub-arcs per round at the price of a cold solve of a larger
-NLP.  Sub-arcs are still added where the closed form is strained, because a defect
-correction built on an arc far outside its regime has wrong derivatives and converges
-slowly or not at all.
+Each round: (1) fly the schedule on Eqs. 1-2 and judge it (``verify``); met, stop.
+(2) Fly every segment from its own start node on Eqs. 1-2 and on the closed form: the
+difference is its *defect*, whose position part is the reported local error.  (3) Where
+a segment breaks :data:`STRAIN_CAP` (a correction there has wrong derivatives), or the
+miss stalls, add sub-arcs.  (4) Re-solve warm with every segment's end shifted by its
+defect, so that at a fixed point the closed-form chain lands where Eqs. 1-2 do.  A
+correction that finds no point ends the rounds with the last that found one; rounds all
+short of the tolerance answer with the closest one.  Why: a defect correction is a warm
+re-solve that cuts the miss by orders of magnitude, where refining the mesh alone gains
+(m'/m)^2 for a cold solve of a larger NLP.
 """
 
 import dataclasses
@@ -58,14 +37,10 @@ from esail_opt.physics.elements import polar3d_from_cartesian
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments,
                                             fly_segments3d)
 
-#: Largest a~_c dtheta of one closed-form sub-arc: an arc's error grows with a~_c dtheta
-#: (as its square for first-order arcs, its cube for the NLP's second-order ones;
-#: THEORY.md §3.8), and an optimiser left free stretches single arcs far past where the
-#: closed form means anything (a 0.1 au spiral swung one arc out to 4 au).  It is kept
-#: by adding sub-arcs -- to the seed before the first solve (:func:`sub_arcs_within_cap`),
-#: and to any optimum that breaks it (step 3 above) -- never as a constraint of the NLP:
-#: as one it made a 4-segment hop to 1.3 au infeasible, deciding the answer instead of
-#: the accuracy.
+#: Largest a~_c dtheta of one closed-form sub-arc (an arc's error grows as its square or,
+#: second order, its cube; THEORY.md §3.8).  Kept by adding sub-arcs, never as an NLP
+#: constraint, which made feasible problems infeasible: it bounds the accuracy, not the
+#: answer.
 STRAIN_CAP = 0.05
 
 
@@ -79,9 +54,8 @@ def strain(problem, r_starts, lengths, throttle=None):
 
 
 def sub_arcs_within_cap(problem, guess, most):
-    """The problem with enough sub-arcs (at most ``most``) that ``guess`` keeps the cap
-    on a~_c dtheta per sub-arc: the cap is kept by adding sub-arcs, not by shortening
-    the segments the seed chose."""
+    """The problem with enough sub-arcs (at most ``most``) that ``guess`` keeps
+    :data:`STRAIN_CAP`."""
     r_starts = np.r_[problem.x0()[0], guess.nodes[0, :-1]]
     worst = float(np.max(strain(problem, r_starts, guess.lengths, guess.throttle)))
     if worst <= 1:
@@ -126,25 +100,11 @@ class Round:
 class ErrorControl:
     """The outcome of :func:`control_error`; the caller judges its final flight.
 
-    Attributes
-    ----------
-    problem : Problem
-        The problem as last solved (its ``segments.sub_arcs`` may have grown).
-    result : NLPResult
-        The last optimum: the last round's, unless that round's correction found no
-        point after an earlier one had (then that earlier round's, and the rounds after
-        it are in ``history`` only), or no round met the tolerance (then the converged
-        round that flew closest).
-    transcription : Transcription
-    history : list of Round
-        One per round, in order.
-    local_error_km : numpy.ndarray
-        Per segment, the closed form's position error against Eqs. 1-2 over that
-        segment from its own start node, km (NaN where a segment could not be flown).
-    check : Verification
-        The last round's verification of ``result``.
-    defects : numpy.ndarray or None
-        The defects the final ``result`` was solved with (None: none).
+    ``problem`` is as last solved (``segments.sub_arcs`` may have grown); ``result`` the
+    kept optimum (see the module docstring), with its ``transcription``, ``check`` (its
+    Verification) and ``defects`` (5 x N, or None); ``history`` one :class:`Round` per
+    round; ``local_error_km`` per segment, the closed form's position error against
+    Eqs. 1-2 from its own start node (NaN where it could not be flown).
     """
 
     problem: object
@@ -180,11 +140,9 @@ def _node_near():
 def node_near(y, ref):
     """The Cartesian state ``y`` (7 rows, with t) as a 3-D node (9 rows) in the gauge of
     the node ``ref``: its plane's frame is ref's turned by the smallest rotation that
-    takes ref's normal to y's, and its theta is on ref's branch.  A node's plane frame
-    is free up to a turn about the normal (traded against theta); this picks the one
-    next to ``ref``, so that ``node_near(y, ref) - ref`` is a small defect.  ``y`` and
-    ``ref`` may also be [7 x N] and [9 x N], column by column (one call for a whole
-    schedule: the verification converts every segment's end)."""
+    takes ref's normal to y's, and its theta is on ref's branch, so that
+    ``node_near(y, ref) - ref`` is a small defect (a node's frame is free up to a turn
+    about the normal).  ``y`` and ``ref`` may also be [7 x N] and [9 x N]."""
     y, ref = np.asarray(y, float), np.asarray(ref, float)
     if y.ndim == 1:
         return np.array(_node_near()(y, ref), float).ravel()
@@ -192,8 +150,8 @@ def node_near(y, ref):
 
 
 def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
-    """Every 3-D segment flown by CVODES from its start node, in the angle swept (``simulate.fly_segments3d``), as nodes next to the model's ends
-    (:func:`node_near`)."""
+    """Every 3-D segment flown by CVODES from its start node (``simulate.fly_segments3d``),
+    as nodes next to the model's ends (:func:`node_near`)."""
     y0 = np.vstack([np.column_stack([node_cartesian(c) for c in starts.T]), starts[4]])
     ends = fly_segments3d(y0, ac, alpha, delta, lengths, "theta", problem.sail.coefficients,
                           tol)
@@ -204,12 +162,8 @@ def segment_ends(problem, result, method=None, tol=VERIFY_TOLERANCE):
     """(exact, model) ends [5 x N] of every segment flown from its own start node: by
     CVODES on Eqs. 1-2 at ``tol``, and by the NLP's segment ``method`` (default
     ``segment_methods.ClosedForm``), whose lengths are angles or, for a method in
-    time, durations.  Their difference is each segment's defect.
-
-    Raises
-    ------
-    SimulationError
-        If CVODES cannot fly a segment (an escaping arc).
+    time, durations.  Their difference is each segment's defect.  Raises SimulationError
+    if CVODES cannot fly a segment (an escaping arc).
     """
     method = ClosedForm() if method is None else method
     segment, length_in = method.function(problem), method.length_in
@@ -287,32 +241,17 @@ def per_revolution_mesh(problem, result, tr, say):
 
 def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
                   defects=None):
-    """Correct and re-mesh a closed-form optimum until its flight meets
-    ``problem.tolerance`` (the rounds of this module's docstring): an
-    :class:`ErrorControl`.
+    """Correct and re-mesh the closed-form optimum ``result`` (every round keeps its
+    revolution class) until its flight meets ``problem.tolerance``, in at most
+    ``max_rounds`` rounds: an :class:`ErrorControl`.
 
-    Parameters
-    ----------
-    problem : Problem
-    result : NLPResult
-        The closed-form optimum (``ipopt.solve_problem``); every round keeps its
-        revolution class.
-    tr : Transcription, optional
-        Its NLP; without it a new one is built at ``result`` (and the first correction
-        starts cold, since a new NLP scales its variables differently).
-    progress : callable, optional
-        ``progress(text)``: a line per round and Ipopt's iteration lines.
-    max_rounds : int
-        Rounds of correction at most.
-    solver : tuple, optional
-        ``ipopt.build_solver(tr, warm=True)``'s pair, already built for ``tr``: a scan
-        error-controls many cells on one NLP and builds its solver once.
-    defects : numpy.ndarray, optional
-        The 5 x N defects ``result`` was solved with (a scan carries a neighbour's), so
-        that :attr:`ErrorControl.defects` says what the final result was solved with.
+    ``tr`` is its NLP (without it one is built and the first correction starts cold);
+    ``solver``, ``ipopt.build_solver(tr, warm=True)``'s pair if already built (a scan
+    reuses one); ``defects``, the 5 x N defects ``result`` was solved with, if any.
+    ``progress(text)`` gets a line per round and Ipopt's iteration lines.
     """
     say, fresh = progress or (lambda text: None), tr is None
-    if fresh:  # a new NLP scales its variables anew: the first correction starts cold
+    if fresh:  # a new NLP scales its variables anew
         tr, solver = transcribe(problem, guess=result.as_guess()), None
     history, last_miss, applied, found, converged = [], None, defects, None, []
     local_km = np.full(result.alpha.size, np.nan)  # until a round flies every segment
@@ -346,8 +285,7 @@ def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS
 def _closest(final, converged, say):
     """``final``, unless it is short of its tolerance: then the closest of the
     ``converged`` rounds (each its miss, its number and its ErrorControl), when that
-    flew closer.  Why: a later round's correction can fly worse (Earth-Mars at a 1 m tolerance flew
-    27.0 m at round 6 and 105.9 m at round 8, its last)."""
+    flew closer: a later round's correction can fly worse."""
     if (final.check.judge(final.problem)[0] and final.result.converged) or not converged:
         return final
     miss, rnd, kept = min(converged, key=lambda c: c[0])
@@ -358,9 +296,7 @@ def _closest(final, converged, say):
 
 
 def _kept(found, history, say):
-    """``found``, the last round that found a point, with the whole ``history``: a
-    correction after it that lost the point (a restoration failure near a degenerate
-    optimum, say) makes no answer of the rounds before it."""
+    """``found``, the last round that found a point, with the whole ``history``."""
     say(f"error control: round {len(history) - 1} found no point "
         f"({history[-1].status}); keeping round {len(history) - 2}'s")
     return dataclasses.replace(found, history=history)
@@ -375,10 +311,9 @@ def _said_miss(rnd, problem, check, say):
 
 
 def _judge(problem, result, local_km, say):
-    """One round's flights of ``result``: its verification (``verify``) and every
-    segment flown from its own start node.  Returns
-    (check, exact ends, model ends, local errors in km); the ends are None, and the
-    local errors those of the last round, when a segment cannot be flown on Eqs. 1-2."""
+    """One round's flights of ``result``: (check, exact ends, model ends, local errors
+    in km); the ends are None, and the local errors the last round's, when a segment
+    cannot be flown on Eqs. 1-2."""
     check = verify(problem, result)
     try:
         exact, plain = segment_ends(problem, result)
@@ -390,13 +325,9 @@ def _judge(problem, result, local_km, say):
 
 
 def _grown(problem, result, miss, last_miss):
-    """The sub-arcs the next round needs, or None to keep the mesh: more where a
-    segment breaks the strain cap (enough to keep it), double where the last round did
-    not cut the flown miss by :data:`STALL`, never past :data:`MAX_SUB_ARCS`.
-
-    A fresh start (no NLP given) is no reason to keep a strained mesh either: a defect
-    correction on arcs far past the cap moved the 2-3 revolution Earth-Mars optimum
-    (one 3.2 rad segment from 0.58 au, 3.6e6 km local error) out to escape."""
+    """``(sub_arcs, strained)`` for the next round, or None to keep the mesh: enough to
+    keep the strain cap, else double where the last round did not cut the flown miss by
+    :data:`STALL`, never past :data:`MAX_SUB_ARCS`."""
     sub = problem.segments.sub_arcs
     worst = float(np.max(strain(problem, start_nodes(result)[0], result.lengths,
                                 result.accelerations(problem) / problem.sail.ac)))

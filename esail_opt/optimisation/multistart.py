@@ -1,29 +1,15 @@
 """Global search of a minimum-time problem over its revolution classes.
 
-Ipopt finds the local optimum whose basin holds its start, and a transfer's basin is
-set above all by how many times it goes round the Sun.  The search therefore solves
-one NLP per revolution class and keeps every result:
-
-* **the free start**: the problem as it is, from its own constant-pitch seed;
-* **orbit transfers** (circular or (a, e) target, final angle free): revolution
-  windows.  Class k boxes the final polar angle into [theta0 + 2 pi k,
-  theta0 + 2 pi (k + 1)] (``Guess.theta_window``), seeded by a
-  constant-pitch spiral whose first crossing of the target radius lies in that window
-  (pitches near +-90 deg have little transverse thrust and wind many times before
-  they cross; see :func:`seed_pitches`);
-* **rendezvous** (final angle tied to the body): the whole turns k between the sail
-  and the body at arrival (``Guess.revolutions_k``), each seeded by the same
-  constant-pitch flight.
-
-A window whose bound is inactive at the solution holds a *free* local optimum: a KKT
-point of the boxed NLP with an inactive bound is one of the unboxed NLP.  A window
-whose bound is active holds only the best transfer with that many revolutions, which
-is reported as such (``Candidate.free`` False), never as a local optimum.  Each
-rendezvous class is a free local optimum: the constraint theta_f = phi_body(t_f) +
-2 pi k splits the feasible set into disjoint pieces, one per k.
-
-Results are grouped by (revolutions, time of flight): starts that reach the same
-optimum become one candidate that remembers every start that found it.
+Ipopt finds the local optimum whose basin holds its start, and a transfer's basin is set
+above all by how many times it goes round the Sun, so the search solves one NLP per
+revolution class: for an orbit transfer, class k boxes the final polar angle into
+[theta0 + 2 pi k, theta0 + 2 pi (k + 1)] (``Guess.theta_window``); for a rendezvous it is
+the whole turns k between sail and body at arrival (``Guess.revolutions_k``).  Each is
+seeded by a constant pitch that winds about k turns (:func:`seed_pitches`).  A window
+whose bound is active at the solution holds only the best transfer of that class
+(``Candidate.free`` False), never a local optimum; a rendezvous class holds a free one,
+as theta_f = phi_body(t_f) + 2 pi k splits the feasible set into one piece per k.
+Starts that reach the same optimum become one :class:`Candidate`.
 """
 
 import dataclasses
@@ -39,18 +25,15 @@ from esail_opt.optimisation.nodes import flown_segments
 from esail_opt.optimisation.seed import Guess, guess_alpha, initial_guess, lifted_guess
 
 #: Two results are one optimum when their times of flight agree to this fraction and
-#: their revolutions to :data:`SAME_REVOLUTIONS`.  The closed-form NLP's own local
-#: optima differ by ~1e-4 of the tof where the pitch passes +-90 deg in different
-#: segments (R and T are pi-periodic, so +90 and -90 deg are one thrust and the box on
-#: alpha is an artificial wall); those are one transfer.
+#: their revolutions to :data:`SAME_REVOLUTIONS`: optima that pass +-90 deg pitch in
+#: different segments differ by ~1e-4 of the tof and are one transfer.
 SAME_TOF = 1e-3
 SAME_REVOLUTIONS = 0.02
 #: A final angle this close to a window's edge (rad) means the edge is active.
 EDGE_TOLERANCE = 1e-6
-#: Pitch fractions of the way from the seed's pitch to +-90 deg scanned for seeds:
-#: the closer to +-90 deg, the smaller the transverse thrust and the more turns before
-#: the spiral first reaches the target radius (on Earth-Mars at 1 mm/s^2, 80 deg crosses
-#: after 1.3 turns, 86 deg after 2.5 and 89 deg after 7.9).
+#: Pitch fractions of the way from the seed's pitch to +-90 deg scanned for seeds: the
+#: closer to +-90 deg, the less transverse thrust and the more turns before the spiral
+#: first reaches the target radius.
 SEED_FRACTIONS = (0.0, 0.5, 0.75, 0.875, 0.9375, 0.96875, 0.984375, 0.9921875)
 
 
@@ -73,21 +56,11 @@ class Start:
 class Candidate:
     """One distinct optimum the search found.
 
-    Attributes
-    ----------
-    result : NLPResult
-        The closed-form optimum (the best of the starts that reached it).  Its
-        ``theta_window`` is kept only when the window's bound is active (the error control
-        and the polish must keep it then); a free optimum carries none.
-    revolutions : float
-        Turns swept from departure to arrival, (theta_f - theta_0) / 2 pi.
-    free : bool
-        True for a local optimum of the problem as posed; False when a revolution
-        window's bound is active, i.e. the best transfer confined to that window.
-    window : list or None
-        [k, k + 1] revolutions of its window, or None.
-    found_from : list of str
-        The starts that reached it.
+    ``result``: the fastest closed-form optimum of the starts that reached it, with its
+    ``theta_window`` only when that bound is active (the error control and the polish must
+    keep it then).  ``revolutions``: turns swept, (theta_f - theta_0) / 2 pi.  ``free``:
+    a local optimum of the problem as posed, not one confined by its window ``[k, k + 1]``
+    (or None).  ``found_from``: labels of the starts that reached it.
     """
 
     result: NLPResult
@@ -131,10 +104,8 @@ def seed_pitches(problem):
 
 
 def constant_pitch_seeds(problem):
-    """Seeds of :func:`seed_pitches` that reach the target radius: {alpha: Guess}.
-
-    A pitch whose flight never reaches it (it escapes first, or winds past
-    ``max_revolutions``) is left out."""
+    """Seeds of :func:`seed_pitches` that reach the target radius (not escaping first nor
+    winding past ``max_revolutions``): {alpha: Guess}."""
     seeds = {}
     for alpha in seed_pitches(problem):
         try:
@@ -157,12 +128,9 @@ def _stretched(problem, guess, total):
 
 
 def window_starts(problem, classes):
-    """Starts of an orbit transfer's revolution windows ``classes`` (whole turns k).
-
-    Each window is seeded by the constant-pitch seed whose final angle lies in it (the pitch
-    nearest the problem's own seed pitch, if several do); a window no seed reaches
-    takes the seed whose final angle is nearest, stretched to the window's middle, if that
-    flight stays valid, and is otherwise skipped.
+    """Starts of an orbit transfer's revolution windows ``classes`` (whole turns k): the
+    first constant-pitch seed whose final angle lies in the window, else the nearest one
+    that stays valid stretched to the window's middle; else the window is skipped.
     """
     theta0 = float(problem.x0()[1])
     seeds = constant_pitch_seeds(problem)
@@ -191,21 +159,12 @@ def window_starts(problem, classes):
 
 
 def rendezvous_starts(problem, classes, seeds=None):
-    """Starts of a rendezvous's turn counts k in ``classes``.
-
-    Each constant-pitch seed of :func:`seed_pitches` arrives with its own turn count on
-    the body (``Guess.revolutions_k``: pitches nearer +-90 deg wind more turns before
-    they reach the body's orbit); class k takes the first seed whose count is k, else
-    a pitch bisected between two seeds whose counts bracket k that winds k itself
-    (:func:`_winding`), else the seed whose count is nearest, with k imposed.  ``seeds``
-    are :func:`constant_pitch_seeds` of ``problem`` when the caller already has them.
-
-    Why the bisection: a start that winds another count than its class's is a poor one.
-    On the Earth-Venus minimum a_c leaving 2031-01-21 in 720 d (planar), k = -18 took
-    196 iterations from the -45 deg seed (which winds -17), and 44 to 57 from pitches of
-    -56 to -60 deg (which wind -18); by the iteration where the seed's own class had
-    converged, it still looked hopeless (``hopeless_checkpoint``), and the descent ended
-    at four times the a_c it reaches through k = -18.
+    """Starts of a rendezvous's turn counts k in ``classes``: the first seed that winds
+    k itself (``Guess.revolutions_k``), else a pitch bisected to wind k (:func:`_winding`),
+    else the seed whose count is nearest, with k imposed.  ``seeds``: the
+    :func:`constant_pitch_seeds` of ``problem``, if the caller has them.  A start that
+    winds another count than its class's is a poor one: it can take several times the
+    iterations, long enough to be stopped as hopeless (:func:`hopeless_checkpoint`).
     """
     seeds = constant_pitch_seeds(problem) if seeds is None else seeds
     starts = []
@@ -261,19 +220,12 @@ NO_BETTER = object()
 
 
 def descend_turns(k0, best, solve, better, steps=TURN_STEPS, gaps=0):
-    """The best solve over the turn counts k on a body reached from ``k0`` one turn at a
-    time, each way, while each does better than the best so far.
-
-    A MinAcceleration rendezvous needs this: the a_c needed can change by whole factors
-    from one k to the next, and the seed's k is only what a constant pitch happens to
-    wind.  ``best`` is the solve at ``k0``; ``solve(k)`` returns a solve of class k,
-    None when it found no point there, or :data:`NO_BETTER`; ``better(a, b)`` says
-    whether solve a beats solve b.  Returns the best and every solve made, in order.  A
-    direction stops at the first k that does no better, and at a k with no point after
-    ``gaps`` such counts in a row have been stepped over: no point at one count says
-    nothing of the next (Earth-Venus in 3-D on 10 segments, leaving 2033-05-20 at
-    0.8 mm/s^2: k = -21 ended infeasible, and k = -22 takes 455 d against the 1,098 d of
-    k = -20).
+    """(best, every solve made in order) over the turn counts k on a body, from ``k0``
+    (solved as ``best``) one turn at a time each way while each does better: the a_c
+    needed can change by whole factors from one k to the next.  ``solve(k)`` returns a
+    solve of class k, None when it found no point, or :data:`NO_BETTER`; ``better(a, b)``
+    whether a beats b.  A direction stops at the first k that does no better, or at a k
+    with no point once ``gaps`` such counts in a row were stepped over.
     """
     made = []
     for step in (-1, 1):
@@ -291,24 +243,17 @@ def descend_turns(k0, best, solve, better, steps=TURN_STEPS, gaps=0):
 
 
 #: A class beside the seed's is first probed with Ipopt stopped after PROBE_FACTOR times
-#: the iterations the seed's own class took, and at least PROBE_MIN: the closed-form NLP
-#: of a class that has a transfer converges from its constant-pitch seed in about as many
-#: iterations as the seed's own (42 to 58 on Earth-Mars 2035), while one that ends
-#: infeasible wanders for hundreds before Ipopt says so.  In three dimensions a class
-#: with a transfer can need twice the seed's (Earth-Venus minimum a_c: the best class,
-#: at a fifth of the seed's a_c, was still infeasible when stopped at 1.5 times), so the
-#: cap is three times: a hopeless class still costs a bounded multiple of the answer.
+#: the iterations the seed's own class took, and at least PROBE_MIN: a class with a
+#: transfer converges in about the seed's iterations (in 3-D up to twice), while one that
+#: ends infeasible wanders for hundreds.
 PROBE_FACTOR = 3.0
 PROBE_MIN = 60
 #: A probe stopped at its cap at a point this close to feasible (the largest constraint
 #: violation, canonical units) is still descending in a class that has transfers, and is
 #: solved on from there; one further off is left as hopeless.
 PROBE_FEASIBLE = 1e-6
-#: The least cap of a fallback start (another start after the first found no point).
-#: Unlike a class probe it has no found answer whose cost scales it, and the first
-#: start's failure says little of what a feasible start takes: on
-#: tests/problems/venus_rendezvous_behind.py the first start ended infeasible after 52
-#: iterations and the start that found the transfer took 184.
+#: The least cap of a fallback start (another start after the first found no point): no
+#: found answer's cost scales it (tests/problems/venus_rendezvous_behind.py's took 184).
 FALLBACK_MIN = 300
 
 
@@ -321,13 +266,10 @@ def probe_cap(iterations, least=PROBE_MIN):
 
 #: A planar class probe is stopped as hopeless at the iteration where the answer's own
 #: solve converged (at least :data:`PROBE_MIN`) when its point there is still this far
-#: from feasible (the largest constraint violation, canonical units) and its objective
-#: more than :data:`HOPELESS_RATIO` times the best class's: a planar class with a
-#: transfer converges in about the seed's own iterations, and one that is still far
-#: from feasible and far worse by then has ended infeasible in every case looked at
-#: (results/bench/README.md, "Pace"; tests/test_hopeless_class.py solves such classes
-#: without the stop).  A 3-D problem's classes are probed on the projected model
-#: (:func:`probe_rendezvous_class`), so the stop applies to them there.
+#: from feasible (largest constraint violation, canonical units) and its objective more
+#: than :data:`HOPELESS_RATIO` times the best class's: such a class has ended infeasible
+#: in every case looked at (results/bench/README.md, "Pace").  3-D classes are probed on
+#: the projected model, so the stop applies there.
 HOPELESS_VIOLATION = 1e-3
 HOPELESS_RATIO = 2.0
 
@@ -381,18 +323,10 @@ def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seed
 
 def probe_start(problem, start, cap, progress=None, checkpoint=None):
     """:func:`probe` of ``problem`` from ``start`` (a :class:`Start` of
-    :func:`probe_model`); returns (NLPResult, Transcription, label of the start).
-
-    A 3-D problem's start is probed on the projected model, ``checkpoint`` included,
-    and the projected optimum is lifted into 3-D (:func:`lift`) and solved on from
-    there within ``cap``.  Why: from a constant-pitch seed in 3-D, Ipopt first swings
-    the clock angles far, and a class with a transfer could still be short of feasible
-    at its cap.  On the Earth-Venus minimum a_c leaving 2031-01-21 in 720 d, the count
-    beside the seed's was 4.9e-5 from feasible at its cap of 354 iterations, so the
-    descent stopped at the seed's count with 2.356 mm/s^2; probed so, that count
-    converges in 244 projected and 20 3-D iterations and the descent goes on to
-    0.601 mm/s^2 four counts on.  A start whose projection finds no point is not solved
-    in 3-D: the result is the projection's, and the label says so."""
+    :func:`probe_model`); returns (NLPResult, Transcription, label of the start).  A 3-D
+    start is probed on the projected model and its optimum lifted (:func:`lift`): from a
+    constant-pitch seed in 3-D, Ipopt first swings the clock angles far and may end short
+    of feasible at its cap.  A projection with no point is not solved in 3-D."""
     model = probe_model(problem)
     result, tr = probe(model, start.guess, cap, progress, checkpoint)
     if model is problem:
@@ -408,14 +342,8 @@ def second_start(problem, k, seeds, seed_k):
     from: the last of ``seeds`` (:func:`constant_pitch_seeds` of :func:`probe_model`,
     in :func:`seed_pitches`'s order) whose own count is k, leaving out the pitch that
     solved it (the problem's own for ``seed_k``, the seed's class; else the first seed
-    that winds k, which :func:`rendezvous_starts` takes); None when no other winds k.
-
-    Why: one class holds several local optima, and a constant pitch can start in a poor
-    one.  Earth-Mars leaving 2035-06-01 in 650 d (projected): from the 45 deg seed the
-    seed's class k = 17 ends at 2.332 mm/s^2; from 67.5 deg, which winds 17 too, at
-    2.024, as from most pitches between 20 and 77 deg that wind 17.  The last seed is
-    the flight furthest from the first in pitch, so the likeliest to start in another
-    basin."""
+    that winds k); None when no other winds k.  One class holds several local optima,
+    and the last seed, furthest in pitch from the first, is likeliest in another basin."""
     winding = [(a, g) for a, g in seeds.items() if g.revolutions_k == k]
     if not winding:
         return None
@@ -440,11 +368,8 @@ def lift(problem, result, cap, progress=None):
 #: A 3-D rendezvous's turn counts are first searched on its projected model
 #: (``classes.ClassSearch`` on :func:`probe_model`), and a class is lifted into 3-D only
 #: while its projected objective is within LIFT_RATIO of the best 3-D objective lifted
-#: so far, best projected first.  Why 1.1: a lifted class's 3-D
-#: objective has not come out below its projected one by more than 0.5 % in any case
-#: looked at (the plane change costs; the unprojected geometry moves it little), so a
-#: class 10 % short in projection is not expected to win in 3-D; a 3-D objective well
-#: above the projected one lifts more classes by itself.
+#: so far, best projected first: no lifted class's 3-D objective has come out more than
+#: 0.5 % below its projected one.
 LIFT_RATIO = 1.1
 
 
@@ -464,8 +389,7 @@ def fallback_starts(problem, guess):
     for an orbit transfer the other constant-pitch seeds of :func:`seed_pitches`."""
     if problem.tracks_body():
         k = guess.revolutions_k
-        # A real body's k counts from the turns both bodies made since 2000, so it may
-        # be negative; an idealised body's counts from its phase at departure.
+        # A real body's k counts turns since 2000, so may be negative.
         real = getattr(problem.target, "body", None) is not None
         return rendezvous_starts(problem, [c for c in (k + 1, k - 1, k + 2) if real or c >= 0])
     seeds = constant_pitch_seeds(problem)
@@ -488,25 +412,14 @@ def _same(a, b):
 
 
 def search(problem, extra_revolutions=2, progress=None):
-    """Solve ``problem`` from one start per revolution class; every distinct result.
+    """Solve the minimum-time ``problem`` (fixed departure angle; else InputError) from
+    one start per revolution class, from one below the free optimum's to
+    ``extra_revolutions`` (0 to 20) above it; ``progress(text)`` before each start.
 
-    Parameters
-    ----------
-    problem : Problem
-        A minimum-time problem with a fixed departure angle.
-    extra_revolutions : int
-        Classes beyond the free start's: windows (or rendezvous turn counts) from one
-        below the free optimum's to ``extra_revolutions`` above it.
-    progress : callable, optional
-        ``progress(text)`` before each start.
-
-    Returns
-    -------
-    (list of Candidate, list of dict)
-        The distinct converged optima, free ones first, each group by time of flight;
-        and one record per start: ``label``, ``revolutions`` (the class), ``status``,
-        ``iterations``, ``seconds``, ``tof`` (TU, or None) and ``candidate`` (its index
-        in the list, or None when it did not converge).
+    Returns (list of Candidate, list of dict): the distinct converged optima, free ones
+    first, each group by time of flight; and one record per start: ``label``,
+    ``revolutions`` (the class), ``status``, ``iterations``, ``seconds``, ``tof`` (TU, or
+    None) and ``candidate`` (its index in the list, or None when it did not converge).
     """
     _check(problem)
     if isinstance(extra_revolutions, bool) or not isinstance(extra_revolutions, int) \
@@ -534,11 +447,8 @@ def _class_starts(problem, first, tr, extra_revolutions):
         centre = int(swept_angle(first) // (2 * math.pi))
     else:
         centre = int(float(tr.guess.nodes[1, -1] - problem.x0()[1]) // (2 * math.pi))
-    # The free start's own window gets a start of its own as well: on Earth-Mars at 30
-    # segments the two reach the same transfer with the pitch passing +-90 deg in
-    # different segments, and only one of the two polished to a verified schedule.
-    # A real body's k counts from the turns both bodies made since 2000, so it may be
-    # negative (Venus's are); an idealised body's and a window's count from 0.
+    # The free start's own window gets a start too: the two can reach one transfer
+    # differently, and only one may polish to a verified schedule.
     real = getattr(problem.target, "body", None) is not None
     classes = [k for k in range(centre - 1, centre + extra_revolutions + 1)
                if (real or k >= 0) and not (rendezvous and k == base_k)]

@@ -1,24 +1,13 @@
 """Many cells of one problem on one NLP: launch-window and flight-time scans.
 
 A cell is the problem at one departure date (and, for a fixed-time objective, one time
-of flight).  Dates and times of flight are parameters of the NLP
-(``Transcription.parameters``), so the NLP and its Ipopt solver are built once for
-the first cell and every later cell re-solves them warm from a solved neighbour: a
-neighbour's optimum is a far better start than a constant-pitch seed, and building
-the NLP costs more than a warm solve.
-
-A warm start stays in its neighbour's basin, and a scan's optimum can change basin
-between cells (a rendezvous that gains one more turn on the body, say).  So after the
-forward pass every cell that ended worse than a neighbour -- not converged, not
-verified, or a larger objective -- is solved again from that neighbour, the other way
-along the scan, and keeps the better of the two; a cell solved again so passes its new
-optimum on to its neighbours.  A cell no neighbour can start is solved cold from its own
-seed, as a lone solve would.  A cell's turn counts are searched by the lone solve's
-``classes.ClassSearch``, each count warm from its chain of cells (:func:`_candidates`).
-
-Every cell goes through the error control and the CVODES verification of a lone solve
-(``optimisation.error_control``, ``optimisation.verify``): a scan's cell is verified exactly
-when the same cell solved alone would be.
+of flight).  Both are parameters of the NLP (``Transcription.parameters``), so the NLP
+and its solver are built once per revolution class and every later cell re-solves them
+warm from a solved neighbour, a far better start than a seed, for less than a build.
+A warm start stays in its neighbour's basin, so a repair pass (:func:`_repair`) solves
+cells worse than a neighbour again from it; a cell's turn counts are searched by the
+lone solve's ``classes.ClassSearch``.  Every cell is error-controlled and verified as a
+lone solve is.
 """
 
 import dataclasses
@@ -46,19 +35,17 @@ from esail_opt.optimisation.verify import verify
 CLASS_ITERATIONS = 300
 #: A MinAcceleration or MinTime scan looks at the turn counts beside a cell's best at
 #: every cell, but not at a count whose estimated optimum there
-#: (:meth:`CellSolver.estimate`, from the count's last cell on its chain) is at least
-#: LOOK_MARGIN times the best the cell has found.  Why 1.1: the estimate is the tangent
-#: of the count's optimum as a function of the dates, and on the 3-D porkchop bench it
-#: has erred low, which costs only a look (by up to 66 % from a cell five back), and high
-#: by 0.7 % at most, from one to eight cells back (results/bench/README.md).
+#: (:meth:`CellSolver.estimate`) is at least LOOK_MARGIN times the best the cell has
+#: found: the estimate has erred high by 0.7 % at most on the 3-D porkchop bench (low
+#: costs only a look; results/bench/README.md).
 LOOK_MARGIN = 1.1
 
 
 def at_date(problem, jd, tof_days=None):
     """``problem`` departing at the Julian date ``jd`` (TDB), its date fixed, and with
-    ``tof_days`` given its fixed time of flight replaced too: one change, so that the
-    problem's checks see the cell's own date and flight together (a date that the
-    file's time of flight would carry past the ephemeris may suit the cell's)."""
+    ``tof_days`` given its fixed time of flight too: one change, so that the problem's
+    checks see the cell's own date and flight together.  Raises InputError for an
+    undated departure or, with ``tof_days``, a free-time objective."""
     if not problem.dated():
         raise InputError(f"departure = {type(problem.departure).__name__}: a scan over "
                          "departure dates needs departure = BodyDeparture(...)")
@@ -88,8 +75,8 @@ class Cell(Ranked):
     misses: dict
     seconds: float
     start: str  # where its start came from: "seed", "previous", "next"
-    # The optimum on the scan's NLP before the error control changed anything: the
-    # start a neighbour is warmed from (a grown mesh has another layout).
+    # The optimum on the scan's NLP a neighbour is warmed from (a grown mesh has
+    # another layout).
     on_scan_nlp: Optional[NLPResult] = None
     finished: bool = False  # error-controlled and verified
     defects: Optional[np.ndarray] = None  # what on_scan_nlp was solved with
@@ -100,13 +87,9 @@ class Cell(Ranked):
 
 
 class CellSolver:
-    """One NLP and one warm Ipopt solver per revolution class, for every cell of a scan.
-
-    A class's NLP is built on the first cell of that class, solved cold
-    (``ipopt.solve_problem``: equal segments first, then free ones); its mesh then holds
-    for every cell of the scan.  A rendezvous's turn count k on the body is part of its
-    NLP's constraints, so each k has an NLP of its own (off the calendar, or for orbit
-    targets, there is only k = 0).
+    """One NLP and one warm Ipopt solver per revolution class k (a rendezvous's turn
+    count is part of its NLP's constraints; orbit targets have only k = 0), built on the
+    class's first cell, solved cold; its mesh then holds for every cell of the scan.
     """
 
     def __init__(self, method=None):
@@ -115,8 +98,7 @@ class CellSolver:
         self.method = method
         self.last = {}  # k -> the class's last cell, for a solver of projected cells
         self._projected = None
-        # k -> (the class's NLP, a cold Ipopt solver on it) (:meth:`lifted`); a class
-        # whose mesh the error control refined has a new NLP, and needs a new solver.
+        # k -> (the class's NLP, a cold Ipopt solver on it) (:meth:`lifted`)
         self.lifters = {}
 
     @property
@@ -145,14 +127,13 @@ class CellSolver:
             if on_scan is not None:
                 k = on_scan.revolutions_k
                 if controlled.problem.segments != problem.segments:
-                    # The error control needed more sub-arcs: the class's NLP takes the
-                    # finer mesh from here on, rather than every later cell growing it.
+                    # The class's NLP takes the finer mesh from here on, rather than
+                    # every later cell growing it.
                     rtr = controlled.transcription
                     self.nlps[k] = (rtr, build_solver(rtr, warm=True),
                                     controlled.problem.segments)
                     self.segments = controlled.problem.segments
-                # The next cell starts from the corrected optimum with its defects,
-                # which change little from cell to cell.
+                # Defects change little from cell to cell.
                 on_scan, defects = controlled.result, controlled.defects
             problem, result, tr = (controlled.problem, controlled.result,
                                    controlled.transcription)
@@ -177,16 +158,14 @@ class CellSolver:
             problem = sub_arcs_within_cap(problem, guess, MAX_SUB_ARCS)
             self.segments = dataclasses.replace(problem.segments, count=guess.alpha.size,
                                                 per_revolution=None)
-        # The scan's NLP fixes the mesh: the segment count of its first seed, and the
-        # sub-arcs the cap asked for there.
+        # The mesh is fixed by the first seed: its segment count and capped sub-arcs.
         return dataclasses.replace(problem, segments=self.segments), guess
 
     def cold(self, problem, k=None, start=None):
         """Solve a cell from its own constant-pitch seed, from turn count ``k``'s seed
-        (``multistart.rendezvous_starts``), or from ``start``, an optimum of the
-        class search on the scan's mesh in class ``k`` (:func:`_candidates`; in
-        3-D one of the projected model, lifted by ``seed.lifted_guess``).  The
-        first cell of a class builds the class's NLP."""
+        (``multistart.rendezvous_starts``), or from ``start``, an optimum of the class
+        search in class ``k`` (in 3-D one of the projected model, lifted).  The first
+        cell of a class builds the class's NLP."""
         started = time.perf_counter()
         label = "seed" if k is None else f"class {k}"
         # A class's seed is a look at another basin, not worth a full iteration budget.
@@ -212,11 +191,10 @@ class CellSolver:
         return self._candidate(problem, result, tr, started, label, on_scan)
 
     def lifted(self, problem, start):
-        """Solve a 3-D cell from ``start``, an optimum of its projected model, lifted
-        (``seed.lifted_guess``) onto the scan's NLP of its class, so that the cell's
-        neighbours can start from what it finds; None where the scan has no NLP of that
-        class, or one of another segment count.  It starts cold from the lifted point,
-        with a class's budget (:data:`CLASS_ITERATIONS`), as a lone solve's lift does."""
+        """Solve a 3-D cell cold from ``start``, an optimum of its projected model,
+        lifted onto the scan's NLP of its class (so neighbours can start from it), with
+        :data:`CLASS_ITERATIONS`; None where the scan has no NLP of that class, or one of
+        another segment count."""
         k = start.revolutions_k
         if k not in self.nlps:
             return None
@@ -250,13 +228,10 @@ class CellSolver:
         return dataclasses.replace(cell, defects=neighbour.defects)
 
     def estimate(self, problem, neighbour):
-        """The objective of ``problem`` in ``neighbour``'s class, to first order: the
-        neighbour's optimum plus its constraint multipliers times the change of its
-        constraints at its own point when the NLP's parameters (date, time of flight)
-        move to ``problem``'s.  This is the envelope theorem: the bounds and the
-        constraints' limits are the same in every cell of a class's NLP, so only the
-        parameters move the optimum.  None where the neighbour cannot start the cell
-        (:meth:`warm`)."""
+        """The objective of ``problem`` in ``neighbour``'s class, to first order by the
+        envelope theorem: the neighbour's optimum plus its multipliers times the change of
+        its constraints when the parameters move to ``problem``'s.  None where the
+        neighbour cannot start the cell (:meth:`warm`)."""
         if neighbour is None or neighbour.on_scan_nlp is None:
             return None
         tr = self.nlps[neighbour.on_scan_nlp.revolutions_k][0]
@@ -285,15 +260,10 @@ class CellSolver:
         return (model, *solve_problem(model, guess=initial_guess(model)))
 
     def from_projected(self, problem, k):
-        """A 3-D cell solved in count ``k`` from its projected model's optimum (warm
-        from the count's last projected cell, :attr:`projected`), lifted: its own solves
-        start from its 3-D neighbour and stay in that neighbour's basin of the count.
-        The lifted cell, or none where the projected model found no point in that count
-        (or another segment count than the scan's).
-
-        Why: on the 3-D Venus chart of ``results/`` a cell ended 1.4 % above a lone
-        solve of it, and on an Earth-Mercury chart two cells ended 4.8 % and 5.1 %
-        above, each in the same count as the lone solve."""
+        """A list of the 3-D cell solved in count ``k`` from its projected model's optimum
+        (warm from the count's last projected cell), lifted; empty where the projected
+        model found no point in that count on the scan's segments.  A warm 3-D solve would
+        stay in its neighbour's basin, which ended up to 5 % above a lone solve."""
         flat = self.projected
         model = multistart.probe_model(problem)
         start = flat.warm(model, flat.last.get(k), "projected")
@@ -308,32 +278,15 @@ class CellSolver:
 
 
 def scan(cells, progress=None, method=None, neighbours=None, explore=False, on_cell=None):
-    """Solve every cell problem of ``cells`` (a list, in scan order) on one NLP per class.
+    """Solve every Problem of ``cells`` (in the order of a path) on one NLP per class:
+    a list of :class:`Cell` in the same order.
 
-    Parameters
-    ----------
-    cells : list of Problem
-        In the order of a path: each cell neighbours the one before it.
-    progress : callable, optional
-        ``progress(text)``: one line per cell.
-    method : segment method, optional
-        Replaces the closed form as the NLPs' segment method (``segment_methods``; the
-        benchmark passes ``RK4``); its cells are verified without the error control,
-        which corrects the closed form.
-    neighbours : list of list of int, optional
-        For each cell, the positions of its neighbours in ``cells`` (a grid's cells
-        beside it); default the cells before and after it in the path.
-    explore : bool
-        Solve the turn counts either side of a cell's own at every cell, not only at
-        the run's first (a coarse scan that seeds something else needs every class).
-    on_cell : callable, optional
-        ``on_cell(position, cell)`` as each cell ends the forward pass, finished; the
-        repair pass may still replace it.
-
-    Returns
-    -------
-    list of Cell
-        In the order of ``cells``.
+    ``method`` replaces the closed form as segment method (``segment_methods``), its
+    cells verified without the error control; ``neighbours[i]``, the positions of cell
+    i's neighbours (default the cells before and after it); ``explore`` solves the turn
+    counts either side of every cell's own, not only the first's; ``on_cell(position,
+    cell)`` is called as each cell ends the forward pass, which the repair pass may still
+    replace; ``progress(text)`` gets one line per cell.
     """
     solver = CellSolver(method)
     say = progress or (lambda text: None)
@@ -369,13 +322,9 @@ def _repair(solver, cells, out, classes, neighbours, say):
     """The repair pass, back along the path and forward again, replacing cells of
     ``out`` in place (and adding to ``classes`` the classes tried).
 
-    A cell is solved again from a neighbour that holds a class it has not tried, from a
-    neighbour that this pass solved again (its optimum may lie in another basin of the
-    same class than the one the forward pass chained), or, where the cell is worse than
-    every neighbour with the same objective (a spike: the same time of flight, for a
-    fixed-time scan), from each of them that did better.  Smooth slopes are left alone:
-    a neighbour's start there only finds the optimum the cell already has.  A start
-    already taken for a cell gives the same solve again: each is taken once."""
+    A cell is solved again once from each neighbour start that holds a class it has not
+    tried, that this pass solved again, or that did better where the cell is a spike
+    (:func:`_spike`); on smooth slopes a neighbour's start finds nothing new."""
     n = len(cells)
     taken = {}  # (cell, neighbour) -> the neighbour's start last taken for the cell
     renewed = set()  # the cells this pass solved again
@@ -420,8 +369,7 @@ def _settle(solver, ranked):
 def _candidates(solver, problem, previous, chains, explore):
     """A cell's solves, ranked best first and in the order made: warm from the previous
     cell, then its turn counts (``classes.ClassSearch``), each warm from its chain in
-    ``chains`` or cold; a first cell's searched as a lone solve's (from its counts'
-    seeds, Earth-Mars leaving 2031-09-02 ended at 975.75 d where that finds 682.2 d)."""
+    ``chains`` or cold; a first cell's searched as a lone solve's."""
     search = ClassSearch(
         problem, first=previous is None, explore=explore,
         seed=functools.partial(solver.projected_seed, problem),
@@ -464,8 +412,7 @@ def _line(i, n, cell):
 
 
 #: Days between the cells of the coarse scan that seeds a free departure date, and the
-#: most cells it takes: a synodic period of Earth and Mars is about 780 days, so a
-#: window of several years still gets a dozen looks.
+#: least and most cells it takes.
 SEED_SPACING_DAYS = 60.0
 SEED_CELLS = (4, 16)
 
@@ -484,11 +431,9 @@ class Seed:
 
 def seed_free_date(problem, progress=None):
     """A start for a problem whose departure date is free in a window: the best cell of
-    a coarse scan of the window at fixed dates (a :class:`Seed`).
-
-    In three dimensions the dates are ranked on the projected model first
-    (:func:`_lifted_seed`), and the 3-D model scans them itself only when the projected
-    best does not converge in 3-D."""
+    a coarse scan of the window at fixed dates (a :class:`Seed`).  In 3-D the dates are
+    ranked on the projected model (:func:`_lifted_seed`) unless its best does not
+    converge in 3-D."""
     if problem.three_d():
         seed = _lifted_seed(problem, progress)
         if seed.guess is not None:
@@ -535,17 +480,10 @@ def _scanned_seed(problem, progress):
 
 
 def _lifted_seed(problem, progress):
-    """A 3-D free date seeded from the projected model: its best date's optimum
-    (``planar=True``, the same problem with the bodies' states in the ecliptic) flown in
-    3-D with the clock at 0 (``seed.lifted_guess``) and solved as a 3-D cell.
-
-    Why: the scan is there to rank dates and turn counts, and the plane change of a
-    transfer between bodies a few degrees apart moves each date's optimum by little,
-    while a scan in 3-D costs several times the projected one, most of it in cold
-    class solves whose clock angles Ipopt first swings far (Earth-Mars 2030-2033: the
-    same best date within two days and the same turn count either way, and the 3-D
-    solve the same optimum to 1e-12).  The seed's guess is None when the projected scan
-    found nothing or the 3-D cell did not converge from it."""
+    """A 3-D free date seeded from the projected model: its best date's optimum lifted
+    (``seed.lifted_guess``) and solved as a 3-D cell; ``guess`` None when the projected
+    scan found nothing or the 3-D cell did not converge.  The plane change moves each
+    date's optimum little, and a 3-D scan costs several times a projected one."""
     started = time.perf_counter()
     best, iterations = _best_date(multistart.probe_model(problem), progress)
     if best is None:

@@ -1,11 +1,8 @@
 """The NLP's start: a seed flown at constant pitch, and the :class:`Guess` every start is.
 
-The seed flies the paper's first-order arcs at one pitch from the departure until the
-target radius or the fixed time of flight, cuts that flight into the problem's segments
-and takes the nodes the NLP's own segments reach (``optimisation.nodes``), so that a
-solve starts with every continuity constraint met.  A result of another NLP (a
-neighbour's optimum, a class search's, the planar model's) becomes a start as a
-:class:`Guess` too (``NLPResult.as_guess``, :func:`lifted_guess`).
+The seed's nodes are those the NLP's own segments reach (``optimisation.nodes``), so a
+solve starts with every continuity constraint met.  A result of another NLP becomes a
+start as a :class:`Guess` too (``NLPResult.as_guess``, :func:`lifted_guess`).
 """
 
 import dataclasses
@@ -23,8 +20,8 @@ from esail_opt.propagation.rectified import propagate
 #: Initial-guess propagation step, rad: a sub-arc short enough for the closed form at
 #: a_c = 1 mm/s^2 (THEORY.md §5.2: sub-arcs of about a tenth of a radian).
 GUESS_STEP = 0.05
-#: The seed's constant-pitch propagation: the paper's first-order arcs, GUESS_STEP
-#: long (a seed needs no more, and it is what the shipped problems were seeded with).
+#: The seed's constant-pitch propagation: the paper's first-order arcs, GUESS_STEP long
+#: (a seed needs no more).
 GUESS_MODEL = FIRST_ORDER
 #: Guess steps per call of the (cached) rectified propagator.
 GUESS_CHUNK = 200
@@ -32,13 +29,10 @@ GUESS_CHUNK = 200
 
 @dataclass
 class Guess:
-    """A start of the NLP in canonical units, and the revolution class it belongs to.
-
-    ``throttle`` None means full thrust (1) everywhere.  The revolution class is part of
-    the start because it is part of the NLP: ``revolutions_k`` fixes a rendezvous'
-    whole turns between the sail and the body, and ``theta_window`` (rad), when given,
-    boxes the final polar angle to confine a transfer to a number of revolutions
-    (``optimisation.multistart``).  Every NLP built from this start keeps both.
+    """A start of the NLP in canonical units, and the revolution class it belongs to,
+    which every NLP built from it keeps: ``revolutions_k``, a rendezvous' whole turns
+    between sail and body, and ``theta_window`` (rad), a box on the final polar angle
+    (``optimisation.multistart``).  ``throttle`` None means full thrust everywhere.
     """
 
     alpha: np.ndarray
@@ -55,16 +49,9 @@ class Guess:
 
 
 def _fly_until(problem, x0, alpha, stop, what):
-    """Fly constant pitch from x0 in GUESS_STEP arcs until ``stop(xs)`` returns an index.
-
-    Returns the angle flown to the (linearly interpolated) stopping point.
-
-    Raises
-    ------
-    NoStart
-        If the propagation leaves the closed form's validity (an escaping orbit, q3 <= 0)
-        or flies ``max_revolutions`` before it stops: no seed can be built from it.
-    """
+    """The angle (rad) flown at constant pitch from x0 in GUESS_STEP arcs to where
+    ``stop(xs)`` returns a (fractional) index.  Raises NoStart if the flight leaves the
+    closed form's validity (escape, q3 <= 0) or flies ``max_revolutions`` first."""
     limit = 2 * math.pi * problem.max_revolutions
     ac = problem.sail.ac
     coeff = problem.sail.coefficients
@@ -101,8 +88,7 @@ def _pitch(problem, alpha):
 
 def _seed_ac_hint(problem):
     """What else a MinAcceleration user can change when its seed escapes: the sail's
-    a_c there only seeds the search (and scales it), and a smaller one flies a seed that
-    stays bound, while the optimum's a_c is the same."""
+    a_c only seeds the search."""
     if not problem.objective.free_acceleration:
         return ""
     return (f"; a smaller sail.ac_mm_s2 may stay bound (a MinAcceleration sizes a_c "
@@ -110,10 +96,8 @@ def _seed_ac_hint(problem):
 
 
 def _crossing(values, level):
-    """Fractional index where ``values`` first reaches ``level`` (from either side), or None.
-
-    Only the finite leading part counts: past a NaN (an arc beyond its validity) there
-    is nothing to interpolate."""
+    """Fractional index where the finite leading part of ``values`` first reaches
+    ``level`` (from either side), or None."""
     bad = np.flatnonzero(~np.isfinite(values))
     values = values[: bad[0]] if bad.size else values
     if values.size < 2:
@@ -140,31 +124,21 @@ def guess_alpha(problem):
 
 
 #: The a_c a MinAcceleration's seed flies at, as fractions of the sail's, tried in turn
-#: until one stays bound for the time of flight: its a_c only seeds the search, and a
-#: seed that escapes (Earth-Mars in 650 d from a 2 mm/s^2 seed) is no start at all.  A
-#: throttled sail's seed tries the same fractions as its throttle (those within the
-#: sail's throttle bounds): at full thrust a strong sail's seed escapes before it
-#: reaches a far target (Psyche at 3 mm/s^2), where the NLP may throttle down anyway.
+#: until one stays bound for the time of flight (a seed that escapes is no start).  A
+#: throttled sail's seed tries those within its throttle bounds as its throttle: at full
+#: thrust a strong sail's seed escapes before a far target.
 SEED_AC_SCALES = (1.0, 0.5, 0.25, 0.125)
 
 
 def initial_guess(problem):
-    """Seed the NLP from a forward rectified propagation at one constant pitch (never zeros).
+    """Seed the NLP from a forward rectified propagation at one constant pitch: a
+    :class:`Guess`.
 
-    The total angle is where that propagation (GUESS_STEP arcs) reaches the target
-    radius (minimum time) or the fixed time of flight; it is cut into N equal segments,
-    and the nodes are the states the NLP's own segments reach from the departure, so
-    every continuity constraint holds exactly at the start.  N is the problem's count,
-    or with ``Segments(per_revolution=K)`` ceil(K angle / 2 pi) (``Segments.count_for``):
-    the guess fixes the NLP's size, and :func:`transcribe` takes N from it.  A
-    MinAcceleration's seed flies at the first of :data:`SEED_AC_SCALES` times the sail's
-    a_c whose flight stays bound (the guess's ``ac_scale``), a throttled sail's at the
-    first of them as its throttle (the guess's ``throttle``).
-
-    Raises
-    ------
-    NoStart
-        When no seed can be flown: the error of the sail's own a_c.
+    The angle flown to the target radius (minimum time) or the fixed time of flight is
+    cut into N equal segments, N from ``Segments.count_for``; the guess fixes the NLP's
+    size.  A MinAcceleration's (a throttled sail's) seed flies at the first of
+    :data:`SEED_AC_SCALES` whose flight stays bound, as ``ac_scale`` (``throttle``).
+    Raises NoStart, the sail's own a_c's, when no seed can be flown.
     """
     first = None
     for scale in _seed_scales(problem):
@@ -202,8 +176,7 @@ def _seeded(problem, scale):
                            f"the target radius ({radius:g} au)")
     n = problem.segments.count_for(angle)
     lengths = np.full(n, angle / n)
-    # The nodes come from the NLP's own segment map, so continuity holds exactly.  In
-    # three dimensions the seed's clock is 0: the planar flight above in a fixed plane.
+    # In three dimensions the seed's clock is 0: the planar flight in a fixed plane.
     xs = flown_segments(problem, np.full(n, alpha), lengths,
                         problem.plane_x0() if problem.three_d() else x0,
                         throttle=np.full(n, scale))
@@ -240,8 +213,7 @@ def _turns_behind(problem, alpha, nodes, t0):
 
 def split_guess(problem, guess, x_start, parts):
     """``guess`` with every segment cut into ``parts`` equal ones of the same attitude
-    and throttle, its nodes flown again on ``problem``'s segments from ``x_start`` (the
-    NLP's start), so that continuity holds exactly: the same flight on a finer mesh."""
+    and throttle, its nodes flown again from ``x_start`` (the NLP's start)."""
     def cut(values):
         return None if values is None else np.repeat(np.asarray(values, float), parts)
 
@@ -258,9 +230,8 @@ def split_guess(problem, guess, x_start, parts):
 def lifted_guess(problem, guess):
     """A planar start (``guess``, of the same problem with ``planar=True``) as a start of
     the 3-D ``problem``: the same pitches, lengths, throttles and a_c scale, the clock at
-    0, and the nodes the 3-D segments reach from the departure's own plane, so that
-    continuity holds exactly and only the target's rows are off (by the body's height
-    over the ecliptic, and what the unprojected departure changes)."""
+    0, and the nodes flown from the departure's own plane, so only the target's rows are
+    off."""
     kappa = np.ones(guess.alpha.size) if guess.throttle is None else np.asarray(guess.throttle)
     xs = flown_segments(problem, guess.alpha, guess.lengths,
                         problem.departure.plane_state_at(guess.epoch, guess.vinf_angle),

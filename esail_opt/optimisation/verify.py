@@ -1,22 +1,11 @@
 """Verification of an optimised schedule on the full Eqs. 1-2 with CVODES (in three
 dimensions in the turning plane, checked on the Cartesian equations, :func:`verify3d`).
 
-The schedule is flown from the departure state with the pitch switching at the NLP's
-segment start times and each segment lasting the NLP's own duration (the closed form's
-clock).  The final state is compared twice: with the NLP's final node (how far the
-closed form drifted from the true dynamics) and with the target (how far the flown
-trajectory ends from where the mission wanted to be).
-
-The verifier is itself an integrator with an error, so it flies every schedule twice,
-at CVODES tolerances of 3e-16 and 1e-15 (``simulate.VERIFY_TOLERANCE`` and
-``CHECK_TOLERANCE``), and reports the difference of the two final states as its own
-error (in three dimensions, plus its gap to a flight of the Cartesian equations).
-:func:`judge` counts a bound as met only when the miss plus that error is below it.
-
-Beside the flight, :func:`verify` draws the closed form the NLP solved: every segment
-flown from its own node on the NLP's own arcs (``segment_methods.arc_model``: order,
-invariant, sub-arcs, extrapolation and quadrature), so that the curve's segment ends are
-the NLP's nodes and the gap between the two curves is the closed form's error alone.
+The schedule is flown from the exact departure for the NLP's own segment durations, and
+its final state is held to the NLP's final node (the closed form's drift) and to the
+target.  The verifier's own error is the gap between flights at ``simulate``'s
+``VERIFY_TOLERANCE`` and ``CHECK_TOLERANCE``; :func:`judge` counts a bound as met only
+when the miss plus that error is below it.
 """
 
 from dataclasses import dataclass
@@ -109,27 +98,11 @@ def _outside(misses):
 
 
 def judge(problem, misses, error, tolerance, against_nlp=False):
-    """Whether a flight meets a tolerance, and one line that says so.
-
-    Parameters
-    ----------
-    problem : Problem
-    misses : dict
-        :func:`verify`'s misses (km and m/s).
-    error : str or None
-        Why the flight failed, if it did.
-    tolerance : Tolerance
-        Bounds in km and m/s.
-    against_nlp : bool
-        Hold the flight to the NLP's final state as well as to the target (the polish
-        does: its nodes are its answer).  Without a target the NLP's final state is the
-        only reference, so it is used either way.
-
-    Returns
-    -------
-    (bool, str)
-        Met or not, and a line naming each missed bound with the miss, the verifier's
-        error and the bound.
+    """``(met, line)``: whether a flight with :func:`verify`'s ``misses`` (km, m/s) and
+    failure ``error`` (or None) meets ``tolerance``, and a line naming each missed bound
+    with the miss, the verifier's error and the bound.  ``against_nlp`` holds the flight
+    to the NLP's final state as well as to the target (the polish's nodes are its
+    answer); without a target that state is held either way.
     """
     if error is not None:
         return False, f"NOT verified: {error}"
@@ -149,7 +122,7 @@ def judge(problem, misses, error, tolerance, against_nlp=False):
     flight = f"the flight on {problem.equations()}"
     if failed:
         speeds = any(v is not None for _, _, v in checks)
-        # Then no flight, however good, passes: say so, or a user tries again in vain.
+        # No flight, however good, passes: say so, or a user tries again in vain.
         blind = (r_err >= tolerance.position_km
                  or (speeds and v_err >= tolerance.velocity_m_s))
         return False, (f"NOT verified: {flight} " + "; ".join(failed)
@@ -170,12 +143,10 @@ def closed_form_curve(problem, result, samples=SAMPLES, defects=None):
     """The closed form the NLP solved, sampled: 5 x (1 + N S m) states, S sub-arcs and
     m = max(1, samples // S) samples per sub-arc, so that column k S m is node k.
 
-    Every segment is flown from its NLP node on the NLP's arcs (``arc_model(problem)``)
-    at its pitch, angle and throttle, and its time continues from the node's.  A
-    segment the NLP solved with a defect (the defect correction, ``optimisation.error_control``)
-    ends on its node only with the defect added; the NLP knows the defect at the end
-    alone, so the curve adds it in proportion to the angle flown, which keeps the curve
-    continuous and changes no segment end.
+    Every segment is flown from its NLP node on the NLP's arcs (``arc_model(problem)``),
+    so the gap to the CVODES flight is the closed form's error alone.  ``defects``
+    (``optimisation.error_control``), known at segment ends only, are added in proportion
+    to the angle flown, keeping the curve continuous.
     """
     model = arc_model(problem)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
@@ -204,14 +175,10 @@ def closed_form_curve(problem, result, samples=SAMPLES, defects=None):
 
 
 def verify(problem, result):
-    """Fly ``result``'s schedule with CVODES and measure its misses: a
-    :class:`Verification`.
-
-    ``problem`` is as solved; ``result`` (an ``NLPResult``) gives the schedule: its
-    ``x_start``, ``alpha`` (and ``delta`` in 3-D), ``durations``, ``nodes`` and
-    ``throttle`` (kappa per segment; None is full thrust).  The flight is kept at the
-    departure and each segment's end: a verdict never depends on how densely a flight
-    is drawn (:func:`sampled` draws it).
+    """Fly the schedule of ``result`` (an ``NLPResult``; ``throttle`` None is full thrust)
+    with CVODES and measure its misses: a :class:`Verification`.  The flight is kept at
+    the departure and segment ends only, so a verdict never depends on how densely it is
+    drawn (:func:`sampled` draws it).
     """
     if getattr(result, "delta", None) is not None:
         return verify3d(problem, result)
@@ -255,9 +222,8 @@ def _failed():
 
 def polar_view(flight, x_start):
     """A 3-D flight's Cartesian samples (7 x M) as [r, theta, v_r, v_theta, t] for the
-    plots: theta is the angle swept, unwrapped from the departure's own theta (the
-    8-row ``x_start``), v_theta = |r x v| / r.  The samples must lie less than half a
-    turn apart.  A view, not a model: nothing here is flown."""
+    plots: theta is the angle swept from the 8-row ``x_start``'s theta (samples less
+    than half a turn apart), v_theta = |r x v| / r."""
     pos, vel = flight[:3], flight[3:6]
     r = np.linalg.norm(pos, axis=0)
     h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
@@ -284,18 +250,11 @@ def _node_view(flight, result):
 
 
 def verify3d(problem, result):
-    """:func:`verify` in three dimensions: the schedule of pitch and clock angles flown
-    by CVODES (``simulate.simulate3d``, in time, the NLP's durations) from the exact 3-D
-    departure (``Problem.start_state``), and its final state held, in Cartesian
-    coordinates of the ecliptic of J2000, to the NLP's final node and to the target
-    body's exact, unprojected state at the flown arrival (``miss3d``).
-
-    The judged flight integrates Eqs. 1-2 in the turning plane (``simulate.FORMS_3D``).
-    The same schedule is also flown on the Cartesian equations, which use no plane and
-    no polar state, and the verifier's own error is the gap to a second turning flight
-    at ``CHECK_TOLERANCE`` plus the gap to that Cartesian flight: two forms do not share
-    each other's integration errors, as two flights of one form do (THEORY.md §5.5), and
-    a fault in the decomposition can only make a verdict harder to earn."""
+    """:func:`verify` in three dimensions, in the turning plane (``simulate.FORMS_3D``),
+    held in Cartesian coordinates of the ecliptic of J2000 to the NLP's final node and to
+    the target body's state at the flown arrival (``miss3d``).  The verifier's error adds
+    the gap to a flight of the Cartesian equations, as two forms do not share their
+    integration errors (THEORY.md §5.5)."""
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     args = (problem.start_state(result), result.alpha, result.delta, result.durations, ac)
     kappa = _throttles(result)
@@ -344,10 +303,9 @@ class Sampled:
 
 def sampled(problem, result, defects=None, samples=SAMPLES):
     """``result``'s schedule drawn with ``samples`` points a segment (a :class:`Sampled`):
-    the closed form flown from the NLP's nodes with ``defects``, and CVODES from the exact
-    departure at the verdict's tolerance.  A flight of its own, apart from the verdict's:
-    stopping CVODES at each sample moves a flight's end by as much as the verifier's own
-    error, and a verdict must not depend on how densely it is drawn."""
+    the closed form from the NLP's nodes with ``defects``, and CVODES from the exact
+    departure.  Apart from the verdict's flight, because stopping CVODES at each sample
+    moves a flight's end by as much as the verifier's own error."""
     closed = closed_form_curve(problem, result, samples, defects)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     kappa, y0 = _throttles(result), problem.start_state(result)
