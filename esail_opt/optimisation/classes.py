@@ -131,9 +131,8 @@ class ClassSearch:
                                               and any(c.solved for c in tried))):
             self._own_classes(tried)
         if looks_on and (sizing or not objective.fixed_time):
-            # The best count drifts across a chart, and a warm chain keeps its own: on
-            # Venus a MinAcceleration chain needed 3 to 4 times the best count's a_c;
-            # Earth-Mars from 2033-08-11 in 3-D kept k = 17: 1,008 d, the count beside 715 d.
+            # The best count drifts across a chart, and a warm chain keeps its own, at
+            # up to several times the best count's objective.
             self._descend(tried)
         best = min((c for c in tried if c.solved), key=_rank, default=None)
         if (looks_on and self.from_projected is not None and self.problem.three_d()
@@ -146,11 +145,9 @@ class ClassSearch:
     def _searched(self):
         """The counts probed from the seed's (:meth:`_probed`) and, with a lift, the
         best lifted, within ``multistart.LIFT_RATIO`` of the best lifted so far: the
-        candidates, in the order made.  Why the projected model: a 3-D iteration costs
-        about twice a projected one, and the ranking barely moves between the two
-        (Earth-Venus minimum a_c: -20 and -21 swap within 3 %, the others need twice
-        the best or more).  A count undecided at its cap is where the projection is a
-        poor guide: Bennu's k = 5 does not converge on it, and is the best in 3-D."""
+        candidates, in the order made.  A count undecided at its cap ends the search: the
+        projection is a poor guide there (a count that does not converge on it can be
+        the best in 3-D)."""
         model, result, tr = self.seed()
         self.solves = [result]
         if not result.outcome.found:
@@ -191,13 +188,13 @@ class ClassSearch:
     def _probed(self, model, result, tr):
         """The counts beside ``result``'s on ``model`` probed one turn at a time each way
         while each does better, the best from a second start as well: :class:`Candidate`
-        in the order solved, the seed's first.  The a_c or time of flight can change by
-        whole factors from one k to the next, and the seed's k is only what a constant
-        pitch winds.  Each probe is capped (``multistart.probe_cap``) and stopped when
-        hopeless (``multistart.hopeless_checkpoint``); with a lift, one that ends at its
-        cap, neither converged nor hopeless, raises :class:`Undecided`.  Where two cores
-        allow (:func:`_runs_ahead`), the count above the seed's is probed in a thread
-        while the search goes down (:class:`_Ahead`), to the same candidates."""
+        in the order solved, the seed's first (the seed's k is only what a constant pitch
+        winds, and the objective can change by whole factors between counts).  Each
+        probe is capped (``multistart.probe_cap``) and stopped when hopeless
+        (``multistart.hopeless_checkpoint``); with a lift, one that ends at its cap
+        raises :class:`Undecided`.  With two cores (:func:`_runs_ahead`) the count above
+        the seed's is probed in a thread while the search goes down (:class:`_Ahead`),
+        to the same candidates."""
         # The found solve's own iterations, not the run's (other starts before it).
         own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
         searched = [Candidate(model, f"the seed's class (k = {result.revolutions_k})", own, tr)]

@@ -3,16 +3,11 @@ turn counts beside the answer's -> error control -> CVODES verification -> polis
 for a fixed time with no point, the walk to the shortest feasible time of flight,
 ``optimisation.edge``), returned as a typed :class:`Run`.
 
-This is the one module that strings the optimisation stages together; the application
-(``app.solution``, the global search, sweeps) calls :func:`solve` or :func:`finish` and
-only writes down what they return.  Whether a stage runs is decided from the
-:class:`Outcome` of the stage before it (``Outcome.found``: converged or acceptable), and
-``Outcome`` itself lives in ``optimisation.outcome``, below ``optimisation.ipopt``:
-``ipopt`` tags each result with it and this module, which imports ``ipopt``, exports it,
-so the two never import each other.
-
-Numbers are those of the stages themselves: nothing here changes a result, it only
-decides what runs next and adds up Ipopt's iterations and seconds over the run.
+The one module that strings the stages together: the application calls :func:`solve`
+or :func:`finish` and writes down what they return.  A stage runs on the
+:class:`Outcome` of the one before (``Outcome.found``: converged or acceptable).  Nothing
+here changes a result; it decides what runs next and adds up Ipopt's iterations and
+seconds over the run.
 """
 
 import dataclasses
@@ -54,35 +49,15 @@ class StartTried:
 class ClassTried:
     """One turn count k on the target body that a solve looked at, and what it gave.
 
-    Attributes
-    ----------
-    label : str
-        Where its start came from.
-    revolutions_k : int
-        The class: whole turns between the sail and the body at arrival.
-    status : str
-        Ipopt's return status of its last solve ("Maximum_Iterations_Exceeded" for a
-        probe stopped at :data:`multistart.PROBE_FACTOR` times the seed's iterations,
-        "User_Requested_Stop" for one stopped as hopeless,
-        :func:`multistart.hopeless_checkpoint`).
-    iterations : int
-        Ipopt iterations spent on it.
-    objective : float or None
-        Its closed-form objective (canonical units), None when Ipopt found no point; for
-        a class that was flown, the one its run ends with, after the error control.
-    tof, ac_scale : float or None
-        Its time of flight (TU) and a_c over the sail's, None when not found (as
-        ``objective``, the run's for a class flown).
-    constraint_violation : float
-        Of the point it ended at (a probe stopped far from feasible is hopeless).
-    verified : bool or None
-        Whether its flight met the tolerance; None when it was not flown (it was not
-        found, or a better class was verified first).
-    chosen : bool
-        The class the run returns.
-    projected : bool
-        Its values are its projected model's: a 3-D run's class not lifted into 3-D
-        (``classes.ClassSearch``).
+    ``label``: where its start came from; ``revolutions_k``: whole turns between the sail
+    and the body at arrival; ``status``, ``iterations``: Ipopt's of its last solve
+    ("Maximum_Iterations_Exceeded" for a probe at its cap, ``multistart.probe_cap``,
+    "User_Requested_Stop" for one stopped as hopeless); ``objective`` (canonical),
+    ``tof`` (TU) and ``ac_scale`` (a_c over the sail's): None when no point was found,
+    and for a class flown those its run ends with, after the error control;
+    ``constraint_violation`` of its last point; ``verified``: None when it was not flown;
+    ``chosen``: the class the run returns; ``projected``: its values are its projected
+    model's (a 3-D run's class not lifted, ``classes.ClassSearch``).
     """
 
     label: str
@@ -100,8 +75,8 @@ class ClassTried:
     @classmethod
     def of(cls, candidate, iterations, run=None, chosen=False):
         """The record of a ``classes.Candidate`` that took ``iterations``, with its
-        ``run``'s verdict and values when finished: the error control may move the
-        optimum (a 3-D Vesta intercept's went from 552.2 d to 479.3 d)."""
+        ``run``'s verdict and values when finished (the error control may move the
+        optimum)."""
         r = candidate.result
         flown = run is not None and run.result.outcome.found
         values = run.result if flown else r
@@ -115,26 +90,12 @@ class ClassTried:
 
 @dataclass(frozen=True)
 class PolishRun:
-    """The polish of a run: the optimum re-solved on Eqs. 1-2 in time, and its flight.
-
-    Attributes
-    ----------
-    result : NLPResult or None
-        The polished optimum (``optimisation.polish.polish``); None when the closed form
-        found nothing to polish (its ``note`` says so).
-    check : Verification or None
-        The CVODES flight of the polished schedule.
-    verified : bool
-        Ipopt converged and the flight, its verifier's error included, is within
-        :attr:`tolerance` of both the target and the polished NLP's final node.
-    note : str
-        One line: the verdict and, when not verified, why.
-    tolerance : Tolerance
-        :data:`POLISH_TOLERANCE`.
-    within_nlp, within_target : bool
-        The two halves of the verdict (``within_target`` is True without a target).
-    closed_form_objective : float
-        The objective of the closed-form optimum the polish started from.
+    """The polish of a run: the optimum re-solved on Eqs. 1-2 in time
+    (``optimisation.polish``), ``result`` None when the closed form found nothing to
+    polish, and ``check`` its CVODES flight.  ``verified``: Ipopt converged and the
+    flight, its verifier's error included, is within ``tolerance`` of both the target
+    (``within_target``, True without one) and the polished NLP's final node
+    (``within_nlp``); ``note`` says so in one line, and why not.
     """
 
     result: Optional[NLPResult]
@@ -156,40 +117,18 @@ class PolishRun:
 class Run:
     """One run of the pipeline, in canonical units, as the stages left it.
 
-    Attributes
-    ----------
-    problem : Problem
-        The problem as last solved: its ``segments`` are the count used and the sub-arcs
-        the error control ended with.
-    result : NLPResult
-        The closed-form optimum after the error control (or the last solve, when Ipopt
-        found nothing); ``iterations`` and ``solve_seconds`` cover every solve of the
-        run up to the polish.
-    transcription : Transcription or None
-        Its NLP.
-    starts : tuple of StartTried
-        The starts tried when the first did not find a point (empty otherwise).
-    error_control : ErrorControl or None
-        Its rounds and per-segment local errors; None when the closed form found nothing.
-    check : Verification
-        The CVODES flight of ``result``'s schedule.
-    verified : bool
-        Converged, and ``check`` meets ``problem.tolerance`` with the verifier's error
-        added.  The polish's own verdict is in ``polish``.
-    note : str
-        One line: the verdict, and why when not verified.
-    sub_arcs_requested : int
-        The problem file's sub-arcs, before the seed or the error control raised them.
-    polish : PolishRun or None
-        Only when asked for.
-    classes : tuple of ClassTried
-        For a MinTime or MinAcceleration rendezvous: each turn count on the body it
-        looked at, in the order solved (empty for other problems).
-    classes_skipped : str
-        One line: the classes it did not look at, and why.
-    nearest_feasible : edge.Edge or None
-        For a fixed-time solve that found no point: the shortest flight found feasible
-        from the same departure (:func:`nearest_feasible`; its ``flight`` is a Run).
+    ``problem`` as last solved (the segments used, the sub-arcs the error control ended
+    with; ``sub_arcs_requested`` the problem file's); ``result`` the closed-form optimum
+    after the error control (or the last solve when none found a point), its
+    ``iterations`` and ``solve_seconds`` covering every solve up to the polish, and
+    ``transcription`` its NLP; ``starts`` the starts tried when the first found no point;
+    ``error_control`` None when the closed form found nothing; ``check`` the CVODES flight
+    of ``result``, ``verified`` when Ipopt converged and it meets ``problem.tolerance``
+    with the verifier's error added, ``note`` the verdict in one line; ``polish`` only
+    when asked for; ``classes`` each turn count a MinTime or MinAcceleration rendezvous
+    looked at, in the order solved, ``classes_skipped`` those it did not and why;
+    ``nearest_feasible`` for a fixed time that found no point, the shortest flight found
+    feasible from the same departure (an ``edge.Edge`` whose ``flight`` is a Run).
     """
 
     problem: Problem
@@ -226,26 +165,10 @@ def solve(problem, segments=None, progress=None, polish=False):
     flight to the shortest feasible one from the same departure
     (``Run.nearest_feasible``); the run itself stays not verified.
 
-    Parameters
-    ----------
-    problem : Problem
-    segments : int, optional
-        Override the problem's number of control segments N (>= 1).
-    progress : callable, optional
-        ``progress(text)`` is called at each stage and every few seconds of Ipopt.
-    polish : bool
-        Then polish the optimum (``optimisation.polish``) and verify that schedule too.
-
-    Returns
-    -------
-    Run
-
-    Raises
-    ------
-    InputError
-        ``segments`` is not an integer >= 1 (before any solve starts).
-    NoStart
-        No seed can be flown (``seed.initial_guess``): nothing is solved.
+    ``segments`` (>= 1) overrides the problem's count N; ``progress(text)`` is called at
+    each stage and every few seconds of Ipopt; ``polish`` then polishes the optimum and
+    verifies that schedule too.  Returns a :class:`Run`.  Raises InputError for bad
+    ``segments`` and NoStart when no seed can be flown, both before any solve.
     """
     if segments is not None:
         if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
@@ -339,12 +262,10 @@ def _other_starts(problem, result, tr, say):
     """Ipopt's "infeasible" from one start is a local statement: before giving up, try
     the starts the global search would (other turn counts on a rendezvous body, other
     constant-pitch seeds of an orbit transfer), and keep the first that finds a point.
-    Each is a probe (``multistart.probe``) capped at ``multistart.probe_cap`` of the
-    first start's iterations, at least ``multistart.FALLBACK_MIN``: from 2035-06-01 to
-    Mars in 600 d, where no sail exists, two of the uncapped starts took 3,000 and 1,842
-    iterations to fail.
-
-    Returns the (result, transcription) to go on with and a StartTried per start.
+    Each is a probe capped at ``multistart.probe_cap`` of the first start's iterations
+    (at least ``multistart.FALLBACK_MIN``), since where no sail exists an uncapped start
+    can take thousands of iterations to fail.  Returns the (result, transcription) to go
+    on with and a StartTried per start.
     """
     records = [StartTried("the problem's own seed", result.status, result.iterations)]
     if problem.target is None or getattr(problem.departure, "free_anomaly", False):
@@ -412,33 +333,13 @@ def _unwalked(problem, say):
 
 def finish(problem, result, tr=None, polish=False, progress=None, starts=(),
            sub_arcs_requested=None):
-    """The stages after a closed-form optimum is found: error control, CVODES
-    verification and, with ``polish``, the polish.
+    """The stages after a closed-form optimum ``result`` of ``problem`` (any outcome: one
+    not found is only verified, its note saying why not): error control, CVODES
+    verification and, with ``polish``, the polish; a :class:`Run`.
 
-    :func:`solve` is this after the solve; the global search calls it for each optimum
-    it keeps.
-
-    Parameters
-    ----------
-    problem : Problem
-    result : NLPResult
-        A closed-form optimum of ``problem`` (any outcome: one not found is only
-        verified, and its note says why it is not).
-    tr : Transcription, optional
-        ``result``'s NLP: the error control re-solves it warm; without it a new one is
-        built.  Either way the error control and the polish keep ``result``'s revolution
-        class.
-    polish, progress
-        As for :func:`solve`.
-    starts : sequence of StartTried
-        The starts tried before this one.
-    sub_arcs_requested : int, optional
-        The problem file's sub-arcs when the seed already raised them (default the
-        problem's).
-
-    Returns
-    -------
-    Run
+    ``tr``, ``result``'s NLP, is re-solved warm by the error control (else a new one is
+    built); both keep ``result``'s turn count.  ``starts``: those tried before this one;
+    ``sub_arcs_requested``: the problem file's sub-arcs when the seed raised them.
     """
     requested = sub_arcs_requested or problem.segments.sub_arcs
     say = progress or _quiet
@@ -498,8 +399,7 @@ def _window_hint(problem):
 
 def _mesh_hint(result):
     """The failure note's word on a coarse mesh: with a handful of segments the pitch
-    takes a handful of values, and no such schedule may arrive (Mercury to Venus on 3
-    segments found no point; on 20 it took 262.4 d)."""
+    takes a handful of values, and no such schedule may arrive."""
     n = result.alpha.size
     if n >= FEW_SEGMENTS:
         return ""
@@ -508,15 +408,12 @@ def _mesh_hint(result):
 
 
 def _always_on_hint(problem):
-    """The failure note's advice for a minimum-time arrival on an orbit (a rendezvous
-    or an orbit target) with a sail always on: a throttle.
-
-    Why: an E-sail's radial thrust never falls below about half of its full value at that
-    distance, so a sail always on always pushes outward, and at a few mm/s^2 that push
-    is a large part of the Sun's pull beyond 1 au.  Such arrivals can find no point
-    from any start and be solved with a throttle (results/bench/README.md, section
-    "Minimum time with the sail always on").  A fixed time of flight fails for other
-    reasons (too short a flight), and an intercept does not match a velocity."""
+    """The failure note's advice for a minimum-time arrival on an orbit with a sail
+    always on: a throttle.  An E-sail's radial thrust never falls below about half its
+    full value, so at a few mm/s^2 a sail always on pushes outward by a large part of
+    the Sun's pull beyond 1 au (results/bench/README.md, "Minimum time with the sail
+    always on").  A fixed time fails for other reasons, and an intercept matches no
+    velocity."""
     if (problem.throttled() or problem.objective.fixed_time
             or not getattr(problem.target, "matches_velocity", True)):
         return ""
