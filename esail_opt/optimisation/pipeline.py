@@ -175,7 +175,8 @@ def solve(problem, segments=None, progress=None, polish=False):
             raise InputError(f"segments = {segments!r} is outside [1, inf)")
         problem = problem.with_segments(segments)
     say = progress or _quiet
-    return _polished(_lone(problem, say), polish, say)
+    run = _lone(problem, say)
+    return _polished(run, polish, say)
 
 
 def _lone(problem, say, walk=True):
