@@ -224,29 +224,31 @@ def polar_view(flight, x_start):
     """A 3-D flight's Cartesian samples (7 x M) as [r, theta, v_r, v_theta, t] for the
     plots: theta is the angle swept from the 8-row ``x_start``'s theta (samples less
     than half a turn apart), v_theta = |r x v| / r."""
-    pos, vel = flight[:3], flight[3:6]
+    pos = flight[:3]
     r = np.linalg.norm(pos, axis=0)
-    h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
     cos = np.clip(np.sum(pos[:, 1:] * pos[:, :-1], axis=0) / (r[1:] * r[:-1]), -1, 1)
-    theta = float(x_start[1]) + np.r_[0.0, np.cumsum(np.arccos(cos))]
-    return np.vstack([r, theta, np.sum(pos * vel, axis=0) / r, h / r, flight[6]])
+    return _polar(flight, float(x_start[1]) + np.r_[0.0, np.cumsum(np.arccos(cos))])
 
 
 def _node_view(flight, result):
-    """A 3-D flight's Cartesian states at the departure and each segment's end (7 x
-    (N + 1)) as [r, theta, v_r, v_theta, t]: theta is the NLP's own there plus the signed
-    angle from its node's position to the flight's about the node's angular momentum,
-    so it holds however far apart the segment ends lie."""
+    """:func:`polar_view` of a flight's states at the departure and each segment's end,
+    however far apart: theta is the NLP's own there plus the signed angle from its
+    node's position to the flight's about the node's angular momentum."""
     nodes = np.column_stack([start_node(result.x_start), result.nodes])
-    pos, vel = flight[:3], flight[3:6]
-    r = np.linalg.norm(pos, axis=0)
-    h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
     node = np.column_stack([node_cartesian(n) for n in nodes.T])
     axis = np.cross(node[:3].T, node[3:6].T).T
     axis /= np.linalg.norm(axis, axis=0)
-    turn = np.arctan2(np.sum(np.cross(node[:3].T, pos.T).T * axis, axis=0),
-                      np.sum(node[:3] * pos, axis=0))
-    return np.vstack([r, nodes[1] + turn, np.sum(pos * vel, axis=0) / r, h / r, flight[6]])
+    turn = np.arctan2(np.sum(np.cross(node[:3].T, flight[:3].T).T * axis, axis=0),
+                      np.sum(node[:3] * flight[:3], axis=0))
+    return _polar(flight, nodes[1] + turn)
+
+
+def _polar(flight, theta):
+    """[r, theta, v_r, v_theta, t] of Cartesian states (7 x M) at the angles ``theta``."""
+    pos, vel = flight[:3], flight[3:6]
+    r = np.linalg.norm(pos, axis=0)
+    h = np.linalg.norm(np.cross(pos.T, vel.T), axis=1)
+    return np.vstack([r, theta, np.sum(pos * vel, axis=0) / r, h / r, flight[6]])
 
 
 def verify3d(problem, result):
