@@ -447,14 +447,15 @@ def seed_free_date(problem, progress=None):
     return _scanned_seed(problem, progress)
 
 
-def _best_date(problem, progress):
-    """The coarse scan of ``problem``'s window: (its best solved cell or None, the
-    Ipopt iterations of the cells it kept)."""
+def _best_date(problem, progress, projected=False):
+    """The coarse scan of ``problem``'s window (``projected``: the projected model of a
+    3-D problem): (its best solved cell or None, the Ipopt iterations of the cells it
+    kept)."""
     lo, hi = problem.departure.window_jd
     count = int(np.clip(math.ceil((hi - lo) / SEED_SPACING_DAYS) + 1, *SEED_CELLS))
     (progress or (lambda text: None))(
         f"{problem.name}: seeding the free departure date by a scan of {count} dates"
-        + ("" if problem.three_d() else " in the projected model"))
+        + (" in the projected model" if projected else ""))
     cells = scan([at_date(problem, jd) for jd in np.linspace(lo, hi, count)], progress,
                  explore=True)
     iterations = sum(c.result.iterations for c in cells if c.result is not None)
@@ -485,7 +486,7 @@ def _lifted_seed(problem, progress):
     scan found nothing or the 3-D cell did not converge.  The plane change moves each
     date's optimum little, and a 3-D scan costs several times a projected one."""
     started = time.perf_counter()
-    best, iterations = _best_date(multistart.probe_model(problem), progress)
+    best, iterations = _best_date(multistart.probe_model(problem), progress, projected=True)
     if best is None:
         return Seed(problem, None, iterations, time.perf_counter() - started)
     cell = dataclasses.replace(best.problem, planar=problem.planar)
