@@ -16,7 +16,7 @@ from scipy.optimize import minimize_scalar
 import esail_opt as eo
 from conftest import PROBLEMS, REPO
 from esail_opt.errors import InputError
-from esail_opt.optimisation import pipeline
+from esail_opt.optimisation import error_control
 from esail_opt.optimisation.problem_file import load_problem
 from esail_opt.optimisation.seed import initial_guess
 from esail_opt.physics import constants as units
@@ -97,7 +97,7 @@ def test_solution_records_the_resolved_count_and_the_override_replaces_the_rule(
     count = sol["problem"]["segments"]
     assert count == len(sol["schedule"]) > n
     turns = sum(row["dtheta_deg"] for row in sol["schedule"]) / 360
-    assert count >= 12 * turns / pipeline.DENSITY_SLACK
+    assert count >= 12 * turns / error_control.DENSITY_SLACK
     assert sol["problem"]["segments_per_revolution"] == 12
     # --segments (here the API's segments=) replaces the rule, and the record says so.
     fixed = eo.solve(problem, segments=6)
