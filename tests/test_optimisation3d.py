@@ -465,7 +465,7 @@ def test_turn_counts_searched_on_the_projection_choose_what_the_3d_search_choose
 
     problem = shipped_problem("earth_venus_min_ac")
     run = pipeline.solve(problem)
-    in_3d = pipeline._solved(problem, 16, lambda text: None)
+    in_3d = pipeline._solved(problem, lambda text: None)
     assert run.verified and in_3d.verified, (run.note, in_3d.note)
     assert run.result.revolutions_k == in_3d.result.revolutions_k
     assert run.result.ac_scale <= in_3d.result.ac_scale * (1 + 1e-6), (
