@@ -275,6 +275,18 @@ def test_load_problem_words_any_base_exception_as_one_line(tmp_path, call, kind)
         load_problem(problem)
 
 
+def test_a_misspelt_field_names_the_fields_its_part_takes(tmp_path):
+    problem = tmp_path / "typo.py"
+    problem.write_text("import esail_opt as eo\nsail = eo.Sail(acc_mm_s2=1.5)\n")
+    with pytest.raises(InputError) as refused:
+        load_problem(problem)
+    line = str(refused.value)
+    assert line.startswith("typo.py: TypeError: ") and "'acc_mm_s2'" in line, line
+    assert line.endswith("; Sail takes " + ", ".join(
+        f.name for f in dataclasses.fields(eo.Sail) if f.init)), line
+    assert "ac_mm_s2" in line.split("takes ")[1]
+
+
 @pytest.mark.parametrize("angles, words", [
     ("argument_of_perihelion_deg=66.2, perihelion_deg=68.3",
      ["body.argument_of_perihelion_deg = 66.2 and body.perihelion_deg = 68.3",

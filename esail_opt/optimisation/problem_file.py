@@ -7,8 +7,10 @@ one :class:`~esail_opt.errors.InputError` line.
 """
 
 import contextlib
+import dataclasses
 import importlib.resources
 import os
+import re
 import runpy
 import signal
 import sys
@@ -16,6 +18,7 @@ import threading
 from pathlib import Path
 
 from esail_opt.errors import InputError
+from esail_opt.optimisation import problem as problem_parts
 from esail_opt.optimisation.problem import Problem
 
 #: The package the shipped problem files install as (``problems/`` in the repository).
@@ -58,7 +61,7 @@ def _run(path):
     except BaseException as err:  # a user file can fail in any way; report it in one line
         detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
         raise InputError(f"{path.name}: {type(err).__name__}"
-                         + (f": {detail}" if detail else "")) from None
+                         + (f": {detail}" if detail else "") + _fields_hint(detail)) from None
     if "problem" not in namespace:
         raise InputError(f"{path.name}: problem is missing (the file must define "
                          "`problem = esail_opt.Problem(...)`)")
@@ -67,6 +70,17 @@ def _run(path):
         raise InputError(f"{path.name}: problem = {type(problem).__name__} is not an "
                          "esail_opt.Problem")
     return problem
+
+
+def _fields_hint(detail):
+    """For a misspelt keyword of one of the problem's parts ("Sail.__init__() got an
+    unexpected keyword argument 'acc_mm_s2'"), the fields that part takes; else ""."""
+    found = re.match(r"(\w+)\.__init__\(\) got an unexpected keyword argument", detail)
+    part = found and getattr(problem_parts, found.group(1), None)
+    if not dataclasses.is_dataclass(part):
+        return ""
+    return f"; {part.__name__} takes " + ", ".join(f.name for f in dataclasses.fields(part)
+                                                    if f.init)
 
 
 #: What the forked child writes on its pipe: the file returned control (whether or not
