@@ -377,6 +377,17 @@ def test_a_min_acceleration_seed_that_escapes_flies_at_a_smaller_a_c():
     assert "sail.ac_mm_s2" not in str(raised.value)
 
 
+def test_a_seed_that_arrives_after_the_tracked_dates_names_the_last_one():
+    """A minimum-time seed leaving Earth late in 2059 reaches Mars only after the bodies'
+    tracked span ends: the refusal names that date and says what to change."""
+    late = eo.Problem(name="late", departure=eo.BodyDeparture(body="earth", date="2059-09-01"),
+                      sail=eo.Sail(ac_mm_s2=1.0), segments=eo.Segments(count=30),
+                      objective=eo.MinTime(), target=eo.BodyRendezvous(body="mars"))
+    with pytest.raises(NoStart, match=r"only on 2060-.* TDB, after 2060-01-01, the last date "
+                                      r"the bodies are tracked on; depart earlier"):
+        seed.initial_guess(late)
+
+
 def test_a_throttled_sail_whose_full_thrust_seed_escapes_seeds_at_a_lower_throttle():
     """At 6 mm/s^2 and 45 deg the seed escapes before it reaches 2 au; a throttled sail
     seeds at a throttle that stays bound (the NLP may throttle as it likes), its nodes

@@ -206,9 +206,10 @@ def _turns_behind(problem, alpha, nodes, t0):
         window = getattr(problem.target, "arrival_window", None)
         raise NoStart(
             f"no start: {_pitch(problem, alpha)} the sail reaches its target only on "
-            f"{arrival} TDB, after the dates the body is known at"
-            + (f" and after its arrival window closes ({window[1]})" if window else "")
-            + "; no transfer of this sail was found to start from") from None
+            f"{arrival} TDB, after {dates.TRACK_SPAN[1]}, the last date the bodies are "
+            "tracked on" + (f", and after its arrival window closes ({window[1]})"
+                            if window else "")
+            + "; depart earlier, or give the sail more acceleration") from None
 
 
 def split_guess(problem, guess, x_start, parts):
