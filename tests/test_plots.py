@@ -203,10 +203,30 @@ def test_nothing_is_clipped_or_overlapping(which, request):
                     ax.get_ylabel(), other.get_ylabel())
 
 
+@pytest.mark.parametrize("which", ["polished", "flown3d", "planar_mars"])
+def test_the_legend_hides_none_of_the_flight(which, request):
+    """The trajectory's legend sits in a corner clear of the flight: no drawn point of
+    the flown curve (sampled along its length on the page) falls inside the legend's box
+    as matplotlib lays it out."""
+    sol = request.getfixturevalue(which)
+    fig = plots.trajectory_figure(sol)
+    renderer = _drawn(fig)
+    ax = fig.axes[0]
+    box = ax.get_legend().get_window_extent(renderer)
+    flown = [line for line in ax.get_lines() if line.get_label() in (FLOWN, CLOSED_FORM)]
+    assert flown
+    for line in flown:
+        xy = ax.transData.transform(line.get_xydata())
+        fine = np.linspace(0, len(xy) - 1, 20 * len(xy))
+        xs, ys = (np.interp(fine, np.arange(len(xy)), xy[:, k]) for k in (0, 1))
+        assert not np.any((xs > box.x0) & (xs < box.x1) & (ys > box.y0) & (ys < box.y1))
+
+
 # ---------------------------------------------------------------- in three dimensions
 
 AU_KM = 149597870.7  # written out again here, not taken from the package
 FLOWN = "CVODES flight"
+CLOSED_FORM = "closed form (NLP)"
 
 
 def _lines(ax):

@@ -316,7 +316,63 @@ def _legend(ax, sol):
             handles.append(Line2D([], [], ls="none", marker=marker, mfc="w", mec="k",
                                   mew=0.6, ms=5))
             labels.append(f"at {when}, {date[:10]}")
-    _plain_legend(ax.legend(handles, labels, fontsize=7, loc="upper right"))
+    legend = ax.legend(handles, labels, fontsize=7)
+    _plain_legend(legend)
+    _keep_clear(ax, legend)
+
+
+#: The legend's corners as axes fractions, in the order taken when they are equally clear.
+LEGEND_CORNERS = {"upper right": (1, 1), "upper left": (0, 1), "lower left": (0, 0),
+                  "lower right": (1, 0)}
+#: Room kept around the legend, a fraction of its size: the layout may still move the frame.
+LEGEND_PAD = 0.12
+
+
+def _keep_clear(ax, legend):
+    """Put ``legend`` in the corner of ``ax`` where it hides the fewest drawn points (each
+    line sampled evenly along its length on the page), and where even that corner hides
+    some, widen the view on that side until none is hidden.  matplotlib's loc="best"
+    weighs the same, but measures the legend at every draw and never makes room."""
+    renderer = FigureCanvasAgg(ax.figure).get_renderer()
+    size = legend.get_window_extent(renderer)
+    corner = None
+    for _ in range(3):  # widening one side narrows an equal-aspect frame: look again
+        ax.apply_aspect()
+        frame = ax.get_window_extent(renderer)
+        w, h = ((1 + LEGEND_PAD) * size.width / frame.width,
+                (1 + LEGEND_PAD) * size.height / frame.height)
+        x, y = _drawn_points(ax)
+
+        def under(where):
+            cx, cy = LEGEND_CORNERS[where]
+            return (np.abs(x - cx) < w) & (np.abs(y - cy) < h)
+
+        corner = corner or min(LEGEND_CORNERS, key=lambda c: np.count_nonzero(under(c)))
+        hidden = y[under(corner)]
+        if hidden.size == 0 or h >= 0.5:
+            break
+        low, high = ax.get_ylim()
+        if LEGEND_CORNERS[corner][1] == 1:
+            ax.set_ylim(low, low + (high - low) * hidden.max() / (1 - h))
+        else:
+            ax.set_ylim(high - (high - low) * (1 - hidden.min()) / (1 - h), high)
+    legend.set_loc(corner)
+
+
+def _drawn_points(ax):
+    """The points of every line of ``ax`` in axes fractions, a curve's resampled every
+    half per cent of the frame along its length so that a sparse one counts."""
+    to_axes = ax.transData + ax.transAxes.inverted()
+    spots = [np.zeros((0, 2))]
+    for line in ax.get_lines():
+        xy = to_axes.transform(np.asarray(line.get_xydata(), float))
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        if line.get_linestyle() not in ("None", "") and len(xy) > 1:
+            along = np.r_[0.0, np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]
+            even = np.linspace(0.0, along[-1], max(int(along[-1] / 0.005), 2))
+            xy = np.column_stack([np.interp(even, along, xy[:, k]) for k in (0, 1)])
+        spots.append(xy)
+    return np.vstack(spots).T
 
 
 def _draw_orbits(ax, sol):
