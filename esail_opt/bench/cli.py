@@ -1,9 +1,8 @@
 """The ``esail-opt-bench`` command: run benchmarks by name.
 
 The benchmarks are the top layer, so they have their own command (also ``python -m
-esail_opt.bench``) rather than a subcommand of ``esail-opt``, whose import of them would
-run upward.  Errors become one line and an exit status as in ``esail-opt``
-(:func:`esail_opt.app.cli.run_command`).
+esail_opt.bench``): as a subcommand, ``esail-opt``'s import of them would run upward.
+Errors become one line and an exit status as in ``esail-opt`` (``app.cli.run_command``).
 """
 
 import argparse

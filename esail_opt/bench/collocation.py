@@ -1,7 +1,7 @@
-"""Independent reference optima: minimum-time circle-to-circle E-sail transfers by
-direct collocation of the full equations of motion (Eqs. 1-2).
+"""Independent reference optima: minimum-time circle-to-circle E-sail transfers by direct
+collocation of the full equations of motion (Eqs. 1-2).
 
-Run it as a module, naming the JSON file to write (the tests read theirs from
+Run it as a module, naming the JSON file to write (the tests read
 ``tests/reference/collocation_min_time.json``)::
 
     python -m esail_opt.bench.collocation --out collocation_min_time.json             # all
@@ -10,33 +10,29 @@ Run it as a module, naming the JSON file to write (the tests read theirs from
 A subset run keeps the other cases already in the file.  ``esail-opt-bench lowthrust``
 times this module's path to one optimum (:mod:`.lowthrust`).
 
-It shares nothing with the optimiser but the physical model (``physics.dynamics.rhs``,
-exact b1 = 3/4, b2 = 1/4; nothing from ``propagation`` or ``optimisation``).  The pitch
-alpha(t) is continuous, so the optimum bounds from below (up to discretisation error) the
-time of any piecewise-constant schedule flown on Eqs. 1-2.
+It shares nothing with the optimiser but the physical model (``physics.dynamics.rhs``, exact
+b1 = 3/4, b2 = 1/4).  The pitch alpha(t) is continuous, so the optimum bounds from below (up
+to discretisation error) the time of any piecewise-constant schedule flown on Eqs. 1-2.
 
 Problem: canonical units (au, mu = 1, TU), x = [r, theta, v_r, v_theta], from the circular
-x(0) = [1, 0, 0, 1] to r = R, v_r = 0, v_theta = sqrt(1/R) at t = tf with theta(tf) free --
-or, for a rendezvous case (``phase_deg`` and ``k`` in CASES), theta(tf) = phase +
-tf R^-3/2 + 2 pi k (no revolution windows then: k fixes the class).  The sail is always
-on at a_c; minimise tf.  Eq. 2 gives the exact bound :func:`tof_lower_bound`.
+x(0) = [1, 0, 0, 1] to r = R, v_r = 0, v_theta = sqrt(1/R) at t = tf, theta(tf) free or, for
+a rendezvous case (``phase_deg`` and ``k`` in CASES), theta(tf) = phase + tf R^-3/2 + 2 pi k
+(k fixes the class: no revolution windows).  The sail is always on at a_c; minimise tf.
 
-Transcription: tau = t / tf in [0, 1] cut into N equal intervals; in each, the state is the
-cubic through the start and the three Radau IIA points c = (0.155, 0.645, 1) (order 5:
-halving the step cuts the error in tf by ~32).  As c3 = 1 the states live on one grid of
-3N + 1 points, continuity built in.  The pitch is a decision variable at each collocation
-point, flown as the continuous piecewise cubic of :data:`CONTROL_DESCRIPTION`.  Boundary
-conditions are variable bounds, so the only equalities are the defects.  Ipopt with MUMPS.
+Transcription: tau = t / tf in [0, 1], N equal intervals; in each the state is the cubic
+through the start and the Radau IIA points c = (0.155, 0.645, 1) (order 5), so the states
+share one grid of 3N + 1 points.  The pitch is a decision variable at each collocation point
+(:data:`CONTROL_DESCRIPTION`).  Boundary conditions are variable bounds, so the only
+equalities are the defects.  Ipopt with MUMPS.
 
-Globalisation: minimum-time transfers have local optima that differ in revolutions, so each
-case is solved from constant-pitch integrations, k-revolution spirals (:func:`starts`) and
+Globalisation: minimum-time transfers have local optima differing in revolutions, so each
+case starts from constant-pitch integrations, k-revolution spirals (:func:`starts`) and
 revolution windows; the distinct optima are re-solved on the reporting mesh N and verified
-(a discrete optimum that does not fly is rejected), and the best is re-solved on 2N, the
-reported solution.
+(one that does not fly is rejected), and the best is re-solved on 2N, the reported solution.
 
-Verification (:func:`verify`): the control is re-integrated on Eqs. 1-2 with DOP853 at
-rtol = atol = 1e-12 and the miss to the target reported; Pontryagin's principle is checked
-from Ipopt's multipliers (:func:`minimum_principle_alignment`).
+Verification (:func:`verify`): the control re-integrated on Eqs. 1-2 by DOP853 at
+rtol = atol = 1e-12, and Pontryagin's principle checked from Ipopt's multipliers
+(:func:`minimum_principle_alignment`).
 """
 
 import argparse
@@ -160,8 +156,7 @@ def _ipopt_options(print_level, max_cpu_seconds):
         "ipopt.acceptable_tol": 1e-8,
         "ipopt.acceptable_iter": 10,
         "ipopt.max_iter": 3000,
-        # Starts far from any optimum (or boxed into an infeasible window) grind on;
-        # other starts cover them.
+        # Far-off starts and infeasible windows grind on; other starts cover them.
         "ipopt.max_cpu_time": max_cpu_seconds,
     }
 
@@ -175,10 +170,10 @@ def _box(N, rf):
     lbz[:, 0] = ubz[:, 0] = [R0_AU, 0.0, 0.0, 1.0]  # circular 1 au, theta0 = 0
     tgt = target_state(rf)
     lbz[[0, 2, 3], -1] = ubz[[0, 2, 3], -1] = tgt  # circular target, theta free
-    # The pitch is not boxed to [-90, 90] deg: Eqs. 3-4 depend on 2 alpha only, so an
-    # optimal thrust passing the inner point (1/2, 0) of the (R, T) circle is smooth in
-    # the unwrapped angle but jumps from +90 to -90 deg in alpha_n, which the polynomial
-    # control cannot follow.  The physical pitch is the value wrapped into [-90, 90) deg.
+    # Not boxed to [-90, 90] deg: Eqs. 3-4 depend on 2 alpha only, so a thrust passing the
+    # (R, T) circle's inner point (1/2, 0) is smooth unwrapped but jumps from +90 to -90 deg
+    # in alpha_n, which the polynomial cannot follow.  The physical pitch is the value
+    # wrapped into [-90, 90).
     span = 2.0 * math.pi
     return (np.concatenate([lbz.ravel(order="F"), np.full(DEGREE * N, -span), [1e-2]]),
             np.concatenate([ubz.ravel(order="F"), np.full(DEGREE * N, span), [500.0]]))
@@ -189,8 +184,7 @@ class Transcription:
 
     Decision vector: states Z (4 x (3N+1), column-major), controls A (3N), tf.
     Grid point 3k + j (j = 0..3) of interval k sits at tau = (k + NODES[j]) / N.
-    ``max_cpu_seconds`` caps each Ipopt solve (a timing may lift it so that a slow solve
-    is measured, not cut short).
+    ``max_cpu_seconds`` caps each Ipopt solve (a timing may lift it to measure a slow solve).
     """
 
     def __init__(self, N, ac, rf, print_level=0, rendezvous=None,
@@ -332,12 +326,9 @@ def solution_guess(sol, label="previous solution"):
 
 # ------------------------------------------------------------------ control and verification
 def control_at_points(A):
-    """Continuous representative of the control on all 3N + 1 grid points.
-
-    Only 2 alpha matters (Eqs. 3-4), so Ipopt may return alpha + pi at a point; unwrapping
-    with period pi gives the continuous values the polynomials need.  The value at t = 0
-    is extrapolated from interval 0's collocation values.  Radians.
-    """
+    """Continuous representative of the control on all 3N + 1 grid points, radians: Ipopt
+    may return alpha + pi at a point (Eqs. 3-4 depend on 2 alpha), so the values are unwrapped
+    with period pi; the value at t = 0 is extrapolated (:data:`EXTRAP0`)."""
     A = np.unwrap(np.asarray(A).ravel(), period=math.pi)
     alpha = np.concatenate([[EXTRAP0 @ A[:DEGREE]], A])
     # Shift by a whole number of half turns so that the start is a physical pitch.
@@ -345,14 +336,13 @@ def control_at_points(A):
 
 
 def minimum_principle_alignment(sol):
-    """Cosine between the NLP costate of (v_r, v_theta) and the pitch's thrust direction.
+    """Cosine between the NLP costate of (v_r, v_theta) and the pitch's thrust direction,
+    (min, max) over the collocation points.
 
-    With casadi's Lagrangian tf + lam' g and defects N D x - tf f, lam plays the role of
-    minus the costate, and Pontryagin's principle (minimise H over alpha) becomes:
-    maximise lam_v . (R, T)(alpha).  (R, T) - (3/4, 0) = (cos 2a, sin 2a) / 4, so at the
-    maximiser (cos 2a, sin 2a) is parallel to lam_v: the cosine is +1 at every point, and
-    a point clearly below violates the principle.  Returns (min, max) over the collocation
-    points.
+    With casadi's Lagrangian tf + lam' g and defects N D x - tf f, lam is minus the costate,
+    so Pontryagin's principle (minimise H over alpha) is: maximise lam_v . (R, T)(alpha).  As
+    (R, T) - (3/4, 0) = (cos 2a, sin 2a) / 4, at an optimum the cosine is +1 at every point;
+    a point clearly below violates the principle.
     """
     a = np.asarray(sol["A"]).ravel()
     lam = sol["lam_v"]
@@ -362,8 +352,7 @@ def minimum_principle_alignment(sol):
 
 def verify(sol, ac, rf, rendezvous=None):
     """Re-integrate Eqs. 1-2 with the continuous piecewise-cubic control, interval by
-    interval so that DOP853 never steps across its kinks; the misses in km and m/s.
-    """
+    interval so that DOP853 never steps across its kinks; the misses in km and m/s."""
     N, tf = sol["N"], sol["tf"]
     alpha_pts = control_at_points(sol["A"])
     h = tf / N
@@ -479,13 +468,10 @@ def _search(ac, rf, rv):
 
 
 def _revolution_windows(search, runs, ac, rf, record):
-    """Force theta_f into [2 pi k, 2 pi (k + 1)] from the matching spiral, then release
-    the box (the released solve goes to ``record``).
-
-    This visits each revolution count from one below the fewest found to two above the
-    most (far fewer are infeasible: the angular momentum gain needs time).  Returns the
-    record of each boxed solve.
-    """
+    """Force theta_f into [2 pi k, 2 pi (k + 1)] from the matching spiral, then release the
+    box (the released solve goes to ``record``), for k from one below the fewest revolutions
+    found to two above the most (far fewer are infeasible: the angular momentum gain needs
+    time).  Returns the record of each boxed solve."""
     free_revs = [revolutions(s) for s in runs if s["ok"]] or [0.0, 1.0]
     k_lo = max(0, int(math.floor(min(free_revs))) - 1)
     k_hi = int(math.floor(max(free_revs))) + 2
@@ -509,8 +495,7 @@ def _revolution_windows(search, runs, ac, rf, record):
 
 def _verified_optima(optima, ac, rf, rv):
     """Step 2: every distinct local optimum re-solved on the reporting mesh N (sized for
-    it) and verified.  Returns (refined, rejected): those that fly, and those that do not.
-    """
+    it) and verified.  Returns (refined, rejected): those that fly, and those that do not."""
     refined, rejected = [], []
     for o in optima:
         n_rep = intervals_for(o["tf"], rf, INTERVALS_PER_REV_REPORT, MIN_INTERVALS_REPORT)

@@ -1,22 +1,18 @@
 """``esail-opt-bench ensemble``: the flights of a Monte Carlo run (``esail-opt robust``)
 flown by the closed form, by CVODES and by heyoka, timed per flight at a stated error.
 
-The case is the shipped 3-D rendezvous :data:`SOLUTION` cut into pieces as robust cuts it
-(``app.robust.schedule``, ``optimisation.robustness.Mission.of``); M flights are drawn as
-robust draws them (one ``SolarWind().factors`` set per flight, seed :data:`SEED`) and
-flown open loop three ways: the closed form (``propagation.ensemble.Ensemble.fly``, every
-flight; its first call in a process timed apart), CVODES at 1e-12 (``simulate3d``, on
-:data:`CVODES_FLIGHTS` flights evenly spread) and heyoka (:mod:`.taylor`, every flight,
-at each of :data:`HEYOKA_TOLERANCES` and its fastest batch size; skipped without it).
-Times are CPU seconds of this process per flight, each method on one thread.
+The case is the shipped 3-D rendezvous :data:`SOLUTION` cut into pieces as robust cuts it;
+M flights are drawn as robust draws them (one ``SolarWind().factors`` set per flight, seed
+:data:`SEED`) and flown open loop by the closed form (every flight), CVODES at 1e-12 (on
+:data:`CVODES_FLIGHTS` flights evenly spread) and heyoka (every flight; skipped without
+it).  Times are CPU seconds of this process per flight, each method on one thread.
 
 Errors are arrival distances (km) from CVODES at 1e-12 on the flights it flew.  The closed
 form's model error (a few thousand km here, nearly the same in every flight) is what robust
 takes out with the nominal's CVODES flight, so it is also judged ``corrected`` as robust
 uses it, against the flight's ``deviation`` from the nominal (bounded by
-``robustness.AGREEMENT``).  :func:`check_flight` measures CVODES at 1e-12 and heyoka
-themselves against CVODES at ``simulate.VERIFY_TOLERANCE`` on one flight: two equations and
-two integrators, so their agreement checks the thrust written in heyoka's expressions.
+``robustness.AGREEMENT``).  :func:`check_flight` flies one flight on two equations and two
+integrators, so that their agreement checks the thrust written in heyoka's expressions.
 """
 
 import time
@@ -34,8 +30,7 @@ SOLUTION = "results/earth_mars_min_ac"
 #: Flights of the ensemble, and the seed of their thrust factors.
 FLIGHTS = 10_000
 SEED = 1
-#: Flights CVODES flies (evenly spread over the ensemble): its time per flight and the
-#: reference of every error.
+#: Flights CVODES flies (evenly spread): its time per flight and the reference of every error.
 CVODES_FLIGHTS = 20
 #: heyoka's tolerances, loosest first, and its batch sizes as multiples of its SIMD
 #: width; the fastest on the pilot flights counts at each tolerance.
@@ -47,9 +42,8 @@ CHECK_TOLERANCE = 1e-15
 
 
 def load(folder=SOLUTION):
-    """The solution in ``folder`` and its pieces as robust flies them
-    (``optimisation.robustness.Mission``, no a_c margin); :class:`InputError` when there
-    is none."""
+    """The solution in ``folder`` and its pieces as robust flies them (``robustness.Mission``,
+    no a_c margin); :class:`InputError` when there is none."""
     from esail_opt.app.robust import schedule
     from esail_opt.app.solution import Solution
     from esail_opt.optimisation.robustness import Mission
@@ -64,8 +58,8 @@ def load(folder=SOLUTION):
 
 def flights(mission, count, seed=SEED, wind=None):
     """``count`` flights of ``mission``'s pieces under the solar wind ``wind`` (default
-    ``SolarWind()``): each flight's a_c per piece (canonical, its thrust factor
-    included), shape (count, K)."""
+    ``SolarWind()``): each flight's a_c per piece (canonical, thrust factor included),
+    shape (count, K)."""
     from esail_opt.propagation.solar_wind import SolarWind
 
     wind = SolarWind() if wind is None else wind
@@ -81,9 +75,9 @@ def start_cartesian(plan):
 
 def closed_form(plan, acs, repeats):
     """The flights ``acs`` (M, K) on ``Ensemble.fly``: ``seconds_per_flight`` (median CPU
-    seconds of all M, over M, one thread), ``first_call_seconds`` (a fresh first call
-    less a warm one: a compile or a disk-cache load), ``chunk`` (flights per compiled
-    call) and ``arrivals`` (6, M), Cartesian, canonical."""
+    seconds of all M, over M, one thread), ``first_call_seconds`` (a fresh first call less a
+    warm one: a compile or a disk-cache load), ``chunk`` (flights per compiled call) and
+    ``arrivals`` (6, M), Cartesian, canonical."""
     from esail_opt.propagation import batch
     from esail_opt.propagation.ensemble import Ensemble
     from esail_opt.propagation.rectified3d import STATE, cartesian_states
@@ -137,14 +131,12 @@ def cvodes(plan, acs, tol=None):
 
 def heyoka_flights(plan, acs, repeats, reference, sample):
     """The flights ``acs`` (M, K) by heyoka at each of :data:`HEYOKA_TOLERANCES`, or
-    ``{"skipped": reason}`` without heyoka.  ``reference`` (6, S) is CVODES's arrivals of
-    the flights ``sample`` (indices into the M).
-
-    Returns ``points``: per tolerance, ``seconds_per_flight`` (median CPU seconds of all M
-    at the fastest batch size, over M), ``batch_size``, ``build_seconds`` (wall seconds
-    to construct the integrator: a compile or a disk-cache load), the pilot's figures per
-    batch size and ``error_km`` against ``reference`` (median, max); and ``simd_size``,
-    ``heyoka_version``.
+    ``{"skipped": reason}`` without heyoka; ``reference`` (6, S) is CVODES's arrivals of the
+    flights ``sample`` (indices into the M).  Returns ``points``: per tolerance,
+    ``seconds_per_flight`` (median CPU seconds of all M at the fastest batch size, over M),
+    ``batch_size``, ``build_seconds`` (wall seconds to construct the integrator: a compile or
+    a disk-cache load), the pilot's figures per batch size and ``error_km`` against
+    ``reference`` (median, max); and ``simd_size``, ``heyoka_version``.
     """
     if not taylor.available():
         return {"skipped": "heyoka is not installed (pip install 'esail_opt[bench]')"}
@@ -218,11 +210,10 @@ def _spread(values):
 
 
 def closed_form_accuracy(mission, arrivals, reference):
-    """The closed form's arrivals ``arrivals`` (6, S) against CVODES's ``reference``
-    (6, S) of the same flights: raw (``error_km``), as robust reports them
-    (``corrected_error_km``: plus the nominal's correction), and the corrected error
-    over the flight's departure from the nominal on CVODES (``deviation_km``;
-    ``corrected_over_deviation``), each as median and max."""
+    """The closed form's ``arrivals`` (6, S) against CVODES's ``reference`` (6, S) of the
+    same flights: raw (``error_km``), as robust reports them (``corrected_error_km``: plus
+    the nominal's correction), and the corrected error over the flight's departure from the
+    nominal on CVODES (``deviation_km``; ``corrected_over_deviation``), median and max."""
     from esail_opt.propagation.rectified3d import STATE, cartesian_states
 
     correction = mission.correction[:, -1:]
@@ -285,10 +276,9 @@ def measure(flights_count=FLIGHTS, repeats=3, solution=SOLUTION, cvodes_flights=
 
 
 def ratios(record):
-    """Each method's time per flight over the closed form's: CVODES at 1e-12, heyoka at
-    1e-12 and heyoka at equal error (its loosest tolerance whose worst arrival error is
-    within the closed form's worst as robust reports it, ``corrected``), the heyoka
-    ones None when heyoka was skipped or never reached that error."""
+    """Each method's time per flight over the closed form's: CVODES at 1e-12, heyoka at 1e-12
+    and heyoka at equal error (its loosest tolerance whose worst arrival error is within the
+    closed form's worst ``corrected`` one), None when heyoka was skipped or never got there."""
     base = record["closed_form"]["seconds_per_flight"]
     points = record["heyoka"].get("points", [])
     target = record["closed_form"]["corrected_error_km"]["max"]

@@ -12,10 +12,9 @@ from esail_opt.optimisation.problem_file import shipped_problem
 
 #: The shipped problem this bench solves.
 PROBLEM = "earth_mars_low_thrust"
-#: The collocation optimum of that transfer, the entry ``earth_mars_low`` of
-#: ``tests/reference/collocation_min_time.json`` (``runtime_seconds``: its whole
-#: multistart), carried here as an installed package has no ``tests/``;
-#: ``tests/test_bench_problems.py`` checks them against that entry.
+#: The collocation optimum of that transfer, ``earth_mars_low`` of
+#: ``tests/reference/collocation_min_time.json`` (``runtime_seconds``: its whole multistart),
+#: copied as an installed package has no ``tests/``; ``tests/test_bench_problems.py`` checks it.
 EARTH_MARS_LOW_REFERENCE = {
     "ac_mm_s2": 0.1,
     "rf_au": 1.524,
@@ -27,8 +26,7 @@ EARTH_MARS_LOW_REFERENCE = {
 
 #: Constant pitch of the collocation's start, deg: the same as the shooting NLPs' seed.
 GUESS_DEG = 45.0
-#: CPU cap of each timed collocation solve, s: never cuts one short (the multistart's
-#: 30 s would).
+#: CPU cap of each timed collocation solve, s: never cuts one short (the multistart's 30 s would).
 NO_CPU_CAP = 1e5
 #: The JSON's ``how``: what each time covers.
 HOW = ("wall time of solver construction + Ipopt solve (MUMPS, exact Hessian) on one "
@@ -72,10 +70,9 @@ def _shooting(problem, runs):
 
 def _collocation_solve(seed, ac, radius):
     """The collocation's path to its answer from one start, timed: search mesh, reporting
-    mesh, twice it (the stored reference's meshes), each warm-started from the last and
-    its NLP construction counted.  Returns (fine solution dict, per-stage
-    [{"intervals", "iterations", "status", "seconds"}], total seconds).
-    """
+    mesh, twice it (the reference's meshes), each warm-started from the last, NLP
+    construction counted.  Returns (fine solution dict, per-stage [{"intervals",
+    "iterations", "status", "seconds"}], total seconds)."""
     from esail_opt.bench import collocation as colloc
 
     stages = []
@@ -146,21 +143,19 @@ def _print(data):
 def run(out, repeats):
     """Three optimisers on the low-thrust Earth-Mars transfer; writes ``lowthrust.json``.
 
-    * closed-form multiple shooting: the shipped :data:`PROBLEM` (its
-      per-revolution segment count, resolved by the seed), one equal-length NLP;
-    * CVODES-arc multiple shooting: the same NLP, N, initial guess and Ipopt options,
-      each segment one CVODES integration of Eqs. 1-2 in theta at 1e-12 with CasADi's
-      sensitivities (``segment_methods.CVODES``);
+    * closed-form multiple shooting: the shipped :data:`PROBLEM` (its per-revolution
+      segment count, resolved by the seed), one equal-length NLP;
+    * CVODES-arc multiple shooting: the same NLP, N, guess and Ipopt options, each segment
+      one CVODES integration of Eqs. 1-2 in theta at 1e-12 (``segment_methods.CVODES``);
     * the collocation reference (:mod:`.collocation`) along its own path from the
-      constant-pitch +45 deg start (:func:`_collocation_solve`).  Its multistart is not
-      timed (it only guards against other basins); a single cold solve on the fine mesh
-      is no substitute, as it stops at a discrete KKT point that does not fly.
+      constant-pitch +45 deg start (:func:`_collocation_solve`).  Its multistart, which only
+      guards against other basins, is not timed; a single cold solve on the fine mesh is
+      no substitute, as it stops at a discrete KKT point that does not fly.
 
-    Each time is wall time of solver construction plus the Ipopt solve, the median of
-    ``runs_of(repeats)`` runs per method; the seeds (timed apart) and the shooting NLP's
-    MX graph are built outside it.  Every time of flight is reported with the verified
-    target miss beside it (CVODES for the shooting schedules, DOP853 for the collocation
-    control).  Returns the path written.
+    Each time is the median over ``runs_of(repeats)`` runs of the wall time of solver
+    construction plus Ipopt solve; the seeds (timed apart) and the shooting NLP's MX graph
+    are built outside it.  Each time of flight comes with its verified target miss (CVODES
+    for the shooting schedules, DOP853 for the collocation control).  Returns the path.
     """
     from esail_opt.app.outputs import write_json
 

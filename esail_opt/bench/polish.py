@@ -107,11 +107,10 @@ def run(out, repeats):
 
     For each of :data:`PROBLEMS`, as shipped, both paths start from the same seed
     (``seed.initial_guess``): warm is the closed-form NLP (``solve_problem``) then the
-    polish; cold is the polish's own NLP (at most :data:`COLD_MAX_ITER` iterations)
-    from the seed, its nodes flown by CVODES so that continuity holds at the start.
-    Success and ``ratio`` as in :func:`_flown_success` and :func:`ratio`.  Wall times of
-    building and solving; one run each (``repeats`` is unused: a cold start takes
-    minutes).  Returns the path written.
+    polish; cold is the polish's own NLP (at most :data:`COLD_MAX_ITER` iterations), its
+    nodes flown by CVODES so that continuity holds at the start.  Success and ``ratio`` as
+    in :func:`_flown_success` and :func:`ratio`.  Wall times of building and solving, one
+    run each (``repeats`` is unused: a cold start takes minutes).  Returns the path written.
     """
     from esail_opt.app.outputs import write_json
 

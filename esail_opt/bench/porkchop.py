@@ -64,9 +64,9 @@ def _rebuild(rows):
 
 
 def _warm_up(problem):
-    """One untimed closed-form solve of ``problem``, finished, so that the process's
-    one-time costs (the bodies' smooth tracks, the segment Functions) do not fall on the
-    scan timed first; RK4's are paid by :func:`_rk4_steps`'s trial solves."""
+    """One untimed closed-form solve of ``problem`` so that the process's one-time costs
+    (bodies' tracks, segment Functions) do not fall on the scan timed first (RK4's fall on
+    :func:`_rk4_steps`'s trial solves)."""
     solver = scan.CellSolver()
     solver.finish(solver.cold(problem))
 
@@ -89,10 +89,9 @@ def run(out, repeats=1):
 
 
 def timed_scans(out, label, name, problem):
-    """Time the scan of ``problem`` over the bench's grid three ways (the closed form,
-    RK4 segments (``segment_methods.RK4``: of Eqs. 1-2, or of the turning plane's
-    equations in three dimensions), every cell rebuilt); writes ``LABEL.json`` under
-    ``out`` and returns its path."""
+    """Time the scan of ``problem`` over the bench's grid three ways (the closed form, RK4
+    segments of Eqs. 1-2 or, in 3-D, of the turning plane's equations, every cell rebuilt);
+    writes ``LABEL.json`` under ``out`` and returns its path."""
     from pathlib import Path
 
     rows = _rows(_grid(), problem)

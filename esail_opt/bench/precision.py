@@ -1,13 +1,12 @@
-"""Work-precision benchmark: solve time against verified accuracy, per method.
+"""``esail-opt-bench precision``: solve time against verified accuracy, per method.
 
 Methods are compared by the work each needs to reach a given accuracy, not at one setting
-each: a method fast at a coarse setting may need a slow one to be as accurate.  The work
-is the wall time of a whole ``solve_problem`` (seed, NLP construction, Ipopt); the
-precision is ``target_miss_r_km`` of the schedule flown on Eqs. 1-2 by CVODES
-(``optimisation.verify``).  Each method's settings form a curve, read at the misses of
-:data:`MISSES_KM` by :func:`seconds_at_miss`.  The methods (:class:`Method`) are the
-closed form (also with the error control's correction), RK4 segments and CVODES segments,
-each NLP with equal segment lengths and the same Ipopt options.
+each: a method fast at a coarse setting may need a slow one to be as accurate.  The work is
+the wall time of a whole ``solve_problem`` (seed, NLP construction, Ipopt); the precision is
+``target_miss_r_km`` of the schedule flown on Eqs. 1-2 by CVODES (``optimisation.verify``).
+The methods (:class:`Method`) are the closed form (also with the error control's
+correction), RK4 segments and CVODES segments, each NLP with equal segment lengths and the
+same Ipopt options.
 """
 
 import dataclasses
@@ -32,12 +31,11 @@ REPORTED = ("closed_form", "rk4", "cvodes")
 
 @dataclass(frozen=True)
 class Method:
-    """One method at one setting.  Points of the same ``name`` form one curve.
-    ``settings`` is recorded with the point: ``segments`` (N, or None when set per
-    revolution: the solved N is recorded then) and ``steps`` (closed-form sub-arcs, RK4
-    steps per segment, None for an adaptive integrator); other keys only label the
-    progress line.  ``solve(problem) -> NLPResult`` is everything timed; it applies its
-    own setting to the case's equal-length problem.
+    """One method at one setting; points of the same ``name`` form one curve.  ``settings``
+    is recorded with the point: ``segments`` (N, or None when set per revolution: the solved
+    N is recorded then) and ``steps`` (closed-form sub-arcs, RK4 steps per segment, None for
+    an adaptive integrator); other keys only label the progress line.  ``solve(problem) ->
+    NLPResult`` is everything timed; it applies its own setting to the equal-length problem.
     """
 
     name: str
@@ -135,15 +133,15 @@ PROBLEMS = ("earth_mars_min_time", "earth_mars_low_thrust")
 
 
 def cases():
-    """The two transfers of :data:`PROBLEMS` with their methods and settings.
+    """The two transfers of :data:`PROBLEMS` with their methods and settings, a tuple of
+    :class:`Case` loaded when called, so that importing the benches reads no file.
 
-    At 1 mm/s^2 N is a total; at 0.1 mm/s^2 (about 6.5 revolutions) it is per
-    revolution, as in the shipped problem.  Both run down to coarse settings, where a
-    curve must start above a miss to be read there rather than only bounded; 10 x 3 is
-    the closed form's coarsest at 1 mm/s^2 because fewer sub-arcs break the strain cap
-    (``error_control.STRAIN_CAP``) and the seed adds them back.  CVODES segments are exact
-    at any N and slow, so they run at two.  Loaded when called, so that importing the
-    benches reads no file.  Returns a tuple of :class:`Case`.
+    At 1 mm/s^2 N is a total; at 0.1 mm/s^2 (about 6.5 revolutions) it is per revolution,
+    as in the shipped problem.  Both run down to coarse settings, since a curve must start
+    above a miss to be read there rather than only bounded; 10 x 3 is the closed form's
+    coarsest at 1 mm/s^2 because fewer sub-arcs break the strain cap
+    (``error_control.STRAIN_CAP``) and the seed adds them back.  CVODES segments are exact at
+    any N and slow, so they run at two.
     """
     high_ac, low_ac = (shipped_problem(name) for name in PROBLEMS)
     return (
@@ -168,10 +166,9 @@ def cases():
 
 
 def envelope(points):
-    """The lower-left envelope of (seconds, miss_km) points: each point that every faster
-    one misses by more (a miss of None, failed, is left out).  Returns a list of
-    (seconds, miss), seconds strictly increasing, miss strictly decreasing.
-    """
+    """The lower-left envelope of (seconds, miss_km) points, each point that every faster one
+    misses by more (a miss of None, failed, left out): a list of (seconds, miss), seconds
+    strictly increasing, miss strictly decreasing."""
     kept = []
     # Ties in time: the more accurate first, so the other is dropped as dominated.
     for seconds, miss in sorted((p for p in points if p[1] is not None),
@@ -182,14 +179,12 @@ def envelope(points):
 
 
 def seconds_at_miss(points, target):
-    """Seconds at which one method's (seconds, miss_km) ``points`` reach a miss of
-    ``target`` km (> 0), read on their :func:`envelope`; None if no point reaches it.
-
-    With B the fastest point with miss <= ``target`` and A the envelope point before it,
-    the time is interpolated linearly in (log seconds, log miss) between them: the
-    straight segment of the log-log work-precision curve, the usual reading.  When B is
-    the fastest point the time is B's own: extrapolating below the fastest setting
-    measured would not be sound.
+    """Seconds at which one method's (seconds, miss_km) ``points`` reach a miss of ``target``
+    km (> 0), read on their :func:`envelope`; None if no point reaches it.  With B the
+    fastest point with miss <= ``target`` and A the envelope point before it, the time is
+    interpolated linearly in (log seconds, log miss), the usual reading of a work-precision
+    curve; when B is the fastest point it is B's own time, as extrapolating below the
+    fastest setting measured would not be sound.
     """
     front = envelope(points)
     for i, (s_b, m_b) in enumerate(front):
@@ -243,11 +238,11 @@ def _label(settings):
 
 
 def run_point(problem, method, runs):
-    """Solve with ``method`` ``runs`` times, verify the last result, and print one
-    progress line to stderr.  Returns ``{"method", "segments", "steps", "seconds",
-    "miss_km", "status"}``: the median wall time of ``method.solve``; the CVODES flight's
-    distance to the target orbit, km, or None when Ipopt did not converge or the flight
-    failed; Ipopt's return status, or what failed.
+    """Solve with ``method`` ``runs`` times, verify the last result and print a progress line
+    to stderr.  Returns ``{"method", "segments", "steps", "seconds", "miss_km", "status"}``:
+    the median wall time of ``method.solve``; the CVODES flight's distance to the target
+    orbit (km; None when Ipopt did not converge or the flight failed); Ipopt's return
+    status, or what failed.
     """
     from esail_opt.optimisation.verify import verify
     from esail_opt.physics import constants as units
@@ -300,8 +295,7 @@ def draw_precision(case, ax=None,
     """Draw one case's log-log work-precision diagram on ``ax`` (default: a new Figure's)
     and return the axes: every point, each method's envelope as a line, the target misses
     as horizontal lines.  ``case`` is an entry of ``precision.json``'s ``cases``
-    (:func:`run_case`), or any dict with its ``problem``, ``ac_mm_s2`` and ``points``.
-    """
+    (:func:`run_case`), or any dict with its ``problem``, ``ac_mm_s2`` and ``points``."""
     if ax is None:
         from matplotlib.figure import Figure
 
@@ -348,9 +342,8 @@ def precision_figure(cases):
 
 def run(out, repeats):
     """Every point of :func:`cases` by :func:`run_point` (median of ``runs_of(repeats)``),
-    each curve read by :func:`at_miss`.  Writes ``<out>/precision.json`` and
-    ``<out>/precision.png``; returns the JSON's path.
-    """
+    each curve read by :func:`at_miss`; writes ``<out>/precision.json`` and
+    ``<out>/precision.png`` and returns the JSON's path."""
     from esail_opt.app.outputs import save_figure, write_json
 
     runs = runs_of(repeats)

@@ -109,18 +109,14 @@ def _schedule(arcs):
 
 
 def race(repeats):
-    """Call time against final error for the ten years, each method at several settings.
-
-    * ``closed_form``: the NLP's kind of arc (second order, ending on the exact angular
-      momentum), in time, at :data:`RACE_ARCS` arcs;
-    * ``closed_form_richardson``: first-order arcs, Richardson-extrapolated, ending on the
-      exact angular momentum, at the same arc counts;
-    * ``closed_form_plain``: the paper's rectification (``arcs.FIRST_ORDER``), the same;
-    * ``cvodes``: the case's 20 arcs at :data:`RACE_TOLERANCES`.
+    """Call time against final error for the ten years, each method at several settings:
+    ``closed_form`` (the NLP's second-order arcs, ending on the exact angular momentum),
+    ``closed_form_richardson`` (first-order arcs, Richardson-extrapolated, likewise) and
+    ``closed_form_plain`` (the paper's rectification, ``arcs.FIRST_ORDER``), in time at
+    :data:`RACE_ARCS` arcs; ``cvodes`` on the case's 20 arcs at :data:`RACE_TOLERANCES`.
 
     The error is the final position's distance (km) from CVODES at
-    ``simulate.VERIFY_TOLERANCE``, read at :data:`RACE_ERRORS_KM` by
-    ``precision.seconds_at_miss``.  Returns ``points`` ({"method", "setting", "seconds",
+    ``simulate.VERIFY_TOLERANCE``.  Returns ``points`` ({"method", "setting", "seconds",
     "miss_km"}), ``at_error_km`` (:func:`_race_at_error`), ``call_floor_seconds``
     (:func:`_call_floor_seconds`), ``ratio_cvodes_over_call_floor`` (CVODES at 1e-12) and
     ``reference_final_state`` [r, theta, v_r, v_theta, t].
@@ -159,8 +155,7 @@ def _race_entries():
 
 
 def _race_point(method, setting, fun, args, truth, repeats):
-    """One point of the race: ``fun(*args)`` timed, and its final error against
-    ``truth`` (km)."""
+    """One point of the race: ``fun(*args)`` timed, and its final error against ``truth`` (km)."""
     import numpy as np
 
     value = fun(*args)
@@ -213,10 +208,8 @@ def _batch_cases(grid):
 
 
 def cpu_seconds(fn, repeats):
-    """Median CPU seconds of this process over ``repeats`` calls of ``fn()``, after one
-    warm-up call: for a method on one thread, its own work, without the waits for a core
-    that the wall clock counts on a shared machine.
-    """
+    """Median CPU seconds of this process over ``repeats`` calls of ``fn()`` after one warm-up
+    call: a one-thread method's own work, without the waits for a core a wall clock counts."""
     import time
 
     return median_seconds(fn, repeats, clock=time.process_time)
@@ -249,17 +242,15 @@ def _heyoka_point(tol, sizes, schedule, truth, repeats):
 
 
 def heyoka_batch(repeats, schedule, truth, target_km):
-    """The batch flown by heyoka (:mod:`.taylor`) at each of :data:`HEYOKA_TOLERANCES`,
-    or ``{"skipped": reason}`` when heyoka does not import.  ``schedule`` is (x0[4], acs,
-    alphas, durations), the last three (M, N), as ``taylor.fly`` takes them; ``truth``
-    (5, M) each case's reference final state; ``target_km`` the closed form's median
-    final error.
+    """The batch flown by heyoka (:mod:`.taylor`) at each of :data:`HEYOKA_TOLERANCES`, or
+    ``{"skipped": reason}`` when heyoka does not import.  ``schedule`` is ``taylor.fly``'s
+    (x0[4], acs, alphas, durations), the last three (M, N); ``truth`` (5, M) each case's
+    reference final state; ``target_km`` the closed form's median final error.
 
     Returns ``points`` (:func:`_heyoka_point`), ``equal_error`` (the loosest point whose
     median final error is at most ``target_km``, or None), ``tight`` (1e-12) and
-    ``python_loop_seconds_per_case`` (the part spent in the Python loop around heyoka's
-    calls).  Each time is median CPU seconds of ``taylor.fly_prepared`` on lanes
-    ``taylor.prepare`` made beforehand.
+    ``python_loop_seconds_per_case`` (the Python loop around heyoka's calls).  Times are
+    median CPU seconds of ``taylor.fly_prepared`` on lanes prepared beforehand.
     """
     from esail_opt.bench import taylor
 
@@ -355,10 +346,9 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     (``propagation.batch.batch_function``; ``native`` False keeps it on CasADi's virtual
     machine) and, for comparison, compiled by CasADi one case at a time; CVODES on
     ``cvodes_cases`` evenly spread cases (:func:`_cvodes_points`); heyoka
-    (:func:`heyoka_batch`).  Final errors are the race's.  Every time is median CPU
-    seconds (:func:`cpu_seconds`) from arguments already in the method's form.
-
-    Returns the ``batch`` block (:func:`_batch_block`) with its ``per_case`` table.
+    (:func:`heyoka_batch`).  Times are median CPU seconds (:func:`cpu_seconds`) from
+    arguments already in each method's form.  Returns the ``batch`` block
+    (:func:`_batch_block`) with its ``per_case`` table.
     """
     import numpy as np
 
@@ -437,10 +427,9 @@ def _batch_block(closed, errors, timed, points, heyoka, native, grid):
 
 
 def per_case_table(block):
-    """The batch's methods side by side: seconds per case, median final error, and each
-    one's time over the closed form's (above 1: the closed form is faster).  Equal error
-    is read as in :func:`_batch_block` and :func:`heyoka_batch`; rows of a method skipped
-    or never reaching that error are left out.
+    """The batch's methods side by side: seconds per case, median final error and time over
+    the closed form's (above 1: the closed form is faster).  Equal error is read as in
+    :func:`_batch_block` and :func:`heyoka_batch`; rows skipped or never reaching it are left out.
     """
     cases, closed = block["cases"], block["closed_form_seconds"] / block["cases"]
     rows = [("closed form", closed, block["median_final_error_km"], None),
@@ -563,17 +552,13 @@ def _print_batch(block):
 def run(out, repeats, grid=None):
     """The 10-year orbit raising three ways, timed in one run; writes ``propagate.json``.
 
-    * the rectified closed form: 20 arcs of six months on its own clock, one CasADi
-      Function call returning the 20 states at the rectification points;
-    * CVODES at 1e-12 on Eqs. 1-2, the same schedule, the same 20 states;
-    * Ref. [10]'s model at the same 20 times;
-    * for context, the closed form with the arcs given by their angles (as the optimiser
-      uses it) and CVODES in one call with 20 output times (no restarts).
-
-    Each time is the median of ``repeats`` calls with arguments already in the form the
-    Function takes.  Accuracy is the final position's distance from CVODES (km), with its
-    radial and angular parts (:func:`_accuracy`).  Then :func:`race` (``race``,
-    ``propagate.png``) and :func:`batch` (``batch``).  Returns the path written.
+    The rectified closed form (20 six-month arcs on its own clock, one CasADi call returning
+    the 20 states at the rectification points), CVODES at 1e-12 on Eqs. 1-2 (the same
+    schedule and states) and Ref. [10]'s model at the same 20 times; for context, the closed
+    form given the arcs' angles (as the optimiser uses it) and CVODES in one call with 20
+    output times (no restarts).  Each time is the median of ``repeats`` calls from arguments
+    already in the Function's form; accuracy is :func:`_accuracy`'s.  Then :func:`race`
+    (``race``, ``propagate.png``) and :func:`batch` (``batch``).  Returns the path written.
     """
     import numpy as np
 

@@ -2,36 +2,33 @@
 zero-order-hold script of the same fixed-date transfer, whole processes side by side.
 
 The main job is ``esail-opt solve problems/earth_mars_min_ac.py --polish``, timed with
-``--no-plots`` and with its figures in every round.  The baseline is what a pykep 3 user
-writes for that transfer: pykep's zero-order-hold leg (``pykep.leg.zoh``: segments flown
-forward and backward by heyoka, one mismatch where they meet, its gradient from heyoka's
-variational equations), a pygmo problem around it and pygmo's Ipopt.  Both sides aim at
-the same DE421 states (``bodies.lookup.ecliptic_state_at``) and fly the same E-sail thrust
-(:func:`dynamics`; not pykep's free thrust vector), 40 segments of pitch, clock and
-throttle boxed as the problem boxes them, one a_c the objective.
+``--no-plots`` and with its figures.  The baseline is what a pykep 3 user writes for that
+transfer: pykep's zero-order-hold leg (``pykep.leg.zoh``: segments flown forward and backward
+by heyoka, one mismatch where they meet, its gradient from heyoka's variational equations),
+a pygmo problem around it and pygmo's Ipopt.  Both sides aim at the same DE421 states
+(``bodies.lookup.ecliptic_state_at``) and fly the same E-sail thrust (:func:`dynamics`, not
+pykep's free thrust vector): 40 segments of pitch, clock and throttle boxed as the problem
+boxes them, one a_c the objective.
 
-Decisions, each a choice a pykep user would make:
+Decisions, each one a pykep user would make:
 
-* segments of equal duration, the leg's time grid (the main job's are of equal swept
-  angle; the optima differ by the grids alone, 7e-5 of a_c here);
-* a_c a fourth control held equal on every segment, so that the leg's own control
-  gradients give its derivative (their sum);
-* the leg cut in the middle (:data:`CUT`): at pykep's examples' 0.6 the solve took over
-  ten times as long or ran out of iterations;
-* the mismatch rows in metres and metres per TU, so that :data:`IPOPT`'s
-  ``constr_viol_tol`` of 1 cm holds the flown miss to centimetres;
-* Ipopt's limited-memory Hessian (pygmo's problem has none) with a memory longer than
-  the 121 variables: the default of 6 pairs took a minute, 150 or more under 4 s;
-* a constant-attitude guess (:data:`GUESS_PITCH_DEG`, clock 0, full throttle, the
-  problem's seed a_c): the solve's time hangs on that pitch, the optimum does not.
+* segments of equal duration, the leg's time grid (the main job's segments sweep equal
+  angles; the grids alone make the optima differ, by 7e-5 of a_c here);
+* a_c a fourth control held equal on every segment, its derivative the sum of the leg's
+  own control gradients;
+* the leg cut in the middle (:data:`CUT`): at pykep's examples' 0.6 the solve took over ten
+  times as long or ran out of iterations;
+* mismatch rows in metres and metres per TU, so that :data:`IPOPT`'s ``constr_viol_tol`` of
+  1 cm holds the flown miss to centimetres;
+* Ipopt's limited-memory Hessian (pygmo's problem has none) with a memory longer than the
+  121 variables: the default 6 pairs took a minute, 150 or more under 4 s;
+* a constant-attitude guess (:data:`GUESS_PITCH_DEG`, clock 0, full throttle, the seed a_c):
+  the solve's time depends on that pitch, the optimum does not.
 
-pykep 3.0.1 cannot be imported (its wheel lacks data files its ``__init__`` reads, and
-its core bundles a libheyoka that conflicts with heyoka.py's), so :func:`zoh_class` loads
-the pure-Python leg by path, and nothing else of pykep.
-
-:func:`main` is the baseline's process: it prints one JSON line (:func:`solve`'s record
-and its import time).  pykep, heyoka and pygmo are the ``bench`` extra; without them
-:func:`run` times nothing and writes ``pykep.json`` saying the baseline was skipped.
+pykep 3.0.1 cannot be imported (its wheel lacks data files its ``__init__`` reads, and its
+core bundles a libheyoka that conflicts with heyoka.py's), so :func:`zoh_class` loads only
+the pure-Python leg, by path.  :func:`main` is the baseline's process; pykep, heyoka and
+pygmo are the ``bench`` extra.
 """
 
 import importlib.util
@@ -47,9 +44,8 @@ from pathlib import Path
 PROBLEM = "earth_mars_min_ac"
 #: Where the leg's forward and backward halves meet, as a fraction of its segments.
 CUT = 0.5
-#: Pitch of the constant-attitude guess, deg: in the band (15 to 30 deg) where the
-#: baseline is fastest, so that it is timed at its best (at 45, the main job's seed, it
-#: took over 20 times as long).
+#: Pitch of the constant-attitude guess, deg, in the baseline's fastest band (15 to 30 deg)
+#: so that it is timed at its best: at 45, the main job's seed, it took over 20 times as long.
 GUESS_PITCH_DEG = 20.0
 #: pygmo's Ipopt options (module docstring); the mismatch rows are in metres.
 IPOPT = {"tol": 1e-8, "constr_viol_tol": 0.01, "max_iter": 3000,
@@ -70,8 +66,7 @@ _IPOPT_STATUS = {0: "Solve_Succeeded", 1: "Solved_To_Acceptable_Level",
 
 
 def _zoh_path():
-    """Path of ``pykep/leg/_zoh.py`` in the installed pykep, found without importing it
-    (None when pykep is not installed)."""
+    """Path of the installed ``pykep/leg/_zoh.py``, found without importing pykep (or None)."""
     spec = importlib.util.find_spec("pykep")
     if spec is None or not spec.submodule_search_locations:
         return None
@@ -105,8 +100,7 @@ def versions():
 
 
 def zoh_class():
-    """pykep's ``leg.zoh`` class, ``pykep/leg/_zoh.py`` loaded by path over heyoka.py,
-    once a process."""
+    """pykep's ``leg.zoh`` class, ``pykep/leg/_zoh.py`` loaded by path once a process."""
     name = "esail_opt_bench_pykep_leg_zoh"
     if name not in sys.modules:
         spec = importlib.util.spec_from_file_location(name, _zoh_path())
@@ -118,14 +112,11 @@ def zoh_class():
 
 def dynamics(coefficients):
     """The E-sail in three dimensions as heyoka's ODE system, canonical units (mu = 1,
-    r_E = 1 au).
-
-    State [x, y, z, vx, vy, vz]; runtime parameters ``par[0..3]`` = pitch alpha, clock
-    delta (rad), throttle kappa and a_c.  The thrust is a_c kappa / r (R r_hat +
-    T t_hat + N h_hat), ``physics.dynamics.rhs_cartesian`` under
-    ``physics.thrust.radial_transverse_normal`` written again as a pykep user writes it
-    (the tests check the two agree).  Returns (list of (variable, derivative), the
-    state's variables).
+    r_E = 1 au): state [x, y, z, vx, vy, vz]; runtime parameters ``par[0..3]`` = pitch
+    alpha, clock delta (rad), throttle kappa and a_c.  The thrust a_c kappa / r (R r_hat +
+    T t_hat + N h_hat) is ``physics.dynamics.rhs_cartesian`` under
+    ``physics.thrust.radial_transverse_normal``, written again as a pykep user writes it
+    (the tests check they agree).  Returns (list of (variable, derivative), the variables).
     """
     import heyoka as hy
 
@@ -165,11 +156,9 @@ def integrators(coefficients):
 
 def transfer(problem):
     """The fixed-date transfer of ``problem``: a dict of the departure and arrival states
-    (Cartesian, canonical), the time of flight (TU), the segments, the bounds and the
-    thrust coefficients.  ValueError, naming the problem, unless it is a 3-D minimum-a_c
-    rendezvous from a body on a fixed date with no excess speed, in a fixed count of
-    segments.
-    """
+    (Cartesian, canonical), time of flight (TU), segments, bounds and thrust coefficients.
+    ValueError, naming the problem, unless it is a 3-D minimum-a_c rendezvous from a body
+    on a fixed date with no excess speed, in a fixed count of segments."""
     import numpy as np
 
     from esail_opt.bodies import lookup
@@ -198,12 +187,10 @@ def transfer(problem):
 
 
 class Transfer:
-    """pygmo's problem of the transfer (:func:`transfer`) on pykep's zoh leg.
-
-    Decision vector: [a_c] + [alpha_k, delta_k, kappa_k for each segment k].  Fitness:
-    [a_c] + the leg's six mismatch components in metres.  The gradient is the leg's
-    (``compute_mc_grad``): its control columns, a_c's summed over the segments.
-    """
+    """pygmo's problem of the transfer (:func:`transfer`) on pykep's zoh leg: decision vector
+    [a_c] + [alpha_k, delta_k, kappa_k for each segment k]; fitness [a_c] + the leg's six
+    mismatch components in metres; gradient the leg's control columns (``compute_mc_grad``),
+    a_c's summed over the segments."""
 
     def __init__(self, case, tas, zoh):
         import numpy as np
@@ -270,14 +257,13 @@ class Transfer:
 
 
 def solve(problem):
-    """Solve ``problem``'s transfer with pygmo's Ipopt on pykep's leg.
-
-    Returns a JSON-ready record: ``status`` (Ipopt's), ``converged`` (Solve_Succeeded and
-    the mismatch within ``constr_viol_tol``), ``fevals`` and ``gevals`` (pygmo's counts),
-    ``ac`` and ``ac_mm_s2``, ``mismatch_m`` (the largest row), ``miss_m`` and ``miss_m_s``
-    (:meth:`Transfer.fly` against the arrival state), ``alpha_rad``, ``clock_rad``,
-    ``throttle``, ``duration_tu``, ``build_seconds`` (integrators and leg) and
-    ``solve_seconds``.  A failed solve is returned with its status, not raised.
+    """Solve ``problem``'s transfer with pygmo's Ipopt on pykep's leg; returns a JSON-ready
+    record: ``status`` (Ipopt's), ``converged`` (Solve_Succeeded and the mismatch within
+    ``constr_viol_tol``), ``fevals`` and ``gevals`` (pygmo's counts), ``ac``, ``ac_mm_s2``,
+    ``mismatch_m`` (the largest row), ``miss_m`` and ``miss_m_s`` (:meth:`Transfer.fly`
+    against the arrival state), ``alpha_rad``, ``clock_rad``, ``throttle``, ``duration_tu``,
+    ``build_seconds`` (integrators and leg) and ``solve_seconds``.  A failed solve is
+    returned with its status, not raised.
     """
     import numpy as np
     import pygmo as pg
@@ -319,10 +305,9 @@ def solve(problem):
 
 
 def fly(problem, record):
-    """Fly ``record``'s schedule (:func:`solve`) on the package's own 3-D verifier
-    (CVODES on the turning-plane equations at the verifier's tolerance) from the
-    departure; returns its miss from the target in metres and m/s (``cvodes_miss_m``,
-    ``cvodes_miss_m_s``): the baseline judged as the main job's schedule is."""
+    """Fly ``record``'s schedule (:func:`solve`) from the departure on the package's 3-D
+    verifier (CVODES, turning-plane equations, the verifier's tolerance), judging it as the
+    main job's is; returns its target miss, ``cvodes_miss_m`` and ``cvodes_miss_m_s``."""
     import numpy as np
 
     from esail_opt.propagation.simulate import VERIFY_TOLERANCE, simulate3d
@@ -348,8 +333,7 @@ def _own_process(*args):
 
 
 def _commands(problem_file, out):
-    """The three processes of a round: the main job without and with its figures, and
-    the baseline's script."""
+    """The three processes of a round: the main job without and with figures, the baseline."""
     script = Path(sys.executable).with_name("esail-opt")
     main_job = ([str(script)] if script.exists() else
                 [sys.executable, "-c", "from esail_opt.app.cli import console; console()"])
@@ -365,10 +349,9 @@ def _last_line(stdout):
 
 
 def measure(rounds, problem_file, out):
-    """Time ``rounds`` rounds of the three processes, the order turned by one each round;
-    returns the per-round lists and the last runs' outputs.  One untimed run of each goes
-    first, so that no timed run fills a cache (compiled arcs, heyoka's compiled
-    integrators, file pages) for the others."""
+    """Time ``rounds`` rounds of the three processes, the order turned by one each round,
+    after one untimed run of each so that no timed run fills a cache (compiled arcs, heyoka's
+    integrators, file pages) for the others; returns the per-round lists and last outputs."""
     from esail_opt.bench.rockit_baseline import _timed
 
     sides = ("esail_opt", "esail_opt_figures", "pykep")
@@ -475,15 +458,14 @@ def _print(data):
 
 
 def run(out, repeats):
-    """Time the three whole processes side by side; writes ``pykep.json``, returns its
-    path.
+    """Time the three whole processes side by side (:func:`measure`, ``repeats`` rounds,
+    wall and CPU time with children); writes ``pykep.json``, returns its path.
 
-    ``repeats`` rounds (:func:`measure`), wall and CPU time of each process with its
-    children.  Each ratio is the median over rounds of pykep's wall time over the main
-    job's, without and with figures; None (the comparison void) unless every run of both
-    exited 0 and the two a_c agree within :data:`AC_AGREEMENT`.  Both answers are kept:
-    a_c in mm/s^2 and the miss in metres (pykep's also flown by CVODES, :func:`fly`).
-    Without the baseline's packages ``pykep.json`` holds ``{"skipped": reason}``.
+    Each ratio is the median over rounds of pykep's wall time over the main job's, without
+    and with figures; None (the comparison void) unless every run of both exited 0 and the
+    two a_c agree within :data:`AC_AGREEMENT`.  Both answers are kept: a_c in mm/s^2 and the
+    miss in metres (pykep's also flown by CVODES, :func:`fly`).  Without the baseline's
+    packages ``pykep.json`` holds ``{"skipped": reason}``.
     """
     import importlib.resources
     import os

@@ -1,23 +1,22 @@
 """``esail-opt-bench rockit``: the main job against a generic RK4 multiple-shooting script
 of the same transfer, both as whole processes.
 
-The main job is ``esail-opt solve problems/earth_mars_min_time.py --polish``.  The
-baseline is what a user of a general optimal-control toolkit writes for that transfer
-(:func:`build`): rockit's ``Ocp`` with a free final time, the polar states under Eqs. 1-2,
-one pitch per each of N = 60 equal intervals boxed to the sail's bounds, the target's end
-conditions, ``MultipleShooting(N=60, M=4, intg='rk')`` and Ipopt with ``expand``, as
-rockit's own examples do: the toolkit used as its authors show, not a weakened one.
+The main job is ``esail-opt solve problems/earth_mars_min_time.py --polish``.  The baseline
+(:func:`build`) is what a user of a general optimal-control toolkit writes, the toolkit used
+as rockit's own examples use it: ``Ocp`` with a free final time, the polar states under
+Eqs. 1-2, one pitch per each of N = 60 equal intervals boxed to the sail's bounds, the
+target's end conditions, ``MultipleShooting(N=60, M=4, intg='rk')`` and Ipopt with ``expand``.
 
-Its guess is a spiral (:func:`_spiral_guess`) at the problem's own seed pitch.  With the
-pitch boxed, the optimum's pass of the thrust through alpha_n = -90 = +90 deg is a jump
-that multiple shooting finds from some guesses only, so the guess's time of flight decides
-which optimum Ipopt reaches: :data:`GUESS_TOF_DAYS` reaches the main job's, and the
-comparison is void unless the two times of flight agree within :data:`TOF_AGREEMENT`.
+Its guess is a spiral at the problem's seed pitch (:func:`_spiral_guess`).  With the pitch
+boxed, multiple shooting finds the optimum's jump through alpha_n = -90 = +90 deg from some
+guesses only, so the guess's time of flight decides which optimum Ipopt reaches:
+:data:`GUESS_TOF_DAYS` reaches the main job's, and the comparison is void unless the two
+times of flight agree within :data:`TOF_AGREEMENT`.
 
-:func:`main` is the baseline's process: ``main([PROBLEM])`` (default :data:`PROBLEM`)
-solves and prints one JSON line (:func:`solve`'s record, its import and solve times);
-``main(["--figures", DIR])`` instead draws the two figures of ``DIR/solution.json`` and
-prints how long that took.  rockit is the ``bench`` extra.
+:func:`main` is the baseline's process: ``main([PROBLEM])`` solves and prints one JSON line
+(:func:`solve`'s record, its import and solve times); ``main(["--figures", DIR])`` draws
+the two figures of ``DIR/solution.json`` and prints how long that took.  rockit is the
+``bench`` extra.
 """
 
 import json
@@ -72,11 +71,9 @@ def _spiral_guess(ocp, states, alpha, problem, tf):
 
 
 def build(problem):
-    """rockit's OCP of ``problem``; returns (ocp, states, alpha): the four states r,
-    theta, v_r, v_theta and the pitch.  Only a fixed departure, an unthrottled sail, a
-    target with end conditions and minimum time are transcribed; anything else raises
-    ValueError.
-    """
+    """rockit's OCP of ``problem``; returns (ocp, states, alpha): the four states r, theta,
+    v_r, v_theta and the pitch.  ValueError unless the departure is fixed, the sail
+    unthrottled, the target has end conditions and the objective is minimum time."""
     import casadi as ca
     from rockit import FreeTime, MultipleShooting, Ocp
 
@@ -112,8 +109,7 @@ def build(problem):
 def solve(problem):
     """Solve :func:`build`'s OCP; returns a JSON-ready record: ``status``, ``iterations``,
     ``tof_days``, ``alpha_rad`` (the N pitches) and ``duration_tu`` (every interval's
-    length, TU).  A failed solve is returned with its status, not raised.
-    """
+    length, TU).  A failed solve is returned with its status, not raised."""
     import numpy as np
 
     from esail_opt.physics import constants as units
@@ -167,11 +163,8 @@ def _figures_seconds(folder):
 
 def _timed(command):
     """Run ``command`` as a whole process; returns (wall s, CPU s, exit status, stdout).
-
-    Both sides get one OpenBLAS thread unless the caller's environment says otherwise:
-    ``esail-opt`` sets that default for itself, and a second thread spinning in the
-    baseline's MUMPS would only add to its CPU time.
-    """
+    Both sides get one OpenBLAS thread unless the environment says otherwise (``esail-opt``'s
+    own default): a second thread spinning in the baseline's MUMPS would only add CPU time."""
     import os
     import resource
 
@@ -204,10 +197,10 @@ def _commands(problem_file, out):
 
 
 def measure(pairs, problem_file, out):
-    """Time ``pairs`` pairs of the two processes, alternating which goes first, and after
-    each pair the main job's figures in a process of their own; returns the per-pair
-    lists and the last runs' outputs.  One untimed run of each goes first, so that no
-    timed run fills a cache (compiled arcs on disk, file pages) for the others."""
+    """Time ``pairs`` pairs of the two processes, alternating which goes first, each pair
+    followed by the main job's figures in a process of their own, after one untimed run of
+    each so that no timed run fills a cache (compiled arcs on disk, file pages) for the
+    others; returns the per-pair lists and the last runs' outputs."""
     runs = {"esail_opt": [], "rockit": [], "figures": []}
     outputs = {}
     print("bench rockit: one untimed run of each ...", flush=True)
@@ -310,14 +303,12 @@ def _print(data):
 
 
 def run(out, repeats):
-    """Time the two whole processes side by side; writes ``rockit.json``, returns its path.
-
-    ``max(repeats, MIN_PAIRS)`` pairs (:func:`measure`), wall and CPU time of each
-    process and its children.  The ratio is the median over pairs of rockit's wall time
-    over the main job's; None (the comparison void) unless every run of both exited 0 and
-    the times of flight agree within :data:`TOF_AGREEMENT`.  rockit's miss is its
-    schedule flown (:func:`fly`), the main job's its polished verification's.  Raises
-    InputError without rockit.
+    """Time the two whole processes side by side (:func:`measure`, ``max(repeats,
+    MIN_PAIRS)`` pairs, wall and CPU time with children); writes ``rockit.json``, returns its
+    path.  The ratio is the median over pairs of rockit's wall time over the main job's;
+    None (the comparison void) unless every run of both exited 0 and the times of flight
+    agree within :data:`TOF_AGREEMENT`.  rockit's miss is its schedule flown (:func:`fly`),
+    the main job's its polished verification's.  Raises InputError without rockit.
     """
     import importlib.resources
     import os

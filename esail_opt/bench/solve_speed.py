@@ -42,10 +42,9 @@ def _print(case):
 def run(out, repeats):
     """The shooting NLP on closed-form arcs against CVODES arcs; writes ``solve.json``.
 
-    For each of :data:`PROBLEMS` (equal segment lengths: one NLP from one start) the two
-    NLPs share all but the segment Function: the chain of closed-form arcs, or one CVODES
-    integration of Eqs. 1-2 in theta at 1e-12 (:func:`.timing.timed_nlps`).  Each is timed
-    from ``nlpsol`` construction to the end of the solve, the median of
+    For each of :data:`PROBLEMS` (equal segment lengths: one NLP from one start) the two NLPs
+    share all but the segment Function: the chain of closed-form arcs, or one CVODES
+    integration of Eqs. 1-2 in theta at 1e-12, each timed by :func:`.timing.timed_nlps` over
     ``runs_of(repeats)`` runs; ``ratio`` is cvodes_seconds / closed_form_seconds.  The
     top-level keys are the first problem's; ``cases`` holds all.  Returns the path written.
     """

@@ -1,18 +1,16 @@
 """``esail-opt-bench stages``: where the time of one ``esail-opt solve --polish`` goes.
 
 One of :data:`PROBLEMS` is solved with the polish in a fresh Python process, so that the
-imports are timed as a command pays them.  The child calls what ``esail-opt solve``
-calls (:func:`child`) and wraps the package's own functions, wherever a module holds
-them, in timers that charge the time to the innermost stage running (exclusive time, as
-a profiler's own time), so that the stages partition the child's wall time.  The
-wrappers pass every argument and result through.
+imports are timed as a command pays them.  The child calls what ``esail-opt solve`` calls
+(:func:`child`), with the package's own functions wrapped, wherever a module holds them, in
+timers that pass everything through and charge the time to the innermost stage running
+(exclusive time, as a profiler's own time), so the stages partition the child's wall time.
 
-Stages (:data:`STAGES`): ``imports``, ``load``, ``ephemeris`` (the bodies' tracks),
-``seed``, ``nlp_build`` (transcription and ``nlpsol``), ``ipopt`` (each call listed in
-``ipopt_calls`` with the pipeline step that made it: ``answer``, ``probes``, ``lift``,
-``error control``, ``polish``), ``verification``, ``files``, ``figures_import``,
-``figures`` and ``other`` (the pipeline's own Python).  ``startup_and_exit`` is what the
-parent's wall time of the process adds.
+Stages (:data:`STAGES`): ``imports``, ``load``, ``ephemeris`` (the bodies' tracks), ``seed``,
+``nlp_build`` (transcription and ``nlpsol``), ``ipopt`` (each call listed in ``ipopt_calls``
+with the pipeline step that made it: ``answer``, ``probes``, ``lift``, ``error control``,
+``polish``), ``verification``, ``files``, ``figures_import``, ``figures`` and ``other`` (the
+pipeline's own Python).  ``startup_and_exit`` is what the parent's wall time adds.
 """
 
 import contextlib
@@ -32,10 +30,9 @@ STAGES = ("imports", "load", "ephemeris", "seed", "nlp_build", "ipopt", "verific
 
 
 class StageClock:
-    """Exclusive time per stage: time is charged to the innermost stage open, or to
-    ``other`` when none is, so the stages sum to the time from the clock's start to the
-    last charge.  Calls of the ``ipopt`` stage are also listed one by one, with the
-    pipeline step (:meth:`step`) open at the time."""
+    """Exclusive time per stage, charged to the innermost stage open or to ``other``, so the
+    stages sum to the time from the clock's start to its last charge.  ``ipopt`` calls are
+    also listed one by one, with the pipeline step (:meth:`step`) open at the time."""
 
     def __init__(self, clock=time.perf_counter):
         self.clock = clock
@@ -178,9 +175,8 @@ def child(problem_name, out_dir, plots=True):
                       "verified": bool(sol.verified)}))
 
 
-# The child loads this file by path, not as part of the bench package, whose __init__
-# imports every bench (and with them what the solve would import, which ``imports``
-# would then miss).
+# The child loads this file by path, not from the bench package, whose __init__ imports
+# every bench and with them what the solve would import, which ``imports`` would miss.
 _CHILD = """
 import importlib.util, sys
 spec = importlib.util.spec_from_file_location("esail_stages_child", sys.argv[1])
@@ -229,9 +225,9 @@ def _print(record):
 
 
 def run(out, repeats=1, problem=PROBLEMS[0]):
-    """Time the stages of one solve (:func:`measure`, with figures); print them and
-    write ``stages.json`` (``stages_planar.json`` for the planar twin) under ``out``.
-    One process is one sample: ``repeats`` is not used.  Returns the path written."""
+    """Time the stages of one solve (:func:`measure`, with figures), print them and write
+    ``stages.json`` (``stages_planar.json`` for the planar twin) under ``out``; returns its
+    path.  One process is one sample: ``repeats`` is not used."""
     from esail_opt.app.outputs import write_json
 
     record = measure(problem)

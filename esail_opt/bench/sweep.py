@@ -48,13 +48,12 @@ def _timed_sweeps(path, runs):
 
 
 def run(out, repeats):
-    """One sweep on 1 worker and on 2; writes ``sweep.json``.
+    """One sweep on 1 worker and on 2; writes ``sweep.json`` and returns its path.
 
-    The members (:data:`SWEEP_SOURCE` over :data:`SWEEP_PARAM`) outweigh the pool's
-    start-up.  The wall time covers the whole ``sweep.run``: pool start, every member,
-    shutdown.  The two pool sizes alternate over ``runs_of(repeats)`` runs and the medians
-    count, so that a burst of load hits both alike; whether both return the same rows is
-    recorded.  Returns the path written.
+    The members (:data:`SWEEP_SOURCE` over :data:`SWEEP_PARAM`) outweigh the pool's start-up.
+    The wall time covers the whole ``sweep.run`` (pool start, every member, shutdown); the
+    pool sizes alternate over ``runs_of(repeats)`` runs and the medians count, so that a
+    burst of load hits both alike.  Whether both return the same rows is recorded.
     """
     from esail_opt.app.outputs import write_json
 

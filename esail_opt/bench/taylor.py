@@ -1,20 +1,17 @@
 """heyoka's Taylor integrator flying Eqs. 1-2 under a piecewise-constant pitch, and the
 Cartesian equations in three dimensions under a piecewise-constant pitch and clock: the
 strongest integrator the propagation and ensemble benches set against the closed form.
+heyoka is the ``bench`` extra (:func:`available`); nothing imports it at module level.
 
-heyoka is the ``bench`` extra: :func:`available` says whether it imports, and nothing
-here imports it at module level.
+The package's own equations (``physics.dynamics.rhs``, ``rhs_cartesian``) are replayed on
+heyoka's expressions (:func:`replay`), so heyoka flies the same formula as CVODES, written
+nowhere a second time.  The thrust's components are runtime parameters, so a schedule
+changes them between arcs without compiling again.
 
-The package's own equations (``physics.dynamics.rhs``, ``rhs_cartesian``) are built as a
-CasADi SX Function and replayed on heyoka's expressions (:func:`replay`), so heyoka flies
-the same formula as CVODES, written nowhere a second time.  The thrust's components are
-runtime parameters, so a schedule changes them between arcs without compiling again.
-
-The arcs are flown one by one, ``propagate_until`` each arc's end in batch mode (one SIMD
-lane a case, on the calling thread), so every arc starts with its own thrust from an
-exact state, as CVODES restarts on each segment.  One expression switching the thrust
-with time would not do: the Taylor series is wrong across a jump inside a step, and
-heyoka's step control would not see it.
+The arcs are flown one by one (``propagate_until`` each arc's end in batch mode, one SIMD
+lane a case, on the calling thread), each from an exact state with its own thrust, as
+CVODES restarts on each segment: across a thrust jump inside a step the Taylor series is
+wrong, and heyoka's step control would not see it.
 """
 
 import collections
@@ -103,8 +100,7 @@ def replay(fun, variables):
 def integrator(tol, batch_size=None):
     """A heyoka batch integrator of :func:`system` at tolerance ``tol``, compiled once per
     process, tolerance and ``batch_size`` (cases side by side, one a SIMD lane; default
-    heyoka's recommended SIMD width).  :func:`fly` sets its state, time and parameters.
-    """
+    heyoka's recommended SIMD width).  :func:`fly` sets its state, time and parameters."""
     import heyoka as hy
 
     size = batch_size or hy.recommended_simd_size()
@@ -124,13 +120,11 @@ def cartesian_integrator(tol, batch_size=None):
 
 def fly(ta, x0, acs, alphas, durations, coefficients=EXACT):
     """M cases of a piecewise-constant pitch schedule flown on Eqs. 1-2 by ``ta``
-    (:func:`integrator`), ``ta.batch_size`` at a time.
-
-    ``x0`` (4,) or (M, 4) is the polar start, canonical; ``acs``, ``alphas``,
-    ``durations`` (M, N) each arc's a_c (canonical, times any throttle), pitch (rad) and
-    duration (TU); ``coefficients`` the thrust's (b1, b2).  Returns (M, 5, N): each case's
-    [r, theta, v_r, v_theta, t] at every arc's end.  RuntimeError if heyoka stops short
-    of a case's last arc (a non-finite state).
+    (:func:`integrator`), ``ta.batch_size`` at a time.  ``x0`` (4,) or (M, 4) is the polar
+    start, canonical; ``acs``, ``alphas``, ``durations`` (M, N) each arc's a_c (canonical,
+    times any throttle), pitch (rad) and duration (TU); ``coefficients`` the thrust's
+    (b1, b2).  Returns (M, 5, N): each case's [r, theta, v_r, v_theta, t] at every arc's
+    end.  RuntimeError if heyoka stops short of a case's last arc (a non-finite state).
     """
     return _flown(ta, prepare(ta.batch_size, x0, acs, alphas, durations, coefficients))
 
@@ -139,8 +133,7 @@ def fly3d(ta, y0, acs, alphas, deltas, durations, coefficients=EXACT):
     """:func:`fly` in three dimensions on the Cartesian equations, ``ta`` from
     :func:`cartesian_integrator`: ``y0`` (6,) or (M, 6) Cartesian, canonical; ``deltas``
     (M, N) each arc's clock (rad), ``acs`` times any thrust factor too.  Returns
-    (M, 7, N): each case's [x, y, z, vx, vy, vz, t] at every arc's end.
-    """
+    (M, 7, N): each case's [x, y, z, vx, vy, vz, t] at every arc's end."""
     return _flown(ta, prepare3d(ta.batch_size, y0, acs, alphas, deltas, durations,
                                 coefficients))
 
@@ -191,12 +184,10 @@ def _lanes(size, starts, pushes, durations):
 
 
 def fly_prepared(ta, lanes, steps=True):
-    """The flight of :func:`fly` or :func:`fly3d` from its prepared ``lanes``: the
-    states at every arc's end, shape (N, rows, lanes) ([r, theta, v_r, v_theta] or
-    [x, y, z, vx, vy, vz]).
-
-    ``steps`` False leaves out heyoka's ``propagate_until`` calls and their check (the
-    states are then the starts), to time the Python loop around them."""
+    """The flight of :func:`fly` or :func:`fly3d` from its prepared ``lanes``: the states at
+    every arc's end, shape (N, rows, lanes).  ``steps`` False leaves out heyoka's
+    ``propagate_until`` calls and their check (the states are then the starts), to time the
+    Python loop around them."""
     size, ends = ta.batch_size, lanes.ends
     out = np.empty((ends.shape[0], lanes.starts.shape[0], ends.shape[1]))
     state, pars = ta.state, ta.pars

@@ -51,12 +51,11 @@ def shooting_methods():
 
 
 def timed_nlps(problem, guess, methods, runs):
-    """Solve the NLP of ``problem`` from ``guess`` (shared, so only the arcs differ) with
-    each of ``methods`` (name -> segment method), ``runs`` times each.
-
-    Returns name -> {"seconds", "iterations", "status", "objective", "result"}: the median
-    wall time of ``nlpsol`` construction plus the Ipopt solve (MUMPS, exact Hessian), and
-    the last run's :class:`~esail_opt.optimisation.ipopt.NLPResult`.
+    """Solve the NLP of ``problem`` from ``guess`` (shared, so only the arcs differ) with each
+    of ``methods`` (name -> segment method), ``runs`` times each.  Returns name ->
+    {"seconds", "iterations", "status", "objective", "result"}: the median wall time of
+    ``nlpsol`` construction plus the Ipopt solve (MUMPS, exact Hessian), and the last run's
+    :class:`~esail_opt.optimisation.ipopt.NLPResult`.
     """
     from esail_opt.optimisation.ipopt import solve_transcription
     from esail_opt.optimisation.transcription import transcribe

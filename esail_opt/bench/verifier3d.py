@@ -1,17 +1,13 @@
-"""The 3-D verifier's accuracy: its flights of polished schedules against a Taylor
-integration in quadruple precision.
+"""``esail-opt-bench verifier3d``: the 3-D verifier's accuracy, its flights of polished
+schedules against a Taylor integration in quadruple precision.
 
-The verifier (``optimisation.verify.verify3d``) judges a 3-D schedule by a CVODES flight
-in the turning plane at 3e-16 and states as its error the gap to a second such flight at
-1e-15 plus the gap to a Cartesian flight at 3e-16.  This bench flies each case's polished
-schedule those three ways and on the Cartesian equations at 1e-15 (the error the
-Cartesian pair alone would state), and reports how far each ends from the truth and
-whether the stated error covers the judged flight's.
-
-The truth is heyoka (the ``bench`` extra) in quadruple precision on the Cartesian
-equations (:func:`.taylor.cartesian_system`); without heyoka the bench reports the gaps
-and no true errors.  The cases are :func:`cases`, and the other optima a search of the
-last one's turn counts polishes.  Nothing is timed: ``repeats`` is not used.
+The verifier (``optimisation.verify.verify3d``) judges a 3-D schedule by a CVODES flight in
+the turning plane at 3e-16 and states as its error the gap to a second such flight at 1e-15
+plus the gap to a Cartesian flight at 3e-16.  This bench flies each case's polished schedule
+those three ways and on the Cartesian equations at 1e-15 (the error the Cartesian pair alone
+would state), and reports how far each ends from the truth and whether the stated error
+covers the judged flight's.  The truth is heyoka (the ``bench`` extra) in quadruple
+precision (:func:`.taylor.cartesian_system`); without heyoka there are no true errors.
 """
 
 import dataclasses
@@ -110,7 +106,8 @@ def run(out, repeats=1):
     """Solve and polish every case, and every other optimum of the last case's search
     (``multistart.search``: turn counts whose flights dip to a third of an au, where both
     forms are hardest to fly), measure each polished flight (:func:`measure`), print a
-    table and write ``verifier3d.json``; returns its path."""
+    table and write ``verifier3d.json``; returns its path.  Nothing is timed: ``repeats``
+    is not used."""
     rows = []
     for label, problem in cases():
         print(f"bench verifier3d: {label}: solving with --polish ...", file=sys.stderr, flush=True)
