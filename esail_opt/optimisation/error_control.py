@@ -1,16 +1,15 @@
 """Error control: the closed-form optimum refined until its flight on Eqs. 1-2 meets the
 problem's tolerance.
 
-Each round: (1) fly the schedule on Eqs. 1-2 and judge it (``verify``); met, stop.
-(2) Fly every segment from its own start node on Eqs. 1-2 and on the closed form: the
-difference is its *defect*, whose position part is the reported local error.  (3) Where
-a segment breaks :data:`STRAIN_CAP` (a correction there has wrong derivatives), or the
-miss stalls, add sub-arcs.  (4) Re-solve warm with every segment's end shifted by its
-defect, so that at a fixed point the closed-form chain lands where Eqs. 1-2 do.  A
-correction that finds no point ends the rounds with the last that found one; rounds all
-short of the tolerance answer with the closest one.  Why: a defect correction is a warm
-re-solve that cuts the miss by orders of magnitude, where refining the mesh alone gains
-(m'/m)^2 for a cold solve of a larger NLP.
+Each round: (1) fly the schedule on Eqs. 1-2 and judge it (``verify``); met, stop.  (2) Fly
+every segment from its own start node on Eqs. 1-2 and on the closed form: the difference is
+its *defect*, whose position part is the reported local error.  (3) Where a segment breaks
+:data:`STRAIN_CAP` (a correction there has wrong derivatives), or the miss stalls, add
+sub-arcs.  (4) Re-solve warm with every segment's end shifted by its defect, so that at a
+fixed point the closed-form chain lands where Eqs. 1-2 do.  A correction that finds no point
+ends the rounds with the last that found one; rounds all short of the tolerance answer with
+the closest one.  Why: a warm defect correction cuts the miss by orders of magnitude, where
+refining the mesh alone gains (m'/m)^2 for a cold solve of a larger NLP.
 """
 
 import dataclasses
@@ -39,8 +38,7 @@ from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, f
 
 #: Largest a~_c dtheta of one closed-form sub-arc (an arc's error grows as its square or,
 #: second order, its cube; THEORY.md §3.8).  Kept by adding sub-arcs, never as an NLP
-#: constraint, which made feasible problems infeasible: it bounds the accuracy, not the
-#: answer.
+#: constraint, which made feasible problems infeasible: it bounds accuracy, not the answer.
 STRAIN_CAP = 0.05
 
 
@@ -98,14 +96,12 @@ class Round:
 
 @dataclass
 class ErrorControl:
-    """The outcome of :func:`control_error`; the caller judges its final flight.
-
-    ``problem`` is as last solved (``segments.sub_arcs`` may have grown); ``result`` the
-    kept optimum (see the module docstring), with its ``transcription``, ``check`` (its
-    Verification) and ``defects`` (5 x N, or None); ``history`` one :class:`Round` per
-    round; ``local_error_km`` per segment, the closed form's position error against
-    Eqs. 1-2 from its own start node (NaN where it could not be flown).
-    """
+    """The outcome of :func:`control_error`, whose final flight the caller judges: ``problem``
+    as last solved (``segments.sub_arcs`` may have grown); ``result`` the kept optimum (see
+    the module docstring), with its ``transcription``, ``check`` (its Verification) and
+    ``defects`` (5 x N, or None); ``history`` one :class:`Round` per round; ``local_error_km``
+    per segment, the closed form's position error against Eqs. 1-2 from its own start node
+    (NaN where it could not be flown)."""
 
     problem: object
     result: object
@@ -159,12 +155,10 @@ def _exact_ends3d(problem, starts, ac, alpha, delta, lengths, model_ends, tol):
 
 
 def segment_ends(problem, result, method=None, tol=VERIFY_TOLERANCE):
-    """(exact, model) ends [5 x N] of every segment flown from its own start node: by
-    CVODES on Eqs. 1-2 at ``tol``, and by the NLP's segment ``method`` (default
-    ``segment_methods.ClosedForm``), whose lengths are angles or, for a method in
-    time, durations.  Their difference is each segment's defect.  Raises SimulationError
-    if CVODES cannot fly a segment (an escaping arc).
-    """
+    """(exact, model) ends [5 x N] of every segment flown from its own start node: by CVODES
+    on Eqs. 1-2 at ``tol``, and by the NLP's segment ``method`` (default
+    ``segment_methods.ClosedForm``), whose lengths are angles or, for a method in time,
+    durations.  Raises SimulationError if CVODES cannot fly a segment (an escaping arc)."""
     method = ClosedForm() if method is None else method
     segment, length_in = method.function(problem), method.length_in
     lengths = result.lengths if length_in == "theta" else result.durations
@@ -212,13 +206,10 @@ DENSITY_SLACK = 1.25
 
 
 def per_revolution_mesh(problem, result, tr, say):
-    """A ``Segments(per_revolution=K)`` optimum solved again from itself, each segment
-    cut into as many as the turns it flies need: (NLPResult, Transcription).
-
-    The count is set on the seed's angle, and an optimum may fly far more turns than
-    its seed (an Earth-Laurel minimum time asked for 10 segments a turn flew 2.49 turns
-    on 10, where its best turn count found no point).  The first optimum stands where
-    the finer mesh finds none, or where it was not found itself."""
+    """A ``Segments(per_revolution=K)`` optimum solved again from itself, each segment cut
+    into as many as the turns it flies need (the count is set on the seed's angle, and an
+    optimum may fly far more turns): (NLPResult, Transcription).  The first optimum stands
+    where the finer mesh finds no point, or where it was not found itself."""
     seg, n = problem.segments, result.alpha.size
     wanted = seg.count_for(float(np.sum(result.lengths))) if result.outcome.found else n
     if seg.per_revolution is None or wanted <= DENSITY_SLACK * n:
@@ -241,15 +232,12 @@ def per_revolution_mesh(problem, result, tr, say):
 
 def control_error(problem, result, tr=None, progress=None, max_rounds=MAX_ROUNDS, solver=None,
                   defects=None):
-    """Correct and re-mesh the closed-form optimum ``result`` (every round keeps its
-    revolution class) until its flight meets ``problem.tolerance``, in at most
-    ``max_rounds`` rounds: an :class:`ErrorControl`.
-
-    ``tr`` is its NLP (without it one is built and the first correction starts cold);
-    ``solver``, ``ipopt.build_solver(tr, warm=True)``'s pair if already built (a scan
-    reuses one); ``defects``, the 5 x N defects ``result`` was solved with, if any.
-    ``progress(text)`` gets a line per round and Ipopt's iteration lines.
-    """
+    """Correct and re-mesh the closed-form optimum ``result``, keeping its revolution class,
+    until its flight meets ``problem.tolerance`` or ``max_rounds`` rounds have run: an
+    :class:`ErrorControl`.  ``tr``: its NLP (without it one is built and the first correction
+    starts cold); ``solver``: ``ipopt.build_solver(tr, warm=True)``'s pair if already built (a
+    scan reuses one); ``defects``: the 5 x N defects ``result`` was solved with, if any;
+    ``progress(text)`` gets a line per round and Ipopt's iteration lines."""
     say, fresh = progress or (lambda text: None), tr is None
     if fresh:  # a new NLP scales its variables anew
         tr, solver = transcribe(problem, guess=result.as_guess()), None

@@ -1,10 +1,9 @@
 """What a problem asks for: the objective it minimises and the target it must reach.
 
-Each kind carries its own behaviour (the NLP's cost or equality constraints, a flown
-state's miss in km and m/s, how its value reads), so callers ask it rather than test its
-kind; a target with :attr:`tracks_body` counts revolution classes in whole turns on the
-body.  Fields are in au, deg and days, range-checked on creation; states passed to the
-methods are canonical (au, rad, au/TU, mu = 1; t in TU).
+Each kind carries its own behaviour (the NLP's cost or constraints, a flown state's miss in
+km and m/s, how its value reads), so callers ask it rather than test its kind; a target with
+:attr:`tracks_body` counts revolution classes in whole turns on the body.  Fields (au, deg,
+days) are range-checked when made; methods take canonical states (au, rad, au/TU, t in TU; mu = 1).
 """
 
 import functools
@@ -115,12 +114,9 @@ class FinalStateExpression(_FixedTime):
     Attributes
     ----------
     function : callable
-        ``function(x)`` of the final polar state [r, theta, v_r, v_theta] (a CasADi
-        column, canonical: au, rad, au/TU with mu = 1) returns a scalar CasADi expression
-        to *minimise*, built of CasADi operations so that Ipopt gets exact derivatives;
-        e.g. maximising the angular momentum is ``lambda x: -x[0] * x[3]``.
-    tof_days : float
-        Fixed time of flight, days.
+        ``function(x)`` of the final polar state [r, theta, v_r, v_theta] (a canonical CasADi
+        column) returns a scalar CasADi expression to *minimise*, of CasADi operations for exact
+        derivatives; e.g. ``lambda x: -x[0] * x[3]`` maximises the angular momentum.
     """
 
     function: Callable = None
@@ -177,11 +173,9 @@ class CircularOrbit:
 
 @dataclass(frozen=True)
 class Orbit:
-    """End on the orbit (a, e), anywhere and with any apse line.
-
-    The constraints are the energy -1/(2a) and the angular momentum sqrt(a (1 - e^2)),
-    which are smooth where the apse line is not (e = 0 included).
-    """
+    """End on the orbit (a, e), anywhere and with any apse line: the constraints are the
+    energy -1/(2a) and the angular momentum sqrt(a (1 - e^2)), smooth where the apse line is
+    not (e = 0 included)."""
 
     a_au: float
     e: float
@@ -220,8 +214,7 @@ class Rendezvous:
     radius_au : float
         The body's orbit radius, au.
     phase_deg : float
-        The body's polar angle at departure (t = 0), deg; it moves at the mean
-        motion n = sqrt(mu / R^3).
+        The body's polar angle at departure (t = 0), deg; it moves at n = sqrt(mu / R^3).
     """
 
     radius_au: float
@@ -266,10 +259,10 @@ class Rendezvous:
 class MinAcceleration(_FixedTime):
     """The smallest characteristic acceleration that makes the transfer in ``tof_days``.
 
-    The sail's ``ac_mm_s2`` is then only the seed and scale of a_c, a decision variable,
-    and every segment's throttle kappa is free in the sail's throttle bounds ([0, 1]
-    unless ``Sail(throttle=True)`` narrows them), so that arcs that need less than full
-    thrust do not cost a_c.  Meant for fixed departure and arrival dates (a porkchop).
+    The sail's ``ac_mm_s2`` then only seeds and scales a_c, a decision variable, and every
+    segment's throttle kappa is free in the sail's throttle bounds ([0, 1] unless
+    ``Sail(throttle=True)`` narrows them), so arcs needing less than full thrust do not cost
+    a_c.  Meant for fixed departure and arrival dates (a porkchop).
     """
 
     free_acceleration = True
@@ -369,12 +362,11 @@ class _BodyTarget:
 
 
     def cylindrical_constraints(self, yf, theta_f, tf, turns, t0=0.0):
-        """A 3-D body target's rows: the sail's final Cartesian state ``yf`` less the
-        body's on its smooth 3-D track at t0 + tf, in the ecliptic's cylindrical
-        coordinates [rho, lambda - 2 pi turns, z] (and, for a rendezvous, [v_rho, v_lambda,
-        v_z]), the sail's longitude unwrapped near ``theta_f``.  Like the planar theta row,
-        it pulls the final angle towards its turn, where Cartesian rows, periodic in it,
-        have local optima half a turn off."""
+        """A 3-D body target's rows: the sail's final Cartesian state ``yf`` less the body's on its
+        smooth 3-D track at t0 + tf, in the ecliptic's cylindrical coordinates
+        [rho, lambda - 2 pi turns, z] (and, for a rendezvous, [v_rho, v_lambda, v_z]), the sail's
+        longitude unwrapped near ``theta_f``.  Like the planar theta row, it pulls the final angle
+        towards its turn, where periodic Cartesian rows have local optima half a turn off."""
         body = lookup.track3(self.body).cylindrical(t0 + tf)
         sail = _cylindrical()(yf, theta_f)
         rows = [sail[0] - body[0], sail[1] - body[1] - 2 * math.pi * turns,

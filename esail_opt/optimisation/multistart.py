@@ -1,15 +1,13 @@
 """Global search of a minimum-time problem over its revolution classes.
 
-Ipopt finds the local optimum whose basin holds its start, and a transfer's basin is set
-above all by how many times it goes round the Sun, so the search solves one NLP per
-revolution class: for an orbit transfer, class k boxes the final polar angle into
-[theta0 + 2 pi k, theta0 + 2 pi (k + 1)] (``Guess.theta_window``); for a rendezvous it is
-the whole turns k between sail and body at arrival (``Guess.revolutions_k``).  Each is
-seeded by a constant pitch that winds about k turns (:func:`seed_pitches`).  A window
-whose bound is active at the solution holds only the best transfer of that class
-(``Candidate.free`` False), never a local optimum; a rendezvous class holds a free one,
-as theta_f = phi_body(t_f) + 2 pi k splits the feasible set into one piece per k.
-Starts that reach the same optimum become one :class:`Candidate`.
+Ipopt finds the local optimum whose basin holds its start, and a basin is set above all by
+the turns round the Sun, so the search solves one NLP per revolution class: for an orbit
+transfer, class k boxes the final polar angle into [theta0 + 2 pi k, theta0 + 2 pi (k + 1)]
+(``Guess.theta_window``), and a window whose bound is active holds only the class's best
+transfer (``Candidate.free`` False), not a local optimum; for a rendezvous, k is the whole
+turns between sail and body at arrival (``Guess.revolutions_k``), and each class holds a
+free optimum, as theta_f = phi_body(t_f) + 2 pi k splits the feasible set by k.  Starts that
+reach the same optimum become one :class:`Candidate`.
 """
 
 import dataclasses
@@ -31,16 +29,14 @@ SAME_TOF = 1e-3
 SAME_REVOLUTIONS = 0.02
 #: A final angle this close to a window's edge (rad) means the edge is active.
 EDGE_TOLERANCE = 1e-6
-#: Pitch fractions of the way from the seed's pitch to +-90 deg scanned for seeds: the
-#: closer to +-90 deg, the less transverse thrust and the more turns before the spiral
-#: first reaches the target radius.
+#: Fractions of the way from the seed's pitch to +-90 deg scanned for seeds: nearer +-90 deg,
+#: less transverse thrust and more turns before the spiral first reaches the target radius.
 SEED_FRACTIONS = (0.0, 0.5, 0.75, 0.875, 0.9375, 0.96875, 0.984375, 0.9921875)
 
 
 @dataclass
 class Start:
-    """One start of the search: its label, revolution class and seed (which carries the
-    class into the NLP)."""
+    """One start of the search: its label, revolution class and seed (which carries the class)."""
 
     label: str
     revolutions: int  # the class: the window's k, or the rendezvous k
@@ -130,8 +126,7 @@ def _stretched(problem, guess, total):
 def window_starts(problem, classes):
     """Starts of an orbit transfer's revolution windows ``classes`` (whole turns k): the
     first constant-pitch seed whose final angle lies in the window, else the nearest one
-    that stays valid stretched to the window's middle; else the window is skipped.
-    """
+    that stays valid stretched to the window's middle; else the window is skipped."""
     theta0 = float(problem.x0()[1])
     seeds = constant_pitch_seeds(problem)
     starts = []
@@ -159,13 +154,11 @@ def window_starts(problem, classes):
 
 
 def rendezvous_starts(problem, classes, seeds=None):
-    """Starts of a rendezvous's turn counts k in ``classes``: the first seed that winds
-    k itself (``Guess.revolutions_k``), else a pitch bisected to wind k (:func:`_winding`),
-    else the seed whose count is nearest, with k imposed.  ``seeds``: the
-    :func:`constant_pitch_seeds` of ``problem``, if the caller has them.  A start that
-    winds another count than its class's is a poor one: it can take several times the
-    iterations, long enough to be stopped as hopeless (:func:`hopeless_checkpoint`).
-    """
+    """Starts of a rendezvous's turn counts k in ``classes``: the first seed that winds k
+    itself (``Guess.revolutions_k``), else a pitch bisected to wind k (:func:`_winding`),
+    else the seed whose count is nearest, with k imposed (a poor start: it can take several
+    times the iterations, and be stopped as hopeless).  ``seeds``: ``problem``'s
+    :func:`constant_pitch_seeds`, if the caller has them."""
     seeds = constant_pitch_seeds(problem) if seeds is None else seeds
     starts = []
     for k in classes:
@@ -213,20 +206,17 @@ def _winding(problem, seeds, k):
 TURN_STEPS = 8
 
 
-#: What a ``solve`` of :func:`descend_turns` returns for a count it found no point in
-#: and judged no better all the same (a probe stopped as hopeless, a count known to be
-#: far worse): that ends the direction, as a worse solve does.
+#: What a ``solve`` of :func:`descend_turns` returns for a count judged no better without a
+#: point (a probe stopped as hopeless, a count known far worse): it ends the direction.
 NO_BETTER = object()
 
 
 def descend_turns(k0, best, solve, better, steps=TURN_STEPS, gaps=0):
-    """(best, every solve made in order) over the turn counts k on a body, from ``k0``
-    (solved as ``best``) one turn at a time each way while each does better: the a_c
-    needed can change by whole factors from one k to the next.  ``solve(k)`` returns a
-    solve of class k, None when it found no point, or :data:`NO_BETTER`; ``better(a, b)``
-    whether a beats b.  A direction stops at the first k that does no better, or at a k
-    with no point once ``gaps`` such counts in a row were stepped over.
-    """
+    """(best, every solve made in order) over the turn counts k on a body, stepping from
+    ``k0`` (solved as ``best``) one turn at a time each way while that does better (the a_c
+    needed can change by whole factors between counts).  ``solve(k)`` returns a solve of
+    class k, None when it found no point, or :data:`NO_BETTER`; ``better(a, b)`` whether a
+    beats b.  A direction steps over at most ``gaps`` counts in a row with no point."""
     made = []
     for step in (-1, 1):
         k, missed = k0 + step, 0
@@ -242,15 +232,13 @@ def descend_turns(k0, best, solve, better, steps=TURN_STEPS, gaps=0):
     return best, made
 
 
-#: A class beside the seed's is first probed with Ipopt stopped after PROBE_FACTOR times
-#: the iterations the seed's own class took, and at least PROBE_MIN: a class with a
-#: transfer converges in about the seed's iterations (in 3-D up to twice), while one that
-#: ends infeasible wanders for hundreds.
+#: A class beside the seed's is first probed with Ipopt capped at PROBE_FACTOR times the
+#: seed class's iterations, at least PROBE_MIN: a class with a transfer converges in about
+#: the seed's iterations (in 3-D up to twice); one that ends infeasible wanders for hundreds.
 PROBE_FACTOR = 3.0
 PROBE_MIN = 60
-#: A probe stopped at its cap at a point this close to feasible (the largest constraint
-#: violation, canonical units) is still descending in a class that has transfers, and is
-#: solved on from there; one further off is left as hopeless.
+#: A probe capped at a point this close to feasible (largest constraint violation, canonical
+#: units) is descending in a class with transfers, so is solved on; one further off is hopeless.
 PROBE_FEASIBLE = 1e-6
 #: The least cap of a fallback start (another start after the first found no point): no
 #: found answer's cost scales it (tests/problems/venus_rendezvous_behind.py's took 184).
@@ -264,21 +252,19 @@ def probe_cap(iterations, least=PROBE_MIN):
     return max(least, int(math.ceil(PROBE_FACTOR * iterations)))
 
 
-#: A planar class probe is stopped as hopeless at the iteration where the answer's own
-#: solve converged (at least :data:`PROBE_MIN`) when its point there is still this far
-#: from feasible (largest constraint violation, canonical units) and its objective more
-#: than :data:`HOPELESS_RATIO` times the best class's: such a class has ended infeasible
-#: in every case looked at (results/bench/README.md, "Pace").  3-D classes are probed on
-#: the projected model, so the stop applies there.
+#: A class probe (3-D ones run on the projected model) is stopped as hopeless at the iteration
+#: where the answer's solve converged (at least :data:`PROBE_MIN`) if its point is still this
+#: far from feasible (largest constraint violation, canonical units) and its objective over
+#: HOPELESS_RATIO times the best class's: every such class looked at ended infeasible
+#: (results/bench/README.md, "Pace").
 HOPELESS_VIOLATION = 1e-3
 HOPELESS_RATIO = 2.0
 
 
 def hopeless_checkpoint(iterations, best):
-    """The (iteration, test) checkpoint (``ipopt.build_solver``) that stops a class
-    probe as hopeless (:data:`HOPELESS_VIOLATION`, :data:`HOPELESS_RATIO`), after an
-    answer whose solve took ``iterations`` and whose objective is ``best``; None for an
-    objective that is not positive."""
+    """The (iteration, test) checkpoint (``ipopt.build_solver``) that stops a class probe as
+    hopeless, after an answer whose solve took ``iterations`` with objective ``best``; None
+    for an objective that is not positive."""
     if not best > 0:
         return None
 
@@ -289,12 +275,11 @@ def hopeless_checkpoint(iterations, best):
 
 
 def probe(problem, guess, cap, progress=None, checkpoint=None, staged=True):
-    """A solve of ``problem`` from ``guess`` with Ipopt stopped after ``cap`` iterations,
-    solved on without a cap only when that point is within :data:`PROBE_FEASIBLE` of
-    feasible.  ``checkpoint`` (:func:`hopeless_checkpoint`) may stop it earlier, with
-    the status ``ipopt.STOPPED``; ``staged`` as ``ipopt.solve_problem``'s.  Returns
-    (NLPResult, Transcription); the result's iterations and seconds cover the probe and
-    what followed it."""
+    """A solve of ``problem`` from ``guess`` capped at ``cap`` Ipopt iterations, solved on
+    uncapped only from a point within :data:`PROBE_FEASIBLE` of feasible.  ``checkpoint``
+    (:func:`hopeless_checkpoint`) may stop it earlier (status ``ipopt.STOPPED``); ``staged`` as
+    ``ipopt.solve_problem``'s.  Returns (NLPResult, Transcription), the result's iterations and
+    seconds covering the probe and what followed it."""
     result, tr = solve_problem(problem, guess=guess, progress=progress, staged=staged,
                                options=ipopt_options(max_iter=cap), checkpoint=checkpoint)
     if not result.outcome.found and result.constraint_violation <= PROBE_FEASIBLE:
@@ -314,19 +299,17 @@ def probe_model(problem):
 
 def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seeds=None):
     """:func:`probe_start` of the rendezvous turn count ``k`` from its seed
-    (:func:`rendezvous_starts`, from ``seeds``, the :func:`constant_pitch_seeds` of
-    :func:`probe_model`, when given); returns (NLPResult, Transcription, label of the
-    start)."""
+    (:func:`rendezvous_starts`; ``seeds``: :func:`probe_model`'s
+    :func:`constant_pitch_seeds`, if given): (NLPResult, Transcription, label of the start)."""
     start = rendezvous_starts(probe_model(problem), [k], seeds)[0]
     return probe_start(problem, start, cap, progress, checkpoint)
 
 
 def probe_start(problem, start, cap, progress=None, checkpoint=None):
-    """:func:`probe` of ``problem`` from ``start`` (a :class:`Start` of
-    :func:`probe_model`); returns (NLPResult, Transcription, label of the start).  A 3-D
-    start is probed on the projected model and its optimum lifted (:func:`lift`): from a
-    constant-pitch seed in 3-D, Ipopt first swings the clock angles far and may end short
-    of feasible at its cap.  A projection with no point is not solved in 3-D."""
+    """:func:`probe` of ``problem`` from ``start``, a :class:`Start` of :func:`probe_model`:
+    (NLPResult, Transcription, label of the start).  A 3-D start is probed on the projected
+    model and lifted (:func:`lift`) if that found a point: from a constant-pitch seed in 3-D,
+    Ipopt swings the clock angles far and may end short of feasible at its cap."""
     model = probe_model(problem)
     result, tr = probe(model, start.guess, cap, progress, checkpoint)
     if model is problem:
@@ -338,12 +321,11 @@ def probe_start(problem, start, cap, progress=None, checkpoint=None):
 
 
 def second_start(problem, k, seeds, seed_k):
-    """Another start of the rendezvous turn count ``k`` than the one it was solved
-    from: the last of ``seeds`` (:func:`constant_pitch_seeds` of :func:`probe_model`,
-    in :func:`seed_pitches`'s order) whose own count is k, leaving out the pitch that
-    solved it (the problem's own for ``seed_k``, the seed's class; else the first seed
-    that winds k); None when no other winds k.  One class holds several local optima,
-    and the last seed, furthest in pitch from the first, is likeliest in another basin."""
+    """Another start of the rendezvous turn count ``k`` than the one that solved it: the last
+    of ``seeds`` (:func:`probe_model`'s :func:`constant_pitch_seeds`, in pitch order) that
+    winds k, leaving out the pitch that solved it (the problem's own when k is ``seed_k``,
+    else the first that winds k); None when no other does.  A class holds several optima, and
+    the last seed, furthest in pitch from the first, is likeliest in another basin."""
     winding = [(a, g) for a, g in seeds.items() if g.revolutions_k == k]
     if not winding:
         return None
@@ -365,18 +347,16 @@ def lift(problem, result, cap, progress=None):
     return lifted.after(result), tr
 
 
-#: A 3-D rendezvous's turn counts are first searched on its projected model
-#: (``classes.ClassSearch`` on :func:`probe_model`), and a class is lifted into 3-D only
-#: while its projected objective is within LIFT_RATIO of the best 3-D objective lifted
-#: so far, best projected first: no lifted class's 3-D objective has come out more than
-#: 0.5 % below its projected one.
+#: A 3-D rendezvous's turn counts are searched on its projected model (``classes.ClassSearch``
+#: on :func:`probe_model`); best projected first, a class is lifted into 3-D while its
+#: projected objective is within LIFT_RATIO of the best lifted so far: no class's 3-D
+#: objective has come out more than 0.5 % below its projected one.
 LIFT_RATIO = 1.1
 
 
 def searches_classes(problem):
-    """Whether a solve of ``problem`` looks at the turn counts on the body beside its
-    seed's: a MinTime or MinAcceleration rendezvous departing at a fixed date and
-    angle."""
+    """Whether a solve of ``problem`` looks at the turn counts beside its seed's: a MinTime
+    or MinAcceleration rendezvous departing at a fixed date and angle."""
     objective = problem.objective
     return (problem.tracks_body() and not problem.free_date()
             and not getattr(problem.departure, "free_anomaly", False)

@@ -1,13 +1,11 @@
-"""The data path of one run: seed -> closed-form NLP -> Ipopt -> other starts -> the
-turn counts beside the answer's -> error control -> CVODES verification -> polish (or,
-for a fixed time with no point, the walk to the shortest feasible time of flight,
-``optimisation.edge``), returned as a typed :class:`Run`.
+"""The data path of one run, returned as a typed :class:`Run`: seed -> closed-form NLP ->
+Ipopt -> other starts -> the turn counts beside the answer's -> error control -> CVODES
+verification -> polish (or, for a fixed time with no point, the walk to the shortest
+feasible time of flight, ``optimisation.edge``).
 
-The one module that strings the stages together: the application calls :func:`solve`
-or :func:`finish` and writes down what they return.  A stage runs on the
-:class:`Outcome` of the one before (``Outcome.found``: converged or acceptable).  Nothing
-here changes a result; it decides what runs next and adds up Ipopt's iterations and
-seconds over the run.
+The application calls :func:`solve` or :func:`finish`.  A stage runs on the :class:`Outcome`
+of the one before (``Outcome.found``: converged or acceptable).  Nothing here changes a
+result; it decides what runs next and adds up Ipopt's iterations and seconds over the run.
 """
 
 import dataclasses
@@ -49,15 +47,14 @@ class StartTried:
 class ClassTried:
     """One turn count k on the target body that a solve looked at, and what it gave.
 
-    ``label``: where its start came from; ``revolutions_k``: whole turns between the sail
-    and the body at arrival; ``status``, ``iterations``: Ipopt's of its last solve
-    ("Maximum_Iterations_Exceeded" for a probe at its cap, ``multistart.probe_cap``,
-    "User_Requested_Stop" for one stopped as hopeless); ``objective`` (canonical),
-    ``tof`` (TU) and ``ac_scale`` (a_c over the sail's): None when no point was found,
-    and for a class flown those its run ends with, after the error control;
-    ``constraint_violation`` of its last point; ``verified``: None when it was not flown;
-    ``chosen``: the class the run returns; ``projected``: its values are its projected
-    model's (a 3-D run's class not lifted, ``classes.ClassSearch``).
+    ``label``: where its start came from; ``revolutions_k``: whole turns between sail and body
+    at arrival; ``status``, ``iterations``: of its last Ipopt solve
+    ("Maximum_Iterations_Exceeded" for a probe at its cap, "User_Requested_Stop" for one stopped
+    as hopeless); ``objective`` (canonical), ``tof`` (TU), ``ac_scale`` (a_c over the sail's):
+    None without a point, and for a flown class its run's, after the error control;
+    ``constraint_violation`` of its last point; ``verified``: None if not flown; ``chosen``: the
+    class the run returns; ``projected``: its values are its projected model's (a 3-D run's
+    class not lifted, ``classes.ClassSearch``).
     """
 
     label: str
@@ -74,9 +71,8 @@ class ClassTried:
 
     @classmethod
     def of(cls, candidate, iterations, run=None, chosen=False):
-        """The record of a ``classes.Candidate`` that took ``iterations``, with its
-        ``run``'s verdict and values when finished (the error control may move the
-        optimum)."""
+        """The record of a ``classes.Candidate`` that took ``iterations``, with its ``run``'s
+        verdict and values when finished (the error control may move the optimum)."""
         r = candidate.result
         flown = run is not None and run.result.outcome.found
         values = run.result if flown else r
@@ -90,13 +86,11 @@ class ClassTried:
 
 @dataclass(frozen=True)
 class PolishRun:
-    """The polish of a run: the optimum re-solved on Eqs. 1-2 in time
-    (``optimisation.polish``), ``result`` None when the closed form found nothing to
-    polish, and ``check`` its CVODES flight.  ``verified``: Ipopt converged and the
-    flight, its verifier's error included, is within ``tolerance`` of both the target
-    (``within_target``, True without one) and the polished NLP's final node
-    (``within_nlp``); ``note`` says so in one line, and why not.
-    """
+    """The polish of a run: the optimum re-solved on Eqs. 1-2 in time (``optimisation.polish``;
+    ``result`` None when the closed form found nothing to polish), and ``check`` its CVODES
+    flight.  ``verified``: Ipopt converged and the flight, its verifier's error included, is
+    within ``tolerance`` of the target (``within_target``, True without one) and of the polished
+    NLP's final node (``within_nlp``); ``note`` says so, or why not."""
 
     result: Optional[NLPResult]
     check: Optional[Verification]
@@ -117,18 +111,17 @@ class PolishRun:
 class Run:
     """One run of the pipeline, in canonical units, as the stages left it.
 
-    ``problem`` as last solved (the segments used, the sub-arcs the error control ended
-    with; ``sub_arcs_requested`` the problem file's); ``result`` the closed-form optimum
-    after the error control (or the last solve when none found a point), its
-    ``iterations`` and ``solve_seconds`` covering every solve up to the polish, and
-    ``transcription`` its NLP; ``starts`` the starts tried when the first found no point;
-    ``error_control`` None when the closed form found nothing; ``check`` the CVODES flight
-    of ``result``, ``verified`` when Ipopt converged and it meets ``problem.tolerance``
-    with the verifier's error added, ``note`` the verdict in one line; ``polish`` only
-    when asked for; ``classes`` each turn count a MinTime or MinAcceleration rendezvous
-    looked at, in the order solved, ``classes_skipped`` those it did not and why;
-    ``nearest_feasible`` for a fixed time that found no point, the shortest flight found
-    feasible from the same departure (an ``edge.Edge`` whose ``flight`` is a Run).
+    ``problem`` as last solved (the segments used, the error control's final sub-arcs;
+    ``sub_arcs_requested`` the problem file's); ``result`` the closed-form optimum after the
+    error control (else the last solve), its ``iterations`` and ``solve_seconds`` covering every
+    solve before the polish, ``transcription`` its NLP; ``starts`` those tried when the first
+    found no point; ``error_control`` None when the closed form found nothing; ``check``
+    ``result``'s CVODES flight, ``verified`` when Ipopt converged and it meets
+    ``problem.tolerance`` with the verifier's error added, ``note`` the verdict in one line;
+    ``polish`` only when asked for; ``classes`` each turn count a MinTime or MinAcceleration
+    rendezvous looked at, in solve order, ``classes_skipped`` those it did not and why;
+    ``nearest_feasible``, for a fixed time with no point, the shortest flight found feasible
+    from the same departure (an ``edge.Edge`` whose ``flight`` is a Run).
     """
 
     problem: Problem
@@ -156,19 +149,18 @@ def _quiet(text):
 
 
 def solve(problem, segments=None, progress=None, polish=False):
-    """Run the whole pipeline on ``problem``.
+    """Run the whole pipeline on ``problem``: a :class:`Run`.
 
-    A MinTime or MinAcceleration rendezvous at a fixed departure also looks at the turn
-    counts on the body beside the one its seed found (``classes.ClassSearch``) and
-    returns the best one whose flight is verified (``Run.classes`` records each).  A
-    fixed-time problem with a target that no start finds a point for walks its time of
-    flight to the shortest feasible one from the same departure
-    (``Run.nearest_feasible``); the run itself stays not verified.
+    A MinTime or MinAcceleration rendezvous at a fixed departure also looks at the turn counts
+    on the body beside its seed's (``classes.ClassSearch``) and returns the best one whose
+    flight is verified (``Run.classes`` records each).  A fixed-time problem whose target no
+    start finds a point for walks its time of flight to the shortest feasible one from the same
+    departure (``Run.nearest_feasible``); the run itself stays not verified.
 
-    ``segments`` (>= 1) overrides the problem's count N; ``progress(text)`` is called at
-    each stage and every few seconds of Ipopt; ``polish`` then polishes the optimum and
-    verifies that schedule too.  Returns a :class:`Run`.  Raises InputError for bad
-    ``segments`` and NoStart when no seed can be flown, both before any solve.
+    ``segments`` (>= 1) overrides the problem's count N; ``progress(text)`` is called at each
+    stage and every few seconds of Ipopt; ``polish`` then polishes the optimum and verifies that
+    schedule too.  Raises InputError for bad ``segments`` and NoStart when no seed can be flown,
+    both before any solve.
     """
     if segments is not None:
         if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
@@ -180,10 +172,10 @@ def solve(problem, segments=None, progress=None, polish=False):
 
 
 def _lone(problem, say, walk=True):
-    """The run of :func:`solve` before the polish; ``walk`` False leaves out the walk to
-    the shortest feasible flight (:func:`nearest_feasible`, whose rungs are such
-    runs).  A 3-D problem's turn counts are searched on its projected model, the best
-    lifted (``classes.ClassSearch``), and in 3-D where that leaves no candidate."""
+    """The run of :func:`solve` before the polish, without the walk to the shortest feasible
+    flight when ``walk`` is False (as for :func:`nearest_feasible`'s rungs).  A 3-D problem's
+    turn counts are searched on its projected model, the best lifted (``classes.ClassSearch``),
+    and in 3-D where that leaves no candidate."""
     spent = []
     if problem.three_d() and multistart.searches_classes(problem):
         search = ClassSearch.on_projected_model(problem, say)
@@ -215,9 +207,8 @@ def _solved(problem, say, walk=True):
 
 
 def _first_solve(problem, say):
-    """The seed's solve (a free date's from the scan that chose it), and the other
-    starts when it found no point: (problem as solved, NLPResult, Transcription,
-    starts tried)."""
+    """The seed's solve (a free date's from the scan that chose it), and the other starts when
+    it found no point: (problem as solved, NLPResult, Transcription, starts tried)."""
     seg = problem.segments
     count = (f"{seg.count} segments" if seg.per_revolution is None
              else f"{seg.per_revolution} segments per revolution")
@@ -225,8 +216,7 @@ def _first_solve(problem, say):
     if problem.free_date():
         seed = scan.seed_free_date(problem, say)
         problem, guess = seed.problem, seed.guess
-    # A free date's guess is the optimum of its best date: a start Ipopt keeps to
-    # (primal_warm_options), and no staging from it.
+    # A free date's guess is its best date's optimum: a start Ipopt keeps to, unstaged.
     options = None if guess is None else primal_warm_options(ipopt_options())
     if guess is None:
         guess = initial_guess(problem)
@@ -260,14 +250,13 @@ def _unsearched(problem):
 
 
 def _other_starts(problem, result, tr, say):
-    """Ipopt's "infeasible" from one start is a local statement: before giving up, try
-    the starts the global search would (other turn counts on a rendezvous body, other
-    constant-pitch seeds of an orbit transfer), and keep the first that finds a point.
-    Each is a probe capped at ``multistart.probe_cap`` of the first start's iterations
-    (at least ``multistart.FALLBACK_MIN``), since where no sail exists an uncapped start
-    can take thousands of iterations to fail.  Returns the (result, transcription) to go
-    on with and a StartTried per start.
-    """
+    """Ipopt's "infeasible" from one start is a local statement: before giving up, try the
+    starts the global search would (other turn counts on a rendezvous body, other constant-pitch
+    seeds of an orbit transfer), and keep the first that finds a point.  Each is a probe capped
+    at ``multistart.probe_cap`` of the first start's iterations (at least
+    ``multistart.FALLBACK_MIN``), as where no sail exists an uncapped start can take thousands
+    of iterations to fail.  Returns the (result, transcription) to go on with and a StartTried
+    per start."""
     records = [StartTried("the problem's own seed", result.status, result.iterations)]
     if problem.target is None or getattr(problem.departure, "free_anomaly", False):
         return result, tr, tuple(records)
@@ -327,21 +316,18 @@ def nearest_feasible(problem, start=None, progress=None):
 
 
 def _unwalked(problem, say):
-    """A lone solve of ``problem`` (:func:`_lone`) without the walk to the edge: a rung
-    of the walk's ladder."""
+    """A lone solve of ``problem`` without the walk to the edge: a rung of the walk's ladder."""
     return _lone(problem, say, walk=False)
 
 
 def finish(problem, result, tr=None, polish=False, progress=None, starts=(),
            sub_arcs_requested=None):
-    """The stages after a closed-form optimum ``result`` of ``problem`` (any outcome: one
-    not found is only verified, its note saying why not): error control, CVODES
-    verification and, with ``polish``, the polish; a :class:`Run`.
-
-    ``tr``, ``result``'s NLP, is re-solved warm by the error control (else a new one is
-    built); both keep ``result``'s turn count.  ``starts``: those tried before this one;
-    ``sub_arcs_requested``: the problem file's sub-arcs when the seed raised them.
-    """
+    """The stages after a closed-form optimum ``result`` of ``problem``: error control, CVODES
+    verification and, with ``polish``, the polish; a :class:`Run`.  A ``result`` not found is
+    only verified, its note saying why.  ``tr``, ``result``'s NLP, is re-solved warm by the
+    error control (else one is built), keeping ``result``'s turn count; ``starts``: those tried
+    before this one; ``sub_arcs_requested``: the problem file's sub-arcs when the seed raised
+    them."""
     requested = sub_arcs_requested or problem.segments.sub_arcs
     say = progress or _quiet
     controlled = None
@@ -366,10 +352,9 @@ def finish(problem, result, tr=None, polish=False, progress=None, starts=(),
 
 
 def verdict(problem, result, check, starts=()):
-    """(verified, note) of ``result`` flown as ``check``: the flight is judged.  A point
-    Ipopt left at its acceptable level whose flight meets every bound is verified, and
-    the note says that its optimality, not the flight, is unproven; any other point
-    Ipopt did not converge to is not verified, the note saying why."""
+    """(verified, note) of ``result`` by its flight ``check``.  A point Ipopt left at its
+    acceptable level whose flight meets every bound is verified, its optimality unproven (the
+    note says so); any other point Ipopt did not converge to is not, the note saying why."""
     verified, note = check.judge(problem)
     if result.outcome is Outcome.ACCEPTABLE and verified:
         return True, (note + "; Ipopt stopped at its acceptable level, so the flight is "
@@ -409,12 +394,11 @@ def _mesh_hint(result):
 
 
 def _always_on_hint(problem):
-    """The failure note's advice for a minimum-time arrival on an orbit with a sail
-    always on: a throttle.  An E-sail's radial thrust never falls below about half its
-    full value, so at a few mm/s^2 a sail always on pushes outward by a large part of
-    the Sun's pull beyond 1 au (results/bench/README.md, "Minimum time with the sail
-    always on").  A fixed time fails for other reasons, and an intercept matches no
-    velocity."""
+    """The failure note's advice for a minimum-time arrival on an orbit with a sail always on: a
+    throttle.  An E-sail's radial thrust never falls below about half its full value, so at a
+    few mm/s^2 it pushes outward by a large part of the Sun's pull beyond 1 au
+    (results/bench/README.md, "Minimum time with the sail always on").  A fixed time fails for
+    other reasons, and an intercept matches no velocity."""
     if (problem.throttled() or problem.objective.fixed_time
             or not getattr(problem.target, "matches_velocity", True)):
         return ""
@@ -432,7 +416,6 @@ def _polished(run, polish, say):
 
 def _polish(problem, result, say):
     """Polish ``result`` and judge the polished flight against :data:`POLISH_TOLERANCE`."""
-    # A closed form that found no optimum has nothing worth polishing.
     if not result.outcome.found:
         return PolishRun(None, None, False,
                          f"NOT polished: the closed-form solve ended {result.status}",

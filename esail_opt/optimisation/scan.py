@@ -1,13 +1,12 @@
 """Many cells of one problem on one NLP: launch-window and flight-time scans.
 
-A cell is the problem at one departure date (and, for a fixed-time objective, one time
-of flight).  Both are parameters of the NLP (``Transcription.parameters``), so the NLP
-and its solver are built once per revolution class and every later cell re-solves them
-warm from a solved neighbour, a far better start than a seed, for less than a build.
-A warm start stays in its neighbour's basin, so a repair pass (:func:`_repair`) solves
-cells worse than a neighbour again from it; a cell's turn counts are searched by the
-lone solve's ``classes.ClassSearch``.  Every cell is error-controlled and verified as a
-lone solve is.
+A cell is the problem at one departure date (and, for a fixed-time objective, one time of
+flight), both NLP parameters (``Transcription.parameters``): the NLP and its solver are
+built once per revolution class, and each later cell is solved warm from a solved neighbour,
+a better start than a seed and cheaper than a build.  A warm start keeps to its neighbour's
+basin, so a repair pass (:func:`_repair`) solves cells worse than a neighbour again from it.
+Turn counts are searched, and every cell error-controlled and verified, as in a lone solve
+(``classes.ClassSearch``).
 """
 
 import dataclasses
@@ -33,11 +32,10 @@ from esail_opt.optimisation.verify import verify
 
 #: Ipopt iterations for a cold look at another revolution class than the seed's.
 CLASS_ITERATIONS = 300
-#: A MinAcceleration or MinTime scan looks at the turn counts beside a cell's best at
-#: every cell, but not at a count whose estimated optimum there
-#: (:meth:`CellSolver.estimate`) is at least LOOK_MARGIN times the best the cell has
-#: found: the estimate has erred high by 0.7 % at most on the 3-D porkchop bench (low
-#: costs only a look; results/bench/README.md).
+#: A MinAcceleration or MinTime scan looks at the turn counts beside every cell's best, but
+#: not at one whose estimated optimum (:meth:`CellSolver.estimate`) is at least LOOK_MARGIN
+#: times the cell's best: the estimate erred high by 0.7 % at most on the 3-D porkchop
+#: bench (erring low costs only a look; results/bench/README.md).
 LOOK_MARGIN = 1.1
 
 
@@ -75,8 +73,7 @@ class Cell(Ranked):
     misses: dict
     seconds: float
     start: str  # where its start came from: "seed", "previous", "next"
-    # The optimum on the scan's NLP a neighbour is warmed from (a grown mesh has
-    # another layout).
+    # The optimum on the scan's NLP that warms a neighbour (a grown mesh has another layout).
     on_scan_nlp: Optional[NLPResult] = None
     finished: bool = False  # error-controlled and verified
     defects: Optional[np.ndarray] = None  # what on_scan_nlp was solved with
@@ -87,10 +84,9 @@ class Cell(Ranked):
 
 
 class CellSolver:
-    """One NLP and one warm Ipopt solver per revolution class k (a rendezvous's turn
-    count is part of its NLP's constraints; orbit targets have only k = 0), built on the
-    class's first cell, solved cold; its mesh then holds for every cell of the scan.
-    """
+    """One NLP and one warm Ipopt solver per revolution class k (a rendezvous's turn count
+    is part of its NLP's constraints; orbit targets have only k = 0), built on the class's
+    first cell, solved cold; its mesh then holds for every cell of the scan."""
 
     def __init__(self, method=None):
         self.nlps = {}  # k -> (Transcription, (solver, monitor), Segments)
@@ -98,8 +94,7 @@ class CellSolver:
         self.method = method
         self.last = {}  # k -> the class's last cell, for a solver of projected cells
         self._projected = None
-        # k -> (the class's NLP, a cold Ipopt solver on it) (:meth:`lifted`)
-        self.lifters = {}
+        self.lifters = {}  # k -> (the class's NLP, a cold Ipopt solver on it) (:meth:`lifted`)
 
     @property
     def projected(self):
@@ -127,8 +122,7 @@ class CellSolver:
             if on_scan is not None:
                 k = on_scan.revolutions_k
                 if controlled.problem.segments != problem.segments:
-                    # The class's NLP takes the finer mesh from here on, rather than
-                    # every later cell growing it.
+                    # The class's NLP keeps the finer mesh, so later cells need not grow it.
                     rtr = controlled.transcription
                     self.nlps[k] = (rtr, build_solver(rtr, warm=True),
                                     controlled.problem.segments)
@@ -163,9 +157,8 @@ class CellSolver:
 
     def cold(self, problem, k=None, start=None):
         """Solve a cell from its own constant-pitch seed, from turn count ``k``'s seed
-        (``multistart.rendezvous_starts``), or from ``start``, an optimum of the class
-        search in class ``k`` (in 3-D one of the projected model, lifted).  The first
-        cell of a class builds the class's NLP."""
+        (``multistart.rendezvous_starts``), or from ``start``, a class-search optimum in class
+        ``k`` (in 3-D, the projected model's, lifted); a class's first cell builds its NLP."""
         started = time.perf_counter()
         label = "seed" if k is None else f"class {k}"
         # A class's seed is a look at another basin, not worth a full iteration budget.
@@ -191,10 +184,9 @@ class CellSolver:
         return self._candidate(problem, result, tr, started, label, on_scan)
 
     def lifted(self, problem, start):
-        """Solve a 3-D cell cold from ``start``, an optimum of its projected model,
-        lifted onto the scan's NLP of its class (so neighbours can start from it), with
-        :data:`CLASS_ITERATIONS`; None where the scan has no NLP of that class, or one of
-        another segment count."""
+        """Solve a 3-D cell cold from ``start``, an optimum of its projected model, lifted onto
+        the scan's NLP of its class (so neighbours start from it), with :data:`CLASS_ITERATIONS`;
+        None where the scan has no NLP of that class, or one of another segment count."""
         k = start.revolutions_k
         if k not in self.nlps:
             return None
@@ -319,12 +311,10 @@ def _forward(solver, cells, say, explore, on_cell):
 
 
 def _repair(solver, cells, out, classes, neighbours, say):
-    """The repair pass, back along the path and forward again, replacing cells of
-    ``out`` in place (and adding to ``classes`` the classes tried).
-
-    A cell is solved again once from each neighbour start that holds a class it has not
-    tried, that this pass solved again, or that did better where the cell is a spike
-    (:func:`_spike`); on smooth slopes a neighbour's start finds nothing new."""
+    """The repair pass, back along the path and forward again, replacing cells of ``out`` in
+    place (and adding to ``classes`` the classes tried): a cell is solved again once from each
+    neighbour start in a class it has not tried, that this pass solved again, or that did better
+    where the cell is a spike (:func:`_spike`); on smooth slopes a neighbour finds nothing new."""
     n = len(cells)
     taken = {}  # (cell, neighbour) -> the neighbour's start last taken for the cell
     renewed = set()  # the cells this pass solved again
@@ -348,9 +338,9 @@ def _repair(solver, cells, out, classes, neighbours, say):
 
 
 def _again(solver, problem, other, j, cell):
-    """``problem`` solved again warm from the neighbour ``other`` (cell ``j``), finished,
-    if that ranks better than ``cell``; else None.  Only a better closed-form optimum
-    (or any, for a cell that did not verify) is worth its error control."""
+    """``problem`` solved again warm from the neighbour ``other`` (cell ``j``) and finished,
+    if that ranks better than ``cell``; else None.  Only a better closed-form optimum (or
+    any, for a cell that did not verify) is worth its error control."""
     again = solver.warm(problem, other, f"from {j}")
     if again is None or not again.solved:
         return None
@@ -390,8 +380,7 @@ def _spike(i, out, cells, neighbours):
 
 
 def _comparable(a, b):
-    """Whether two cells' objectives mean the same thing: the same time of flight, or
-    neither fixes one."""
+    """Whether two cells' objectives compare: equal fixed times of flight, or neither fixed."""
     ta = a.objective.tof_days if a.objective.fixed_time else None
     tb = b.objective.tof_days if b.objective.fixed_time else None
     return ta == tb
@@ -430,10 +419,9 @@ class Seed:
 
 
 def seed_free_date(problem, progress=None):
-    """A start for a problem whose departure date is free in a window: the best cell of
-    a coarse scan of the window at fixed dates (a :class:`Seed`).  In 3-D the dates are
-    ranked on the projected model (:func:`_lifted_seed`) unless its best does not
-    converge in 3-D."""
+    """A start (a :class:`Seed`) for a problem whose departure date is free in a window: the
+    best cell of a coarse scan of the window at fixed dates, in 3-D ranked on the projected
+    model (:func:`_lifted_seed`) unless its best does not converge in 3-D."""
     if problem.three_d():
         seed = _lifted_seed(problem, progress)
         if seed.guess is not None:
@@ -448,9 +436,8 @@ def seed_free_date(problem, progress=None):
 
 
 def _best_date(problem, progress, projected=False):
-    """The coarse scan of ``problem``'s window (``projected``: the projected model of a
-    3-D problem): (its best solved cell or None, the Ipopt iterations of the cells it
-    kept)."""
+    """The coarse scan of ``problem``'s window (``projected``: a 3-D problem's projected
+    model): (its best solved cell or None, the Ipopt iterations of the cells it kept)."""
     lo, hi = problem.departure.window_jd
     count = int(np.clip(math.ceil((hi - lo) / SEED_SPACING_DAYS) + 1, *SEED_CELLS))
     (progress or (lambda text: None))(
@@ -481,10 +468,9 @@ def _scanned_seed(problem, progress):
 
 
 def _lifted_seed(problem, progress):
-    """A 3-D free date seeded from the projected model: its best date's optimum lifted
-    (``seed.lifted_guess``) and solved as a 3-D cell; ``guess`` None when the projected
-    scan found nothing or the 3-D cell did not converge.  The plane change moves each
-    date's optimum little, and a 3-D scan costs several times a projected one."""
+    """A 3-D free date seeded from the projected model (the plane change moves each date's
+    optimum little, and its scan costs a fraction of a 3-D one): its best date's optimum lifted
+    (``seed.lifted_guess``) and solved as a 3-D cell; ``guess`` None when either finds nothing."""
     started = time.perf_counter()
     best, iterations = _best_date(multistart.probe_model(problem), progress, projected=True)
     if best is None:

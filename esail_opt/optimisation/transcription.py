@@ -1,20 +1,18 @@
 """The transcription: a :class:`Problem` turned into a multiple-shooting NLP.
 
-Decision variables, each scaled to order one, in this order: ``alpha[N]``, each
-segment's constant pitch, rad; ``length[N]``, its arc angle, rad (or its duration, TU, for
-a method in time); ``X[5 x N]``, the state [r, theta, v_r, v_theta, t] at its end; where
-free, the departure anomaly ``nu0``, the throttles ``kappa[N]`` (a segment flies at kappa
-a_c), the departure ``epoch``, ``ac_scale`` and ``vinf_angle``.  In three dimensions
-(``Problem.three_d``) ``X[9 x N]`` adds the unit quaternion of the orbital plane (theta
-inside it), and the clock angles ``delta[N]`` come last.
+Decision variables, each scaled to order one, in this order: ``alpha[N]``, each segment's
+constant pitch, rad; ``length[N]``, its arc angle, rad (or its duration, TU, for a method in
+time); ``X[5 x N]``, the state [r, theta, v_r, v_theta, t] at its end; where free, the
+departure anomaly ``nu0``, the throttles ``kappa[N]`` (a segment flies at kappa a_c), the
+departure ``epoch``, ``ac_scale`` and ``vinf_angle``.  In 3-D ``X[9 x N]`` adds the orbital
+plane's unit quaternion (theta inside it), and the clock angles ``delta[N]`` come last.
 
-A segment is the method's Function (``segment_methods``), by default ``sub_arcs``
-rectified closed-form arcs (Eq. 12 for q, one Picard sweep; Eqs. 9-11 for the state),
-``map``-ped so that the MX NLP holds one copy of its graph.  Constraints: continuity
-X_{k+1} = F(X_k), q3 >= margin at every sub-arc's end, equal lengths if asked, positive
-durations, the time of flight when fixed, the target at the last node (a 3-D body
-target's in cylindrical coordinates, ``goals._BodyTarget.cylindrical_constraints``) and
-the arrival window; r >= r_min is a variable bound.
+A segment is the method's Function (``segment_methods``), by default ``sub_arcs`` rectified
+closed-form arcs (Eq. 12 for q, one Picard sweep; Eqs. 9-11 for the state), ``map``-ped so
+that the MX NLP holds one copy of its graph.  Constraints: continuity X_{k+1} = F(X_k),
+q3 >= margin at every sub-arc's end, equal lengths if asked, positive durations, the fixed
+time of flight, the target at the last node (a 3-D body target's in cylindrical coordinates,
+``goals._BodyTarget.cylindrical_constraints``) and the arrival window; r >= r_min bounds the nodes.
 """
 
 import dataclasses
@@ -63,8 +61,7 @@ class Transcription:
     ubx: np.ndarray
     lbg: np.ndarray
     ubg: np.ndarray
-    # (w, p) -> (alpha, lengths, nodes, durations, x_start, q3, nu0, throttle, epoch,
-    #            ac_scale, vinf_angle, delta)
+    # (w, p) -> the schedule's parts, by name (:func:`_unpack_function`)
     unpack: ca.Function
     guess: Guess
     names: dict
@@ -73,8 +70,7 @@ class Transcription:
     # the fixed time of flight (TU; 0 without one).  A scan changes them, not the NLP.
     epoch: float = 0.0
     tof: float = 0.0
-    # Then the bodies' corrections (:func:`body_corrections`); zero unless a caller holds
-    # the NLP to the ephemeris.
+    # Then the bodies' corrections (:func:`body_corrections`), zero unless held to the ephemeris.
     corrections: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(8))
     # What :meth:`start_of` needs: the scales, and whether the lengths are durations.
     scales: object = None
@@ -90,9 +86,8 @@ class Transcription:
         return self.guess.nodes.shape[0]
 
     def parameters(self, defects=None):
-        """The NLP's parameter vector: the segment defects of the defect correction
-        (rows x N; default none), then the epoch, the time of flight and the bodies'
-        corrections."""
+        """The NLP's parameter vector: the segment defects of the defect correction (rows x N;
+        default none), then the epoch, the time of flight and the bodies' corrections."""
         d = (np.zeros(self.rows * self.segments) if defects is None
              else np.ravel(defects, order="F"))
         return np.r_[d, self.epoch, self.tof, self.corrections]
@@ -168,12 +163,11 @@ class _Blocks:
 
 @dataclass
 class _Scales:
-    """Order-one scales of the variables: the guess's segment length for lengths, its
-    whole angle for theta and its time of flight for t (radii and speeds are of order one).
-    Theta is first shifted by whole turns: a body's track counts its longitude from the
-    ephemeris's first date, hundreds of radians back, which would bury the transfer's own
-    angles in the last digits of Ipopt's tolerances.
-    """
+    """Order-one scales of the variables: the guess's segment length for lengths, its whole
+    angle for theta and its time of flight for t (radii and speeds are of order one).  Theta
+    is first shifted by whole turns: a body's track counts its longitude from the ephemeris's
+    first date, hundreds of radians back, which would bury the transfer's own angles in the
+    last digits of Ipopt's tolerances."""
 
     length: float
     node: np.ndarray  # per row of a node [r, theta, v_r, v_theta, t]
@@ -215,8 +209,7 @@ def _node_bounds(problem, guess, scales, n):
     lo = np.tile([[max(problem.path.r_min_au, 1e-3)], [-np.inf], [-10.0], [1e-2], [0.0]], n)
     hi = np.tile([[100.0], [np.inf], [10.0], [20.0], [np.inf]], n)
     if problem.three_d():
-        # A unit quaternion's components; continuity keeps the norm, the box only
-        # keeps Ipopt's trial points near it.
+        # Quaternion components: continuity keeps the norm; the box keeps trial points near it.
         lo, hi = np.vstack([lo, np.full((4, n), -1.5)]), np.vstack([hi, np.full((4, n), 1.5)])
     if guess.theta_window is not None:
         lo[1, -1], hi[1, -1] = guess.theta_window
@@ -224,13 +217,11 @@ def _node_bounds(problem, guess, scales, n):
 
 
 def _variables(problem, guess, scales, in_time):
-    """The decision variables (the module's list), their bounds and start.
-
-    MX, so that the mapped segment Function is one copy of the arc's graph (inlined SX
-    arcs make the derivatives far dearer).  Every variable couples only neighbouring
-    segments (the node carries the elapsed time; equal lengths are chained equalities,
-    not one shared variable), so the constraint Jacobian is banded and cheap to colour.
-    """
+    """The decision variables (the module's list), their bounds and start: MX, so that the
+    mapped segment Function is one copy of the arc's graph (inlined SX arcs make the
+    derivatives far dearer).  Every variable couples only neighbouring segments (the node
+    carries the elapsed time; equal lengths are chained equalities, not one shared variable),
+    so the constraint Jacobian is banded and cheap to colour."""
     n = guess.alpha.size
     free_nu = bool(getattr(problem.departure, "free_anomaly", False))
     kappa_bounds = problem.throttle_bounds()
@@ -249,7 +240,6 @@ def _variables(problem, guess, scales, in_time):
     blocks = _Blocks()
     blocks.add("alpha", v["alpha"], *_pitch_bounds(problem), guess.alpha)
     max_angle = 2 * math.pi * problem.max_revolutions
-    # An angle is bounded by the revolution limit; a duration is not.
     len_hi = (np.inf if in_time else
               (max_angle / n if problem.segments.equal else max_angle) / scales.length)
     blocks.add("length", v["length"], 1e-4 / scales.length, len_hi, guess.lengths / scales.length)
@@ -294,8 +284,7 @@ def _flight(problem, segment, v, p, scales, in_time, threads):
     mapped = segment.map(n, "thread", threads) if threads > 1 else segment.map(n)
     controls = [v["alpha"].T] + ([v["delta"].T] if three_d else [])
     ends, q3 = mapped(starts, ac, *controls, length.T)
-    # The defect correction (optimisation.error_control), a parameter so that one solver
-    # serves every round.
+    # The defect correction (optimisation.error_control): a parameter, so one solver serves all.
     defects = ca.MX.sym("defects", nodes.shape[0], n)
     swept = (nodes[1, :] - starts[1, :]).T
     elapsed = (nodes[4, :] - starts[4, :]).T
@@ -323,8 +312,7 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
     if problem.fixed_tof() is not None:
         g.add("tof", (flight["tf"] - p["tof"]) / scales.time, 0, 0)
     if hasattr(problem.target, "cylindrical_constraints") and "yf" in flight:
-        # The longitude row holds the turn count k as the planar theta row does, so the
-        # revolution classes are the planar model's.
+        # The longitude row holds the turn count k as the planar theta row does: the same classes.
         yf = flight["yf"] - (p["corrections"][6:] if problem.target.tracks_body else 0)
         target = problem.target.cylindrical_constraints(yf, flight["xf"][1], flight["tf"],
                                                         guess.revolutions_k, flight["epoch"])
@@ -345,16 +333,13 @@ def _constraints(problem, guess, v, p, flight, scales, in_time):
 
 
 def transcribe(problem, method=None, guess=None, threads=None):
-    """The :class:`Transcription` of ``problem``.
-
-    ``method`` (``segment_methods``, default :class:`ClosedForm`) flies the segments; its
-    ``length_in`` says whether the lengths are arc angles (rad) or durations (TU).  In
-    time, equal segments still mean equal angles, ``unpack``'s lengths are still the
-    angles swept, and an empty q3 output adds no q3 rows.  ``guess`` (default
-    :func:`initial_guess`) sets N and the revolution class (turns, final-angle window),
-    its ``lengths`` in the method's measure.  ``threads`` bounds the segments' threads
-    (one for a ``serial`` method; default :func:`segment_threads`).
-    """
+    """The :class:`Transcription` of ``problem``.  ``method`` (``segment_methods``, default
+    :class:`ClosedForm`) flies the segments; its ``length_in`` says whether the lengths are
+    arc angles (rad) or durations (TU).  In time, equal segments still mean equal angles,
+    ``unpack``'s lengths are still the angles swept, and an empty q3 output adds no q3 rows.
+    ``guess`` (default :func:`initial_guess`) sets N and the revolution class (turns,
+    final-angle window), its ``lengths`` in the method's measure.  ``threads`` bounds the
+    segments' threads (one for a ``serial`` method; default :func:`segment_threads`)."""
     method = ClosedForm() if method is None else method
     in_time = method.length_in == "time"
     segment = _checked_segment(problem, method.function(problem))

@@ -1,22 +1,20 @@
 """Many fixed-attitude cases propagated by the closed form in one mapped call.
 
-A grid of propagations that differ only in their numbers (a survey, the paper's
-Figs. 3-4) is one ``map`` over M cases of a single-case Function of :mod:`.rectified`,
-so each case is the single-case propagator's answer to rounding.  Two shapes are
-batched: a rectified schedule of N segments (:func:`batch_function`,
-:func:`propagate_batch`), and the paper's single first-order arc at angles given per
-case (:func:`angles_batch_function`, :func:`arcs_at_angles`), so that arcs of different
-sample counts share one call.
+A grid of propagations that differ only in their numbers (a survey, the paper's Figs. 3-4) is
+one ``map`` over M cases of a single-case Function of :mod:`.rectified`, so each case is the
+single-case propagator's answer to rounding.  Two shapes are batched: a rectified schedule of
+N segments (:func:`batch_function`, :func:`propagate_batch`), and the paper's single
+first-order arc at angles given per case (:func:`angles_batch_function`,
+:func:`arcs_at_angles`), so that arcs of different sample counts share one call.
 
-``jit`` compiles the batch to C.  Where the schedule is a plain chain of one SX arc, the
-C is generated here across cases (:func:`_vectorised`): each CasADi instruction becomes
-one operation on a vector of four or eight cases (GCC's vector extensions), the
-elementary functions go to glibc's libmvec.  Its arithmetic is the scalar code's,
-rounded alike, but for libmvec's sin, cos, log, atan and atan2 (within 4 ulp, not 1),
-which move ten-year states by a few 1e-13 of their size.  Elsewhere, or if that compile
-fails, the mapped Function's value alone (derivatives would be far larger to compile)
-goes through ``propagation.compiled``'s disk cache; without a compiler, or with
-``ESAIL_OPT_COMPILE=0``, it stays on CasADi's virtual machine.
+``jit`` compiles the batch to C.  Where the schedule is a plain chain of one SX arc, the C is
+generated here across cases (:func:`_vectorised`): each CasADi instruction becomes one
+operation on a vector of four or eight cases (GCC's vector extensions), the elementary
+functions go to glibc's libmvec.  Its arithmetic is the scalar code's, rounded alike, but for
+libmvec's sin, cos, log, atan and atan2 (within 4 ulp, not 1), which move ten-year states by a
+few 1e-13 of their size.  Elsewhere, or if that compile fails, the mapped Function's value
+alone (derivatives would be far larger to compile) goes through ``propagation.compiled``,
+which may leave it on CasADi's virtual machine.
 """
 
 import functools
@@ -39,10 +37,9 @@ log = logging.getLogger("esail_opt")
 
 def _native(single, cases):
     """``single`` (one case) compiled to C, its value alone, through the disk cache, and
-    mapped over ``cases``; on the virtual machine where compiling is off or failed.  The
-    case is compiled, not the map, whose graph is slow to hash for the key.  A case that
-    calls compiled arcs already is mapped as it is: its library could not find their
-    symbols."""
+    mapped over ``cases``; on the virtual machine where compiling is off or failed.  The case
+    is compiled, not the map, whose graph is slow to hash for the key.  A case that calls
+    compiled arcs already is mapped as it is: its library could not find their symbols."""
     if any(f.class_name() == "External" for f in single.find_functions()):
         return single.map(cases)
     return compiled.compiled(single, with_derivatives=False).map(cases)
@@ -230,13 +227,11 @@ def _vectorised(arc, segments, cases):
 @functools.lru_cache(maxsize=None)
 def batch_function(segments, cases, *, samples=1, length_in="theta", coefficients=EXACT,
                    model=ArcModel(), jit=False, across_cases=True):
-    """``rectified.rectified_function`` (same arguments) mapped over ``cases``.
-
+    """``rectified.rectified_function`` (same arguments) mapped over ``cases``:
     ``(x0[5 x M], ac[1 x M N], alpha[1 x M N], length[1 x M N]) ->
     (xs[5 x M N S samples], q3[1 x M N S])``, S = ``model.sub_arcs``, case m's columns the
-    m-th block of each.  With ``jit`` the map is compiled to C (see the module's
-    docstring), across cases unless ``across_cases`` is False.
-    """
+    m-th block of each; with ``jit`` compiled to C (see the module's docstring), across cases
+    unless ``across_cases`` is False."""
     single = rectified_function(segments, samples=samples, length_in=length_in,
                                 coefficients=coefficients, model=model)
     if not jit:
@@ -302,12 +297,11 @@ def arcs_at_angles(x0, ac, alphas, angles, *, coefficients=EXACT, nodes=PANEL_NO
                    jit=False):
     """The paper's single first-order arc of M cases at angles given per case, one call.
 
-    ``x0`` (M, 4) are the start states, canonical; ``ac`` (canonical) and ``alphas``
-    (rad) are (M,); ``angles[m]`` are case m's sample angles from its start (rad,
-    increasing from 0, counts may differ); ``nodes`` are the Gauss-Legendre points per
-    panel.  Returns per case its states [r, theta, v_r, v_theta, t] at its angles
-    (5, len(angles[m])), t from 0 on the closed form's clock, and q3 at each angle after
-    the start.
+    ``x0`` (M, 4) are the start states, canonical; ``ac`` (canonical) and ``alphas`` (rad) are
+    (M,); ``angles[m]`` are case m's sample angles from its start (rad, increasing from 0,
+    counts may differ); ``nodes`` are the Gauss-Legendre points per panel.  Returns per case
+    its states [r, theta, v_r, v_theta, t] at its angles (5, len(angles[m])), t from 0 on the
+    closed form's clock, and q3 at each angle after the start.
     """
     starts = np.asarray(x0, float).reshape(-1, 4)
     cases = starts.shape[0]
@@ -352,10 +346,9 @@ def batch3d_function(segments, cases, *, samples=1, length_in="theta", coefficie
 
 def propagate_batch3d(x0, quat0, alphas, deltas, lengths, ac, *, throttles=None, samples=1,
                       length_in="theta", coefficients=EXACT, model=ArcModel(), jit=False):
-    """``rectified3d.propagate3d`` for M cases in one call, as :func:`propagate_batch`
-    with ``quat0`` (4,) or (M, 4) the start planes and ``deltas`` (rad) as ``alphas``.
-    Returns ``xs`` (M, 9, N S samples + 1) and ``q3`` (M, N S).
-    """
+    """``rectified3d.propagate3d`` for M cases in one call, as :func:`propagate_batch` with
+    ``quat0`` (4,) or (M, 4) the start planes and ``deltas`` (rad) as ``alphas``.  Returns
+    ``xs`` (M, 9, N S samples + 1) and ``q3`` (M, N S)."""
     n = np.shape(np.atleast_2d(alphas))[1]
     cases = max(np.atleast_2d(x0).shape[0], np.atleast_2d(quat0).shape[0], np.size(ac),
                 *(np.shape(np.atleast_2d(v))[0] for v in (alphas, deltas, lengths)))

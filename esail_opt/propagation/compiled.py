@@ -1,24 +1,21 @@
 """CasADi Functions compiled to C once, cached on disk, and loaded by name.
 
-On the closed-form NLP nearly all of Ipopt's time goes into the constraint Jacobian and
-the Hessian of the Lagrangian, which CasADi's virtual machine interprets one SX
-instruction at a time; compiled, the same instructions run natively, with the same
-numbers.  What is compiled is the closed form's arc (``rectified.end_function``) with the
-derivatives an NLP's ``map`` asks of it (``jac_<name>``, ``adj1_<name>``,
-``jac_adj1_<name>``), not whole segments: a segment's Hessian block is far longer to
-compile and would need one library per segment layout.  The segment's own MX graph is
-compiled too, linked against the arc's library (``compiled(segment, calls=(panel,))``;
-Linux only, by GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).
+On the closed-form NLP nearly all of Ipopt's time goes into the constraint Jacobian and the
+Hessian of the Lagrangian, which CasADi's virtual machine interprets one SX instruction at a
+time; compiled, the same instructions run natively, with the same numbers.  What is compiled
+is the closed form's arc (``rectified.end_function``) with the derivatives an NLP's ``map``
+asks of it (``jac_<name>``, ``adj1_<name>``, ``jac_adj1_<name>``), not whole segments, whose
+Hessian block is far longer to compile and would need one library per layout; the segment's
+MX graph is compiled too, linked against the arc's library
+(``compiled(segment, calls=(panel,))``; Linux only: GNU ld's ``-l:`` and an rpath of ``$ORIGIN``).
 
-The cache is a directory of shared libraries named by a hash of the serialised graph,
-the CasADi version, the compiler's version line, the flags and the libraries called.  A
-library is renamed into place whole and then its SHA-256 written beside it; it is loaded
-only if that matches, since a truncated one would crash the process with SIGBUS.  A lock
-per hash makes parallel workers wait for one compile.  An interrupted or killed compile's
-compilers and ``.build-<pid>-*`` folder are removed (:data:`_REAPER`, :func:`_sweep_builds`).
-Without a compiler, on a failed compile or an unwritable cache, the Function stays on the
-virtual machine with one log line per run (:func:`check_cache`); a cache that ran out of
-space is not tried again until space is freed.
+The cache is a directory of shared libraries named by a hash of the serialised graph, the
+CasADi version, the compiler's version line, the flags and the libraries called.  A library is
+renamed into place whole, then its SHA-256 written beside it, and is loaded only if that
+matches: a truncated one would crash the process with SIGBUS.  A lock per hash makes parallel
+workers wait for one compile; an interrupted or killed compile is cleaned up (:data:`_REAPER`,
+:func:`_sweep_builds`).  Without a compiler, on a failed compile or an unwritable cache, the
+Function stays on the virtual machine with one log line per run (:func:`check_cache`).
 
 Environment:
 
@@ -59,8 +56,7 @@ log = logging.getLogger("esail_opt")
 #: -O1: -O0 runs the Hessian blocks several times slower, -O2 and -O3 compile longer and
 #: run no faster.
 FLAGS = ("-O1", "-fPIC")
-#: Flags that change how the compiler runs but not the code (so not in the key): no
-#: assembler file in the temporary folder.
+#: Flags that change how the compiler runs but not the code (not in the key): no temporary .s file.
 BUILD_FLAGS = ("-pipe",)
 #: Raised whenever what is written into a library changes, so old libraries are ignored.
 RECIPE = "segment+jac+adj1+jac_adj1 v2 checksummed"
@@ -207,12 +203,9 @@ def _free_inodes(folder):
 
 
 def _unusable(folder):
-    """Why nothing can be compiled into ``folder`` now, in words, or None.
-
-    A cache that ran out of space is not tried again until its disk has
-    :data:`MIN_FREE_BYTES` more free than at the failure (:data:`FAILED_MARKER`), or a
-    day has passed.
-    """
+    """Why nothing can be compiled into ``folder`` now, in words, or None; after running out
+    of space, not until its disk has :data:`MIN_FREE_BYTES` more free than at the failure
+    (:data:`FAILED_MARKER`) or a day has passed."""
     if not os.access(folder, os.W_OK | os.X_OK):
         return "it is not writable"
     free = _free_bytes(folder)
@@ -321,11 +314,10 @@ if words[-1:] != ["done"]:
 
 
 class _Compilers:
-    """The compiler processes of one build, each in a session of its own, so that an
-    interrupt ends them and what they started at once: left running, they would go on
-    filling the cache's disk.  For a process killed outright, :data:`_REAPER` ends them.
-    Their temporary files go into the build folder (``TMPDIR``).
-    """
+    """The compiler processes of one build, each in a session of its own, so that an interrupt
+    ends them and what they started at once: left running, they would go on filling the
+    cache's disk.  For a process killed outright, :data:`_REAPER` ends them.  Their temporary
+    files go into the build folder (``TMPDIR``)."""
 
     def __init__(self, build):
         self.lock = threading.Lock()
@@ -374,12 +366,10 @@ class _Compilers:
 
 
 def _build(fun, compiler, target, links=(), with_derivatives=True):
-    """Generate C for ``fun`` and its derivatives (with ``with_derivatives``), one
-    translation unit each, compiled in parallel, and link them into ``target``
-    (:func:`_publish`).  ``links`` are the keys of cached libraries beside ``target``
-    whose Functions ``fun`` calls.  An interrupt or an error kills the compilers and
-    removes the build folder before it propagates.
-    """
+    """Generate C for ``fun`` and its derivatives (with ``with_derivatives``), one translation
+    unit each, compiled in parallel, and link them into ``target`` (:func:`_publish`).  ``links``
+    are the keys of cached libraries beside ``target`` whose Functions ``fun`` calls.  An
+    interrupt or error kills the compilers and removes the build folder before propagating."""
     with tempfile.TemporaryDirectory(dir=target.parent,
                                      prefix=f".build-{os.getpid()}-") as tmp:
         tmp = Path(tmp)
@@ -439,10 +429,9 @@ def _warn_no_compiler(compiler):
 
 
 def check_cache():
-    """Say now, once, why nothing will compile (no compiler, an unusable cache), so that
-    a run's workers need not each say it.  Returns the compiler's name or the cache folder
-    a line was said about, for :func:`said_already` (empty when there was nothing to say).
-    """
+    """Say now, once, why nothing will compile (no compiler, an unusable cache), so that a
+    run's workers need not each say it.  Returns the compiler's name or the cache folder a
+    line was said about, for :func:`said_already` (empty when there was nothing to say)."""
     if not enabled():
         return ()
     compiler = os.environ.get("CC", "cc")
@@ -531,14 +520,13 @@ def _record(target):
 def compiled(fun, calls=(), with_derivatives=True):
     """``fun`` backed by its cached C library, or ``fun`` itself on the virtual machine.
 
-    ``fun`` is an SX Function (the closed form's arc) or an MX Function over the
-    Functions in ``calls`` (the NLP's segment over its arcs), which are compiled first and
-    linked against, not compiled again; if any of them stays on the virtual machine, so
-    does ``fun``.  Without ``with_derivatives`` (a Function only evaluated) the library
-    holds its value alone, a fraction of the compile.  Returns an ``external`` with the
-    same inputs and outputs, or ``fun`` when compiling is off, no C compiler runs, the
-    cache cannot be written or the compile fails (one warning on the ``esail_opt``
-    logger).
+    ``fun`` is an SX Function (the closed form's arc) or an MX Function over the Functions in
+    ``calls`` (the NLP's segment over its arcs), which are compiled first and linked against;
+    if any of them stays on the virtual machine, so does ``fun``.  Without
+    ``with_derivatives`` (a Function only evaluated) the library holds its value alone, a
+    fraction of the compile.  Returns an ``external`` with the same inputs and outputs, or
+    ``fun`` when compiling is off, no C compiler runs, the cache cannot be written or the
+    compile fails (one warning on the ``esail_opt`` logger).
     """
     if not enabled():
         return fun

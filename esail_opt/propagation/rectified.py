@@ -87,11 +87,10 @@ def flies_native(*, coefficients=EXACT, model=ArcModel(), length_in="theta"):
 @functools.lru_cache(maxsize=None)
 def angles_function(samples, *, coefficients=EXACT, nodes=PANEL_NODES):
     """One first-order arc sampled at angles the caller gives: ``(x0[5], ac, alpha,
-    phis[1 x (samples + 1)]) -> (states[4 x samples], elapsed[1 x samples],
-    q3[1 x samples])``, panels from ``phis[k]`` to ``phis[k + 1]`` (rad from the arc's
-    start), ``elapsed`` the time from ``phis[0]``, ``q3`` the validity margin.  A shorter
-    arc may be padded with its last angle: an empty panel adds no time and keeps the state.
-    """
+    phis[1 x (samples + 1)]) -> (states[4 x samples], elapsed[1 x samples], q3[1 x samples])``,
+    panels from ``phis[k]`` to ``phis[k + 1]`` (rad from the arc's start), ``elapsed`` the
+    time from ``phis[0]``, ``q3`` the validity margin.  A shorter arc may be padded with its
+    last angle: an empty panel adds no time and keeps the state."""
     x0 = ca.MX.sym("x0", 5)
     ac, alpha, phis = ca.MX.sym("ac"), ca.MX.sym("alpha"), ca.MX.sym("phis", 1, samples + 1)
     piece = panel_function(coefficients=coefficients, nodes=nodes).map(samples)
@@ -155,9 +154,8 @@ def arc_function(samples, *, coefficients=EXACT, model=ArcModel()):
 
 
 #: Order of the Taylor series of Eqs. 1-2 that flies a timed second-order arc from
-#: :func:`clock_guess`'s angle to the asked duration: its truncation, like the step^6, is
-#: far below the closed form's error at the guess's largest misses; order 3 would save
-#: only a tenth of the arc's instructions.
+#: :func:`clock_guess`'s angle to the asked duration: its truncation, like the step^6, is far
+#: below the closed form's error at the guess's largest misses; order 3 would save only a tenth.
 TAYLOR_ORDER = 5
 #: Newton steps of the first-order arcs' clock from the Keplerian guess: the rate is the
 #: clock's derivative to its quadrature, so they converge quadratically (1e-11 rad left
@@ -170,9 +168,8 @@ KEPLER_STEPS = 6
 
 def kepler_angle(arc, duration):
     """Angle the arc's osculating Keplerian orbit sweeps in ``duration`` (units sqrt(r0^3/mu)),
-    where Newton's method on the closed form's clock starts.  It is written in the
-    differences of the anomalies from the arc's start, with e sin E0 and e cos E0 from the
-    eccentricity vector, so that it is smooth, derivatives included, at e = 0:
+    in the differences of the anomalies from the arc's start, with e sin E0 and e cos E0 from
+    the eccentricity vector, so that it is smooth, derivatives included, at e = 0:
 
     * Delta M = duration (1 - e^2)^{3/2} / h0^3;
     * Delta E - e sin(E0 + Delta E) + e sin E0 = Delta M;
@@ -207,9 +204,8 @@ GUESS_PANELS = 6
 def clock_guess(arc, duration):
     """Starting angle for the root of the clock: :func:`kepler_angle`, which misses the
     thrust's O(a~_c) drift of the clock, then one Newton step on a cheap first-order clock
-    (``duration`` in units sqrt(r0^3/mu)): the Keplerian part exact, the first-order
-    remainder by the composite Simpson rule on :data:`GUESS_PANELS` panels.
-    """
+    (``duration`` in units sqrt(r0^3/mu)): the Keplerian part exact, the first-order remainder
+    by the composite Simpson rule on :data:`GUESS_PANELS` panels."""
     kep = arc.kepler
     angle = kepler_angle(arc, duration)
 
@@ -354,8 +350,7 @@ def _repeated(row, times):
 
 @functools.lru_cache(maxsize=None)
 def _extrapolated(arcs, samples, length_in, coefficients, model):
-    """(2^p x_halves - x_whole) / (2^p - 1) at every sample of ``arcs`` chained arcs of
-    the one-arc ``model``, p its order, with the smallest q3 of an arc and its halves."""
+    """Extrapolation of :func:`rectified_function` over ``arcs`` chained one-arc ``model`` arcs."""
     native = flies_native(coefficients=coefficients, model=model, length_in=length_in)
     whole = _chain(arcs, samples, length_in, coefficients, model)
     halves = _chain(2 * arcs, samples, length_in, coefficients, model)
