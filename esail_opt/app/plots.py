@@ -329,10 +329,10 @@ LEGEND_PAD = 0.12
 
 
 def _keep_clear(ax, legend):
-    """Put ``legend`` in the corner of ``ax`` where it hides the fewest drawn points (each
-    line sampled evenly along its length on the page), and where even that corner hides
-    some, widen the view on that side until none is hidden.  matplotlib's loc="best"
-    weighs the same, but measures the legend at every draw and never makes room."""
+    """Put ``legend`` in the corner of ``ax`` that it can have with the least widening of
+    the view, none where a corner is clear of every drawn point (each line sampled evenly
+    along its length on the page), and widen the view on that side.  matplotlib's
+    loc="best" only weighs what the legend hides, and measures it at every draw."""
     renderer = FigureCanvasAgg(ax.figure).get_renderer()
     size = legend.get_window_extent(renderer)
     corner = None
@@ -341,22 +341,28 @@ def _keep_clear(ax, legend):
         frame = ax.get_window_extent(renderer)
         w, h = ((1 + LEGEND_PAD) * size.width / frame.width,
                 (1 + LEGEND_PAD) * size.height / frame.height)
+        if h >= 0.5:
+            break
         x, y = _drawn_points(ax)
 
-        def under(where):
+        def widening(where):
+            """The factor the y span needs for the legend at ``where`` to hide nothing."""
             cx, cy = LEGEND_CORNERS[where]
-            return (np.abs(x - cx) < w) & (np.abs(y - cy) < h)
+            under = y[(np.abs(x - cx) < w) & (np.abs(y - cy) < h)]
+            if under.size == 0:
+                return 1.0
+            return max((under.max() if cy == 1 else 1 - under.min()) / (1 - h), 1.0)
 
-        corner = corner or min(LEGEND_CORNERS, key=lambda c: np.count_nonzero(under(c)))
-        hidden = y[under(corner)]
-        if hidden.size == 0 or h >= 0.5:
+        corner = corner or min(LEGEND_CORNERS, key=widening)
+        factor = widening(corner)
+        if factor == 1.0:
             break
         low, high = ax.get_ylim()
         if LEGEND_CORNERS[corner][1] == 1:
-            ax.set_ylim(low, low + (high - low) * hidden.max() / (1 - h))
+            ax.set_ylim(low, low + (high - low) * factor)
         else:
-            ax.set_ylim(high - (high - low) * (1 - hidden.min()) / (1 - h), high)
-    legend.set_loc(corner)
+            ax.set_ylim(high - (high - low) * factor, high)
+    legend.set_loc(corner or "upper right")
 
 
 def _drawn_points(ax):
