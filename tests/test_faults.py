@@ -393,26 +393,26 @@ def test_a_dask_client_closed_mid_run_ends_the_run_as_cluster_lost(tmp_path):
         runner._submit([0], str(tmp_path))
 
 
-def _tells_twice(i):
-    """A pool job that tells two items before it returns (a scan's forward pass)."""
-    pool.tell(("first", i))
-    pool.tell(("second", i))
+def _sends_two_partials(i):
+    """A pool job that sends two partial results before it returns (a scan's forward pass)."""
+    pool.send_partial(("first", i))
+    pool.send_partial(("second", i))
     return ("result", i)
 
 
-def test_a_pool_job_tells_its_news_before_its_result():
-    """What a local pool's job tells reaches ``on_news`` in order, before its result;
-    outside a pool, telling is nothing."""
+def test_a_pool_job_sends_its_partials_before_its_result():
+    """What a local pool's job sends reaches ``on_partial`` in order, before its result;
+    outside a pool, sending is nothing."""
     heard = []
-    pool.run(_tells_twice, {0: (), 1: ()}, lambda i, value: heard.append(value),
+    pool.run(_sends_two_partials, {0: (), 1: ()}, lambda i, value: heard.append(value),
                  lambda i, message: heard.append(("failed", message)), workers=1,
-                 on_news=heard.append)
+                 on_partial=heard.append)
     assert sorted(heard) == sorted((what, i) for i in (0, 1)
                                    for what in ("first", "second", "result"))
     for i in (0, 1):
         assert heard.index(("first", i)) < heard.index(("second", i)) < heard.index(
             ("result", i))
-    assert _tells_twice(5) == ("result", 5)
+    assert _sends_two_partials(5) == ("result", 5)
 
 
 # ---------------------------------------------------------------- 4. outputs
@@ -673,11 +673,11 @@ def test_a_fresh_scan_replaces_the_old_journal_only_with_its_first_row(tmp_path)
         json.loads(json.dumps({**HEADER, "values": [7.0]}))]
 
 
-def test_a_verified_row_told_before_its_job_ends_is_journaled_and_kept(tmp_path):
-    """A row a job tells of before ending is journaled at once if it is verified (an
+def test_a_verified_row_sent_before_its_job_ends_is_journaled_and_kept(tmp_path):
+    """A row a job sends before ending is journaled at once if it is verified (an
     interrupted job keeps it), not if it failed (a resumed run solves it again); the
     job's end journals only what changed, and of two rows of one index the later is
-    read.  A job that dies keeps the verified rows it told of."""
+    read.  A job that dies keeps the verified rows it sent."""
     path = tmp_path / sweep.JOURNAL
     journal = _journal(path, HEADER)
     journal.open(resume=False)
@@ -690,14 +690,14 @@ def test_a_verified_row_told_before_its_job_ends_is_journaled_and_kept(tmp_path)
                        count=3, function=None, jobs={0: ([0, 1], ()), 1: ([2], ())},
                        failed_row=lambda i, message: row(i, error=message))
     rows = engine._Rows(scan, {}, journal, progress=None)
-    rows.news(row(0, verified=True, objective=2.0))
-    rows.news(row(1, verified=False))
+    rows.partial(row(0, verified=True, objective=2.0))
+    rows.partial(row(1, verified=False))
     assert list(journal.read(resume=True)) == [0]  # what an interrupt now leaves
     rows.finished(0, [row(0, verified=True, objective=2.0), row(1, verified=False)])
     assert len(path.read_text().splitlines()) == 3  # the header, row 0 once, row 1
     rows.finished(0, [row(0, verified=True, objective=1.5)])  # a repair pass improved it
     assert journal.read(resume=True)[0]["objective"] == 1.5
-    rows.news(row(2, verified=True, objective=3.0))
+    rows.partial(row(2, verified=True, objective=3.0))
     rows.unfinished(1, "worker lost")
     assert rows.rows[2]["objective"] == 3.0 and rows.rows[2]["error"] is None
 

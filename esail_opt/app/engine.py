@@ -186,8 +186,8 @@ class ScanRun:
 
 
 class _Rows:
-    """The scan's rows, journaled as its jobs end and reported as soon as a job tells of
-    them (:func:`esail_opt.runtime.pool.tell`); a verified row told of is journaled then
+    """The scan's rows, journaled as its jobs end and reported as soon as a job sends them
+    early (:func:`esail_opt.runtime.pool.send_partial`); a verified row sent early is journaled then
     too, so that an interrupted job keeps it."""
 
     def __init__(self, scan, kept, journal, progress):
@@ -197,28 +197,29 @@ class _Rows:
         self.solved = []  # indices ended in this run, in finishing order
         self.filled = set(kept)  # indices with a row
         self.journaled = set(kept)  # indices whose row the journal holds
-        self.told = {}  # index -> the row a job told of before it ended
-        self.early = set()  # indices whose told row the journal holds
+        self.partials = {}  # index -> the row a job sent before it ended
+        self.journaled_early = set()  # indices whose early row the journal holds
         self.todo = scan.todo(self.rows)  # the jobs this run runs
 
-    def news(self, row):
-        """A row its job told of before ending: reported, and journaled if verified (a
+    def partial(self, row):
+        """A row its job sent before ending: reported, and journaled if verified (a
         failed one a resumed run solves again); not reported again unless the job's end
         changes it."""
         i = row["index"]
-        if i in self.told:
+        if i in self.partials:
             return
-        self.told[i] = row
+        self.partials[i] = row
         if self.journal is not None and row.get("verified"):
             self.journal.append(plain(row))
             self.journaled.add(i)
-            self.early.add(i)
+            self.journaled_early.add(i)
         self._report(row)
 
     def finished(self, job, value):
         for row in value if isinstance(value, list) else [value]:
             i = row["index"]
-            if self.journal is not None and not (i in self.early and self.told[i] == row):
+            early = i in self.journaled_early and self.partials[i] == row
+            if self.journal is not None and not early:
                 self.journal.append(plain(row))
                 self.journaled.add(i)
             self._end(i, row)
@@ -226,18 +227,19 @@ class _Rows:
     def unfinished(self, job, message):
         # Not journaled, so a resumed scan runs it again.
         for i in self.todo[job][0]:
-            self._end(i, self.told[i] if i in self.early else self.scan.failed_row(i, message))
+            early = i in self.journaled_early
+            self._end(i, self.partials[i] if early else self.scan.failed_row(i, message))
 
     def _end(self, i, row):
         self.rows[i] = row
         self.solved.append(i)
         self.filled.add(i)
-        if self.told.get(i) != row:
+        if self.partials.get(i) != row:
             self._report(row)
 
     def _report(self, row):
         if self.progress:
-            self.progress(row, len(self.filled | set(self.told)), self.scan.count)
+            self.progress(row, len(self.filled | set(self.partials)), self.scan.count)
 
 
 def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
@@ -246,7 +248,7 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
     journal) lacks, keeping its rows with ``resume``: a :class:`ScanRun`.  ``workers``:
     the local pool's size; ``scheduler``: a Dask address (:func:`check_scheduler`);
     ``retries``: reruns of a job lost with its worker; ``progress(row, done, total)`` as
-    each row ends or is told of (again if its job's end changed it).
+    each row ends or is sent early (again if its job's end changed it).
 
     Raises InputError, before the journal changes, for a journal ``resume`` cannot
     continue or an unreachable scheduler; ``pool.ClusterLost`` (one line saying what the
@@ -268,7 +270,7 @@ def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
             lost = pool.run(scan.function, {j: job[1] for j, job in todo.items()},
                             rows.finished, rows.unfinished, workers=workers,
                             client=client, address=scheduler, retries=retries,
-                            setup=(worker_setup, (quiet,)), on_news=rows.news)
+                            setup=(worker_setup, (quiet,)), on_partial=rows.partial)
         except pool.ClusterLost as err:
             raise pool.ClusterLost(f"{err}; {_kept(rows, journal)}") from None
         except KeyboardInterrupt:

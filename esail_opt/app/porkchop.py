@@ -252,7 +252,7 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
         # Told of as the forward pass ends each; the rows after the repair pass are
         # the ones journaled.
         cells = scan.scan(problems, neighbours=grid.neighbours(indices),
-                          on_cell=lambda k, cell: pool.tell(_row(indices[k], grid, cell)))
+                          on_cell=lambda k, cell: pool.send_partial(_row(indices[k], grid, cell)))
         rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
     except Exception as err:  # the job's cells all say why
         return [_row(i, grid, error=first_line(err)) for i in indices]

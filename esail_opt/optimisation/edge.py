@@ -3,8 +3,9 @@
 A fixed-time problem whose solve finds no point may simply be too short a flight (an
 E-sail's thrust never points more than 19.5 deg from the outward radial).
 :func:`nearest_feasible` walks its time of flight down to the shortest at which the
-closed-form NLP converges, from a ladder of longer solves (:func:`_ladder`) or a given
-start, by halving (:func:`_halve`), and flies that flight as any run is flown.
+closed-form NLP converges, from the first feasible of longer solves
+(:func:`_first_feasible_longer`) or a given start, by halving (:func:`_halve`), and flies
+that flight as any run is flown.
 """
 
 import dataclasses
@@ -70,20 +71,20 @@ def at_tof(problem, tof_days):
                                                                       tof_days=tof_days))
 
 
-def nearest_feasible(problem, lone, fly, start=None, progress=None):
+def nearest_feasible(problem, solve_unwalked, fly, start=None, progress=None):
     """The :class:`Edge` from the departure of ``problem`` (fixed-time, :func:`walks`, no
     point at its time of flight), or None when the walk found no time of flight at which
     the closed form converges.
 
-    ``lone(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk, for a
-    rung whose single solve found no point; ``fly(problem, result, transcription,
+    ``solve_unwalked(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk, for
+    a longer time of flight whose single solve found no point; ``fly(problem, result, transcription,
     progress=)`` -> ``pipeline.Run``: ``pipeline.finish``.  ``start``, a verified flight
-    from the same departure at a longer time of flight, replaces the ladder and stays the
+    from the same departure at a longer time of flight, replaces the longer solves and stays the
     edge unless a shorter flight verifies; without it the walk's flight is returned even
     when it does not verify.  ``progress(text)`` gets one line per solve.
     """
     say = progress or (lambda text: None)
-    walked = walk(problem, lone, start, say)
+    walked = walk(problem, solve_unwalked, start, say)
     if walked is None:
         return None
     cell, result, tr, infeasible, iterations = walked
@@ -97,20 +98,20 @@ def nearest_feasible(problem, lone, fly, start=None, progress=None):
     return Edge(run, infeasible, iterations)
 
 
-def walk(problem, lone, start=None, progress=None):
+def walk(problem, solve_unwalked, start=None, progress=None):
     """The shortest time of flight from ``problem``'s departure, at least its own, at
-    which its closed-form NLP converges, walked from ``start`` or else from the first rung
-    of :func:`_ladder` that converges (arguments as for :func:`nearest_feasible`).
+    which its closed-form NLP converges, walked from ``start`` or else from the first longer solve
+    of :func:`_first_feasible_longer` that converges (arguments as for :func:`nearest_feasible`).
 
     Returns ``(Problem, NLPResult, Transcription, infeasible_tof_days, iterations)``, the
-    converged optimum there with its problem and NLP, or None when no rung converges.
+    converged optimum there with its problem and NLP, or None when none converges.
     """
     say = progress or (lambda text: None)
     if start is None:
-        rung = _ladder(problem, lone, say)
-        if rung is None:
+        found = _first_feasible_longer(problem, solve_unwalked, say)
+        if found is None:
             return None
-        return _halve(problem, *rung, say)
+        return _halve(problem, *found, say)
     return _halve(problem, start.problem, start.result, start.transcription, 0,
                   problem.objective.tof_days, say)
 
@@ -134,8 +135,8 @@ def _halve(problem, cell, result, tr, iterations, lo, say):
     return cell, result, tr.at(cell), lo, iterations
 
 
-def _ladder(problem, lone, say):
-    """The solves (:func:`_rung`) at :data:`LONGER` multiples of ``problem``'s time of
+def _first_feasible_longer(problem, solve_unwalked, say):
+    """The solves (:func:`_solve_at`) at :data:`LONGER` multiples of ``problem``'s time of
     flight, up to the first that converges: (problem, NLPResult, Transcription,
     iterations spent, longest time of flight found infeasible), or None."""
     asked = problem.objective.tof_days
@@ -143,9 +144,10 @@ def _ladder(problem, lone, say):
     for factor in LONGER:
         say(f"{problem.name}: no point at {lo:.6g} d; solving at {asked * factor:.6g} d")
         try:
-            cell, result, tr, spent = _rung(at_tof(problem, asked * factor), lone, say)
+            longer = at_tof(problem, asked * factor)
+            cell, result, tr, spent = _solve_at(longer, solve_unwalked, say)
         except NoStart as why:
-            # The seed escapes before the time of flight; a longer rung's would too.
+            # The seed escapes before the time of flight; a longer flight's would too.
             say(f"{problem.name}: no seed at {asked * factor:.6g} d: {why}")
             return None
         iterations += spent
@@ -155,10 +157,10 @@ def _ladder(problem, lone, say):
     return None
 
 
-def _rung(problem, lone, say):
-    """One rung of :func:`_ladder`: a single solve from ``problem``'s seed and, when
-    that finds no point, ``lone(problem, say)``: (problem, NLPResult, Transcription,
-    Ipopt iterations of both).  Raises NoStart when the seed cannot be flown.  The lone
+def _solve_at(problem, solve_unwalked, say):
+    """One solve of :func:`_first_feasible_longer`: a single solve from ``problem``'s seed and, when
+    that finds no point, ``solve_unwalked(problem, say)``: (problem, NLPResult, Transcription,
+    Ipopt iterations of both).  Raises NoStart when the seed cannot be flown.  The solve_unwalked
     solve's turn-count search finds points the cheap single solve misses, which would
     otherwise leave the walk starting weeks above the edge."""
     guess = initial_guess(problem)
@@ -168,5 +170,5 @@ def _rung(problem, lone, say):
         return problem, result, tr, result.iterations
     say(f"{problem.name}: no point from the seed at {problem.objective.tof_days:.6g} d; "
         "solving it as a lone solve")
-    run = lone(problem, say)
+    run = solve_unwalked(problem, say)
     return run.problem, run.result, run.transcription, result.iterations + run.result.iterations

@@ -167,15 +167,15 @@ def solve(problem, segments=None, progress=None, polish=False):
             raise InputError(f"segments = {segments!r} is outside [1, inf)")
         problem = problem.with_segments(segments)
     say = progress or _quiet
-    run = _lone(problem, say)
+    run = _run_before_polish(problem, say)
     return _polished(run, polish, say)
 
 
-def _lone(problem, say, walk=True):
+def _run_before_polish(problem, say, walk=True):
     """The run of :func:`solve` before the polish, without the walk to the shortest feasible
-    flight when ``walk`` is False (as for :func:`nearest_feasible`'s rungs).  A 3-D problem's
-    turn counts are searched on its projected model, the best lifted (``classes.ClassSearch``),
-    and in 3-D where that leaves no candidate."""
+    flight when ``walk`` is False (as for :func:`nearest_feasible`'s longer solves).  A 3-D
+    problem's turn counts are searched on its projected model, the best lifted
+    (``classes.ClassSearch``), and in 3-D where that leaves no candidate."""
     spent = []
     if problem.three_d() and multistart.searches_classes(problem):
         search = ClassSearch.on_projected_model(problem, say)
@@ -190,7 +190,7 @@ def _lone(problem, say, walk=True):
 
 
 def _solved(problem, say, walk=True):
-    """The run of :func:`_lone` on ``problem``'s own model."""
+    """The run of :func:`_run_before_polish` on ``problem``'s own model."""
     sub_arcs = problem.segments.sub_arcs
     problem, result, tr, starts = _first_solve(problem, say)
     if result.outcome.found and multistart.searches_classes(problem):
@@ -310,14 +310,14 @@ def nearest_feasible(problem, start=None, progress=None):
     """The edge of the feasible from ``problem``'s departure (``edge.nearest_feasible``:
     ``problem`` is a fixed-time problem that found no point, ``start`` an optional
     verified flight at a longer time of flight), its flight flown by :func:`finish`; a
-    rung of its ladder whose seed finds no point is a lone solve without a walk of its
-    own (:func:`_lone`).  An ``edge.Edge``, or None when the walk found none."""
+    longer solve whose seed finds no point is a lone solve without a walk of its own
+    (:func:`_run_before_polish`).  An ``edge.Edge``, or None when the walk found none."""
     return edge.nearest_feasible(problem, _unwalked, finish, start, progress)
 
 
 def _unwalked(problem, say):
-    """A lone solve of ``problem`` without the walk to the edge: a rung of the walk's ladder."""
-    return _lone(problem, say, walk=False)
+    """A lone solve of ``problem`` without the walk to the edge: one of the walk's longer solves."""
+    return _run_before_polish(problem, say, walk=False)
 
 
 def finish(problem, result, tr=None, polish=False, progress=None, starts=(),

@@ -3,7 +3,7 @@
 :func:`run` calls ``function(index, *args)`` once per job on a :mod:`concurrent.futures`
 executor, a local process pool or Dask distributed's on a client of :func:`session`, and
 hands results and failures to the caller as each job ends; a job on the local pool may also
-:func:`tell` the caller something before it ends.  A job whose worker dies is run again on
+:func:`send_partial` the caller something before it ends.  A job whose worker dies is run again on
 a fresh pool a bounded number of times, without charging the jobs on healthy workers.  On
 Ctrl-C, SIGTERM (under the command line's handler) or any error the workers are stopped
 within seconds; local workers also end when the parent dies without a word (SIGKILL).  On
@@ -48,7 +48,7 @@ def first_line(err):
 
 
 def run(function, jobs, on_result, on_failure, workers=1, client=None, address=None,
-        retries=RETRIES, setup=None, on_news=None):
+        retries=RETRIES, setup=None, on_partial=None):
     """Run ``function(i, *jobs[i])`` for every index ``i`` of the dict ``jobs``, reporting each as
     it ends; return index -> (losses, cause of the last) for every job charged with a lost
     worker.  ``function`` is module-level (pickled by name).  ``on_result(i, value)`` gets each
@@ -57,15 +57,15 @@ def run(function, jobs, on_result, on_failure, workers=1, client=None, address=N
     with ``client``, a Dask client from :func:`session` (None: the local pool) whose scheduler
     ``address`` the messages name.  With ``setup = (function, args)`` each local worker calls
     ``function(cores, *args)`` as it starts, ``cores`` its share of the machine's cores.
-    ``on_news(item)`` gets each item a local job sent with :func:`tell`, in order and before
-    that job's result.
+    ``on_partial(item)`` gets each item a local job sent with :func:`send_partial`, in order
+    and before that job's result.
 
     Raises ClusterLost (one line) when the Dask scheduler, or every worker, is lost for longer
     than :data:`SCHEDULER_LOST_SECONDS` or :data:`NO_WORKER_SECONDS`; KeyboardInterrupt
     (:class:`~esail_opt.errors.Terminated` for SIGTERM) after stopping the workers.
     """
     runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
-                     address, setup, on_news)
+                     address, setup, on_partial)
     runner.run()
     return {i: (n, runner.causes[i]) for i, n in sorted(runner.losses.items())}
 
@@ -100,13 +100,13 @@ class _Runner:
     """
 
     def __init__(self, function, jobs, on_result, on_failure, workers, client, retries,
-                 address=None, setup=None, on_news=None):
+                 address=None, setup=None, on_partial=None):
         self.function, self.jobs = function, jobs
         self.setup = setup
         self.address = address
         self.unhealthy = {}  # what is wrong with the cluster -> since when (monotonic)
-        self.on_result, self.on_failure, self.on_news = on_result, on_failure, on_news
-        self.news = None  # the local pool's queue of told items, this round
+        self.on_result, self.on_failure, self.on_partial = on_result, on_failure, on_partial
+        self.partials = None  # the local pool's queue of partial results, this round
         self.workers, self.client, self.retries = workers, client, retries
         self.lost_errors = _lost_worker_errors()
         self.losses, self.causes = {}, {}
@@ -146,8 +146,8 @@ class _Runner:
                 self.executor = self.client.get_executor(pure=False)
             else:
                 # A queue per round: a worker killed writing to it may leave its lock held.
-                self.news = _news_queue() if self.on_news is not None else None
-                self.executor = _new_pool(self.workers, self.setup, self.news)
+                self.partials = _partials_queue() if self.on_partial is not None else None
+                self.executor = _new_pool(self.workers, self.setup, self.partials)
         submitted = []
         try:
             for i in todo:
@@ -175,7 +175,7 @@ class _Runner:
         else:
             self._watch_cluster()
         done, _ = wait(list(self.active), timeout=POLL_SECONDS, return_when=FIRST_COMPLETED)
-        self._hear()  # a job tells before it returns: its news comes before its result
+        self._pass_partials()  # a job's partials were sent before it returned: they go first
         broken = self.client is None and (unsubmitted or any(
             isinstance(f.exception(), BrokenExecutor) for f in done if not f.cancelled()))
         if broken:
@@ -188,10 +188,10 @@ class _Runner:
                 again.append(i)  # Dask lost its worker: submit it again
         return again
 
-    def _hear(self):
-        """Hand what the local pool's jobs told to ``on_news``."""
-        while self.news is not None and not self.news.empty():
-            self.on_news(self.news.get())
+    def _pass_partials(self):
+        """Hand the partial results the local pool's jobs sent to ``on_partial``."""
+        while self.partials is not None and not self.partials.empty():
+            self.on_partial(self.partials.get())
 
     def _settle(self, future, i):
         """Report an ended future; return its lost-worker exception instead, if that."""
@@ -279,24 +279,24 @@ class _Runner:
 # ---------------------------------------------------------------- in the workers
 
 
-#: In a local pool's worker, the queue :func:`tell` writes to (None elsewhere).
-_NEWS = None
+#: In a local pool's worker, the queue :func:`send_partial` writes to (None elsewhere).
+_PARTIALS = None
 
 
-def tell(item):
-    """Send ``item`` (picklable) to the ``on_news`` of the :func:`run` whose local pool
+def send_partial(item):
+    """Send ``item`` (picklable) to the ``on_partial`` of the :func:`run` whose local pool
     runs this job, at once; nothing outside such a job (on Dask, in the parent)."""
-    if _NEWS is not None:
-        _NEWS.put(item)
+    if _PARTIALS is not None:
+        _PARTIALS.put(item)
 
 
-def _worker_init(cores, parent=None, setup=None, news=None):
+def _worker_init(cores, parent=None, setup=None, partials=None):
     """Pool initializer: leave Ctrl-C to the parent
     (:func:`~esail_opt.runtime.signals.leave_interrupt_to_parent`), run the caller's ``setup`` on
     ``cores``, this worker's share, and end when ``parent`` does, however it ended."""
-    global _NEWS
+    global _PARTIALS
     signals.leave_interrupt_to_parent()
-    _NEWS = news
+    _PARTIALS = partials
     if setup is not None:
         function, args = setup
         function(cores, *args)
@@ -377,15 +377,15 @@ def _quiet_dask():
             logger.setLevel(level)
 
 
-def _news_queue():
-    """A queue the local pool's workers can :func:`tell` on."""
+def _partials_queue():
+    """A queue the local pool's workers can :func:`send_partial` on."""
     import multiprocessing
 
     return multiprocessing.get_context("spawn").SimpleQueue()
 
 
-def _new_pool(workers, setup=None, news=None):
-    """A fresh local process pool whose workers ignore SIGINT and tell on ``news``."""
+def _new_pool(workers, setup=None, partials=None):
+    """A fresh local process pool whose workers ignore SIGINT and send partials on ``partials``."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
@@ -395,7 +395,7 @@ def _new_pool(workers, setup=None, news=None):
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_worker_init,
                                initargs=(max(1, cores // workers), os.getpid(), setup,
-                                         news))
+                                         partials))
 
 
 def _pool_processes(pool, known):
