@@ -457,7 +457,7 @@ def test_a_pool_worker_builds_its_nlps_on_the_share_it_was_given():
 
 
 def test_a_run_that_found_nothing_is_neither_error_controlled_nor_polished():
-    """finish() on a solve stopped after one iteration (FAILED): the run is verified
+    """run_from_optimum() on a solve stopped after one iteration (FAILED): the run is verified
     against nothing, the error control and the polish do not run, and each says why."""
     from esail_opt.app.solution import Solution
     from esail_opt.optimisation.ipopt import ipopt_options
@@ -465,7 +465,7 @@ def test_a_run_that_found_nothing_is_neither_error_controlled_nor_polished():
     problem = small_problem()
     result, tr_ = solve_problem(problem, options=ipopt_options(max_iter=1), staged=False)
     assert result.outcome is Outcome.FAILED and not result.outcome.found
-    run = pipeline.finish(problem, result, tr_, polish=True)
+    run = pipeline.run_from_optimum(problem, result, tr_, polish=True)
     assert run.error_control is None and run.polish is not None and not run.polish.ran
     assert not run.verified and run.note.startswith("NOT verified: Ipopt ended ")
     assert run.polish.note == f"NOT polished: the closed-form solve ended {result.status}"

@@ -60,12 +60,12 @@ def walks(monkeypatch):
         at = edge.at_tof(problem if start is None else start.problem, tof)
         return at, SimpleNamespace(ac_scale=1.5), None, infeasible, 0
 
-    def finish(problem, result, tr=None, **kwargs):
+    def run_from_optimum(problem, result, tr=None, **kwargs):
         return SimpleNamespace(verified=walks.verifies, problem=problem, result=result)
 
     walks = SimpleNamespace(calls=calls, verifies=True)
     monkeypatch.setattr(edge, "walk", walk)
-    monkeypatch.setattr(porkchop.pipeline, "finish", finish)
+    monkeypatch.setattr(porkchop.pipeline, "run_from_optimum", run_from_optimum)
     return walks
 
 

@@ -332,11 +332,11 @@ def cell_folder(row):
 def write_cell(cell, row, folder):
     """Write a verified cell's solution folder (as ``esail-opt solve --no-plots``
     would) into ``folder``/:func:`cell_folder`, through
-    :func:`esail_opt.optimisation.pipeline.finish`, which finds it within tolerance
+    :func:`esail_opt.optimisation.pipeline.run_from_optimum`, which finds it within tolerance
     already."""
     from esail_opt.app.solution import Solution
 
-    run = pipeline.finish(cell.problem, cell.result, cell.transcription)
+    run = pipeline.run_from_optimum(cell.problem, cell.result, cell.transcription)
     return Solution.of(run).write(Path(folder) / cell_folder(row), plots=False)
 
 

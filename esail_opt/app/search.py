@@ -1,7 +1,7 @@
 """The global search job: every revolution class of a minimum-time problem, flown and ranked.
 
 ``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`,
-finishes every distinct optimum (:func:`esail_opt.optimisation.pipeline.finish`), ranks
+finishes every distinct optimum (:func:`esail_opt.optimisation.pipeline.run_from_optimum`), ranks
 them (:func:`_rank_key`) and writes ``search.json``, ``search.csv``, ``search.png`` and
 the best optimum's solution files under ``best/``.
 """
@@ -48,7 +48,8 @@ def run(problem, extra_revolutions=2, polish=True, progress=None):
     for i, c in enumerate(candidates, 1):
         say(f"{problem.name}: optimum {i}/{len(candidates)} ({c.revolutions:.2f} rev): "
             f"verifying{' and polishing' if polish else ''}")
-        sol = Solution.of(pipeline.finish(problem, c.result, polish=polish, progress=progress))
+        flown = pipeline.run_from_optimum(problem, c.result, polish=polish, progress=progress)
+        sol = Solution.of(flown)
         rows.append(_row(c, sol, i - 1))
         solutions.append(sol)
     rows, solutions = _ranked(rows, solutions, starts)

@@ -68,7 +68,7 @@ def _warm_up(problem):
     (bodies' tracks, segment Functions) do not fall on the scan timed first (RK4's fall on
     :func:`_rk4_steps`'s trial solves)."""
     solver = scan.CellSolver()
-    solver.finish(solver.cold(problem))
+    solver.verified_cell(solver.cold(problem))
 
 
 def _rk4_steps(problem):
@@ -76,7 +76,7 @@ def _rk4_steps(problem):
     verifies (the last otherwise); these trial solves are not timed."""
     for steps in RK4_STEPS:
         solver = scan.CellSolver(RK4(steps))
-        if solver.finish(solver.cold(problem)).verified:
+        if solver.verified_cell(solver.cold(problem)).verified:
             return steps
     return RK4_STEPS[-1]
 

@@ -116,7 +116,7 @@ def run(out, repeats=1):
           flush=True)
     for k, found in enumerate(multistart.search(problem)[0], 1):
         rows.append(_row(f"{label} search #{k}", problem,
-                         pipeline.finish(problem, found.result, polish=True)))
+                         pipeline.run_from_optimum(problem, found.result, polish=True)))
     _print(rows)
     path = Path(out) / "verifier3d.json"
     write_json(path, {"truth": f"heyoka real128, tolerance {TRUTH_TOLERANCE:g}"

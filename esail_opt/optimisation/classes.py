@@ -3,7 +3,7 @@
 A rendezvous's turn count k (whole turns between the sail and the body at arrival)
 splits its feasible set into one basin per k, and Ipopt stays in the basin of its start:
 :class:`ClassSearch` looks at the counts, and the caller finishes its ranked candidates
-best first until one verifies (:func:`finish_best_first`).
+best first until one verifies (:func:`fly_best_first`).
 """
 
 import dataclasses
@@ -22,7 +22,7 @@ from esail_opt.optimisation.problem import Problem
 from esail_opt.optimisation.seed import initial_guess
 from esail_opt.optimisation.transcription import Transcription, segment_threads
 
-__all__ = ["Candidate", "ClassSearch", "Ranked", "Undecided", "finish_best_first"]
+__all__ = ["Candidate", "ClassSearch", "Ranked", "Undecided", "fly_best_first"]
 
 
 class Undecided(Exception):
@@ -371,12 +371,12 @@ class _Ahead:
         self._thread.join()
 
 
-def finish_best_first(ranked, finish):
-    """``finish(candidate)`` of each of ``ranked`` in order until a finished one is
-    ``verified``: the finished, in that order."""
-    done = []
+def fly_best_first(ranked, fly):
+    """``fly(candidate)`` of each of ``ranked`` in order until a flown one is ``verified``:
+    the flown, in that order."""
+    flown = []
     for candidate in ranked:
-        done.append(finish(candidate))
-        if done[-1].verified:
+        flown.append(fly(candidate))
+        if flown[-1].verified:
             break
-    return done
+    return flown

@@ -78,7 +78,7 @@ def nearest_feasible(problem, solve_unwalked, fly, start=None, progress=None):
 
     ``solve_unwalked(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk, for
     a longer time of flight whose single solve found no point; ``fly(problem, result, transcription,
-    progress=)`` -> ``pipeline.Run``: ``pipeline.finish``.  ``start``, a verified flight
+    progress=)`` -> ``pipeline.Run``: ``pipeline.run_from_optimum``.  ``start``, a verified flight
     from the same departure at a longer time of flight, replaces the longer solves and stays the
     edge unless a shorter flight verifies; without it the walk's flight is returned even
     when it does not verify.  ``progress(text)`` gets one line per solve.

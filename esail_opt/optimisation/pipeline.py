@@ -3,9 +3,10 @@ Ipopt -> other starts -> the turn counts beside the answer's -> error control ->
 verification -> polish (or, for a fixed time with no point, the walk to the shortest
 feasible time of flight, ``optimisation.edge``).
 
-The application calls :func:`solve` or :func:`finish`.  A stage runs on the :class:`Outcome`
-of the one before (``Outcome.found``: converged or acceptable).  Nothing here changes a
-result; it decides what runs next and adds up Ipopt's iterations and seconds over the run.
+The application calls :func:`solve` or :func:`run_from_optimum`.  A stage runs on the
+:class:`Outcome` of the one before (``Outcome.found``: converged or acceptable).  Nothing here
+changes a result; it decides what runs next and adds up Ipopt's iterations and seconds over
+the run.
 """
 
 import dataclasses
@@ -15,7 +16,7 @@ from typing import Optional, Tuple
 from esail_opt.errors import InputError
 from esail_opt.optimisation import edge, multistart, scan
 from esail_opt.optimisation import polish as polishing
-from esail_opt.optimisation.classes import ClassSearch, finish_best_first
+from esail_opt.optimisation.classes import ClassSearch, fly_best_first
 from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, ErrorControl, Round, control_error,
                                                   per_revolution_mesh, sub_arcs_within_cap)
 from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
@@ -27,7 +28,7 @@ from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import Verification, verify, within
 
 __all__ = ["Outcome", "Round", "StartTried", "ClassTried", "PolishRun", "Run", "solve",
-           "finish", "nearest_feasible", "POLISH_TOLERANCE"]
+           "run_from_optimum", "nearest_feasible", "POLISH_TOLERANCE"]
 
 #: What a polished schedule must meet (1 m and 1 mm/s), against the target and against
 #: the polished NLP's own final node.
@@ -197,7 +198,7 @@ def _solved(problem, say, walk=True):
         run = _best_verified(ClassSearch(problem, seed=lambda: (problem, result, tr), say=say),
                              say, starts, sub_arcs)
     else:
-        run = finish(problem, result, tr, progress=say, starts=starts,
+        run = run_from_optimum(problem, result, tr, progress=say, starts=starts,
                      sub_arcs_requested=sub_arcs)
         run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
     if walk and not result.outcome.found and edge.walks(problem):
@@ -295,10 +296,10 @@ def _best_verified(search, say, starts=(), requested=None):
         result.iterations, result.solve_seconds = sum(spent), seconds
         if len(found) > 1:
             say(f"{candidate.problem.name}: flying the turn count k = {result.revolutions_k}")
-        return finish(candidate.problem, result, candidate.transcription, progress=say,
+        return run_from_optimum(candidate.problem, result, candidate.transcription, progress=say,
                       starts=starts, sub_arcs_requested=requested)
 
-    runs = finish_best_first(found, fly)
+    runs = fly_best_first(found, fly)
     chosen = next((run for run in runs if run.verified), runs[0])
     flown = {id(c): run for c, run in zip(found, runs)}
     classes = tuple(ClassTried.of(c, it, flown.get(id(c)), flown.get(id(c)) is chosen)
@@ -309,10 +310,10 @@ def _best_verified(search, say, starts=(), requested=None):
 def nearest_feasible(problem, start=None, progress=None):
     """The edge of the feasible from ``problem``'s departure (``edge.nearest_feasible``:
     ``problem`` is a fixed-time problem that found no point, ``start`` an optional
-    verified flight at a longer time of flight), its flight flown by :func:`finish`; a
+    verified flight at a longer time of flight), its flight flown by :func:`run_from_optimum`; a
     longer solve whose seed finds no point is a lone solve without a walk of its own
     (:func:`_run_before_polish`).  An ``edge.Edge``, or None when the walk found none."""
-    return edge.nearest_feasible(problem, _unwalked, finish, start, progress)
+    return edge.nearest_feasible(problem, _unwalked, run_from_optimum, start, progress)
 
 
 def _unwalked(problem, say):
@@ -320,7 +321,7 @@ def _unwalked(problem, say):
     return _run_before_polish(problem, say, walk=False)
 
 
-def finish(problem, result, tr=None, polish=False, progress=None, starts=(),
+def run_from_optimum(problem, result, tr=None, polish=False, progress=None, starts=(),
            sub_arcs_requested=None):
     """The stages after a closed-form optimum ``result`` of ``problem``: error control, CVODES
     verification and, with ``polish``, the polish; a :class:`Run`.  A ``result`` not found is

@@ -21,7 +21,7 @@ import numpy as np
 from esail_opt.bodies import dates
 from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
-from esail_opt.optimisation.classes import ClassSearch, Ranked, finish_best_first
+from esail_opt.optimisation.classes import ClassSearch, Ranked, fly_best_first
 from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options, solve_problem,
                                           solve_transcription)
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error, sub_arcs_within_cap
@@ -104,7 +104,7 @@ class CellSolver:
             self._projected = CellSolver(self.method)
         return self._projected
 
-    def finish(self, cell):
+    def verified_cell(self, cell):
         """The cell after the error control and the CVODES verification of a lone solve
         (other segment methods than the closed form are only verified)."""
         if cell.finished:
@@ -346,14 +346,14 @@ def _again(solver, problem, other, j, cell):
         return None
     if not (again.objective < cell.objective or not cell.verified):
         return None
-    again = solver.finish(again)
+    again = solver.verified_cell(again)
     return again if _rank(again) < _rank(cell) else None
 
 
 def _settle(solver, ranked):
     """The cell among a cell's solves (``ranked``, best first): the best that verifies,
     finished (error control and verification) best first until one does."""
-    return min(finish_best_first(ranked, solver.finish), key=_rank)
+    return min(fly_best_first(ranked, solver.verified_cell), key=_rank)
 
 
 def _candidates(solver, problem, previous, chains, explore):
