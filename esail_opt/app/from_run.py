@@ -9,9 +9,9 @@ import math
 import numpy as np
 
 from esail_opt.app import schema
-from esail_opt.app.solution_parts import (Bounds, ClassLooked, DepartureBody, Flight,
-                                          NearestFeasible, Part, Polish, Samples, Schedule,
-                                          Segment, Settings, Stage, State, TargetBody)
+from esail_opt.app.solution_parts import (Bounds, ClassLooked, DepartureBody, NearestFeasible,
+                                          Part, Polish, Samples, Schedule, Segment, Settings,
+                                          Stage, State, TargetBody, VerificationRecord)
 from esail_opt.bodies import dates, lookup
 from esail_opt.optimisation.pipeline import Outcome
 from esail_opt.optimisation.nodes import node_cartesian
@@ -114,8 +114,8 @@ def _tof_days(result):
 
 
 def _flight(check):
-    """The :class:`Flight` of a verification (closed form and polish alike)."""
-    named = {f.name for f in dataclasses.fields(Flight)}
+    """The :class:`VerificationRecord` of a verification (closed form and polish alike)."""
+    named = {f.name for f in dataclasses.fields(VerificationRecord)}
     flown = {}
     if check.error is None:
         cart = getattr(check, "cartesian", None)
@@ -123,8 +123,9 @@ def _flight(check):
                                              None if cart is None else cart[:, -1]),
                  "cvodes_tof_days": units.time_to_days(float(check.cvodes[4, -1]))}
     misses = check.misses
-    return Flight(**{k: v for k, v in misses.items() if k in named}, **flown,
-                  extra={k: v for k, v in misses.items() if k not in named}, error=check.error)
+    return VerificationRecord(**{k: v for k, v in misses.items() if k in named}, **flown,
+                              extra={k: v for k, v in misses.items() if k not in named},
+                              error=check.error)
 
 
 def _part(obj):

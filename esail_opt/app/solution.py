@@ -13,9 +13,9 @@ from typing import Optional, Tuple
 
 from esail_opt.app import from_run, report, schema, solution_files
 from esail_opt.app.record import BadField, Record, if_none, key, read
-from esail_opt.app.solution_parts import (Bounds, ClassLooked, DepartureBody, Flight,
-                                          NearestFeasible, Polish, Samples, Schedule,
-                                          Settings, Stage, State, TargetBody)
+from esail_opt.app.solution_parts import (Bounds, ClassLooked, DepartureBody, NearestFeasible,
+                                          Polish, Samples, Schedule, Settings, Stage, State,
+                                          TargetBody, VerificationRecord)
 from esail_opt.errors import InputError
 from esail_opt.optimisation import pipeline
 from esail_opt.optimisation.pipeline import Outcome, Round, StartTried
@@ -63,7 +63,7 @@ class Solution(Record):
     min_q3: Optional[float]
     schedule: Schedule
     final_state: State
-    verification: Flight
+    verification: VerificationRecord
     rounds: Tuple[Round, ...] = key("refinement.rounds")
     starts: Tuple[StartTried, ...] = key("refinement.starts")
     trajectory_closed_form: Samples = key("trajectory.closed_form")

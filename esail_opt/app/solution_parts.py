@@ -128,7 +128,7 @@ def _flight_failed(flight, value):
 
 
 @dataclass(frozen=True)
-class Flight(Record):
+class VerificationRecord(Record):
     """The CVODES verification of a schedule: misses against the NLP's final state and the
     target, the verifier's own error, the flown final state; ``extra``, the target's other
     misses by file name (``target_miss_a_km`` and ``target_miss_e`` of an (a, e) target, a
@@ -286,7 +286,7 @@ class Polish(Record):
     note: str
     schedule: Optional[Schedule] = key(omit=_not_ran, default=None)
     final_state: Optional[State] = key(omit=_not_ran, default=None)
-    verification: Optional[Flight] = key(omit=_not_ran, default=None)
+    verification: Optional[VerificationRecord] = key(omit=_not_ran, default=None)
     departure_state: Optional[State] = key(omit=if_none, default=None)
     departure_date: Optional[str] = key(omit=if_none, default=None)
     departure_epoch_days: Optional[float] = key(omit=if_none, default=None)
