@@ -18,9 +18,10 @@ import esail_opt as eo
 from esail_opt.app import cli, search
 from esail_opt.app.solution import Solution
 from esail_opt.errors import NoStart
-from esail_opt.optimisation import edge, multistart, pipeline
+from esail_opt.optimisation import edge, pipeline
 from esail_opt.optimisation.ipopt import solve_problem
 from esail_opt.optimisation.problem_file import load_problem
+from esail_opt.optimisation.seed import rendezvous_starts
 
 from conftest import PROBLEMS, REPO
 
@@ -50,7 +51,7 @@ def test_a_rendezvous_solve_beats_the_turn_counts_beside_its_answer(venus):
     for k in (run.result.revolutions_k - 1, run.result.revolutions_k + 1):
         if k < 0:
             continue
-        other, _ = solve_problem(problem, guess=multistart.rendezvous_starts(problem, [k])[0].guess)
+        other, _ = solve_problem(problem, guess=rendezvous_starts(problem, [k])[0].guess)
         if other.outcome.found:
             assert best <= other.objective * (1 + 1e-3), k
 

@@ -400,9 +400,10 @@ def test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it():
     counts either side of its own, each solved here from its own seed, nor at the seed's
     own count.  (For the shipped Earth-Venus problem the seed's count needs 3.5 times the
     a_c of the best, which a scan's warm chain found and a lone solve once missed.)"""
-    from esail_opt.optimisation import multistart, pipeline
+    from esail_opt.optimisation import pipeline
     from esail_opt.optimisation.ipopt import solve_problem
     from esail_opt.optimisation.problem_file import shipped_problem
+    from esail_opt.optimisation.seed import rendezvous_starts
 
     problem = shipped_problem("earth_venus_min_ac")
     run = pipeline.solve(problem)
@@ -414,7 +415,7 @@ def test_a_lone_min_acceleration_solve_beats_the_turn_counts_beside_it():
     seed, _ = solve_problem(problem)
     assert seed.outcome.found and best.objective <= seed.objective * slack
     for k in (best.revolutions_k - 1, best.revolutions_k + 1):
-        other, _ = solve_problem(problem, guess=multistart.rendezvous_starts(problem, [k])[0].guess)
+        other, _ = solve_problem(problem, guess=rendezvous_starts(problem, [k])[0].guess)
         if other.outcome.found:
             assert best.objective <= other.objective * slack, k
 
@@ -474,8 +475,7 @@ def test_a_real_body_has_other_starts_at_negative_turn_counts():
     """A real body's turn count k counts from both bodies' turns since 2000, so it is
     often negative; the fallback starts of a failed solve are the counts around it all
     the same (they were once filtered to k >= 0, which left a Venus rendezvous one start)."""
-    from esail_opt.optimisation import multistart
-    from esail_opt.optimisation.seed import initial_guess
+    from esail_opt.optimisation.seed import fallback_starts, initial_guess
 
     problem = eo.Problem(name="venus_k", departure=eo.BodyDeparture(body="earth",
                                                                     date="2031-03-01"),
@@ -483,5 +483,5 @@ def test_a_real_body_has_other_starts_at_negative_turn_counts():
                          objective=eo.MinTime(), target=eo.BodyRendezvous(body="venus"))
     k = initial_guess(problem).revolutions_k
     assert k < 0
-    starts = multistart.fallback_starts(problem, initial_guess(problem))
+    starts = fallback_starts(problem, initial_guess(problem))
     assert [s.revolutions for s in starts] == [k + 1, k - 1, k + 2]

@@ -14,6 +14,7 @@ from esail_opt.app.solution import Solution
 from esail_opt.optimisation import multistart, pipeline
 from esail_opt.optimisation.ipopt import STOPPED, solve_problem
 from esail_opt.optimisation.problem_file import load_problem
+from esail_opt.optimisation.seed import rendezvous_starts
 
 from conftest import PROBLEMS
 
@@ -39,7 +40,7 @@ def test_the_classes_beside_the_earth_mars_min_ac_answer_cost_no_more_than_it():
         assert c.iterations <= chosen[0].iterations
         assert c.objective is None and c.constraint_violation > 1e-3
         # Solved here with Ipopt's whole budget: no point, so nothing better was missed.
-        guess = multistart.rendezvous_starts(problem, [c.revolutions_k])[0].guess
+        guess = rendezvous_starts(problem, [c.revolutions_k])[0].guess
         full, _ = solve_problem(problem, guess=guess)
         assert not full.outcome.found or full.objective >= run.result.objective * (1 - 1e-3)
 

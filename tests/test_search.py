@@ -21,6 +21,8 @@ from esail_opt.app import cli, search
 from esail_opt.errors import InputError
 from esail_opt.optimisation import multistart
 from esail_opt.optimisation.problem_file import load_problem
+from esail_opt.optimisation.seed import (constant_pitch_seeds, rendezvous_starts, seed_pitches,
+                                         window_starts)
 
 from conftest import PROBLEMS, REPO, fly_dop853, independent_target_miss
 
@@ -40,11 +42,11 @@ def _load(name, segments=None):
 
 def test_seed_pitches_wind_more_turns_towards_90_deg():
     problem = _load("earth_mars_min_time")
-    pitches = multistart.seed_pitches(problem)
+    pitches = seed_pitches(problem)
     assert pitches[0] == pytest.approx(math.radians(45.0))
     assert all(b > a for a, b in zip(pitches, pitches[1:]))
     assert max(pitches) < math.pi / 2
-    seeds = multistart.constant_pitch_seeds(problem)
+    seeds = constant_pitch_seeds(problem)
     sweeps = [g.nodes[1, -1] for g in seeds.values()]
     # From 45 deg on the first crossing of 1.524 au comes later and later: that is
     # what lets one seed family reach every revolution window.
@@ -54,7 +56,7 @@ def test_seed_pitches_wind_more_turns_towards_90_deg():
 
 def test_window_starts_lie_in_their_windows():
     problem = _load("earth_mars_min_time")
-    for start in multistart.window_starts(problem, [0, 1, 2]):
+    for start in window_starts(problem, [0, 1, 2]):
         lo, hi = start.window
         assert hi - lo == pytest.approx(2 * math.pi)
         assert lo == pytest.approx(2 * math.pi * start.revolutions)
@@ -64,7 +66,7 @@ def test_window_starts_lie_in_their_windows():
 
 def test_rendezvous_starts_carry_their_turn_count():
     problem = _load("earth_mars_rendezvous")
-    starts = multistart.rendezvous_starts(problem, [1, 2])
+    starts = rendezvous_starts(problem, [1, 2])
     assert [s.guess.revolutions_k for s in starts] == [1, 2]
     assert all(s.window is None for s in starts)
 
@@ -97,10 +99,10 @@ def test_a_count_no_seed_winds_gets_a_start_that_winds_it():
 
     problem = scan.at_date(_load("earth_venus_min_ac_planar"),
                            dates.jd_from_iso("2031-01-21"), 720.0)
-    seeds = multistart.constant_pitch_seeds(problem)
+    seeds = constant_pitch_seeds(problem)
     counts = {round(math.degrees(a), 2): g.revolutions_k for a, g in seeds.items()}
     assert counts[-45.0] == -17 and counts[-67.5] == -19 and -18 not in counts.values()
-    start = multistart.rendezvous_starts(problem, [-18], seeds)[0]
+    start = rendezvous_starts(problem, [-18], seeds)[0]
     pitch = float(start.guess.alpha[0])
     assert math.radians(-67.5) < pitch < math.radians(-45.0)
     again = initial_guess(dataclasses.replace(problem, guess_alpha_deg=math.degrees(pitch)))

@@ -19,7 +19,7 @@ from esail_opt.optimisation.error_control import (MAX_SUB_ARCS, per_revolution_m
                                                   sub_arcs_within_cap)
 from esail_opt.optimisation.ipopt import AT_CAP, STOPPED, NLPResult, solve_problem
 from esail_opt.optimisation.problem import Problem
-from esail_opt.optimisation.seed import initial_guess
+from esail_opt.optimisation.seed import constant_pitch_seeds, initial_guess
 from esail_opt.optimisation.transcription import Transcription, segment_threads
 
 __all__ = ["Candidate", "ClassSearch", "Ranked", "Undecided", "fly_best_first"]
@@ -199,7 +199,7 @@ class ClassSearch:
         own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
         searched = [Candidate(model, f"the seed's class (k = {result.revolutions_k})", own, tr)]
         # Every count's seed comes from the same constant-pitch flights.
-        seeds = multistart.constant_pitch_seeds(multistart.probe_model(model))
+        seeds = constant_pitch_seeds(multistart.probe_model(model))
         # A real body's k counts from the turns both bodies made since 2000, so it may be
         # negative; an idealised body's counts from its phase at departure.
         real = getattr(model.target, "body", None) is not None

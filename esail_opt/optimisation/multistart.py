@@ -16,11 +16,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from esail_opt.errors import InputError, NoStart
+from esail_opt.errors import InputError
 from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_options,
                                           solve_problem)
-from esail_opt.optimisation.nodes import flown_segments
-from esail_opt.optimisation.seed import Guess, guess_alpha, initial_guess, lifted_guess
+from esail_opt.optimisation.seed import (Start, guess_alpha, lifted_guess, rendezvous_starts,
+                                         window_starts)
 
 #: Two results are one optimum when their times of flight agree to this fraction and
 #: their revolutions to :data:`SAME_REVOLUTIONS`: optima that pass +-90 deg pitch in
@@ -29,23 +29,6 @@ SAME_TOF = 1e-3
 SAME_REVOLUTIONS = 0.02
 #: A final angle this close to a window's edge (rad) means the edge is active.
 EDGE_TOLERANCE = 1e-6
-#: Fractions of the way from the seed's pitch to +-90 deg scanned for seeds: nearer +-90 deg,
-#: less transverse thrust and more turns before the spiral first reaches the target radius.
-SEED_FRACTIONS = (0.0, 0.5, 0.75, 0.875, 0.9375, 0.96875, 0.984375, 0.9921875)
-
-
-@dataclass
-class Start:
-    """One start of the search: its label, revolution class and seed (which carries the class)."""
-
-    label: str
-    revolutions: int  # the class: the window's k, or the rendezvous k
-    guess: Guess
-
-    @property
-    def window(self):
-        """(lo, hi) final polar angle, rad, or None (free)."""
-        return self.guess.theta_window
 
 
 @dataclass
@@ -88,118 +71,6 @@ def _check(problem):
 def swept_angle(result):
     """Polar angle a result sweeps from departure to arrival, rad."""
     return float(result.nodes[1, -1] - result.x_start[1])
-
-
-def seed_pitches(problem):
-    """Constant pitches (rad) of the seeds: from the problem's own seed pitch towards
-    +-90 deg (the side of its sign), by :data:`SEED_FRACTIONS`, within the sail's bounds."""
-    alpha = guess_alpha(problem)
-    edge = math.pi / 2 if alpha >= 0 else -math.pi / 2
-    lo, hi = problem.alpha_bounds()
-    return [min(max(alpha + f * (edge - alpha), lo), hi) for f in SEED_FRACTIONS]
-
-
-def constant_pitch_seeds(problem):
-    """Seeds of :func:`seed_pitches` that reach the target radius (not escaping first nor
-    winding past ``max_revolutions``): {alpha: Guess}."""
-    seeds = {}
-    for alpha in seed_pitches(problem):
-        try:
-            seeds[alpha] = initial_guess(dataclasses.replace(
-                problem, guess_alpha_deg=math.degrees(alpha)))
-        except NoStart:
-            continue
-    return seeds
-
-
-def _stretched(problem, guess, total):
-    """``guess`` with its segments stretched to sweep ``total`` rad, nodes re-flown
-    (continuity exact), or None if that flight leaves the closed form's validity."""
-    lengths = guess.lengths * (total / float(np.sum(guess.lengths)))
-    start = problem.plane_x0() if problem.three_d() else problem.x0()
-    xs = flown_segments(problem, guess.alpha, lengths, start, delta=guess.delta)
-    if not np.all(np.isfinite(xs)):
-        return None
-    return dataclasses.replace(guess, lengths=lengths, nodes=xs[:, 1:])
-
-
-def window_starts(problem, classes):
-    """Starts of an orbit transfer's revolution windows ``classes`` (whole turns k): the
-    first constant-pitch seed whose final angle lies in the window, else the nearest one
-    that stays valid stretched to the window's middle; else the window is skipped."""
-    theta0 = float(problem.x0()[1])
-    seeds = constant_pitch_seeds(problem)
-    starts = []
-    for k in classes:
-        window = (theta0 + 2 * math.pi * k, theta0 + 2 * math.pi * (k + 1))
-        inside = [(a, g) for a, g in seeds.items()
-                  if window[0] <= g.nodes[1, -1] <= window[1]]
-        if inside:
-            alpha, guess = inside[0]
-            label = f"window {k}-{k + 1} rev, constant pitch {math.degrees(alpha):.4g} deg"
-        else:
-            middle = 2 * math.pi * (k + 0.5)
-            near = sorted(seeds.items(), key=lambda ag: abs(ag[1].nodes[1, -1] - theta0 - middle))
-            guess = None
-            for alpha, g in near:
-                guess = _stretched(problem, g, middle)
-                if guess is not None:
-                    break
-            if guess is None:
-                continue
-            label = (f"window {k}-{k + 1} rev, constant pitch {math.degrees(alpha):.4g} deg "
-                     f"stretched to {k + 0.5:g} rev")
-        starts.append(Start(label, k, dataclasses.replace(guess, theta_window=window)))
-    return starts
-
-
-def rendezvous_starts(problem, classes, seeds=None):
-    """Starts of a rendezvous's turn counts k in ``classes``: the first seed that winds k
-    itself (``Guess.revolutions_k``), else a pitch bisected to wind k (:func:`_winding`),
-    else the seed whose count is nearest, with k imposed (a poor start: it can take several
-    times the iterations, and be stopped as hopeless).  ``seeds``: ``problem``'s
-    :func:`constant_pitch_seeds`, if the caller has them."""
-    seeds = constant_pitch_seeds(problem) if seeds is None else seeds
-    starts = []
-    for k in classes:
-        alpha, guess = min(seeds.items(), key=lambda ag: abs(ag[1].revolutions_k - k))
-        if guess.revolutions_k != k:
-            alpha, guess = _winding(problem, seeds, k) or (alpha, guess)
-        label = f"rendezvous k = {k}, constant pitch {math.degrees(alpha):.4g} deg"
-        if guess.revolutions_k != k:
-            label += f" (a pitch that by itself winds k = {guess.revolutions_k})"
-        starts.append(Start(label, k, dataclasses.replace(guess, revolutions_k=k)))
-    return starts
-
-
-#: The most pitch bisections :func:`_winding` makes between two seeds.
-WIND_BISECTIONS = 4
-
-
-def _winding(problem, seeds, k):
-    """A constant-pitch seed (alpha, Guess) whose own turn count is ``k``, bisected in
-    pitch between two neighbouring ``seeds`` (in :func:`seed_pitches`'s order) whose
-    counts bracket k; None when no two do, or the bisections do not land on k."""
-    pairs = list(seeds.items())
-    for (a, ga), (b, gb) in zip(pairs, pairs[1:]):
-        if not min(ga.revolutions_k, gb.revolutions_k) < k < max(ga.revolutions_k,
-                                                                   gb.revolutions_k):
-            continue
-        for _ in range(WIND_BISECTIONS):
-            mid = 0.5 * (a + b)
-            try:
-                guess = initial_guess(dataclasses.replace(problem,
-                                                          guess_alpha_deg=math.degrees(mid)))
-            except NoStart:
-                return None
-            if guess.revolutions_k == k:
-                return mid, guess
-            if (guess.revolutions_k - k) * (ga.revolutions_k - k) > 0:
-                a, ga = mid, guess
-            else:
-                b = mid
-        return None
-    return None
 
 
 #: Turn counts tried on each side of the first by :func:`descend_turns`.
@@ -299,14 +170,14 @@ def probe_model(problem):
 
 def probe_rendezvous_class(problem, k, cap, progress=None, checkpoint=None, seeds=None):
     """:func:`probe_start` of the rendezvous turn count ``k`` from its seed
-    (:func:`rendezvous_starts`; ``seeds``: :func:`probe_model`'s
-    :func:`constant_pitch_seeds`, if given): (NLPResult, Transcription, label of the start)."""
+    (``seed.rendezvous_starts``; ``seeds``: :func:`probe_model`'s
+    ``seed.constant_pitch_seeds``, if given): (NLPResult, Transcription, label of the start)."""
     start = rendezvous_starts(probe_model(problem), [k], seeds)[0]
     return probe_start(problem, start, cap, progress, checkpoint)
 
 
 def probe_start(problem, start, cap, progress=None, checkpoint=None):
-    """:func:`probe` of ``problem`` from ``start``, a :class:`Start` of :func:`probe_model`:
+    """:func:`probe` of ``problem`` from ``start``, a ``seed.Start`` of :func:`probe_model`:
     (NLPResult, Transcription, label of the start).  A 3-D start is probed on the projected
     model and lifted (:func:`lift`) if that found a point: from a constant-pitch seed in 3-D,
     Ipopt swings the clock angles far and may end short of feasible at its cap."""
@@ -322,7 +193,7 @@ def probe_start(problem, start, cap, progress=None, checkpoint=None):
 
 def second_start(problem, k, seeds, seed_k):
     """Another start of the rendezvous turn count ``k`` than the one that solved it: the last
-    of ``seeds`` (:func:`probe_model`'s :func:`constant_pitch_seeds`, in pitch order) that
+    of ``seeds`` (:func:`probe_model`'s ``seed.constant_pitch_seeds``, in pitch order) that
     winds k, leaving out the pitch that solved it (the problem's own when k is ``seed_k``,
     else the first that winds k); None when no other does.  A class holds several optima, and
     the last seed, furthest in pitch from the first, is likeliest in another basin."""
@@ -361,21 +232,6 @@ def searches_classes(problem):
     return (problem.tracks_body() and not problem.free_date()
             and not getattr(problem.departure, "free_anomaly", False)
             and (objective.free_acceleration or not objective.fixed_time))
-
-
-def fallback_starts(problem, guess):
-    """Other starts for a solve whose first start did not converge, free of any window:
-    for a rendezvous the turn counts around ``guess``'s (one below, one and two above),
-    for an orbit transfer the other constant-pitch seeds of :func:`seed_pitches`."""
-    if problem.tracks_body():
-        k = guess.revolutions_k
-        # A real body's k counts turns since 2000, so may be negative.
-        real = getattr(problem.target, "body", None) is not None
-        return rendezvous_starts(problem, [c for c in (k + 1, k - 1, k + 2) if real or c >= 0])
-    seeds = constant_pitch_seeds(problem)
-    own = guess_alpha(problem)
-    return [Start(f"constant pitch {math.degrees(a):.4g} deg", 0, g)
-            for a, g in seeds.items() if a != own]
 
 
 def _on_edge(result, window):

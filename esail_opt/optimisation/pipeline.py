@@ -23,7 +23,7 @@ from esail_opt.optimisation.ipopt import (NLPResult, ipopt_options, primal_warm_
                                           solve_problem)
 from esail_opt.optimisation.outcome import Outcome
 from esail_opt.optimisation.problem import Problem, Tolerance
-from esail_opt.optimisation.seed import initial_guess
+from esail_opt.optimisation.seed import fallback_starts, initial_guess
 from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import Verification, verify, within
 
@@ -263,7 +263,7 @@ def _other_starts(problem, result, tr, say):
         return result, tr, tuple(records)
     seconds = result.solve_seconds
     cap = multistart.probe_cap(result.iterations, multistart.FALLBACK_MIN)
-    for start in multistart.fallback_starts(problem, tr.guess):
+    for start in fallback_starts(problem, tr.guess):
         say(f"{problem.name}: {result.status}; trying {start.label} ({cap} Ipopt "
             "iterations at most unless nearly feasible)")
         other, other_tr = multistart.probe(problem, start.guess, cap, say)

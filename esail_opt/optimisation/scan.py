@@ -26,7 +26,7 @@ from esail_opt.optimisation.ipopt import (NLPResult, build_solver, ipopt_options
                                           solve_transcription)
 from esail_opt.optimisation.error_control import MAX_SUB_ARCS, control_error, sub_arcs_within_cap
 from esail_opt.optimisation.problem import Problem
-from esail_opt.optimisation.seed import initial_guess, lifted_guess
+from esail_opt.optimisation.seed import initial_guess, lifted_guess, rendezvous_starts
 from esail_opt.optimisation.transcription import Transcription
 from esail_opt.optimisation.verify import verify
 
@@ -157,7 +157,7 @@ class CellSolver:
 
     def cold(self, problem, k=None, start=None):
         """Solve a cell from its own constant-pitch seed, from turn count ``k``'s seed
-        (``multistart.rendezvous_starts``), or from ``start``, a class-search optimum in class
+        (``seed.rendezvous_starts``), or from ``start``, a class-search optimum in class
         ``k`` (in 3-D, the projected model's, lifted); a class's first cell builds its NLP."""
         started = time.perf_counter()
         label = "seed" if k is None else f"class {k}"
@@ -171,7 +171,7 @@ class CellSolver:
             seed = start.as_guess()
         else:
             seed = (initial_guess(problem) if k is None
-                    else multistart.rendezvous_starts(problem, [k])[0].guess)
+                    else rendezvous_starts(problem, [k])[0].guess)
         problem, seed = self._meshed(problem, seed)
         # A lifted optimum is a start Ipopt keeps to: no staging from it.
         result, tr = solve_problem(problem, self.method, options=options,

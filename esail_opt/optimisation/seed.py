@@ -2,7 +2,10 @@
 
 The seed's nodes are those the NLP's own segments reach (``optimisation.nodes``), so a
 solve starts with every continuity constraint met.  A result of another NLP becomes a
-start as a :class:`Guess` too (``NLPResult.as_guess``, :func:`lifted_guess`).
+start as a :class:`Guess` too (``NLPResult.as_guess``, :func:`lifted_guess`).  The
+constant-pitch starts of each revolution class (:func:`window_starts`,
+:func:`rendezvous_starts`, :func:`fallback_starts`) are made here for the searches over
+classes (``optimisation.multistart``, ``optimisation.classes``).
 """
 
 import dataclasses
@@ -238,3 +241,150 @@ def lifted_guess(problem, guess):
                         problem.departure.plane_state_at(guess.epoch, guess.vinf_angle),
                         throttle=guess.ac_scale * kappa)
     return dataclasses.replace(guess, nodes=xs[:, 1:], delta=np.zeros(guess.alpha.size))
+
+
+# ---------------------------------------------------------------- constant-pitch starts
+
+#: Fractions of the way from the seed's pitch to +-90 deg scanned for seeds: nearer +-90 deg,
+#: less transverse thrust and more turns before the spiral first reaches the target radius.
+SEED_FRACTIONS = (0.0, 0.5, 0.75, 0.875, 0.9375, 0.96875, 0.984375, 0.9921875)
+
+
+@dataclass
+class Start:
+    """One start of a search over classes: its label, revolution class and seed (which carries the class)."""
+
+    label: str
+    revolutions: int  # the class: the window's k, or the rendezvous k
+    guess: Guess
+
+    @property
+    def window(self):
+        """(lo, hi) final polar angle, rad, or None (free)."""
+        return self.guess.theta_window
+
+
+def seed_pitches(problem):
+    """Constant pitches (rad) of the seeds: from the problem's own seed pitch towards
+    +-90 deg (the side of its sign), by :data:`SEED_FRACTIONS`, within the sail's bounds."""
+    alpha = guess_alpha(problem)
+    edge = math.pi / 2 if alpha >= 0 else -math.pi / 2
+    lo, hi = problem.alpha_bounds()
+    return [min(max(alpha + f * (edge - alpha), lo), hi) for f in SEED_FRACTIONS]
+
+
+def constant_pitch_seeds(problem):
+    """Seeds of :func:`seed_pitches` that reach the target radius (not escaping first nor
+    winding past ``max_revolutions``): {alpha: Guess}."""
+    seeds = {}
+    for alpha in seed_pitches(problem):
+        try:
+            seeds[alpha] = initial_guess(dataclasses.replace(
+                problem, guess_alpha_deg=math.degrees(alpha)))
+        except NoStart:
+            continue
+    return seeds
+
+
+def _stretched(problem, guess, total):
+    """``guess`` with its segments stretched to sweep ``total`` rad, nodes re-flown
+    (continuity exact), or None if that flight leaves the closed form's validity."""
+    lengths = guess.lengths * (total / float(np.sum(guess.lengths)))
+    start = problem.plane_x0() if problem.three_d() else problem.x0()
+    xs = flown_segments(problem, guess.alpha, lengths, start, delta=guess.delta)
+    if not np.all(np.isfinite(xs)):
+        return None
+    return dataclasses.replace(guess, lengths=lengths, nodes=xs[:, 1:])
+
+
+def window_starts(problem, classes):
+    """Starts of an orbit transfer's revolution windows ``classes`` (whole turns k): the
+    first constant-pitch seed whose final angle lies in the window, else the nearest one
+    that stays valid stretched to the window's middle; else the window is skipped."""
+    theta0 = float(problem.x0()[1])
+    seeds = constant_pitch_seeds(problem)
+    starts = []
+    for k in classes:
+        window = (theta0 + 2 * math.pi * k, theta0 + 2 * math.pi * (k + 1))
+        inside = [(a, g) for a, g in seeds.items()
+                  if window[0] <= g.nodes[1, -1] <= window[1]]
+        if inside:
+            alpha, guess = inside[0]
+            label = f"window {k}-{k + 1} rev, constant pitch {math.degrees(alpha):.4g} deg"
+        else:
+            middle = 2 * math.pi * (k + 0.5)
+            near = sorted(seeds.items(), key=lambda ag: abs(ag[1].nodes[1, -1] - theta0 - middle))
+            guess = None
+            for alpha, g in near:
+                guess = _stretched(problem, g, middle)
+                if guess is not None:
+                    break
+            if guess is None:
+                continue
+            label = (f"window {k}-{k + 1} rev, constant pitch {math.degrees(alpha):.4g} deg "
+                     f"stretched to {k + 0.5:g} rev")
+        starts.append(Start(label, k, dataclasses.replace(guess, theta_window=window)))
+    return starts
+
+
+def rendezvous_starts(problem, classes, seeds=None):
+    """Starts of a rendezvous's turn counts k in ``classes``: the first seed that winds k
+    itself (``Guess.revolutions_k``), else a pitch bisected to wind k (:func:`_winding`),
+    else the seed whose count is nearest, with k imposed (a poor start: it can take several
+    times the iterations, and be stopped as hopeless).  ``seeds``: ``problem``'s
+    :func:`constant_pitch_seeds`, if the caller has them."""
+    seeds = constant_pitch_seeds(problem) if seeds is None else seeds
+    starts = []
+    for k in classes:
+        alpha, guess = min(seeds.items(), key=lambda ag: abs(ag[1].revolutions_k - k))
+        if guess.revolutions_k != k:
+            alpha, guess = _winding(problem, seeds, k) or (alpha, guess)
+        label = f"rendezvous k = {k}, constant pitch {math.degrees(alpha):.4g} deg"
+        if guess.revolutions_k != k:
+            label += f" (a pitch that by itself winds k = {guess.revolutions_k})"
+        starts.append(Start(label, k, dataclasses.replace(guess, revolutions_k=k)))
+    return starts
+
+
+#: The most pitch bisections :func:`_winding` makes between two seeds.
+WIND_BISECTIONS = 4
+
+
+def _winding(problem, seeds, k):
+    """A constant-pitch seed (alpha, Guess) whose own turn count is ``k``, bisected in
+    pitch between two neighbouring ``seeds`` (in :func:`seed_pitches`'s order) whose
+    counts bracket k; None when no two do, or the bisections do not land on k."""
+    pairs = list(seeds.items())
+    for (a, ga), (b, gb) in zip(pairs, pairs[1:]):
+        if not min(ga.revolutions_k, gb.revolutions_k) < k < max(ga.revolutions_k,
+                                                                   gb.revolutions_k):
+            continue
+        for _ in range(WIND_BISECTIONS):
+            mid = 0.5 * (a + b)
+            try:
+                guess = initial_guess(dataclasses.replace(problem,
+                                                          guess_alpha_deg=math.degrees(mid)))
+            except NoStart:
+                return None
+            if guess.revolutions_k == k:
+                return mid, guess
+            if (guess.revolutions_k - k) * (ga.revolutions_k - k) > 0:
+                a, ga = mid, guess
+            else:
+                b = mid
+        return None
+    return None
+
+def fallback_starts(problem, guess):
+    """Other starts for a solve whose first start did not converge, free of any window:
+    for a rendezvous the turn counts around ``guess``'s (one below, one and two above),
+    for an orbit transfer the other constant-pitch seeds of :func:`seed_pitches`."""
+    if problem.tracks_body():
+        k = guess.revolutions_k
+        # A real body's k counts turns since 2000, so may be negative.
+        real = getattr(problem.target, "body", None) is not None
+        return rendezvous_starts(problem, [c for c in (k + 1, k - 1, k + 2) if real or c >= 0])
+    seeds = constant_pitch_seeds(problem)
+    own = guess_alpha(problem)
+    return [Start(f"constant pitch {math.degrees(a):.4g} deg", 0, g)
+            for a, g in seeds.items() if a != own]
