@@ -89,8 +89,9 @@ def test_the_chosen_class_reads_as_the_answer_does(venus):
 
 def test_the_summary_names_each_start_of_a_count_and_what_was_not_flown():
     """The terminal's line on the turn counts: a count tried from two starts shows its
-    chosen start first and the other as another start, and a class with a point that
-    was not flown says so (its ``verified`` is None), as a projected one does."""
+    chosen start first and the other as another start, a class with a point that was
+    not flown says so (its ``verified`` is None), and one solved only on the ecliptic
+    projection says that, with a note that such a value is not a flight."""
     from esail_opt.app.report import _class_lines
     from esail_opt.app.solution_parts import ClassLooked
 
@@ -103,12 +104,19 @@ def test_the_summary_names_each_start_of_a_count_and_what_was_not_flown():
     classes = (looked(17, 860.1, True, True), looked(16, 1393.0, None, False),
                looked(18, 990.0, None, False, projected=True),
                looked(17, 860.2, None, False))
-    line = _class_lines(SimpleNamespace(classes=classes, classes_skipped="k < 16",
+    lines = _class_lines(SimpleNamespace(classes=classes, classes_skipped="k < 16",
+                                         nearest_feasible=None))
+    assert lines[0] == ("  turn counts on the body: k = 16 1393.0 d, not flown; "
+                        "k = 17 860.1 d, verified (chosen); "
+                        "k = 17 (another start) 860.2 d, not flown; "
+                        "k = 18 990.0 d on the ecliptic projection, not flown in 3-D")
+    assert "not a flight" in lines[1]
+    # The same count flown in 3-D and seen on the projection is two models, not two starts.
+    lifted = (looked(16, 600.0, True, True), looked(16, 580.0, None, False, projected=True))
+    line = _class_lines(SimpleNamespace(classes=lifted, classes_skipped="",
                                         nearest_feasible=None))[0]
-    assert line == ("  turn counts on the body: k = 16 1393.0 d, not flown; "
-                    "k = 17 860.1 d, verified (chosen); "
-                    "k = 17 (another start) 860.2 d, not flown; "
-                    "k = 18 (projected model) 990.0 d, not flown")
+    assert line == ("  turn counts on the body: k = 16 600.0 d, verified (chosen); "
+                    "k = 16 580.0 d on the ecliptic projection, not flown in 3-D")
 
 
 def test_an_orbit_transfer_says_which_classes_it_did_not_look_at():

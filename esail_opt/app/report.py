@@ -43,19 +43,26 @@ def _flight_lines(v):
 
 
 def _class_line(c, again=False):
-    """One turn count looked at (``again``: another start of a count already shown): what
-    it gave, on which model, and whether it was flown and chosen."""
-    k = (f"k = {c.revolutions_k}" + (" (another start)" if again else "")
-         + (" (projected model)" if c.projected else ""))
+    """One turn count looked at (``again``: another start of a count already shown on the
+    same model): what it gave, on which model, and whether it was flown and chosen."""
+    k = f"k = {c.revolutions_k}" + (" (another start)" if again else "")
+    where = " on the ecliptic projection" if c.projected else ""
     if c.tof_days is None and c.status == STOPPED:
-        return (f"{k} hopeless, stopped after {c.iterations} iterations "
+        return (f"{k} hopeless{where}, stopped after {c.iterations} iterations "
                 f"(still infeasible by {c.constraint_violation:.2g})")
     if c.tof_days is None:
-        return f"{k} no point ({c.status} after {c.iterations} iterations)"
+        return f"{k} no point{where} ({c.status} after {c.iterations} iterations)"
     value = (f"{c.ac_mm_s2_required:.4g} mm/s^2" if c.ac_mm_s2_required is not None
              else f"{c.tof_days:.1f} d")
+    if c.projected:
+        return f"{k} {value}{where}, not flown in 3-D"
     verdict = {True: ", verified", False: ", NOT verified", None: ", not flown"}[c.verified]
     return f"{k} {value}{verdict}" + (" (chosen)" if c.chosen else "")
+
+
+#: Said under the turn counts when some were only solved on the ecliptic projection.
+PROJECTION_NOTE = ("  (a value on the ecliptic projection leaves out the change of plane "
+                   "to the target's orbit: it ranks the counts, and is not a flight)")
 
 
 def _class_lines(sol):
@@ -63,9 +70,12 @@ def _class_lines(sol):
     lines = []
     if sol.classes:
         ranked = sorted(sol.classes, key=lambda c: (c.revolutions_k, not c.chosen))
-        shown = [_class_line(c, i > 0 and ranked[i - 1].revolutions_k == c.revolutions_k)
+        shown = [_class_line(c, i > 0 and (ranked[i - 1].revolutions_k, ranked[i - 1].projected)
+                             == (c.revolutions_k, c.projected))
                  for i, c in enumerate(ranked)]
         lines.append(f"  turn counts on the body: {'; '.join(shown)}")
+        if any(c.projected for c in sol.classes):
+            lines.append(PROJECTION_NOTE)
         lines.append(f"  not looked at: {sol.classes_skipped}")
     if sol.nearest_feasible is not None:
         lines.append(f"  nearest feasible: {nearest_feasible_line(sol.nearest_feasible)}")
