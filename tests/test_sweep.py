@@ -625,6 +625,21 @@ def test_two_porkchop_cells_fly_from_porkchop_json_alone(tmp_path):
         assert (cells / porkchop.cell_folder(row) / "schedule.csv").exists()
 
 
+def test_a_sweep_of_the_time_of_flight_names_its_columns_once():
+    """Sweeping ``tof_days`` gives the asked value its own column beside the flown
+    ``tof_days``: no header names a column twice (a CSV reader would rename one)."""
+    row = {name: None for name in sweep.CSV_FIELDS}
+    row.update(index=0, value=650.0, converged=True, tof_days=650.0, objective=0.15)
+    result = {"param": "tof_days", "objective_shown_as": [6.0, "mm/s^2"], "rows": [row]}
+    header, line = sweep.table_csv(result).splitlines()
+    names = header.split(",")
+    assert len(names) == len(set(names))
+    assert names[1] == "tof_days_asked" and "tof_days" in names
+    cells = dict(zip(names, line.split(",")))
+    assert (cells["tof_days_asked"], cells["objective"], cells["objective_unit"]) == \
+        ("650", "0.9", "mm/s^2")
+
+
 @pytest.mark.slow
 def test_a_sweep_flies_each_member_under_the_wind_and_its_journal_knows_it(tmp_path):
     """``--robust``: each verified member of the 3-D Earth-Mars rendezvous is flown under

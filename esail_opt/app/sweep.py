@@ -362,15 +362,18 @@ def _result(request, outcome):
 
 def table_csv(result):
     """The rows as CSV text (floats to 10 significant digits, empty for missing), the
-    parameter's column named after it, the objective in a user's unit (days, mm/s^2)
-    with ``objective_unit`` beside it; sweep.json keeps the canonical objective."""
+    parameter's column named after it (``tof_days_asked`` beside the flown ``tof_days``),
+    the objective in a user's unit (days, mm/s^2) with ``objective_unit`` beside it;
+    sweep.json keeps the canonical objective."""
     factor, unit = result.get("objective_shown_as") or (1.0, "")
     unit = unit.strip() or result.get("objective_meaning", "")
+    param = result["param"]
+    column = f"{param}_asked" if param in CSV_FIELDS else param
     rows = [dict(r, objective=None if r["objective"] is None else r["objective"] * factor,
-                 objective_unit=unit) for r in result["rows"]]
+                 objective_unit=unit, **{column: r["value"]}) for r in result["rows"]]
     at = CSV_FIELDS.index("objective") + 1
     fields = CSV_FIELDS[:at] + ("objective_unit",) + CSV_FIELDS[at:]
-    return csv_text(rows, fields).replace("value", result["param"], 1)
+    return csv_text(rows, tuple(column if f == "value" else f for f in fields))
 
 
 def figure(result, axes=None):
