@@ -80,9 +80,9 @@ def test_pool_and_dask_cluster_give_identical_rows(tiny, tmp_path, capsys):
         # A 1 au -> 1.524 au transfer at 0.5-1.5 mm/s^2 takes roughly 1.5-3 years.
         assert 400 < row["tof_days"] < 1200
         assert row["target_miss_r_km"] is not None and math.isfinite(row["target_miss_r_km"])
-    # The objective panel in days: a minimum-time objective is then the time of flight.
-    panel = sweep.figure(pooled).axes[1]
-    assert panel.get_ylabel() == "objective [d]"
+    # A minimum-time objective is the time of flight, in days: one panel shows both.
+    panel = sweep.figure(pooled).axes[0]
+    assert panel.get_ylabel() == "time of flight [d]"
     assert np.allclose(panel.get_lines()[0].get_ydata(), [r["tof_days"] for r in others],
                        rtol=1e-9)
 
@@ -625,6 +625,37 @@ def test_two_porkchop_cells_fly_from_porkchop_json_alone(tmp_path):
         assert (cells / porkchop.cell_folder(row) / "schedule.csv").exists()
 
 
+def test_the_sweep_figure_plots_no_value_for_a_member_with_no_answer():
+    """Of a fixed-time sweep's members, a verified one is plotted at its a_c, one that
+    converged without being verified as a red cross at its a_c, and one Ipopt did not
+    converge on only marked at its parameter: where Ipopt stopped is no answer.  The
+    time of flight, the parameter here, gets no panel of its own; the miss panel has the
+    tolerance."""
+    def row(value, objective, converged, error):
+        out = {name: None for name in sweep.CSV_FIELDS}
+        out.update(value=value, objective=objective, converged=converged, error=error,
+                   tof_days=value, target_miss_r_km=2e3)
+        return out
+
+    rows = [row(560.0, 0.7, False, "not converged: Ipopt Infeasible_Problem_Detected"),
+            row(600.0, 0.24, True, "not verified: 12000 km from the target"),
+            row(620.0, 0.14, True, None)]
+    fig = sweep.figure({"problem": "m", "field": "objective.tof_days", "param": "tof_days",
+                        "unit": "days", "failed": 2, "rows": rows,
+                        "objective_shown_as": [6.0, " mm/s^2"],
+                        "tolerance": {"position_km": 1e4, "velocity_m_s": 10.0}})
+    objective, misses = fig.axes
+    assert objective.get_ylabel() == "a_c needed [mm/s^2]"
+    lines = {line.get_label(): line for line in objective.get_lines()}
+    assert list(lines["verified"].get_xdata()) == [620.0]
+    assert np.allclose(lines["verified"].get_ydata(), [0.84])
+    assert list(lines["converged, not verified"].get_xdata()) == [600.0]
+    assert np.allclose(lines["converged, not verified"].get_ydata(), [1.44])
+    assert list(lines["no answer (not converged)"].get_xdata()) == [560.0]
+    assert [line.get_ydata()[0] for line in misses.get_lines()
+            if line.get_label() == "tolerance"] == [1e4]
+
+
 def test_a_sweep_of_the_time_of_flight_names_its_columns_once():
     """Sweeping ``tof_days`` gives the asked value its own column beside the flown
     ``tof_days``: no header names a column twice (a CSV reader would rename one)."""
@@ -644,8 +675,8 @@ def test_a_sweep_of_the_time_of_flight_names_its_columns_once():
 def test_a_sweep_flies_each_member_under_the_wind_and_its_journal_knows_it(tmp_path):
     """``--robust``: each verified member of the 3-D Earth-Mars rendezvous is flown under
     the wind, its row says how (guided below open loop, the CVODES checks agreeing),
-    the figure has the fourth panel, and a journal of it does not resume another
-    sweep."""
+    the figure has the wind's panel under the a_c and the miss (the time of flight is
+    the parameter), and a journal of it does not resume another sweep."""
     problem = REPO / "problems" / "earth_mars_min_ac.py"
     out = tmp_path / "windy"
     result = sweep.run(problem, "tof_days=650:660:2", workers=1, out_dir=out, robust_runs=12)
@@ -654,7 +685,9 @@ def test_a_sweep_flies_each_member_under_the_wind_and_its_journal_knows_it(tmp_p
         assert row["robust_verified"] is True
         assert row["robust_guided_p95_km"] < row["robust_open_p95_km"]
         assert 0.0 <= row["robust_guided_within"] <= 1.0
-    assert len(sweep.figure(result).axes) == 4
+    labels = [ax.get_ylabel() for ax in sweep.figure(result).axes]
+    assert labels[:2] == ["a_c needed [mm/s^2]", "flown target miss [km]"]
+    assert len(labels) == 3 and labels[2].startswith("arrival miss under wind")
     journal = (out / sweep.JOURNAL).read_text()
     with pytest.raises(InputError, match="robust_runs is 12, not None"):
         sweep.run(problem, "tof_days=650:660:2", workers=1, out_dir=out, resume=True)

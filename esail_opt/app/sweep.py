@@ -377,32 +377,41 @@ def table_csv(result):
 
 
 def figure(result, axes=None):
-    """The Figure of time of flight, objective and verified target miss against the
-    parameter of :func:`run`'s table, failed members in red, and with a Monte Carlo a
-    fourth panel of p95 arrival misses against the tolerance; on ``axes`` (top to
-    bottom) or a new Figure."""
-    fresh = axes is None
+    """The Figure of :func:`run`'s table against the parameter: the objective (the time
+    of flight too, when it is neither the objective nor the parameter) and the flown
+    target miss against the tolerance, and with a Monte Carlo the p95 arrival misses;
+    on ``axes`` (top to bottom) or a new Figure.  A member that converged but was not
+    verified is a red cross at its value; one with no value (not converged, or failed)
+    a red mark on the panel's bottom edge."""
+    factor, unit = result.get("objective_shown_as") or (1.0, "")
+    unit = unit.strip()
+    named = {"mm/s^2": "a_c needed", "d": "time of flight"}.get(unit, "objective")
+    panels = ((("tof_days", "time of flight [days]", "linear"),)
+              if unit != "d" and result["param"] != "tof_days" else ())
+    panels += (("objective", f"{named} [{unit}]" if unit else "objective (canonical)",
+                "linear"),
+               # The closed form is approximate: its flown miss belongs beside its optimum.
+               ("target_miss_r_km", "flown target miss [km]", "log"))
     windy = bool(result.get("robust_runs"))
+    fresh = axes is None
     if fresh:
         from matplotlib.figure import Figure
 
-        axes = Figure(figsize=(6.4, 10.4 if windy else 8.0)).subplots(
-            4 if windy else 3, 1, sharex=True)
-    factor, unit = result.get("objective_shown_as") or (1.0, "")
-    panels = (("tof_days", "time of flight [days]", "linear"),
-              ("objective", f"objective [{unit.strip()}]" if unit.strip()
-               else "objective (canonical)", "linear"),
-              # The closed form is approximate: its flown miss belongs beside its optimum.
-              ("target_miss_r_km", "verified target miss [km]", "log"))
+        count = len(panels) + windy
+        axes = Figure(figsize=(6.4, 1.2 + 2.4 * count)).subplots(count, 1, sharex=True)
     for ax, (key, ylabel, scale) in zip(axes, panels):
         _panel(ax, result, key, scale, factor if key == "objective" else 1.0)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
+    misses = axes[len(panels) - 1]
+    tolerance = (result.get("tolerance") or {}).get("position_km")
+    if tolerance is not None:
+        misses.axhline(tolerance, color="tab:red", lw=1, label="tolerance")
     axes[0].legend(fontsize=8)
-    if result.get("polished"):
-        axes[2].legend(fontsize=8)
+    if result.get("polished") or tolerance is not None:
+        misses.legend(fontsize=8)
     if windy:
-        _wind_panel(axes[3], result)
+        _wind_panel(axes[len(panels)], result)
     axes[-1].set_xlabel(result["param"] + (f" [{result['unit']}]" if result["unit"] else ""))
     rows = result["rows"]
     axes[0].set_title(f"{result['problem']}: sweep of {result['field']} "
@@ -434,28 +443,31 @@ _EXACT = {"tof_days": "tof_days_exact", "target_miss_r_km": "exact_target_miss_k
 
 
 def _panel(ax, result, key, scale, factor=1.0):
-    """One panel: column ``key`` (times ``factor``) of the converged members, then the
-    failed ones."""
+    """One panel: column ``key`` (times ``factor``) of the verified members, then of those
+    that converged without being verified, then a mark for each with no value."""
     rows = result["rows"]
-    good = [(r["value"], factor * r[key]) for r in rows
-            if r["error"] is None and r[key] is not None]
-    bad = [(r["value"], None if r[key] is None else factor * r[key]) for r in rows
-           if r["error"] is not None]
+
+    def value(r):
+        return None if r[key] is None else factor * r[key]
+
+    good = [(r["value"], value(r)) for r in rows if r["error"] is None and r[key] is not None]
+    unverified = [(r["value"], value(r)) for r in rows
+                  if r["error"] is not None and r["converged"] and r[key] is not None]
+    missing = [r["value"] for r in rows
+               if r["error"] is not None and not (r["converged"] and r[key] is not None)]
     if good:
         ax.plot(*zip(*good), "o-", color="C0",
-                label="converged (closed form)" if result.get("polished") else "converged")
+                label="verified (closed form)" if result.get("polished") else "verified")
     if result.get("polished") and key in _EXACT:
         _exact_points(ax, rows, _EXACT[key])
-    shown = [(v, y) for v, y in bad if y is not None]
-    if shown:
-        ax.plot(*zip(*shown), "x", color="C3", ms=9, mew=2,
-                label="not converged or not verified")
-    # A member with no number at all still gets a mark, on the bottom edge.
-    missing = [v for v, y in bad if y is None]
+    if unverified:
+        ax.plot(*zip(*unverified), "x", color="C3", ms=9, mew=2,
+                label="converged, not verified")
     if missing:
+        # A value Ipopt stopped at is no answer: the member is marked, not plotted.
         ax.plot(missing, [0.02] * len(missing), "v", color="C3", ms=9,
-                transform=ax.get_xaxis_transform(), label="failed (no solution)")
-    if scale == "log" and (good or shown):
+                transform=ax.get_xaxis_transform(), label="no answer (not converged)")
+    if scale == "log" and (good or unverified):
         ax.set_yscale("log")
 
 
