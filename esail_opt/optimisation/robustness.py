@@ -34,6 +34,11 @@ AGREEMENT = 0.02
 PERCENTILES = (50, 90, 95, 99)
 #: Confidence of the intervals around the sampled statistics.
 CONFIDENCE = 0.95
+#: What a run's ``verified`` says, written beside it in robust.json.
+VERIFIED_MEANS = (f"every flight re-flown on CVODES lands where its closed-form flight did "
+                  f"(within {100 * AGREEMENT:g} % of its miss, or a tenth of the tolerance): "
+                  "the statistics can be trusted; whether the flights meet the tolerance is "
+                  "each kind's within_tolerance")
 
 
 def percentile_interval(values, q, confidence=CONFIDENCE):
@@ -253,7 +258,7 @@ class Robustness:
             "open_loop": self._outcome(self.open_loop),
             "guided": [{"margin": k.margin, **self._outcome(k)} for k in self.guided],
             "cvodes_checks": self.checks, "verified": self.verified,
-            "seconds": self.seconds,
+            "verified_means": VERIFIED_MEANS, "seconds": self.seconds,
         }
 
     def summary(self):
@@ -281,7 +286,21 @@ class Robustness:
                          f"largest disagreement {c['worst_position_km']:.3g} km, "
                          f"{c['worst_velocity_m_s']:.3g} m/s"
                          + ("" if c["agree"] else " (NOT within the agreement bound)"))
+        lines.append(self._verdict())
         return "\n".join(lines)
+
+    def _verdict(self):
+        """One line that keeps apart the two questions: are the numbers right (the CVODES
+        checks), and does the mission meet its tolerance (its best kind's fraction)."""
+        best = max(self.kinds, key=lambda k: k.within(self.tolerance))
+        what = ("open loop" if best.margin is None
+                else f"guided with a_c margin {100 * best.margin:g} %")
+        share = 100 * best.within(self.tolerance)
+        numbers = ("the statistics are verified (each CVODES re-flight agrees with its "
+                   "closed-form flight)" if self.verified else
+                   "the statistics are NOT verified (a CVODES re-flight disagrees)")
+        return (f"  verdict: {numbers}; at best {share:.1f} % of flights ({what}) end "
+                f"within {self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s")
 
 
 def _bracket(interval):
