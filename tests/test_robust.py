@@ -88,6 +88,35 @@ def test_guidance_retargets_at_the_first_piece_starting_at_each_multiple_of_its_
     assert robustness.waypoints(ends, 0.0) == []
 
 
+def test_on_the_approach_guidance_retargets_at_halving_times_to_go():
+    """With a period of 2 days and arrival on day 70, the approach re-targets 1, 1/2,
+    1/4, 1/8 and 1/16 d before arrival, at pieces that start there once the schedule is
+    cut."""
+    ends = np.array([0.0, 10.0, 20.0, 35.0, 50.0, 70.0])
+    instants = robustness.approach_instants(70.0, 2.0)
+    assert instants == [70 - 1, 70 - 1 / 2, 70 - 1 / 4, 70 - 1 / 8, 70 - 1 / 16]
+    # Uncut, no piece starts at those instants: only the period's multiples count.
+    assert robustness.waypoints(ends, 2.0) == [1, 2, 3, 4]
+    cut = np.r_[ends[:-1], instants, ends[-1]]
+    assert robustness.waypoints(cut, 2.0)[-5:] == [5, 6, 7, 8, 9]
+
+
+def test_a_schedule_cut_for_the_approach_is_the_same_flight(earth_mars):
+    """Cutting pieces changes where guidance may act, not the flight: the cut schedule
+    flown on CVODES ends where the uncut one does, to the integrator's tolerance."""
+    s = robust.schedule(earth_mars)
+    arrival = units.time_to_days(s.durations).sum()
+    instants = robustness.approach_instants(arrival, 30.0)
+    assert len(instants) == 8  # 15 d before arrival, halved down to 15/128 d
+    cut = robustness.cut_at(s, instants)
+    assert cut.alphas.size == s.alphas.size + 8
+    assert units.time_to_days(cut.durations).sum() == pytest.approx(arrival, rel=1e-14)
+    start = robustness.Mission.of(s).plan.start
+    whole, pieces = (robustness._cvodes(start, x.alphas, x.deltas, x.durations, x.acs)[:, -1]
+                     for x in (s, cut))
+    assert units.length_to_km(np.linalg.norm(whole[:3] - pieces[:3])) < 1.0
+
+
 def test_the_schedule_is_the_solution_s_arcs_cut_into_its_pieces(earth_mars):
     s = robust.schedule(earth_mars)
     source = earth_mars.polish if earth_mars.polished else earth_mars

@@ -310,11 +310,47 @@ def _bracket(interval):
 
 def waypoints(ends_days, every):
     """The pieces at which guidance re-targets: the first piece starting at or after
-    each multiple of ``every`` days (none for ``every`` 0)."""
+    each multiple of ``every`` days (none for ``every`` 0), and each piece that starts at
+    an instant of :func:`approach_instants` (:func:`cut_at` makes them)."""
     if every <= 0:
         return []
     starts = ends_days[:-1]
-    return sorted(set(np.searchsorted(starts, np.arange(every, starts[-1], every)).tolist()))
+    regular = np.searchsorted(starts, np.arange(every, starts[-1], every))
+    instants = approach_instants(ends_days[-1], every)
+    approach = [i for i, start in enumerate(starts)
+                if np.any(np.isclose(start, instants, rtol=0, atol=1e-9 * ends_days[-1]))]
+    return sorted(set(regular.tolist()) | set(approach))
+
+
+#: The last re-targeting, days before arrival: the wind after it is the one nothing
+#: corrects, so it comes well inside the wind's correlation time.
+APPROACH_LAST_DAYS = 1 / 16
+
+
+def approach_instants(arrival_days, every):
+    """When guidance re-targets on the approach, days from departure: arrival less half
+    of ``every``, a quarter, and so on while at least :data:`APPROACH_LAST_DAYS`.  A miss
+    made by the wind over one stretch is corrected over the next, as long again."""
+    out, left = [], every / 2
+    while left >= APPROACH_LAST_DAYS:
+        if left < arrival_days:
+            out.append(arrival_days - left)
+        left /= 2
+    return out
+
+
+def cut_at(schedule, instants_days):
+    """``schedule`` with its pieces cut at ``instants_days`` (days from departure): the
+    same flight in more pieces, so that guidance can re-target there."""
+    days = units.time_to_days(schedule.durations)
+    ends = np.cumsum(days)
+    cuts = sorted(t for t in instants_days if 0 < t < ends[-1]
+                  and np.min(np.abs(ends - t)) > 1e-9 * ends[-1])
+    index = np.searchsorted(ends, cuts)  # the piece each cut falls in
+    bounds = np.sort(np.r_[0.0, ends, cuts])
+    owner = np.sort(np.r_[np.arange(days.size), index])  # each new piece's old piece
+    return replace(schedule, alphas=schedule.alphas[owner], deltas=schedule.deltas[owner],
+                   acs=schedule.acs[owner], durations=units.time_from_days(np.diff(bounds)))
 
 
 def run(schedule, request, progress=lambda text: None):
@@ -328,6 +364,9 @@ def run(schedule, request, progress=lambda text: None):
     """
     seconds = {}
     clock = time.perf_counter()
+    if request.guide_days > 0:
+        arrival = float(units.time_to_days(schedule.durations).sum())
+        schedule = cut_at(schedule, approach_instants(arrival, request.guide_days))
     mission = Mission.of(schedule)
     p = mission.plan
     factors = request.wind.factors(np.diff(mission.ends_days), request.runs, request.seed)
