@@ -656,6 +656,25 @@ def test_the_sweep_figure_plots_no_value_for_a_member_with_no_answer():
             if line.get_label() == "tolerance"] == [1e4]
 
 
+def test_a_member_with_no_point_says_where_the_feasible_begins():
+    """A member too short to fly says, after Ipopt's status, what its own solve found:
+    the shortest feasible flight from its departure, as `esail-opt solve` says it."""
+    from types import SimpleNamespace
+
+    near = SimpleNamespace(departure_date="2033-05-01T00:00:00", tof_days=590.9,
+                           ac_mm_s2_required=2.285, verified=True, infeasible_tof_days=587.2)
+    sol = SimpleNamespace(converged=False, status="Infeasible_Problem_Detected",
+                          tof_days=580.0, objective=0.5, iterations=300, polish=None,
+                          flight_verified=False, nearest_feasible=near,
+                          verification=SimpleNamespace(target_miss_r_km=None,
+                                                       target_miss_v_m_s=None, error=None))
+    row = sweep._empty_row(0, 580.0)
+    sweep._fill(row, sol)
+    assert row["error"] == ("not converged: Ipopt Infeasible_Problem_Detected; the shortest "
+                            "flight found feasible departing 2033-05-01T00:00:00 takes 590.9 d "
+                            "at a_c 2.285 mm/s^2 (verified; none found at 587.2 d)")
+
+
 def test_a_sweep_of_the_time_of_flight_names_its_columns_once():
     """Sweeping ``tof_days`` gives the asked value its own column beside the flown
     ``tof_days``: no header names a column twice (a CSV reader would rename one)."""

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from esail_opt.app import engine
+from esail_opt.app import engine, report
 from esail_opt.app.outputs import csv_text, write_table_set
 from esail_opt.runtime.files import check_output_dir
 from esail_opt.runtime import pool
@@ -201,6 +201,9 @@ def _fill(row, sol):
                                          else exact.verification.target_miss_r_km))
     if not sol.converged:
         row["error"] = f"not converged: Ipopt {sol.status}"
+        if sol.nearest_feasible is not None:
+            # What the member alone would have said: the walk to the edge of the feasible.
+            row["error"] += f"; {report.nearest_feasible_line(sol.nearest_feasible)}"
     elif check.error:
         row["error"] = f"verification: {check.error}"
     elif not verified:
