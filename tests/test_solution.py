@@ -93,6 +93,27 @@ def test_a_dated_file_gives_its_exact_epoch_and_one_of_version_6_loads_without_i
     assert loaded.departure_date == data["departure_date"]
 
 
+def test_a_dated_schedule_gives_each_segment_its_start_date(solution):
+    """A dated flight's schedule.csv ends each row with its segment's start, ISO 8601
+    (TDB): the first is the departure, and the last plus its duration the arrival; an
+    undated schedule has no such column."""
+    import csv
+    import io
+
+    from esail_opt.app.solution_files import schedule_csv
+    from esail_opt.bodies.dates import jd_from_iso
+
+    results = Path(__file__).resolve().parents[1] / "results"
+    dated = Solution.load(results / "earth_mars_min_ac" / "solution.json")
+    rows = list(csv.DictReader(io.StringIO(schedule_csv(dated))))
+    start = dated.polish.departure_date or dated.departure_date
+    assert rows[0]["start_date_tdb"] == start
+    last = jd_from_iso(rows[-1]["start_date_tdb"]) + float(rows[-1]["duration_days"])
+    assert abs(last - jd_from_iso(dated.arrival_date)) < 1e-3 / 86400
+    assert all(len(r["start_date_tdb"]) == 23 for r in rows)  # YYYY-MM-DDThh:mm:ss.sss
+    assert "start_date_tdb" not in schedule_csv(solution).splitlines()[0]
+
+
 def test_a_file_that_is_not_a_solution_fails_with_one_clear_line(solution, tmp_path):
     written = solution.write(tmp_path, plots=False)[0]
     data = json.loads(written.read_text())

@@ -25,17 +25,23 @@ SOLUTION_FILES = ("solution.json", "schedule.csv", "schedule_closed_form.csv",
 def schedule_csv(sol, polished=None):
     """The schedule as CSV text, one row per segment: the flight the verdict is about (the
     polish's after a polish; ``polished`` True or False picks one), every number to the
-    last digit, so that flying the file reproduces the verified flight; a null as nan."""
+    last digit, so that flying the file reproduces the verified flight; a null as nan.  A
+    dated flight's rows end with the segment's start as an ISO 8601 date (TDB)."""
     if polished is None:
         polished = sol.polished
     schedule = sol.polish.schedule if polished else sol.schedule
     columns = schedule.columns
+    # A polish may move a free date's departure: its rows start from its own.
+    departure = (polished and sol.polish.departure_date) or sol.departure_date
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(columns)
+    writer.writerow(columns + (("start_date_tdb",) if departure else ()))
     for row in schedule:
-        writer.writerow([repr(float(math.nan if getattr(row, c) is None else getattr(row, c)))
-                         for c in columns])
+        cells = [repr(float(math.nan if getattr(row, c) is None else getattr(row, c)))
+                 for c in columns]
+        if departure:
+            cells.append(dates.iso_from_jd(dates.jd_from_iso(departure) + row.t_days))
+        writer.writerow(cells)
     return buf.getvalue()
 
 
