@@ -93,6 +93,18 @@ def test_a_dated_file_gives_its_exact_epoch_and_one_of_version_6_loads_without_i
     assert loaded.departure_date == data["departure_date"]
 
 
+def test_the_summary_counts_error_control_rounds_as_its_progress_lines_do(solution):
+    """The progress lines number the error control's rounds from 0; the summary names
+    the same rounds (it said '0 error-control round(s)' after round 0)."""
+    from esail_opt.app.report import _refinements
+
+    first = solution.summary().splitlines()[0]
+    assert first.endswith(_refinements(len(solution.rounds)))
+    assert [_refinements(n) for n in (1, 2, 3)] == [
+        "error control: round 0 only", "error control: rounds 0-1 (1 mesh refinement)",
+        "error control: rounds 0-2 (2 mesh refinements)"]
+
+
 def test_a_dated_schedule_gives_each_segment_its_start_date(solution):
     """A dated flight's schedule.csv ends each row with its segment's start, ISO 8601
     (TDB): the first is the departure, and the last plus its duration the arrival; an

@@ -20,12 +20,23 @@ def _solve_lines(sol):
         f"{sol.problem.name}: {sol.status} "
         f"({'converged' if sol.converged else 'NOT converged'}), "
         f"{sol.iterations} iterations, {sol.solve_seconds:.2f} s, "
-        f"{max(len(sol.rounds) - 1, 0)} error-control round(s)",
+        f"{_refinements(len(sol.rounds))}",
         f"  tof {sol.tof_days:.3f} d (closed form), {len(sol.schedule)} segments x "
         f"{sol.problem.sub_arcs} sub-arcs",
         f"  final (closed form): r {end.r_au:.6f} au, theta {end.theta_deg % 360.0:.3f} deg, "
         f"a {end.a_au:.6f} au, e {end.e:.5f}",
     ]
+
+
+def _refinements(rounds):
+    """The error control's rounds in the words its progress lines use: round 0 flies the
+    first optimum, each later one a refined mesh."""
+    if rounds == 0:
+        return "no error control"
+    if rounds == 1:
+        return "error control: round 0 only"
+    return f"error control: rounds 0-{rounds - 1} ({rounds - 1} mesh refinement" \
+           f"{'s' if rounds > 2 else ''})"
 
 
 def _flight_lines(v):
@@ -126,15 +137,14 @@ def _mission_lines(sol):
     speed = ("" if body.relative_speed_km_s is None or body.kind != "BodyIntercept"
              else f", met at {body.relative_speed_km_s:.4g} km/s relative speed")
     off = (None if body.out_of_plane_km is None
-           else f"{body.out_of_plane_km:.4g} km from the ecliptic at arrival")
+           else f"{body.out_of_plane_km:.4g} km out of the ecliptic at arrival")
     if body.normal_miss_km is not None:
         # A version-5 file does not give the body's own distance (schema.upgrade).
-        lines.append(f"  {body.name}: flown in 3-D against its unprojected state, "
-                     + (f"{off} and " if off else "")
-                     + f"{body.normal_miss_km:.4g} km from the flight along the ecliptic's "
-                     f"normal{speed}")
+        lines.append(f"  {body.name}" + (f" is {off}" if off else "")
+                     + f"; the 3-D flight meets it to {body.normal_miss_km:.4g} km in that "
+                     f"direction{speed}")
     elif off is not None:
-        lines.append(f"  {body.name}: {off}, which the planar model ignores{speed}")
+        lines.append(f"  {body.name} is {off}, which the planar model ignores{speed}")
     return lines
 
 
