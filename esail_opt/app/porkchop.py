@@ -545,9 +545,13 @@ def figure(result):
         _date_axis(ax.xaxis)
     ax.set_xlabel("departure date (TDB)" if across == "date" else "time of flight [d]")
     target = result["target"] or "target"
+    # Without a grid of flight times, a fixed-time problem's every cell flies its own.
+    fixed = {round(r["tof_days"], 6) for r in rows if r["tof_days"] is not None}
+    tof = (result["tofs_days"][0] if result["tofs_days"] and tofs_n == 1 else
+           fixed.pop() if not result["tofs_days"] and result["objective"] != "MinTime"
+           and len(fixed) == 1 else None)
     where = [f"leaving {result['departures'][0][:10]}" if dates_n == 1 else "",
-             f"in {result['tofs_days'][0]:g} d" if result["tofs_days"] and tofs_n == 1
-             else ""]
+             "" if tof is None else f"in {tof:g} d"]
     count = int(no_sail.sum())
     ax.set_title(f"{result['problem']}: to {target}" + "".join(f", {w}" for w in where if w)
                  + f"\n{result['verified_cells']}/{result['cells']} cells verified"
