@@ -522,7 +522,10 @@ def test_a_target_bodys_distance_from_the_ecliptic_means_one_thing(flown3d):
     loaded = Solution.from_json(old)
     assert loaded.target_body.normal_miss_km == body["normal_miss_km"]
     assert loaded.target_body.out_of_plane_km is None
-    assert f"{body['normal_miss_km']:.4g} km from the flight" in loaded.summary()
+    assert (f"{d['problem']['target']['body']}: the 3-D flight meets it to "
+            f"{body['normal_miss_km']:.4g} km along the ecliptic's normal") in loaded.summary()
+    assert (f"is {body['out_of_plane_km']:.4g} km out of the ecliptic at arrival; the 3-D "
+            f"flight meets it to {body['normal_miss_km']:.4g} km") in flown3d.summary()
 
 
 @pytest.mark.parametrize("limits", [(2e-4, 20.0), (300.0, 8000.0), (5000.0, 8000.0)])

@@ -140,9 +140,9 @@ def _mission_lines(sol):
            else f"{body.out_of_plane_km:.4g} km out of the ecliptic at arrival")
     if body.normal_miss_km is not None:
         # A version-5 file does not give the body's own distance (schema.upgrade).
-        lines.append(f"  {body.name}" + (f" is {off}" if off else "")
-                     + f"; the 3-D flight meets it to {body.normal_miss_km:.4g} km in that "
-                     f"direction{speed}")
+        lines.append(f"  {body.name}" + (f" is {off};" if off else ":")
+                     + f" the 3-D flight meets it to {body.normal_miss_km:.4g} km along the "
+                     f"ecliptic's normal{speed}")
     elif off is not None:
         lines.append(f"  {body.name} is {off}, which the planar model ignores{speed}")
     return lines
