@@ -1,9 +1,8 @@
 """The scan engine: a grid of independent members run, journaled and resumed.
 
-A sweep and a porkchop describe their members as a :class:`Scan`; :func:`run` runs its
-jobs on :mod:`esail_opt.runtime.pool` and journals every row as it ends
-(:mod:`esail_opt.runtime.journal`), so ``--resume`` runs only the rows the journal lacks.
-Everything that can refuse a run is checked before anything on disk changes.
+A sweep and a porkchop describe their members as a :class:`Scan`; :func:`run` runs its jobs on
+:mod:`esail_opt.runtime.pool` and journals each row as it ends, so that ``--resume`` runs only the
+rows the journal lacks.  Whatever can refuse a run is checked before anything on disk changes.
 """
 
 import dataclasses
@@ -32,8 +31,7 @@ MEMBER_PREFIX = "esail_member_"
 
 
 def worker_setup(cores, quiet):
-    """How a local pool's worker computes (the pool's ``setup``): its NLPs' segments
-    on its share of the cores (``transcription.share_cores``), and without repeating
+    """A local pool worker's ``setup``: its NLPs' segments on its share of the ``cores``, silent on
     what the compile cache said in the parent (``quiet``)."""
     transcription.share_cores(cores)
     compiled.said_already(quiet)
@@ -85,8 +83,7 @@ def source_digest(source):
 
 
 def invalid_row(row):
-    """What the journal refuses in a row whose fields have their types: a verified row
-    has a time of flight."""
+    """Why the journal refuses a well-typed row, or None: a verified row needs a time of flight."""
     if row.get("verified") and row.get("tof_days") is None:
         return "verified without a tof_days"
     return None
@@ -106,10 +103,9 @@ def header(kind, problem, source, param, values, polish=False, **more):
 
 
 def load_source(source, filename):
-    """The problem of a problem file's text ``source`` (named ``filename``), loaded as
-    the command line loads a file, from a folder named after this process; folders of
-    processes that are gone are removed first (a file may end its worker by
-    ``os._exit``)."""
+    """The problem of a problem file's text ``source`` (named ``filename``), loaded as the command
+    line loads a file, from a folder named after this process; dead processes' folders are removed
+    first (a file may end its worker by ``os._exit``)."""
     from esail_opt.optimisation.problem_file import load_problem
 
     remove_orphans()
@@ -171,10 +167,9 @@ class Scan:
 
 @dataclasses.dataclass
 class ScanRun:
-    """What a scan's run gave: ``rows`` in grid order, the indices ``resumed`` from the
-    journal and ``solved`` in this run (in finishing order), ``lost`` (job index ->
-    (losses, cause)), the run's ``seconds``, its ``executor`` in words and the
-    ``journal``'s path (or None)."""
+    """What a scan's run gave: ``rows`` in grid order, the indices ``resumed`` from the journal and
+    ``solved`` in this run (in finishing order), ``lost`` (job index -> (losses, cause)), the run's
+    ``seconds``, its ``executor`` in words and the ``journal``'s path (or None)."""
 
     rows: list
     resumed: list
@@ -202,9 +197,8 @@ class _Rows:
         self.todo = scan.todo(self.rows)  # the jobs this run runs
 
     def partial(self, row):
-        """A row its job sent before ending: reported, and journaled if verified (a
-        failed one a resumed run solves again); not reported again unless the job's end
-        changes it."""
+        """A row its job sent before ending: reported, and journaled if verified (a failed one a
+        resumed run solves again); reported again only if the job's end changes it."""
         i = row["index"]
         if i in self.partials:
             return
@@ -244,15 +238,14 @@ class _Rows:
 
 def run(scan, out_dir=None, resume=False, workers=1, scheduler=None,
         retries=pool.RETRIES, progress=None):
-    """Run the jobs of ``scan`` that the journal in ``out_dir`` (checked; None: no
-    journal) lacks, keeping its rows with ``resume``: a :class:`ScanRun`.  ``workers``:
-    the local pool's size; ``scheduler``: a Dask address (:func:`check_scheduler`);
-    ``retries``: reruns of a job lost with its worker; ``progress(row, done, total)`` as
-    each row ends or is sent early (again if its job's end changed it).
+    """Run the jobs of ``scan`` that the journal in ``out_dir`` (checked; None: no journal) lacks,
+    keeping its rows with ``resume``; a :class:`ScanRun`.  ``workers``: the local pool's size;
+    ``scheduler``: a Dask address (:func:`check_scheduler`); ``retries``: reruns of a job lost with
+    its worker; ``progress(row, done, total)`` as each row ends or is sent early (again if changed).
 
-    Raises InputError, before the journal changes, for a journal ``resume`` cannot
-    continue or an unreachable scheduler; ``pool.ClusterLost`` (one line saying what the
-    journal keeps); KeyboardInterrupt after stopping the workers.
+    Raises InputError, before the journal changes, for a journal ``resume`` cannot continue or an
+    unreachable scheduler; ``pool.ClusterLost`` (one line saying what the journal keeps);
+    KeyboardInterrupt after stopping the workers.
     """
     journal = scan.journal(out_dir)
     kept = journal.read(resume) if journal is not None else {}

@@ -1,13 +1,10 @@
-"""Plots of a :class:`~esail_opt.app.solution.Solution`, drawn from its record alone
-(a solution loaded from its file plots as the fresh one did).
+"""Plots of a :class:`~esail_opt.app.solution.Solution`, drawn from its record alone (a solution
+loaded from its file plots as the fresh one did): ``trajectory.png`` and ``timeline.png``.
 
-``trajectory.png`` (:func:`trajectory_figure`) and ``timeline.png``
-(:func:`timeline_figure`), titled by :func:`headline`; time axes are calendar dates (TDB)
-for a dated solution, else days since departure.  Every figure function here and in
-:mod:`esail_opt.app.reproduce` draws into the caller's axes or a Figure of its own
-(:func:`axes_or_new`).  Titles and legends, which hold names a user chose, are never
-parsed as math.  This module imports matplotlib: the rest of the package imports it only
-when a figure is drawn.
+Time axes are calendar dates (TDB) for a dated solution, else days since departure.  Every figure
+function here and in :mod:`esail_opt.app.reproduce` draws into the caller's axes or a Figure of its
+own (:func:`axes_or_new`).  Titles and legends, which hold names a user chose, are never parsed as
+math.  The rest of the package imports matplotlib only when a figure is drawn.
 """
 
 import functools
@@ -30,14 +27,12 @@ from esail_opt.physics import thrust
 
 
 def axes_or_new(axes, nrows=1, ncols=1, figsize=None, margins=None, **subplots):
-    """``(fig, axes)``: the top-level figure of the caller's ``axes`` (an Axes, an array
-    of them) and those axes, or, with None, a new bare Figure (no pyplot: no backend, no
-    window) and its ``Figure.subplots(nrows, ncols, **subplots)``, ``figsize`` in inches.
-    ``margins`` (``Figure.subplots_adjust``'s) place the grid at :data:`DPI`; without
-    them it has constrained layout, which draws the figure twice when saved."""
+    """``(fig, axes)``: the caller's ``axes`` (an Axes or an array) and their top-level figure, or,
+    with None, a new bare Figure of ``figsize`` inches (no pyplot: no backend, no window) and its
+    ``subplots(nrows, ncols, **subplots)``.  ``margins`` place the grid at :data:`DPI`
+    (``subplots_adjust``); without them the layout is constrained, which draws twice when saved."""
     if axes is not None:
-        # A SubFigure's .figure is the top-level Figure, a Figure's itself
-        # (get_figure(root=True) needs matplotlib 3.10).
+        # SubFigure.figure is the root, Figure.figure itself (get_figure(root=True): mpl 3.10).
         return np.ravel(axes)[0].figure.figure, axes
     if margins is None:
         fig = Figure(figsize=figsize, layout="constrained")
@@ -119,10 +114,8 @@ _EXPONENT = re.compile(r"\^\{(-?\d+)\}")
 
 
 class PlainLogFormatter(LogFormatterSciNotation):
-    """The tick labels of matplotlib's log axes (``10^k``, ``c x 10^k``) written with
-    Unicode superscripts (all in DejaVu Sans) instead of mathtext, whose parser costs
-    a noticeable part of a timeline's drawing time.
-    """
+    """matplotlib's log-axis tick labels (``10^k``, ``c x 10^k``) in Unicode superscripts (all in
+    DejaVu Sans), not mathtext, whose parser takes a good part of a timeline's drawing time."""
 
     def __call__(self, x, pos=None):
         label = super().__call__(x, pos)
@@ -135,9 +128,8 @@ class PlainLogFormatter(LogFormatterSciNotation):
 
 
 def _plain_log_labels(axis):
-    """Label a log ``axis`` with :class:`PlainLogFormatter` where matplotlib's log scale
-    would label it: its decades, and its minor ticks on an axis that spans too few
-    decades to show more than one."""
+    """Label a log ``axis`` with :class:`PlainLogFormatter` where matplotlib's log scale would: its
+    decades, and its minor ticks when it spans too few decades to show more than one."""
     axis.set_major_formatter(PlainLogFormatter(10))
     axis.set_minor_formatter(PlainLogFormatter(10, labelOnlyBase=False))
 
@@ -176,9 +168,8 @@ def _xy(r_au, theta_deg):
 
 
 def headline(sol):
-    """A figure's title in two lines of words: the problem's name and whether its
-    flight (and the polished one) is verified, then the flight's (after a polish, the
-    polished flight's) time of flight, a_c and dates."""
+    """A figure's title in two lines: the problem's name and whether its flight (and the polished
+    one) is verified, then the flown flight's time of flight, a_c and dates."""
     verdict = _verdict(sol.flight_verified, sol.outcome)
     if sol.polished:
         verdict = (f"closed form {verdict}, polished "
@@ -248,13 +239,11 @@ def _time_axis(ax, sol):
 
 
 def thrust_acceleration(sol):
-    """The sail's thrust acceleration along the flight that flies (:func:`_flown`):
-    |a| = kappa a_c (r_E / r) |(R, T, N)|, r_E = 1 au, (R, T, N) of each segment's pitch
-    and clock (:func:`esail_opt.physics.thrust.radial_transverse_normal`).
-
-    Returns ``(t_days, a_mm_s2)``: days since departure and |a| (mm/s²) at each sample;
-    a sample on a segment's start comes twice, once per segment, so steps draw upright.
-    """
+    """The sail's thrust acceleration |a| = kappa a_c (r_E / r) |(R, T, N)|, r_E = 1 au, along the
+    flight that flies (:func:`_flown`), (R, T, N) of each segment's pitch and clock
+    (:func:`esail_opt.physics.thrust.radial_transverse_normal`).  Returns ``(t_days, a_mm_s2)``,
+    days since departure and mm/s², at each sample; a sample on a segment's start comes twice, once
+    per segment, so that steps draw upright."""
     flown = _flown(sol)
     sched = flown.schedule
     t = np.asarray(flown.samples.t_days, float)
@@ -329,10 +318,9 @@ LEGEND_PAD = 0.12
 
 
 def _keep_clear(ax, legend):
-    """Put ``legend`` in the corner of ``ax`` that it can have with the least widening of
-    the view, none where a corner is clear of every drawn point (each line sampled evenly
-    along its length on the page), and widen the view on that side.  matplotlib's
-    loc="best" only weighs what the legend hides, and measures it at every draw."""
+    """Put ``legend`` in the corner of ``ax`` that needs the least widening of the view (none where
+    a corner is clear of every drawn point, :func:`_drawn_points`), and widen the view on that side.
+    matplotlib's loc="best" only weighs what the legend hides, and measures it at every draw."""
     renderer = FigureCanvasAgg(ax.figure).get_renderer()
     size = legend.get_window_extent(renderer)
     corner = None
@@ -411,10 +399,9 @@ def _sun(ax):
 
 
 def trajectory_figure(solution, ax=None):
-    """The trajectory in the plane (au), closed form, CVODES and polished, with orbits
-    and segment starts, into ``ax`` or a new figure; returns the figure.  A 3-D solution
-    is drawn by :func:`_trajectory3d_figure` (``ax`` a pair: from above, from the side).
-    """
+    """The trajectory in the plane (au): closed form, CVODES and polished, with orbits and segment
+    starts, into ``ax`` or a new figure; returns the figure.  A 3-D solution is drawn by
+    :func:`_trajectory3d_figure` (``ax`` a pair: from above, from the side)."""
     sol = solution
     if three_d(sol):
         return _trajectory3d_figure(sol, ax)
@@ -450,15 +437,13 @@ def trajectory_figure(solution, ax=None):
 
 
 def three_d(sol):
-    """Whether ``sol`` was flown in three dimensions: its schedule has a clock angle
-    (solution.json's ``clock_deg``, schema 5)."""
+    """Whether ``sol`` was flown in 3-D: its schedule has a clock angle (schema 5)."""
     return len(sol.schedule) > 0 and sol.schedule[0].clock_deg is not None
 
 
 def _flight3d(sol):
-    """The CVODES flight's Cartesian samples (``Samples.three_d``) as float arrays, with
-    its ``t_days``; None when the flight failed.  The 3-D views show only it: the closed
-    form's samples are polar in their own turning plane."""
+    """Arrays of the CVODES flight's Cartesian samples (``Samples.three_d``) and ``t_days``, None if
+    it failed: the 3-D views show only it, the closed form being polar in its turning plane."""
     cv = sol.trajectory_cvodes
     if cv is None or cv.three_d is None:
         return None
@@ -475,9 +460,8 @@ TRAJECTORY3D_HEIGHTS = (3.0, 1.15)
 
 
 def _trajectory3d_figure(sol, axes=None):
-    """A 3-D solution's two views: its path from above (x, y: the ecliptic of J2000)
-    and from the side (z against the date), with the bodies' real 3-D tracks over the
-    flight and the segment starts (the CVODES samples at the schedule's start times)."""
+    """A 3-D solution's path from above (x, y: the ecliptic of J2000) and from the side (z against
+    the date), with the bodies' real tracks over the flight and the segment starts."""
     created = axes is None
     if created:
         fig = Figure(figsize=TRAJECTORY3D_SIZE, dpi=DPI)
@@ -532,9 +516,8 @@ ROUNDS_LABEL = "position miss (km)"
 
 
 def timeline_panels(sol):
-    """The timeline's panels that have data, in the order drawn (two a row): pairs of
-    the y label and ``draw(ax, sol)``; the pitch goes in the right column, where its
-    throttle's axis is at the figure's edge."""
+    """The timeline's panels with data, in drawing order (two a row): pairs of the y label and
+    ``draw(ax, sol)``; the pitch goes right, its throttle's axis at the figure's edge."""
     panels = [(label, functools.partial(_series, key=key)) for key, label in SERIES.items()]
     if three_d(sol) and _flight3d(sol) is not None:
         panels.append((INCLINATION_LABEL, _inclination_panel))
@@ -545,10 +528,9 @@ def timeline_panels(sol):
 
 
 def _timeline_axes(count, rounds, throttled):
-    """A new timeline figure and its Axes: ``count`` panels two a row (the last across
-    both columns when ``count`` is odd), then, with ``rounds``, the error-control
-    rounds' strip across both; placed by fixed margins (:func:`axes_or_new`).
-    ``throttled`` widens the right margin for the throttle's axis."""
+    """A new timeline figure and its Axes, placed by fixed margins: ``count`` panels two a row (an
+    odd last one across both columns), then, with ``rounds``, the error-control rounds' strip across
+    both.  ``throttled`` widens the right margin for the throttle's axis."""
     inch = TIMELINE_ROWS_IN
     rows = -(-count // 2)
     strip = inch["foot"] + inch["rounds"] if rounds else 0.0
@@ -572,10 +554,9 @@ def _timeline_axes(count, rounds, throttled):
 
 
 def timeline_figure(solution, axes=None):
-    """The :func:`timeline_panels` against time, and under them the flown miss of each
-    error-control round when there was more than one, into ``axes`` (one per panel, and
-    one for the rounds) or a new figure (:func:`_timeline_axes`); returns the figure.
-    """
+    """The :func:`timeline_panels` against time, and under them the flown miss of each error-control
+    round when there was more than one, into ``axes`` (one per panel, and one for the rounds) or a
+    new figure (:func:`_timeline_axes`); returns the figure."""
     sol = solution
     panels = timeline_panels(sol)
     misses = _round_misses(sol)
@@ -656,8 +637,7 @@ def _pitch_panel(ax, sol):
 
 
 def _clock_panel(ax, sol):
-    """The clock angle of the flown schedule; 0 is in the orbital plane, positive
-    toward the angular momentum."""
+    """The flown clock angle: 0 in the orbital plane, positive toward the angular momentum."""
     _steps(ax, sol, "clock_deg", color="k")
     ax.set_ylim(-190, 190)
     ax.set_yticks(range(-180, 181, 90))
@@ -726,12 +706,10 @@ def write_plots(solution, out_dir):
 
 
 def write_figures(figures, out_dir):
-    """Draw each of ``figures``, pairs (file name, ``make()`` returning a Figure), and
-    write it into ``out_dir`` atomically, at :data:`DPI`, one after the other.  A figure
-    that cannot be drawn (any exception but an OSError, which raises) is skipped.
-    Returns ``(written, failures)``: the Paths written, and one line per figure not
-    drawn (:func:`figure_failure`).
-    """
+    """Draw each of ``figures``, pairs (file name, ``make()`` returning a Figure), and write it into
+    ``out_dir`` atomically at :data:`DPI`, one after the other; one that cannot be drawn (any
+    exception but an OSError, which raises) is skipped.  Returns ``(written, failures)``: the Paths
+    written, and one line per figure not drawn (:func:`figure_failure`)."""
     out = Path(out_dir)
     written, failures = [], []
     for name, make in figures:

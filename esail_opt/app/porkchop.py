@@ -1,13 +1,10 @@
 """Launch-window scans: one problem over departure dates, or dates x times of flight.
 
-``esail-opt porkchop PROBLEM.py --depart 2030-01-01:2033-01-01:24`` solves the problem
-at every departure date; with ``--tof 200:400:12``, at every (date, time of flight) cell,
-which with ``MinAcceleration`` is the sail designer's porkchop.  The scan engine
-(:mod:`esail_opt.app.engine`) runs jobs of whole dates, each solved by
-:func:`esail_opt.optimisation.scan.scan` on one NLP; ``--resume`` of an interrupted job
-keeps its journaled verified cells.  Every cell is verified as a lone solve is; a
-fixed-time cell with no point shorter than its date's edge of the feasible is marked
-``"no_sail": true`` (:func:`mark_no_sail`).
+``esail-opt porkchop PROBLEM.py --depart 2030-01-01:2033-01-01:24`` solves the problem at every
+departure date; with ``--tof 200:400:12``, at every (date, time of flight) cell, which with
+``MinAcceleration`` is the sail designer's porkchop.  The scan engine (:mod:`esail_opt.app.engine`)
+runs jobs of whole dates, each on one NLP (:func:`esail_opt.optimisation.scan.scan`).  Every cell is
+verified as a lone solve is; cells where no sail exists are marked by :func:`mark_no_sail`.
 """
 
 import dataclasses
@@ -34,9 +31,8 @@ from esail_opt.physics import constants as units
 
 @dataclasses.dataclass(frozen=True)
 class PorkchopRow:
-    """A cell's row: its fields, in order, are the journal's and porkchop.json's keys,
-    and their annotations what a journal row is checked against
-    (:class:`esail_opt.runtime.journal.Journal`).  Rows travel as dicts of these fields."""
+    """A cell's row, carried as a dict of these fields: in order, they are the journal's and
+    porkchop.json's keys, and their annotations what a journal row is checked against."""
 
     index: int
     departure_date: str
@@ -61,8 +57,7 @@ class PorkchopRow:
     edge_tof_days: Optional[float]
     edge_infeasible_tof_days: Optional[float]
     edge_ac_mm_s2: Optional[float]
-    # Beyond the CSV's columns, in porkchop.json and its journal: the cell's flight as
-    # solution.json gives it, so that a cell can be flown without solving it again.
+    # Not in the CSV, only in porkchop.json and the journal: the flight, to fly it without a solve.
     ac_mm_s2_required: Optional[float]
     departure_state: Optional[dict]
     schedule: Optional[list]
@@ -77,8 +72,7 @@ PORKCHOP_FILES = ("porkchop.csv", "porkchop.json", "porkchop.png")
 
 
 def parse_dates(text, field="depart"):
-    """``START:STOP:COUNT`` with ISO 8601 dates -> list of Julian dates (TDB), ends
-    included."""
+    """``START:STOP:COUNT`` with ISO 8601 dates -> Julian dates (TDB), ends included."""
     parts = str(text).split(":")
     if len(parts) < 3:
         raise InputError(f"{field} = {text!r}: expected START:STOP:COUNT, e.g. "
@@ -100,8 +94,7 @@ def parse_dates(text, field="depart"):
 
 
 def _split_pair(rest, text, field):
-    # Dates are YYYY-MM-DD[THH:MM[:SS]], with colons of their own: the second date
-    # starts at the last occurrence of ':YYYY-'.
+    # Dates (YYYY-MM-DD[THH:MM[:SS]]) hold colons: the second starts at the last ':YYYY-'.
     for i in range(len(rest) - 1, 0, -1):
         if rest[i] == ":" and len(rest) > i + 5 and rest[i + 1:i + 5].isdigit() \
                 and rest[i + 5] == "-":
@@ -129,8 +122,7 @@ def parse_tofs(text):
 
 @dataclasses.dataclass(frozen=True)
 class Grid:
-    """The cells of a scan: departure dates (Julian, TDB) and, for two dimensions,
-    times of flight (days)."""
+    """A scan's cells: departure dates (Julian, TDB) and, in 2-D, times of flight (days)."""
 
     departures: tuple
     tofs: tuple = None
@@ -147,8 +139,7 @@ class Grid:
         return self.departures[i], self.tofs[j]
 
     def path(self):
-        """Every cell once, each next to the one before: the dates in order, or in two
-        dimensions row by row with every other row's times of flight reversed."""
+        """Every cell once, each beside the one before: by date, in 2-D every other row reversed."""
         if self.tofs is None:
             return list(range(len(self.departures)))
         m = len(self.tofs)
@@ -156,8 +147,7 @@ class Grid:
                 for i in range(len(self.departures)) for j in range(m)]
 
     def neighbours(self, indices):
-        """For each cell of a run (flat indices), the positions in the run of the cells
-        beside it on the grid."""
+        """For each cell of a run (flat indices), the run positions of its grid neighbours."""
         where = {index: k for k, index in enumerate(indices)}
         shape = self.shape
         out = []
@@ -176,9 +166,8 @@ class Grid:
         return out
 
     def jobs(self, workers):
-        """The path cut into one run of neighbouring whole dates per worker (every cell
-        but a run's first starts warm), so that one job judges a date's cells against
-        its edge of the feasible (:func:`mark_no_sail`)."""
+        """The path cut into one run of neighbouring whole dates per worker, so that one job judges
+        each date's cells against that date's edge of the feasible (:func:`mark_no_sail`)."""
         path = self.path()
         column = 1 if self.tofs is None else len(self.tofs)
         dates_per_job = math.ceil(len(self.departures)
@@ -241,16 +230,14 @@ def _ac_mm_s2(problem, result):
 
 def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departures=(),
               tofs=None, cells_out=None):
-    """Solve one run of neighbouring cells on one NLP; their rows, marked by
-    :func:`mark_no_sail`.  Never raises for a cell: a failure is in its row.  With
-    ``cells_out``, each verified cell's solution folder is written there
-    (:func:`write_cell`)."""
+    """Solve a run of neighbouring cells on one NLP: their rows, marked by :func:`mark_no_sail`.
+    Never raises for a cell: its row holds the failure.  With ``cells_out``, each verified cell's
+    solution folder is written there (:func:`write_cell`)."""
     grid = Grid(tuple(departures), None if tofs is None else tuple(tofs))
     try:
         problem = engine.load_source(source, filename).with_tolerance(tol_km, tol_m_s)
         problems = [cell_problem(problem, grid, i) for i in indices]
-        # Told of as the forward pass ends each; the rows after the repair pass are
-        # the ones journaled.
+        # Sent as the forward pass ends each; the rows after the repair pass are journaled.
         cells = scan.scan(problems, neighbours=grid.neighbours(indices),
                           on_cell=lambda k, cell: pool.send_partial(_row(indices[k], grid, cell)))
         rows = [_row(i, grid, c) for i, c in zip(indices, cells)]
@@ -267,17 +254,14 @@ def solve_job(job, indices, source, filename, tol_km=None, tol_m_s=None, departu
 
 
 def mark_no_sail(problems, cells, rows):
-    """Mark the rows (in place) of the cells where no sail exists, date by date.
-
-    A cell has no sail when its own solve found no point (not a flight that missed) and
-    the date's edge of the feasible, a verified flight, is longer.  The edge is walked
-    once per date (:func:`esail_opt.optimisation.pipeline.nearest_feasible`) down from
-    the shortest verified cell, else up from the longest cell with no point; an edge
-    flight that does not verify leaves the shortest verified cell as the edge.  Every
-    row of a date walked carries the edge (``edge_tof_days``, ``edge_ac_mm_s2``,
-    ``edge_infeasible_tof_days``); a walk that fails leaves its rows unmarked, with why
-    in the error of its cells with no point.
-    """
+    """Mark the rows (in place) of the cells where no sail exists, date by date.  A cell has no sail
+    when its own solve found no point (not a flight that missed) and the date's edge of the
+    feasible, a verified flight, is longer.  The edge is walked once per date
+    (:func:`esail_opt.optimisation.pipeline.nearest_feasible`) down from the shortest verified cell,
+    else up from the longest cell with no point; an edge flight that does not verify leaves the
+    shortest verified cell as the edge.  Every row of a walked date carries the edge
+    (``edge_tof_days``, ``edge_ac_mm_s2``, ``edge_infeasible_tof_days``); a walk that fails leaves
+    its rows unmarked, with the reason in the error of its cells with no point."""
     dates_of = {}
     for k, problem in enumerate(problems):
         dates_of.setdefault(problem.departure.date, []).append(k)
@@ -309,9 +293,8 @@ def _tof(problem):
 
 
 def _edge(problems, cells):
-    """The verified ``edge.Edge`` of one date's cells (see :func:`mark_no_sail`), or
-    None: no cell with no point below the shortest verified one, or no verified flight
-    found."""
+    """The verified ``edge.Edge`` of one date's cells (see :func:`mark_no_sail`), or None: no cell
+    with no point below the shortest verified one, or no verified flight found."""
     verified = [c for c in cells if c.verified]
     shortest = min(verified, key=lambda c: _tof(c.problem), default=None)
     below = [p for p, c in zip(problems, cells) if not c.solved
@@ -330,10 +313,8 @@ def cell_folder(row):
 
 
 def write_cell(cell, row, folder):
-    """Write a verified cell's solution folder (as ``esail-opt solve --no-plots``
-    would) into ``folder``/:func:`cell_folder`, through
-    :func:`esail_opt.optimisation.pipeline.run_from_optimum`, which finds it within tolerance
-    already."""
+    """Write a verified cell's solution folder into ``folder``/:func:`cell_folder`, as
+    ``esail-opt solve --no-plots`` would; the cell is within tolerance already."""
     from esail_opt.app.solution import Solution
 
     run = pipeline.run_from_optimum(cell.problem, cell.result, cell.transcription)
@@ -358,11 +339,9 @@ def run(problem_file, depart, tof=None, workers=None, scheduler=None, progress=N
         out_dir=None, resume=False, tol_km=None, tol_m_s=None, retries=pool.RETRIES,
         cells_out=None):
     """Scan ``problem_file`` over ``depart`` (and ``tof``) on the scan engine
-    (:func:`esail_opt.app.engine.run`); the table as a dict.  With ``cells_out`` (a
-    folder on the local pool's machine), each verified cell's solution folder is written
-    there.  Raises InputError on bad input (problem, grid, options, journal, scheduler)
-    before any solve and before the journal changes.
-    """
+    (:func:`esail_opt.app.engine.run`); the table as a dict.  ``cells_out``, a folder on the local
+    pool's machine, receives each verified cell's solution folder.  Raises InputError on bad input
+    (problem, grid, options, journal, scheduler) before any solve and before the journal changes."""
     request = _request(problem_file, depart, tof, workers, scheduler, retries, resume,
                        out_dir, tol_km, tol_m_s, cells_out)
     outcome = engine.run(_scan(request), out_dir=out_dir, resume=resume,
@@ -488,15 +467,12 @@ ARRIVAL_LABEL = "arrival date"
 
 
 def figure(result):
-    """The porkchop, drawn from ``result`` alone, for a grid of any shape.
-
-    Dates x flight times: the objective's contours, lines of constant arrival date and
-    the edge of the feasible (:func:`edge_line`).  One date: the objective against the
-    time of flight, the edge a vertical line; else against the date.  Without contours,
-    values are written beside the verified cells (in one dimension, only if three or
-    fewer).  Crosses mark cells not verified, hollow squares cells with no sail, a star
-    the best.
-    """
+    """The porkchop, drawn from ``result`` alone, for a grid of any shape.  Dates x flight times:
+    the objective's contours, lines of constant arrival date and the edge of the feasible
+    (:func:`edge_line`).  One date: the objective against the time of flight, the edge a vertical
+    line; else against the date.  Without contours, values are written beside the verified cells (in
+    one dimension, only if three or fewer).  Crosses mark cells not verified, hollow squares cells
+    with no sail, a star the best."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8, 5), layout="constrained")
@@ -576,8 +552,7 @@ def _day(iso):
 
 
 def _date_axis(axis):
-    """Calendar dates, ISO style, at ticks that match the span: years, months, days or
-    hours, each told once."""
+    """Calendar dates, ISO style, at ticks that suit the span: years, months, days or hours."""
     import matplotlib.dates as mdates
 
     locator = mdates.AutoDateLocator(minticks=3, maxticks=6)
@@ -589,8 +564,8 @@ def _date_axis(axis):
 
 
 def _fit(set_lim, values, least, pad=0.06):
-    """Limits around the finite ``values``, padded by ``pad`` of their span (``least``
-    each side when they are one value), so that the marks at the ends sit inside."""
+    """Limits around the finite ``values``, padded by ``pad`` of their span (``least`` each side for
+    a single value), so that the marks at the ends sit inside."""
     values = np.asarray(values, float)
     values = values[np.isfinite(values)]
     if values.size:
@@ -608,9 +583,8 @@ def _halo(texts, colour):
 
 
 def _line_chart(ax, marks, across, label):
-    """One dimension (one date, one flight time, or dates alone): the axes for the
-    objective against the date or the time of flight, and with one date its edge of
-    the feasible; returns each cell's height, the cells with no value at the top."""
+    """One dimension: the objective against the date or the time of flight (with one date, its edge
+    of the feasible too); returns each cell's height, cells with no value at the top."""
     x, value, edge = marks[across], marks["value"], marks["edge"][:1]
     top = np.nanmax(value) if np.isfinite(value).any() else 0.0
     y = np.where(np.isfinite(value) & ~marks["no_sail"], value, top)
@@ -666,8 +640,7 @@ def _arrival_lines(ax):
 
 
 def write(result, out_dir, plots=True):
-    """porkchop.csv, porkchop.json and (with ``plots``) porkchop.png in ``out_dir``, as one
-    set (:func:`~esail_opt.app.outputs.write_table_set`); the journal stays beside them.
-    Returns the paths."""
+    """Write porkchop.csv, porkchop.json and (with ``plots``) porkchop.png into ``out_dir`` as one
+    set (:func:`~esail_opt.app.outputs.write_table_set`); returns the paths."""
     return write_table_set(out_dir, PORKCHOP_FILES, table_csv(result), result,
                            figure(result) if plots else None)

@@ -85,8 +85,7 @@ def eps_figure(data, ax=None):
 
 
 def fig2(out, progress=None):
-    """Fig. 2: theta_max = 1 / (T a~_c), circular parking orbit at r0 = 1 au; null where
-    T <= 0 (q3 never falls)."""
+    """Fig. 2: theta_max = 1 / (T a~_c), circular orbit at 1 au; null at T <= 0 (q3 never falls)."""
     theta_max = np.full((ALPHA_DEG.size, AC_MM_S2.size), np.nan)
     for i, alpha in enumerate(ALPHA_DEG):
         _, T = radial_transverse(math.radians(alpha))

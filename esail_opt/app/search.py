@@ -1,9 +1,8 @@
 """The global search job: every revolution class of a minimum-time problem, flown and ranked.
 
-``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`,
-finishes every distinct optimum (:func:`esail_opt.optimisation.pipeline.run_from_optimum`), ranks
-them (:func:`_rank_key`) and writes ``search.json``, ``search.csv``, ``search.png`` and
-the best optimum's solution files under ``best/``.
+``esail-opt search PROBLEM.py`` runs :func:`esail_opt.optimisation.multistart.search`, finishes
+every distinct optimum (:func:`esail_opt.optimisation.pipeline.run_from_optimum`), ranks them
+(:func:`_rank_key`) and writes the tables, the figure and the best optimum's files (:func:`write`).
 """
 
 from pathlib import Path
@@ -25,10 +24,9 @@ FIELDS = ("rank", "revolutions", "free_local_optimum", "window_rev", "rendezvous
 
 
 def _rank_key(row):
-    """Optima whose flight meets the problem's tolerance first, as a lone solve holds
-    its answer, fastest first: on the exact (polished) time where the polish is
-    verified, else the closed form's, so that a polish the verifier cannot judge to 1 m
-    does not put a faster transfer below a slower one."""
+    """Optima whose flight meets the problem's tolerance first (as a lone solve holds its answer),
+    then fastest: on the exact (polished) time where the polish is verified, else the closed form's,
+    so that a polish not verifiable to 1 m does not put a faster transfer below a slower one."""
     exact = row["tof_days_exact"] if row["verified"] else None
     return (not row["flight_verified"],
             exact if exact is not None else row["tof_days_closed_form"])
@@ -37,11 +35,8 @@ def _rank_key(row):
 def run(problem, extra_revolutions=2, polish=True, progress=None):
     """Search ``problem`` over its revolution classes (``multistart.search``, whose
     ``extra_revolutions`` this is); verify, ``polish`` (on Eqs. 1-2; else the ranking uses
-    closed-form times) and rank the optima.  ``progress(text)`` at each stage.
-
-    Returns (dict, list of Solution): the table (``rows`` ranked, best first;
-    ``starts``, one record per start) and the Solution of each row, in the same order.
-    """
+    closed-form times) and rank the optima; ``progress(text)`` at each stage.  Returns the table
+    (``rows``, best first; ``starts``, a record per start) and each row's Solution, in order."""
     say = progress or (lambda text: None)
     candidates, starts = multistart.search(problem, extra_revolutions, progress)
     rows, solutions = [], []
@@ -122,9 +117,8 @@ def table_csv(data):
 
 
 def figure(data, ax=None):
-    """The Figure of revolutions against time of flight of :func:`run`'s table, on
-    ``ax`` or a new Figure: free local optima filled, window-bound results hollow, the
-    best ringed; exact (polished) times where verified (:func:`_tof`)."""
+    """:func:`run`'s table as revolutions against time of flight, on ``ax`` or a new Figure: free
+    local optima filled, window-bound results hollow, the best ringed (times as :func:`_tof`)."""
     fresh = ax is None
     if fresh:
         from matplotlib.figure import Figure
@@ -163,24 +157,21 @@ def figure(data, ax=None):
 
 
 def _tof(row):
-    """The time of flight a row is plotted at, days: exact where polished and verified,
-    else closed form."""
+    """A row's plotted time of flight, days: exact if polished and verified, else closed form."""
     exact = row["tof_days_exact"]
     return exact if row["verified"] and exact is not None else row["tof_days_closed_form"]
 
 
-#: The files :func:`write` puts in its folder, and with best/ every entry, replaced
-#: as one set.
+#: The files :func:`write` puts in its folder, and with best/ all it replaces as one set.
 SEARCH_TABLES = ("search.json", "search.csv", "search.png")
 SEARCH_FILES = SEARCH_TABLES + ("best",)
 
 
 def write(data, solutions, out_dir, plots=True):
-    """Write search.json, search.csv, search.png and best/ (the best optimum's
-    solution files) into ``out_dir`` as one set (:func:`~esail_opt.runtime.files.publish`);
-    without ``plots``, every file but the figures.  Returns the paths written.
-    OutputError if the folder cannot be written; FigureError, after the set is written,
-    if a figure of best/ could not be drawn."""
+    """Write search.json, search.csv, search.png and best/ (the best optimum's solution files) into
+    ``out_dir`` as one set (:func:`~esail_opt.runtime.files.publish`), without ``plots`` no figures;
+    returns the paths written.  OutputError if the folder cannot be written; FigureError, after the
+    set is written, if a figure of best/ could not be drawn."""
     out = Path(out_dir)
     names = ["search.json", "search.csv"] + (["search.png"] if plots else [])
     failed = None

@@ -1,14 +1,11 @@
 """A smooth, twice-differentiable form of a body's state over a time window, for the NLP.
 
-Ipopt uses exact Hessians, so a body's polar state must be a CasADi expression of a free
-date, which neither DE421's Chebyshev records (joined only approximately smoothly) nor the
-iterated Kepler solver is.  A :class:`Track` samples the exact source on a uniform grid over
-the window plus a margin (at least 60 days at each end, where a spline is least accurate and
-an iterate may stray), unwraps the longitude and fits a C2 cubic B-spline
-(``casadi.interpolant``, "bspline", not-a-knot) to r, theta, v_r and v_theta.  Small bodies
-too: one form keeps one contract, and its error is far below the Keplerian model's.  The
-default step, 1/200 of the osculating period at the window's start, is halved until the
-error at the samples' mid-points, where a spline errs most, is at most 50 m and 0.1 mm/s.
+Ipopt uses exact Hessians, so a body's polar state must be a CasADi expression of a free date, which
+neither DE421's Chebyshev records (joined only approximately smoothly) nor the iterated Kepler
+solver is.  A :class:`Track` samples the exact source on a uniform grid over the window plus a
+margin (where a spline is least accurate and an iterate may stray), unwraps the longitude and fits a
+C2 cubic B-spline (``casadi.interpolant``, "bspline", not-a-knot) to r, theta, v_r and v_theta.
+Small bodies too: one form keeps one contract, and its error is far below the Keplerian model's.
 """
 
 import math
@@ -38,18 +35,17 @@ MAX_HALVINGS = 6
 
 
 class Track:
-    """A body's polar state over a window of time as a smooth CasADi function; build one with
-    :func:`track_of`.
+    """A body's polar state over a time window as a smooth CasADi function; see :func:`track_of`.
 
     Attributes: ``name``; ``jd_range``, the window's (start, stop) Julian dates (TDB), and
     ``t_range``, the same in TU since J2000 TDB; ``step_days``, the samples' spacing, days;
-    ``sampled_jd``, the dates sampled, (M,), over ``sampled_t_range`` (:attr:`t_range` widened
-    by the margin, less where a planet's window meets the ephemeris span); ``samples``, the
-    polar states fitted, (4, M), theta unwrapped; ``max_error_km`` and ``max_error_m_s``, the
-    largest in-plane position (km) and velocity (m/s) difference from the exact source at the
-    samples' mid-points within :attr:`t_range`; ``function``, ``track(t) -> [r, theta, v_r,
-    v_theta]`` (4x1, t in TU since J2000, theta unwrapped), which holds the end state beyond
-    ``sampled_t_range`` (zero derivative): bound t to :attr:`t_range` in the NLP.
+    ``sampled_jd``, the dates sampled, (M,), over ``sampled_t_range`` (:attr:`t_range` widened by
+    the margin, less where a planet's window meets the ephemeris span); ``samples``, the polar
+    states fitted, (4, M), theta unwrapped; ``max_error_km`` and ``max_error_m_s``, the largest
+    in-plane position (km) and velocity (m/s) difference from the exact source at the samples'
+    mid-points within :attr:`t_range`; ``function``, ``track(t) -> [r, theta, v_r, v_theta]`` (4x1,
+    t in TU since J2000, theta unwrapped), which holds the end state beyond ``sampled_t_range``
+    (zero derivative): bound t to :attr:`t_range` in the NLP.
     """
 
     def __init__(self, name, source, start_jd, stop_jd, step_days, span=None):
@@ -129,9 +125,8 @@ class Track:
 
 def stored_spline(name, grid, values):
     """``casadi.interpolant(name, "bspline", [grid], values)``, read from the package's cache
-    (:mod:`esail_opt.runtime.function_store`) when the same samples were fitted before, since
-    fitting is most of building a track; the file is named by the samples' bytes, the name and
-    the CasADi version."""
+    (:mod:`esail_opt.runtime.function_store`) when the same samples were fitted before with this
+    CasADi version, since fitting is most of building a track."""
     grid = np.ascontiguousarray(grid, dtype=float)
     values = np.ascontiguousarray(values, dtype=float)
     decided_by = b"\0".join([name.encode(), ca.__version__.encode(), grid.tobytes(),
@@ -146,10 +141,9 @@ SPOT_CHECKS = 3
 
 def stored_samples(name, source, jd):
     """``source(jd)`` (an array whose last axis runs over ``jd``), read from the package's cache
-    when the same dates of ``name`` were sampled before, since sampling is most of what is left
-    of building a track.  The stored samples are used only if the source gives exactly them
-    again at :data:`SPOT_CHECKS` of the dates, so a changed ephemeris, set of elements or
-    conversion is sampled afresh."""
+    when the same dates of ``name`` were sampled before (sampling is most of what is left of
+    building a track), but only if the source gives exactly them again at :data:`SPOT_CHECKS` of the
+    dates, so that a changed ephemeris, set of elements or conversion is sampled afresh."""
     jd = np.ascontiguousarray(jd, dtype=float)
     path = function_store.path_of("tracks", name, b"\0".join([name.encode(), jd.tobytes()]),
                                   suffix=".npy")
@@ -164,17 +158,16 @@ def stored_samples(name, source, jd):
 
 
 def _mids(jd_grid, jd_range):
-    """The mid-points of the samples ``jd_grid`` inside ``jd_range``: where a track's
-    error is measured."""
+    """The mid-points of the samples ``jd_grid`` inside ``jd_range``, where a spline errs most: a
+    track's error is measured there."""
     mids = 0.5 * (jd_grid[:-1] + jd_grid[1:])
     return mids[(mids >= jd_range[0]) & (mids <= jd_range[1])]
 
 
 def stored_errors(name, decided_by, measure):
     """A track's largest errors (km, m/s), ``measure()``'s, read from the package's cache when
-    measured before with the same arrays ``decided_by`` (the samples fitted, the dates measured
-    at and the exact states there, checked by :func:`stored_samples`) and CasADi version, since
-    evaluating a sixty-year track at its twelve thousand mid-points is costly."""
+    measured before with the same arrays ``decided_by`` and CasADi version, since evaluating a
+    sixty-year track at its twelve thousand mid-points is costly."""
     key = b"\0".join([name.encode(), ca.__version__.encode()]
                       + [np.ascontiguousarray(a, dtype=float).tobytes() for a in decided_by])
     path = function_store.path_of("tracks", name, key, suffix=".npy")
@@ -198,16 +191,14 @@ def _in_plane(r, th, vr, vt, cos, sin):
 
 
 def track_of(body, start_jd, stop_jd, step_days=None):
-    """The smooth :class:`Track` of ``body``, a planet of
-    :data:`esail_opt.bodies.ephemeris.PLANETS` (any case) or a :class:`SmallBody`, over the
-    window [start_jd, stop_jd], Julian dates (TDB), a planet's within
-    :data:`esail_opt.bodies.ephemeris.SPAN_JD`.
+    """The smooth :class:`Track` of ``body``, a planet of :data:`esail_opt.bodies.ephemeris.PLANETS`
+    (any case) or a :class:`SmallBody`, over the window [start_jd, stop_jd], Julian dates (TDB), a
+    planet's within :data:`esail_opt.bodies.ephemeris.SPAN_JD`.
 
     ``step_days`` is the samples' spacing, days; by default 1/200 of the osculating period at
     ``start_jd`` (at most 1/16 of the window), halved up to :data:`MAX_HALVINGS` times until the
-    error is at most :data:`TARGET_ERROR_KM` and :data:`TARGET_ERROR_M_S`.  Raises InputError for
-    an unknown body, a window outside the ephemeris span, stop <= start, or a step that is not
-    positive.
+    error is at most :data:`TARGET_ERROR_KM` and :data:`TARGET_ERROR_M_S`.  Raises InputError for an
+    unknown body, a window outside the ephemeris span, stop <= start, or a step not above zero.
     """
     start = check_range("track.start_jd", start_jd)
     stop = check_range("track.stop_jd", stop_jd)
@@ -246,18 +237,16 @@ def _period_days(polar):
 class Track3:
     """A body's 3-D state over a window of time as a smooth CasADi function; build one with
     :func:`track3_of` or :func:`track3_on`.  It is the planar :class:`Track` ``planar`` plus the
-    height z above the ecliptic and its rate v_z, one cubic B-spline each on the same samples:
-    its projection *is* the planar track.  z swings once a revolution with amplitude r sin i, so
-    its spline errs by about (5/384) r sin i (2 pi h / P)^4 for a step h and period P, possibly
-    more than the plane: the 3-D error is measured, and :func:`track3_on` refines the step.
+    height z above the ecliptic and its rate v_z, one cubic B-spline each on the same samples: its
+    projection *is* the planar track.  z swings once a revolution with amplitude r sin i, so its
+    spline errs by about (5/384) r sin i (2 pi h / P)^4 for a step h and period P, possibly more
+    than the plane: the 3-D error is measured, and :func:`track3_on` refines the step.
 
-    Attributes: ``planar``; ``name``, ``jd_range``, ``t_range``, ``step_days``,
-    ``sampled_t_range`` and ``sampled_jd``, the planar track's; ``max_error_km`` and
-    ``max_error_m_s``, as the planar track's but in 3-D; ``function``, ``track3(t) -> [x, y, z,
-    vx, vy, vz]`` (6x1, heliocentric, ecliptic of J2000, au and au/TU), which holds the end
-    state beyond ``sampled_t_range``; ``cylindrical``, ``t -> [r, theta, v_r, v_theta, z,
-    v_z]`` (6x1), the planar outputs and the fitted z and v_z, which ``function`` turns to
-    Cartesian.
+    Attributes: ``planar``; ``name``, ``jd_range``, ``t_range``, ``step_days``, ``sampled_t_range``
+    and ``sampled_jd``, the planar track's; ``max_error_km`` and ``max_error_m_s``, in 3-D;
+    ``function``, ``track3(t) -> [x, y, z, vx, vy, vz]`` (6x1, heliocentric, ecliptic of J2000, au
+    and au/TU), which holds the end state beyond ``sampled_t_range``; ``cylindrical``,
+    ``t -> [r, theta, v_r, v_theta, z, v_z]`` (6x1), from which ``function`` is made.
     """
 
     def __init__(self, planar, source):

@@ -60,22 +60,21 @@ def _rank(candidate):
 
 @dataclass
 class ClassSearch:
-    """The turn-count search of ``problem``, over :class:`Ranked` candidates with a
-    ``problem``, ``result`` and ``transcription`` (:class:`Candidate`, a scan's ``Cell``).
+    """The turn-count search of ``problem``, over :class:`Ranked` candidates with a ``problem``,
+    ``result`` and ``transcription`` (:class:`Candidate`, a scan's ``Cell``).
 
     ``seed()`` -> (model, NLPResult, Transcription) is the solve on the model searched.
-    ``lift(problem, candidate, cap)`` makes a candidate of ``problem`` (on the model's
-    mesh) from an optimum of the model within ``cap`` iterations; without it the
-    model's optima are the candidates, with it a probe undecided at its cap ends the
-    search.  ``first``: no neighbour starts this solve; ``explore``: look beside the
-    seed's count at every solve of a scan.  A scan's strategies: ``solve_class(k,
-    best=None)`` a candidate in count k (``multistart.NO_BETTER`` where its estimate
-    is far above ``best``), ``from_projected(k)`` count k's candidates lifted from the
+    ``lift(problem, candidate, cap)`` makes a candidate of ``problem`` (on the model's mesh) from an
+    optimum of the model within ``cap`` iterations; without it the model's optima are the
+    candidates, with it a probe undecided at its cap ends the search.  ``first``: no neighbour
+    starts this solve; ``explore``: look beside the seed's count at every solve of a scan.  A scan's
+    strategies: ``solve_class(k, best=None)`` a candidate in count k (``multistart.NO_BETTER`` where
+    its estimate is far above ``best``), ``from_projected(k)`` count k's candidates lifted from the
     projected model, ``cold()`` one from the seed.
 
-    After :meth:`run`: ``candidates`` in the order made; ``looked_at``, each count
-    probed (lifted where it was); ``skipped``, the counts not solved and why;
-    ``solves``, the Ipopt results spent, for a caller that gives the search up.
+    After :meth:`run`: ``candidates`` in the order made; ``looked_at``, each count probed (lifted
+    where it was); ``skipped``, the counts not solved and why; ``solves``, the Ipopt results spent,
+    for a caller that gives the search up.
     """
 
     problem: Problem
@@ -95,9 +94,8 @@ class ClassSearch:
     @classmethod
     def on_projected_model(cls, problem, say):
         """The search of a 3-D ``problem``'s counts on its projected model
-        (``multistart.probe_model``), the best lifted into 3-D (``multistart.lift``).
-        Why: a 3-D iteration costs about twice a projected one, and the ranking of the
-        counts barely moves between the two."""
+        (``multistart.probe_model``), the best lifted into 3-D (``multistart.lift``): a 3-D
+        iteration costs about twice a projected one, and the counts rank nearly alike on both."""
         def seed():
             model = multistart.probe_model(problem)
             guess = initial_guess(model)
@@ -131,8 +129,7 @@ class ClassSearch:
                                               and any(c.solved for c in tried))):
             self._own_classes(tried)
         if looks_on and (sizing or not objective.fixed_time):
-            # The best count drifts across a chart, and a warm chain keeps its own, at
-            # up to several times the best count's objective.
+            # The best count drifts over a chart; a warm chain keeps its own even when far worse.
             self._descend(tried)
         best = min((c for c in tried if c.solved), key=_rank, default=None)
         if (looks_on and self.from_projected is not None and self.problem.three_d()
@@ -143,11 +140,10 @@ class ClassSearch:
         return sorted(tried, key=_rank)
 
     def _searched(self):
-        """The counts probed from the seed's (:meth:`_probed`) and, with a lift, the
-        best lifted, within ``multistart.LIFT_RATIO`` of the best lifted so far: the
-        candidates, in the order made.  A count undecided at its cap ends the search: the
-        projection is a poor guide there (a count that does not converge on it can be
-        the best in 3-D)."""
+        """The candidates, in the order made: the counts probed from the seed's (:meth:`_probed`)
+        and, with a lift, the best lifted, each within ``multistart.LIFT_RATIO`` of the best lifted
+        so far.  A count undecided at its cap ends the search: there the projection is a poor guide
+        (a count that does not converge on it can be the best in 3-D)."""
         model, result, tr = self.seed()
         self.solves = [result]
         if not result.outcome.found:
@@ -186,15 +182,13 @@ class ClassSearch:
         return list(lifted.values())
 
     def _probed(self, model, result, tr):
-        """The counts beside ``result``'s on ``model`` probed one turn at a time each way
-        while each does better, the best from a second start as well: :class:`Candidate`
-        in the order solved, the seed's first (the seed's k is only what a constant pitch
-        winds, and the objective can change by whole factors between counts).  Each
-        probe is capped (``multistart.probe_cap``) and stopped when hopeless
-        (``multistart.hopeless_checkpoint``); with a lift, one that ends at its cap
-        raises :class:`Undecided`.  With two cores (:func:`_runs_ahead`) the count above
-        the seed's is probed in a thread while the search goes down (:class:`_Ahead`),
-        to the same candidates."""
+        """The counts beside ``result``'s on ``model``, probed one turn at a time each way while
+        each does better, the best from a second start too: :class:`Candidate` in the order solved,
+        the seed's first (its k is only what a constant pitch winds, and the objective can change by
+        whole factors between counts).  Each probe is capped (``multistart.probe_cap``) and stopped
+        when hopeless (``multistart.hopeless_checkpoint``); with a lift, one ending at its cap
+        raises :class:`Undecided`.  With two cores (:func:`_runs_ahead`) the count above the seed's
+        is probed ahead in a thread (:class:`_Ahead`), to the same candidates."""
         # The found solve's own iterations, not the run's (other starts before it).
         own = dataclasses.replace(result, iterations=sum(it for _, it in result.stages))
         searched = [Candidate(model, f"the seed's class (k = {result.revolutions_k})", own, tr)]
@@ -310,19 +304,14 @@ def _runs_ahead():
 
 
 class _Ahead:
-    """The probe of count ``k``, ``probe(k, checkpoint)``, started in a thread of its
-    own while the search goes down; its hopeless test (``multistart.hopeless_checkpoint``
-    after a solve of ``iterations``) judges it against ``best()``, the best found so far
-    when its checkpoint comes.
-
-    The search asks for it when its turn comes (:meth:`result`), with the checkpoint it
-    has then, whose best may be lower still.  A hopeless test only stops more against a
-    lower best, so the probe run ahead is the one the search would have made unless, at
-    a checkpoint it passed, the test would now have stopped it; that is checked on the
-    objective and violation it had there, and such a probe is called off and made
-    again.  So the search's candidates, and their order, are those of probing one count
-    after another.
-    """
+    """The probe ``probe(k, checkpoint)`` of count ``k``, in a thread of its own while the search
+    goes down; its hopeless test (``multistart.hopeless_checkpoint`` after a solve of
+    ``iterations``) judges it against ``best()``, the best found when its checkpoint comes.  The
+    search asks for it in turn (:meth:`result`) with the checkpoint it has then, whose best may be
+    lower still.  A hopeless test only stops more against a lower best, so the probe run ahead is
+    the one the search would have made unless the test would now have stopped it at a checkpoint it
+    passed (judged on its objective and violation there); such a probe is called off and made again.
+    So the candidates, and their order, are those of probing one count after another."""
 
     def __init__(self, k, probe, iterations, best):
         self.k, self.seen = k, []  # (objective, violation, stopped) at each checkpoint

@@ -45,10 +45,9 @@ def ipopt_options(max_iter=3000, hessian="exact", print_level=0):
 class NLPResult:
     """What Ipopt returned, in canonical units, plus its bookkeeping.
 
-    ``nodes`` are the states at the segments' ends, 5 x N [r, theta, v_r, v_theta, t] (9
-    rows in three dimensions), as in a :class:`Guess`; the revolution class
-    (``revolutions_k``, ``theta_window``) is the NLP's own, so that an NLP started here
-    (:meth:`as_guess`) stays in it.
+    ``nodes`` are the states at the segments' ends, 5 x N [r, theta, v_r, v_theta, t] (9 rows in
+    three dimensions), as in a :class:`Guess`; the revolution class (``revolutions_k``,
+    ``theta_window``) is the NLP's own, so that an NLP started here (:meth:`as_guess`) stays in it.
     """
 
     status: str
@@ -75,17 +74,15 @@ class NLPResult:
     epoch: float = 0.0  # departure, TU since J2000 (dated problems)
     ac_scale: float = 1.0  # a_c over the sail's (MinAcceleration)
     vinf_angle: float = 0.0  # excess velocity's direction, rad
-    # Clock per segment, rad, in three dimensions (None: planar).
-    delta: np.ndarray = None
+    delta: np.ndarray = None  # clock per segment, rad, in three dimensions (None: planar)
 
     @property
     def converged(self):
         return self.outcome.converged
 
     def after(self, *earlier, stages=True):
-        """This result, its record made to cover the solves ``earlier`` (in the order
-        they ran) before it: their iterations and seconds added, and (with ``stages``)
-        their stages put before its own.  A new result; none of them changes."""
+        """A new result that also covers the solves ``earlier``, run before it in that order: their
+        iterations and seconds added, with ``stages`` their stages first; none of them changes."""
         more = {"stages": [s for r in (*earlier, self) for s in (r.stages or [])]} \
             if stages else {}
         return dataclasses.replace(
@@ -147,8 +144,7 @@ def _off_the_box(tr, result):
 
 #: Ipopt's status when a checkpoint (:func:`build_solver`) stopped it.
 STOPPED = "User_Requested_Stop"
-#: Ipopt's status at its iteration cap (``max_iter``): a probe that ends so has not
-#: decided its class.
+#: Ipopt's status at its iteration cap (``max_iter``): a probe ending so has not decided its class.
 AT_CAP = "Maximum_Iterations_Exceeded"
 
 #: A ``threading.Event`` that stops the Ipopt runs of this context (a thread's own) at
@@ -165,9 +161,8 @@ PROGRESS_SECONDS = 2.0
 class _Monitor(ca.Callback):
     """Ipopt's iteration callback: a progress line every few seconds, and a clean stop.
 
-    KeyboardInterrupt cannot reach Ipopt's C++, so the signal is held (``SignalsHeld``),
-    the callback stops Ipopt, and leaving ``with monitor`` raises KeyboardInterrupt (or
-    Terminated).
+    KeyboardInterrupt cannot reach Ipopt's C++, so the signal is held (``SignalsHeld``), the
+    callback stops Ipopt, and leaving ``with monitor`` raises KeyboardInterrupt (or Terminated).
     """
 
     def __init__(self, tr, progress, checkpoint=None):
@@ -251,12 +246,10 @@ def primal_warm_options(options):
 
 
 def build_solver(tr, options=None, warm=False, progress=None, checkpoint=None):
-    """(solver, :class:`_Monitor`) for ``tr``, built once to be re-solved (building is
-    the costly part of a warm re-solve).  ``warm`` chooses :func:`warm_options`;
-    ``progress(text)`` receives the iteration lines; ``checkpoint``, a pair (iteration,
-    test), stops Ipopt (:data:`STOPPED`) at that iteration when ``test(objective,
-    violation)`` (the NLP's objective, its largest constraint violation) is true.
-    """
+    """(solver, :class:`_Monitor`) for ``tr``, built once to be re-solved (building is the costly
+    part of a warm re-solve).  ``warm`` chooses :func:`warm_options`; ``progress(text)`` gets the
+    iteration lines; ``checkpoint``, a pair (iteration, test), stops Ipopt (:data:`STOPPED`) at that
+    iteration if ``test(objective, largest constraint violation)`` is true."""
     opts = dict(ipopt_options() if options is None else options)
     if warm:
         opts = warm_options(opts)
@@ -268,14 +261,11 @@ def build_solver(tr, options=None, warm=False, progress=None, checkpoint=None):
 
 def solve_transcription(tr, options=None, defects=None, warm=None, solver=None,
                         progress=None, checkpoint=None):
-    """Run Ipopt on ``tr`` and unpack the :class:`NLPResult`.
-
-    ``defects`` are the rows x N defects of the defect correction; ``warm``, an NLPResult
-    of the same layout, is the start (:func:`warm_options`) instead of ``tr.x0``;
-    ``options``, ``progress`` and ``checkpoint`` are as for :func:`build_solver`, whose pair
-    ``solver`` is, if given, already built for ``tr`` (then ``checkpoint`` is its own).
-    Raises KeyboardInterrupt (or :class:`~esail_opt.errors.Terminated`) for a signal.
-    """
+    """Run Ipopt on ``tr``; the :class:`NLPResult`.  ``defects``: the rows x N defects of the defect
+    correction; ``warm``, an NLPResult of the same layout, the start (:func:`warm_options`) instead
+    of ``tr.x0``; ``options``, ``progress`` and ``checkpoint`` as for :func:`build_solver`, whose
+    pair ``solver``, if given, is built for ``tr`` (with its own ``checkpoint``).  Raises
+    KeyboardInterrupt (or :class:`~esail_opt.errors.Terminated`) on a signal."""
     if solver is None:
         solver = build_solver(tr, options, warm is not None, progress, checkpoint)
     solver, monitor = solver
@@ -328,15 +318,12 @@ def _result(tr, sol, stats, p, seconds):
 
 def solve_problem(problem, method=None, options=None, guess=None, progress=None,
                   staged=True, checkpoint=None):
-    """Transcribe and solve ``problem`` with the segment ``method`` (default the closed
-    form, ``segment_methods``); returns (NLPResult, Transcription).
-
-    ``guess`` replaces :func:`initial_guess`'s seed, with its revolution class.  Free
-    lengths are solved equal first (smaller, better conditioned), then free from there:
-    from the seed the free NLP took many more iterations and its optimum depended on the
-    seed's pitch (``staged=False`` skips the first stage).  Iterations, seconds and
-    ``stages`` cover both; a stage ``checkpoint`` stopped ends the solve with its result.
-    """
+    """Transcribe and solve ``problem`` with the segment ``method`` (default: the closed form);
+    returns (NLPResult, Transcription).  ``guess`` replaces :func:`initial_guess`'s seed, with its
+    revolution class.  Free lengths are solved equal first (smaller, better conditioned), then free
+    from there: from the seed, the free NLP took many more iterations and its optimum depended on
+    the seed's pitch (``staged=False`` skips the first stage).  Iterations, seconds and ``stages``
+    cover both; a stage ``checkpoint`` stopped ends the solve with its result."""
     seg = problem.segments
     first = None
     # The seed (which fixes N) does not depend on free lengths: both stages share it.

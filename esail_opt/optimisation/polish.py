@@ -1,12 +1,11 @@
 """The polish: the closed-form optimum re-solved on Eqs. 1-2.
 
-The closed form's optimum misses by hundreds to thousands of km on the full dynamics
-(THEORY.md §3.8, §5.2).  The polish keeps the problem and the NLP builder
-(:func:`~.transcription.transcribe`) and swaps each closed-form arc for an RK4 arc in
-time (the durations become the length variables) whose truncation error is removed by
-defect correction against the verifier's CVODES flights (:func:`polish`): it lands where
-it is judged, while Ipopt differentiates a small SX graph instead of CVODES's
-sensitivities, some 40 times cheaper an iteration.
+The closed form's optimum misses by hundreds to thousands of km on the full dynamics (THEORY.md
+§3.8, §5.2).  The polish keeps the problem and the NLP builder (:func:`~.transcription.transcribe`)
+and swaps each closed-form arc for an RK4 arc in time (the durations become the length variables)
+whose truncation error is removed by defect correction against the verifier's CVODES flights
+(:func:`polish`): it lands where it is judged, while Ipopt differentiates a small SX graph instead
+of CVODES's sensitivities, some 40 times cheaper an iteration.
 """
 
 import dataclasses
@@ -24,9 +23,8 @@ from esail_opt.optimisation.transcription import body_corrections, transcribe
 from esail_opt.propagation.simulate import (VERIFY_TOLERANCE, SimulationError, fly_segments3d,
                                             simulate, simulate3d)
 
-#: Ipopt's bound on the constraint violation (canonical): continuity defects add up
-#: along the chain, and at 1e-12 au a 30-segment flight ended 1.67 m from its final
-#: node, over the 1 m bound.
+#: Ipopt's bound on the constraint violation (canonical): continuity defects add up along the
+#: chain (at 1e-12 au a 30-segment flight ended 1.67 m from its final node, over the 1 m bound).
 CONSTRAINT_TOLERANCE = 1e-13
 #: What an exact schedule must meet: 1 m and 1 mm/s, against the target and against the
 #: polished NLP's own final node.
@@ -37,15 +35,13 @@ TOLERANCE = Tolerance(position_km=1e-3, velocity_m_s=1e-3)
 RK4_STEPS = (4, 8, 16, 32)
 #: 1e-6 au is about 150 km.
 STEP_DEFECT = 1e-6
-#: Defect corrections at most, and when to stop: the verifier's own flight of the schedule
-#: (CVODES at ``simulate.VERIFY_TOLERANCE``) from the departure ends within LANDING_* of
-#: the NLP's final node, a tenth of the bound the polish is judged on (settled defects
-#: alone can leave the flight metres off).
+#: Defect corrections at most, and when to stop: the verifier's own flight of the schedule from
+#: the departure (CVODES at ``VERIFY_TOLERANCE``) ends within LANDING_* of the NLP's final node, a
+#: tenth of the polish's bound (settled defects alone can leave the flight metres off).
 MAX_ROUNDS = 8
 LANDING_KM, LANDING_M_S = 1e-4, 1e-4
-#: Ipopt's first barrier parameter in the polish: its start is already near the exact
-#: optimum, and the default (0.1) first pushes it back into the interior, at several
-#: times the iterations.
+#: Ipopt's first barrier parameter in the polish: its start is already near the exact optimum,
+#: and the default (0.1) first pushes it back into the interior, at several times the iterations.
 START_MU = 1e-6
 
 
@@ -58,8 +54,7 @@ def polish_options(max_iter=200):
 
 
 def _controls(guess):
-    """The per-segment controls a segment takes after its a_c: pitch, and the clock in
-    three dimensions (rows of one)."""
+    """The controls a segment takes after its a_c: pitch, and the clock in 3-D (rows of one)."""
     rows = [guess.alpha[None, :]]
     if getattr(guess, "delta", None) is not None:
         rows.append(np.asarray(guess.delta, float)[None, :])
@@ -78,10 +73,9 @@ def _flown_nodes3d(problem, x_start, guess):
 
 
 def exact_guess(problem, x_start, guess):
-    """A start for the exact (in-time) NLP from the schedule ``guess`` (pitch, clock in
-    three dimensions, durations in TU, throttle, revolution class): its nodes become the
-    CVODES flight of the schedule from ``x_start``, so that every continuity constraint
-    holds; ``guess`` itself if that flight fails."""
+    """A start for the exact (in-time) NLP from the schedule ``guess`` (pitch, clock in 3-D,
+    durations in TU, throttle, revolution class): its nodes become the schedule's CVODES flight from
+    ``x_start``, so that every continuity constraint holds; ``guess`` if that flight fails."""
     try:
         if problem.three_d():
             return dataclasses.replace(guess, nodes=_flown_nodes3d(problem, x_start, guess))
@@ -102,11 +96,10 @@ def _states(problem, nodes):
 
 
 def rk4_polish_method(problem, x_start, start, steps=RK4_STEPS):
-    """``segment_methods.RK4`` in time at the first of ``steps`` whose largest defect at
-    ``start`` (:func:`exact_guess`'s flown start: a segment's next node less the RK4 arc
-    from its node) is under :data:`STEP_DEFECT`, else the last.  The first NLP is solved
-    without these defects: with them, a 0.1 mm/s^2 spiral ran out of iterations.
-    """
+    """``segment_methods.RK4`` in time at the first of ``steps`` whose largest defect at ``start``
+    (:func:`exact_guess`'s flown start: a segment's next node less the RK4 arc from its node) is
+    under :data:`STEP_DEFECT`, else the last.  The first NLP is solved without these defects: with
+    them, a 0.1 mm/s^2 spiral ran out of iterations."""
     nodes_from = np.column_stack([start_node(x_start), start.nodes[:, :-1]])
     args = (nodes_from, problem.sail.ac * start.ac_scale * start.throttle[None, :],
             *_controls(start), start.lengths[None, :])
@@ -165,18 +158,15 @@ def _on_bodies(problem, result):
 
 
 def _on_ephemeris(tr, problem, result):
-    """``tr`` holding its bodies to their ephemeris (or elements) at ``result``'s dates
-    rather than to their smooth tracks (``transcription.body_corrections``), since the
-    tracks' tens of metres, grown along the flight, exceed the polish's 1 m.  Renewed every
-    round, as the dates move.
-    """
+    """``tr`` holding its bodies to their ephemeris (or elements) at ``result``'s dates rather than
+    to their smooth tracks (``transcription.body_corrections``), whose tens of metres, grown along
+    the flight, exceed the polish's 1 m.  Renewed every round, as the dates move."""
     return dataclasses.replace(tr, corrections=body_corrections(problem, result))
 
 
 def _defects(problem, result, method):
-    """Each segment's end flown by CVODES at the verifier's tolerance from its own start
-    node, less the segment ``method``'s end from the same node (raises
-    SimulationError)."""
+    """Each segment's end flown by CVODES at the verifier's tolerance from its own start node, less
+    the segment ``method``'s end from the same node (raises SimulationError)."""
     if not problem.three_d():
         flown, model = segment_ends(problem, result, method, VERIFY_TOLERANCE)
         return flown - model
@@ -190,10 +180,9 @@ def _defects(problem, result, method):
 
 
 def _corrected(problem, tr, method, exact, opts, max_rounds):
-    """Rounds of defect correction from the first solve ``exact`` until the flight
-    lands on the NLP's final node and the bodies (at most ``max_rounds``).  Returns
-    (result, transcription, landed); the result's stages and iterations cover every
-    round."""
+    """Rounds of defect correction from the first solve ``exact`` until the flight lands on the
+    NLP's final node and the bodies (at most ``max_rounds``): (result, transcription, landed), the
+    result's stages and iterations covering every round."""
     rounds, solver, landed = [], None, False
     for round_ in range(max_rounds + 1):
         if not exact.outcome.found:
@@ -238,21 +227,19 @@ def _fallback(problem, result, start, opts, steps, max_rounds):
 
 
 def polish(problem, result, options=None, steps=RK4_STEPS, max_rounds=MAX_ROUNDS):
-    """Re-solve ``problem`` on the exact equations in time, warm-started from ``result``
-    (every node from a CVODES flight of its schedule, :func:`exact_guess`).  Rounds of
-    defect correction (:func:`_corrected`) follow until the flight lands on the NLP's
-    final node, the optimum then being the exact one; else :func:`_fallback`.
+    """Re-solve ``problem`` on the exact equations in time, warm-started from ``result`` (every node
+    from a CVODES flight of its schedule, :func:`exact_guess`).  Rounds of defect correction
+    (:func:`_corrected`) follow until the flight lands on the NLP's final node, the optimum then
+    being the exact one; else :func:`_fallback`.
 
-    ``result`` is the closed-form optimum (``ipopt.solve_problem``), whose revolution
-    class is kept (without its final-angle box a window optimum would slide into another);
-    ``options`` default to :func:`polish_options`, from :data:`START_MU` unless they set
-    ``ipopt.mu_init``; ``steps`` are the RK4 step counts to choose from
-    (:func:`rk4_polish_method`); ``max_rounds`` the defect corrections at most.
+    ``result`` is the closed-form optimum (``ipopt.solve_problem``), whose revolution class is kept
+    (without its final-angle box a window optimum would slide into another); ``options`` default to
+    :func:`polish_options`, from :data:`START_MU` unless they set ``ipopt.mu_init``; ``steps``, the
+    RK4 step counts (:func:`rk4_polish_method`); ``max_rounds``, the most defect corrections.
 
-    Returns (NLPResult, Transcription): ``durations`` are the polished segment times,
-    ``lengths`` the angles they sweep, ``q3`` empty; ``iterations`` and ``solve_seconds``
-    cover every round (solver builds and CVODES flights included), ``stages`` lists each
-    round's status.
+    Returns (NLPResult, Transcription): ``durations`` are the polished segment times, ``lengths``
+    the angles they sweep, ``q3`` empty; ``iterations`` and ``solve_seconds`` cover every round
+    (solver builds and CVODES flights included), ``stages`` lists each round's status.
     """
     started = time.perf_counter()
     schedule = result.as_guess(durations=True)

@@ -1,11 +1,10 @@
-"""Verification of an optimised schedule on the full Eqs. 1-2 with CVODES (in three
-dimensions in the turning plane, checked on the Cartesian equations, :func:`verify3d`).
+"""Verification of an optimised schedule on the full Eqs. 1-2 with CVODES (in three dimensions in
+the turning plane, checked on the Cartesian equations, :func:`verify3d`).
 
-The schedule is flown from the exact departure for the NLP's own segment durations, and
-its final state is held to the NLP's final node (the closed form's drift) and to the
-target.  The verifier's own error is the gap between flights at ``simulate``'s
-``VERIFY_TOLERANCE`` and ``CHECK_TOLERANCE``; :func:`judge` counts a bound as met only
-when the miss plus that error is below it.
+The schedule is flown from the exact departure for the NLP's own segment durations, its final state
+held to the NLP's final node (the closed form's drift) and to the target.  :func:`judge` counts a
+bound as met only when the miss plus the verifier's own error, the gap between flights at
+``VERIFY_TOLERANCE`` and ``CHECK_TOLERANCE``, is below it.
 """
 
 from dataclasses import dataclass
@@ -38,10 +37,9 @@ def target_miss(target, x, t, t0=0.0):
 class Verification:
     """The CVODES flight a verdict is made on, and its misses (boundary units in the dict).
 
-    ``cvodes`` holds [r, theta, v_r, v_theta, t] at the departure and at each segment's
-    end; in three dimensions it is a view of ``cartesian``, the flight's
-    [x, y, z, vx, vy, vz, t] at the same instants (ecliptic of J2000, canonical).  Both are
-    placeholders of NaN when CVODES failed (``error`` says why)."""
+    ``cvodes`` holds [r, theta, v_r, v_theta, t] at the departure and each segment's end; in 3-D it
+    is a view of ``cartesian``, the flight's [x, y, z, vx, vy, vz, t] at those instants (ecliptic of
+    J2000, canonical).  Both are NaN placeholders when CVODES failed (``error`` says why)."""
 
     cvodes: np.ndarray
     misses: dict
@@ -98,12 +96,10 @@ def _outside(misses):
 
 
 def judge(problem, misses, error, tolerance, against_nlp=False):
-    """``(met, line)``: whether a flight with :func:`verify`'s ``misses`` (km, m/s) and
-    failure ``error`` (or None) meets ``tolerance``, and a line naming each missed bound
-    with the miss, the verifier's error and the bound.  ``against_nlp`` holds the flight
-    to the NLP's final state as well as to the target (the polish's nodes are its
-    answer); without a target that state is held either way.
-    """
+    """``(met, line)``: whether a flight with :func:`verify`'s ``misses`` (km, m/s) and failure
+    ``error`` (or None) meets ``tolerance``, and a line naming each missed bound with the miss, the
+    verifier's error and the bound.  ``against_nlp`` holds the flight to the NLP's final state as
+    well as to the target (the polish's nodes are its answer), as is always done without one."""
     if error is not None:
         return False, f"NOT verified: {error}"
     r_err, v_err = misses["verifier_error_r_km"], misses["verifier_error_v_m_s"]
@@ -143,10 +139,9 @@ def closed_form_curve(problem, result, samples=SAMPLES, defects=None):
     """The closed form the NLP solved, sampled: 5 x (1 + N S m) states, S sub-arcs and
     m = max(1, samples // S) samples per sub-arc, so that column k S m is node k.
 
-    Every segment is flown from its NLP node on the NLP's arcs (``arc_model(problem)``),
-    so the gap to the CVODES flight is the closed form's error alone.  ``defects``
-    (``optimisation.error_control``), known at segment ends only, are added in proportion
-    to the angle flown, keeping the curve continuous.
+    Every segment is flown from its NLP node on the NLP's arcs, so the gap to the CVODES flight is
+    the closed form's error alone.  ``defects`` (``optimisation.error_control``), known at segment
+    ends only, are added in proportion to the angle flown, keeping the curve continuous.
     """
     model = arc_model(problem)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
@@ -175,11 +170,9 @@ def closed_form_curve(problem, result, samples=SAMPLES, defects=None):
 
 
 def verify(problem, result):
-    """Fly the schedule of ``result`` (an ``NLPResult``; ``throttle`` None is full thrust)
-    with CVODES and measure its misses: a :class:`Verification`.  The flight is kept at
-    the departure and segment ends only, so a verdict never depends on how densely it is
-    drawn (:func:`sampled` draws it).
-    """
+    """Fly ``result``'s schedule (an ``NLPResult``; ``throttle`` None is full thrust) with CVODES
+    and measure its misses: a :class:`Verification`.  The flight is kept only at the departure and
+    segment ends, so that a verdict never depends on how densely :func:`sampled` draws it."""
     if getattr(result, "delta", None) is not None:
         return verify3d(problem, result)
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
@@ -252,11 +245,10 @@ def _polar(flight, theta):
 
 
 def verify3d(problem, result):
-    """:func:`verify` in three dimensions, in the turning plane (``simulate.FORMS_3D``),
-    held in Cartesian coordinates of the ecliptic of J2000 to the NLP's final node and to
-    the target body's state at the flown arrival (``miss3d``).  The verifier's error adds
-    the gap to a flight of the Cartesian equations, as two forms do not share their
-    integration errors (THEORY.md §5.5)."""
+    """:func:`verify` in three dimensions, in the turning plane (``simulate.FORMS_3D``), held in
+    Cartesian coordinates of the ecliptic of J2000 to the NLP's final node and to the target body's
+    state at the flown arrival (``miss3d``).  The verifier's error adds the gap to a flight of the
+    Cartesian equations, as two forms do not share their integration errors (THEORY.md §5.5)."""
     ac, coeff = problem.sail.ac * result.ac_scale, problem.sail.coefficients
     args = (problem.start_state(result), result.alpha, result.delta, result.durations, ac)
     kappa = _throttles(result)
@@ -326,8 +318,7 @@ def sampled(problem, result, defects=None, samples=SAMPLES):
 
 
 def _add_window_miss(misses, target, epoch, tof):
-    """``misses`` with ``arrival_outside_window_days`` for a target with an arrival
-    window (:func:`window_miss`)."""
+    """Add ``arrival_outside_window_days`` to ``misses`` if ``target`` has an arrival window."""
     late = window_miss(target, epoch, tof)
     if late is not None:
         misses["arrival_outside_window_days"] = late

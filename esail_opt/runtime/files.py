@@ -1,11 +1,9 @@
 """Publishing files: files whole or not at all, folders as one set, checked before a solve.
 
-:func:`check_output_dir` checks before any solve, creating nothing, that the output folder
-has a safe name and can be created and written; :func:`publish` writes a run's files into a
-staging folder beside the target and swaps the whole set in at once, so a reader sees the
-old set or the new one, never a mix; :func:`atomic_path` writes one file (a journal's
-header, a bench's JSON) under a temporary name and renames it into place.  Files and folders
-are created 0666/0777 less the umask, as ``open`` and ``mkdir`` would.
+:func:`check_output_dir` checks an output folder before any solve, creating nothing; :func:`publish`
+swaps a run's whole set of files in at once, so that a reader sees the old set or the new one, never
+a mix; :func:`atomic_path` writes one file under a temporary name and renames it into place.  Files
+and folders are created 0666/0777 less the umask, as ``open`` and ``mkdir`` would.
 """
 
 import contextlib
@@ -36,9 +34,8 @@ def _fail(path, err, doing="write"):
 
 
 def check_name(name, what="output folder name"):
-    """Return ``name`` if it is one safe path component, else raise InputError: not empty, ``.``
-    or ``..`` (which would write into an existing folder), no ``/`` or NUL, and at most
-    :data:`NAME_MAX` bytes in UTF-8."""
+    """``name`` if it is one safe path component, else InputError: not empty, ``.`` or ``..`` (which
+    would write into an existing folder), no ``/`` or NUL, at most :data:`NAME_MAX` UTF-8 bytes."""
     text = str(name)
     if text in ("", ".", ".."):
         raise InputError(f"{what} = {text!r} is not a folder name (not '', '.' or '..')")
@@ -54,17 +51,16 @@ def check_name(name, what="output folder name"):
 
 
 def check_output_dir(path, name=None, files=()):
-    """Check, before any solve, that the run's output folder ``path`` (``--out``, or
-    ``results/<problem name>``) can be published; return it as a Path.  Creates nothing, not
-    even the parents :func:`publish` creates, and removes only the staging folders a killed run
-    left beside it.  ``name``, the user-given name the folder is named after, must be one safe
-    component (:func:`check_name`); ``files`` are the names the run writes as files there, and
-    a folder of one of these names, the user's, is refused.
+    """Check, before any solve, that the output folder ``path`` (``--out``, or
+    ``results/<problem name>``) can be published; return it as a Path.  Creates nothing, not even
+    :func:`publish`'s parents, and removes only the staging folders a killed run left beside it.
+    ``name``, the user-given name of the folder, must be one safe component (:func:`check_name`);
+    ``files`` are the names the run writes as files there, where a folder (the user's) is refused.
 
-    Raises InputError if the last component is not a safe name, or the folder is a symbolic
-    link (dangling or not; folders above it may be links), or is or holds the working folder;
-    OutputError if it cannot be created or written (a path under a regular file, a file in its
-    place, a folder in place of one of ``files``, a read-only or full file system).
+    Raises InputError if the last component is not a safe name, or the folder is a symbolic link
+    (dangling or not; folders above it may be links), or is or holds the working folder; OutputError
+    if it cannot be created or written (a path under a regular file, a file in its place, a folder
+    in place of one of ``files``, a read-only or full file system).
     """
     if name is not None:
         check_name(name, "problem name (the output folder's name)")
@@ -147,9 +143,8 @@ def _nearest_folder(path):
 
 
 def _probe(path, base, first):
-    """Write one block in a staging folder made in ``base`` for its entry ``first``,
-    then remove it: a folder that cannot be created or written there, or a full disk,
-    is an OutputError before the run, and nothing is left."""
+    """Write one block in a staging folder made in ``base`` for its entry ``first``, then remove it,
+    so that an unwritable folder or a full disk is an OutputError before the run."""
     try:
         if base == path.parent:
             _remove_stale(base, first)
@@ -280,17 +275,15 @@ def _carry_over(target, staging, family):
 
 @contextlib.contextmanager
 def publish(target, family=()):
-    """Yield a staging folder for a run's files; on success it becomes ``target`` (whose parents
-    are created).  ``family`` names the entries the writer owns: those of the old set that the
-    new one does not write are dropped with it (a stale ``schedule_closed_form.csv`` never sits
-    beside an unpolished solution); every other entry, the user's or a journal, is carried over.
+    """Yield a staging folder for a run's files; on success it becomes ``target`` (whose parents are
+    created).  ``family`` names the entries the writer owns: those of the old set that the new one
+    does not write are dropped with it (a stale ``schedule_closed_form.csv`` never sits beside an
+    unpolished solution); every other entry, the user's or a journal, is carried over.
 
-    A reader of ``target`` sees the old set, complete, until one ``renameat2(RENAME_EXCHANGE)``
-    swaps the folders, then the new one (without it, no folder for an instant between two
-    renames); by path it may see the old ``x`` and the new ``y`` unless it holds the folder
-    open.  Of two writers of one folder, one set is left whole; a killed run's staging folder
-    ``.<name>.tmp-<pid>-<random>`` is removed by the next run.  Raises OutputError, one line,
-    for an OSError while writing or swapping; ``target`` keeps its old set.
+    A reader sees the whole old set until the swap (:func:`_swap_in`), then the new one; by path it
+    may see the old ``x`` and the new ``y`` unless it holds the folder open.  Of two writers of a
+    folder, one set is left whole; the next run removes a killed run's staging folder.  Raises
+    OutputError, one line, for an OSError in writing or swapping; ``target`` keeps its old set.
     """
     target = Path(target)
     family = set(family)
@@ -340,9 +333,8 @@ def _fsync_tree(folder):
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path`` and rename it onto ``path`` on success; it is
-    created 0666 less the umask (``mkstemp``'s 0600 would survive the rename) and removed on
-    any failure or interrupt."""
+    """Yield a temporary path beside ``path``, renamed onto it on success and removed on failure or
+    interrupt; it is created 0666 less the umask (``mkstemp``'s 0600 would survive the rename)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     for _ in range(100):

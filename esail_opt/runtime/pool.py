@@ -1,15 +1,11 @@
 """Independent jobs on a local process pool or a Dask cluster, surviving lost workers.
 
-:func:`run` calls ``function(index, *args)`` once per job on a :mod:`concurrent.futures`
-executor, a local process pool or Dask distributed's on a client of :func:`session`, and
-hands results and failures to the caller as each job ends; a job on the local pool may also
-:func:`send_partial` the caller something before it ends.  A job whose worker dies is run again on
-a fresh pool a bounded number of times, without charging the jobs on healthy workers.  On
-Ctrl-C, SIGTERM (under the command line's handler) or any error the workers are stopped
-within seconds; local workers also end when the parent dies without a word (SIGKILL).  On
-Dask, a cluster that can no longer run anything ends the run with :class:`ClusterLost`: no
-scheduler for :data:`SCHEDULER_LOST_SECONDS`, or no worker for :data:`NO_WORKER_SECONDS`
-while jobs wait.
+:func:`run` runs each job on a :mod:`concurrent.futures` executor, a local process pool or Dask
+distributed's on a client of :func:`session`, and hands the caller its result or failure as it ends.
+A job whose worker dies is run again on a fresh pool a bounded number of times, without charging the
+jobs on healthy workers.  On Ctrl-C, SIGTERM (under the command line's handler) or any error the
+workers are stopped within seconds; local workers also end when the parent dies without a word
+(SIGKILL).
 """
 
 import contextlib
@@ -50,18 +46,17 @@ def first_line(err):
 def run(function, jobs, on_result, on_failure, workers=1, client=None, address=None,
         retries=RETRIES, setup=None, on_partial=None):
     """Run ``function(i, *jobs[i])`` for every index ``i`` of the dict ``jobs``, reporting each as
-    it ends; return index -> (losses, cause of the last) for every job charged with a lost
-    worker.  ``function`` is module-level (pickled by name).  ``on_result(i, value)`` gets each
-    result; ``on_failure(i, message)``, one line, each job the executor failed or whose worker
-    was lost more than ``retries`` times.  ``workers`` is the local pool's size, >= 1, ignored
-    with ``client``, a Dask client from :func:`session` (None: the local pool) whose scheduler
-    ``address`` the messages name.  With ``setup = (function, args)`` each local worker calls
-    ``function(cores, *args)`` as it starts, ``cores`` its share of the machine's cores.
-    ``on_partial(item)`` gets each item a local job sent with :func:`send_partial`, in order
-    and before that job's result.
+    it ends; return index -> (losses, cause of the last) for every job charged with a lost worker.
+    ``function`` is module-level (pickled by name).  ``on_result(i, value)`` gets each result;
+    ``on_failure(i, message)``, one line, each job the executor failed or whose worker was lost more
+    than ``retries`` times.  ``workers``, >= 1, is the local pool's size, ignored with ``client``, a
+    Dask client from :func:`session` (None: the local pool) whose scheduler ``address`` the messages
+    name.  With ``setup = (function, args)``, each local worker calls ``function(cores, *args)`` as
+    it starts, ``cores`` its share of the machine's.  ``on_partial(item)`` gets each item a local
+    job sent with :func:`send_partial`, in order and before that job's result.
 
-    Raises ClusterLost (one line) when the Dask scheduler, or every worker, is lost for longer
-    than :data:`SCHEDULER_LOST_SECONDS` or :data:`NO_WORKER_SECONDS`; KeyboardInterrupt
+    Raises ClusterLost (one line) when the Dask scheduler, or every worker, is lost for longer than
+    :data:`SCHEDULER_LOST_SECONDS` or :data:`NO_WORKER_SECONDS`; KeyboardInterrupt
     (:class:`~esail_opt.errors.Terminated` for SIGTERM) after stopping the workers.
     """
     runner = _Runner(function, jobs, on_result, on_failure, workers, client, retries,
@@ -72,9 +67,8 @@ def run(function, jobs, on_result, on_failure, workers=1, client=None, address=N
 
 @contextlib.contextmanager
 def session(scheduler):
-    """A Dask client on ``scheduler`` while inside (None without one), Dask's own log lines kept
-    off the terminal; InputError on entering if Dask is missing or the scheduler cannot be
-    reached."""
+    """A Dask client on ``scheduler`` while inside (None without one), Dask's own log lines kept off
+    the terminal; InputError on entering if Dask is missing or the scheduler unreachable."""
     if scheduler is None:
         yield None
         return
@@ -92,12 +86,9 @@ SCRATCH_PREFIX = "esail_started_"
 
 
 class _Runner:
-    """One :func:`run`: the executor of the current round, its futures and the losses.
-
-    A local pool that breaks is replaced by a fresh one (a new round); each round has
-    its own ``started`` folder, where a worker leaves its pid under the index of the
-    job it starts, so that a break is charged to the job whose worker died.
-    """
+    """One :func:`run`: the current round's executor, its futures and the losses.  A broken local
+    pool is replaced by a fresh one (a new round), in whose own ``started`` folder a worker leaves
+    its pid under its job's index, so that a break is charged to the job whose worker died."""
 
     def __init__(self, function, jobs, on_result, on_failure, workers, client, retries,
                  address=None, setup=None, on_partial=None):
@@ -291,9 +282,8 @@ def send_partial(item):
 
 
 def _worker_init(cores, parent=None, setup=None, partials=None):
-    """Pool initializer: leave Ctrl-C to the parent
-    (:func:`~esail_opt.runtime.signals.leave_interrupt_to_parent`), run the caller's ``setup`` on
-    ``cores``, this worker's share, and end when ``parent`` does, however it ended."""
+    """Pool initializer: leave Ctrl-C to the parent, run the caller's ``setup`` on ``cores``, this
+    worker's share, and end when ``parent`` does, however it ended."""
     global _PARTIALS
     signals.leave_interrupt_to_parent()
     _PARTIALS = partials
@@ -356,9 +346,8 @@ def _connect(scheduler):
 
 @contextlib.contextmanager
 def _quiet_dask():
-    """Keep Dask's own log lines (reconnection attempts, tracebacks of a lost
-    connection) off the terminal during a run: the run reports the cluster's state in
-    one line of its own (:class:`ClusterLost`)."""
+    """Keep Dask's own log lines (reconnection attempts, a lost connection's tracebacks) off the
+    terminal during a run, which reports the cluster's state in one line (:class:`ClusterLost`)."""
     with contextlib.suppress(ImportError):
         import distributed.client  # noqa: F401 -- its loggers exist once imported
     # Each logger by name, since Dask's configuration gives children levels of their own;
@@ -435,13 +424,10 @@ def _ended(code):
 
 
 def _blame(lost, started_dir, processes):
-    """Which of the jobs lost in one pool break to charge with the loss: index -> one-line cause.
-
-    The pool terminates its other workers (SIGTERM) when one dies, so a started job
-    (``started_dir/<index>`` holds its worker's pid) whose worker ended any other way is the
-    culprit; failing one, every started job is charged, and if none had started, every lost
-    job, so that the retries stay bounded.
-    """
+    """Which jobs lost in one pool break to charge: index -> one-line cause.  The pool terminates
+    its other workers (SIGTERM) when one dies, so a started job (``started_dir/<index>`` holds its
+    worker's pid) whose worker ended any other way is the culprit; failing one, every started job is
+    charged, and if none had started, every lost job, so retries stay bounded."""
     started = {}
     for i in lost:
         try:
