@@ -2,10 +2,11 @@
 
 The closed form's optimum misses by hundreds to thousands of km on the full dynamics
 (THEORY.md §3.8, §5.2).  The polish keeps the problem and the NLP builder
-(:func:`~.transcription.transcribe`) and swaps each closed-form arc for an RK4 arc in time (the durations become the length variables)
-whose truncation error is removed by defect correction against the verifier's CVODES flights
-(:func:`polish`): it lands where it is judged, while Ipopt differentiates a small SX graph instead
-of CVODES's sensitivities, some 40 times cheaper an iteration.
+(:func:`~.transcription.transcribe`) and swaps each closed-form arc for an RK4 arc in time
+(the durations become the length variables) whose truncation error is removed by defect
+correction against the verifier's CVODES flights (:func:`polish`): it lands where it is
+judged, while Ipopt differentiates a small SX graph instead of CVODES's sensitivities, some
+40 times cheaper an iteration.
 """
 
 import dataclasses
