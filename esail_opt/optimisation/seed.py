@@ -252,7 +252,8 @@ SEED_FRACTIONS = (0.0, 0.5, 0.75, 0.875, 0.9375, 0.96875, 0.984375, 0.9921875)
 
 @dataclass
 class Start:
-    """One start of a search over classes: its label, revolution class and seed (which carries the class)."""
+    """One start of a search over classes: its label, revolution class and seed (which
+    carries the class)."""
 
     label: str
     revolutions: int  # the class: the window's k, or the rendezvous k
