@@ -145,9 +145,6 @@ def figure(result, flights_drawn=200):
     blues = colormaps["Blues"](np.linspace(0.55, 0.95, max(len(result.guided), 1)))
     kinds = [(result.open_loop, "tab:gray"), *zip(result.guided, blues)]
 
-    def label(k):
-        return ("open loop" if k.margin is None else
-                f"guided every {result.request.guide_days:g} d (+{100 * k.margin:g} % a_c)")
     for ax, field, bound, unit in ((hist_r, "miss_km", result.tolerance[0], "km"),
                                    (hist_v, "miss_m_s", result.tolerance[1], "m/s")):
         values = np.concatenate([getattr(k, field) for k, _ in kinds])
@@ -155,12 +152,16 @@ def figure(result, flights_drawn=200):
         bins = np.geomspace(low, high * 1.0001, 40) if high > low else 10
         for k, colour in kinds:
             ax.hist(np.maximum(getattr(k, field), low), bins=bins, color=colour, alpha=0.6,
-                    label=label(k))
-        ax.axvline(bound, color="tab:red", lw=1.2, label=f"tolerance {bound:g} {unit}")
+                    label=result.label(k))
+        tolerance = ax.axvline(bound, color="tab:red", lw=1.2,
+                               label=f"tolerance {bound:g} {unit}")
         ax.set_xscale("log")
         ax.set_xlabel(f"arrival miss ({unit})")
         ax.set_ylabel("flights")
-        ax.legend(fontsize=8)
+        ax.legend(handles=[tolerance], fontsize=8)
+    # The kinds' labels are long and the same in both histograms: said once, under them.
+    fig.legend(handles=hist_r.get_legend_handles_labels()[0][:len(kinds)],
+               loc="outside lower center", ncols=len(kinds), fontsize=8)
     for k, colour in kinds:
         take = k.positions[: flights_drawn]
         for pos in take:

@@ -238,6 +238,13 @@ class Robustness:
     def kinds(self):
         return (self.open_loop, *self.guided)
 
+    def label(self, flights):
+        """How ``flights`` were flown, in the words the summary and the figure share."""
+        if flights.margin is None:
+            return "open loop"
+        return (f"guided every {self.request.guide_days:g} d and on the approach, a_c margin "
+                f"{100 * flights.margin:g} %")
+
     def _outcome(self, flights):
         return {"percentiles": flights.percentiles(),
                 "within_tolerance": flights.within(self.tolerance),
@@ -268,9 +275,7 @@ class Robustness:
                  "population's values]"]
         for k in self.kinds:
             p = k.percentiles()
-            what = ("open loop" if k.margin is None else
-                    f"guided every {self.request.guide_days:g} d, a_c margin "
-                    f"{100 * k.margin:g} %")
+            what = self.label(k)
             low, high = k.within_interval(self.tolerance)
             lines.append(f"  {what}: miss p50 {p['p50']['miss_km']:.4g} km "
                          f"{_bracket(p['p50']['miss_km_interval'])} / "
@@ -382,8 +387,8 @@ def run(schedule, request, progress=lambda text: None):
     open_loop = _outcome("open_loop", None, mission, xs, factors)
     flown = [(open_loop, None)]
     for margin in request.margins if request.guide_days > 0 else ():
-        progress(f"flying {m} flights guided every {request.guide_days:g} d, a_c margin "
-                 f"{100 * margin:g} %")
+        progress(f"flying {m} flights guided every {request.guide_days:g} d and on the "
+                 f"approach, a_c margin {100 * margin:g} %")
         clock = time.perf_counter()
         guidance = Retargeting(ensemble, mission.with_margin(margin),
                                waypoints(mission.ends_days, request.guide_days))
