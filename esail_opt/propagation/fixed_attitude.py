@@ -111,12 +111,23 @@ def _valid(xs, q3):
             and np.all(r <= r[0] / VALIDITY_FLOOR) and np.all(np.diff(t) > 0))
 
 
-def _validity_limit(run, good, bad):
-    """The largest valid angle between ``good`` (valid) and ``bad`` (not), by bisection."""
+def _validity_limit(case, good, bad):
+    """The largest valid angle between ``good`` (valid) and ``bad`` (not), by bisection, and
+    the arc's time there.  Each angle is sampled as :func:`samples_over` asks, rounded up to
+    a power of two so that a few arcs serve the whole search: with the horizon's samples, a
+    horizon of centuries cost seconds a step for an arc that ends in its first year."""
+    runs = {}
+
+    def run(angle):
+        count = 1 << (samples_over(angle) - 1).bit_length()
+        if count not in runs:
+            runs[count] = _arc(case, count)
+        return runs[count](angle)
+
     while bad - good > 1e-9 * bad:
         mid = 0.5 * (good + bad)
         good, bad = (mid, bad) if _valid(*run(mid)) else (good, mid)
-    return good
+    return good, (run(good)[0][4, -1] if good > 0 else 0.0)
 
 
 def _horizon_bracket(case, run):
@@ -128,8 +139,7 @@ def _horizon_bracket(case, run):
     while True:
         xs, q3 = run(high)
         if not _valid(xs, q3):
-            good = _validity_limit(run, low, high)
-            reach = run(good)[0][4, -1] if good > 0 else 0.0
+            good, reach = _validity_limit(case, low, high)
             if reach < horizon:
                 allowed = units.time_to_days(reach) / units.YEAR_DAYS
                 raise InputError(
