@@ -241,16 +241,51 @@ def _heyoka_point(tol, sizes, schedule, truth, repeats):
             "max_final_error_km": float(np.max(errors)), "by_batch_size": by_size}
 
 
-def heyoka_batch(repeats, schedule, truth, target_km):
+#: Rounds of :func:`paired_ratios`.
+PAIRED_ROUNDS = 31
+
+
+def paired_ratios(closed, others, rounds):
+    """Each of ``others`` (name -> call) over the closed form's call ``closed``, timed in
+    turn ``rounds`` times (CPU seconds, the order rotating each round), the ratio taken
+    round by round: on a shared machine a method timed minutes after another meets other
+    neighbours (whole runs of this bench moved the ratio at equal error from 0.7 to 1.4),
+    while one round's calls, fractions of a second apart, meet the same ones.  Returns
+    per name the median ratio (above 1: the closed form is faster), the smallest and
+    largest, and the rounds."""
+    import statistics
+    import time
+
+    names = list(others)
+    calls = [("closed form", closed)] + [(name, others[name]) for name in names]
+    for _, call in calls:
+        call()
+    ratios = {name: [] for name in names}
+    for k in range(rounds):
+        seconds = {}
+        turn = calls[k % len(calls):] + calls[:k % len(calls)]
+        for name, call in turn:
+            start = time.process_time()
+            call()
+            seconds[name] = time.process_time() - start
+        for name in names:
+            ratios[name].append(seconds[name] / seconds["closed form"])
+    return {name: {"median": statistics.median(r), "smallest": min(r), "largest": max(r),
+                   "rounds": rounds} for name, r in ratios.items()}
+
+
+def heyoka_batch(repeats, schedule, truth, target_km, closed=None):
     """The batch flown by heyoka (:mod:`.taylor`) at each of :data:`HEYOKA_TOLERANCES`, or
     ``{"skipped": reason}`` when heyoka does not import.  ``schedule`` is ``taylor.fly``'s
     (x0[4], acs, alphas, durations), the last three (M, N); ``truth`` (5, M) each case's
-    reference final state; ``target_km`` the closed form's median final error.
+    reference final state; ``target_km`` the closed form's median final error; ``closed``
+    the closed form's flight of the same batch, a call without arguments.
 
     Returns ``points`` (:func:`_heyoka_point`), ``equal_error`` (the loosest point whose
-    median final error is at most ``target_km``, or None), ``tight`` (1e-12) and
-    ``python_loop_seconds_per_case`` (the Python loop around heyoka's calls).  Times are
-    median CPU seconds of ``taylor.fly_prepared`` on lanes prepared beforehand.
+    median final error is at most ``target_km``, or None), ``tight`` (1e-12),
+    ``python_loop_seconds_per_case`` (the Python loop around heyoka's calls) and, with
+    ``closed``, ``paired`` (:func:`paired_ratios` of those two points).  Times are median
+    CPU seconds of ``taylor.fly_prepared`` on lanes prepared beforehand.
     """
     from esail_opt.bench import taylor
 
@@ -267,9 +302,18 @@ def heyoka_batch(repeats, schedule, truth, target_km):
     ready = taylor.prepare(floor_size, *schedule)
     floor = cpu_seconds(lambda: taylor.fly_prepared(taylor.integrator(1e-12, floor_size),
                                                     ready, steps=False), repeats) / cases
+    tight = next(p for p in points if p["tolerance"] == 1e-12)
+    paired = None
+    if closed is not None:
+        flights = {}
+        for key, point in (("equal_error", equal), ("tight", tight)):
+            if point is not None:
+                ta = taylor.integrator(point["tolerance"], point["batch_size"])
+                ready = taylor.prepare(point["batch_size"], *schedule)
+                flights[key] = lambda ta=ta, ready=ready: taylor.fly_prepared(ta, ready)
+        paired = paired_ratios(closed, flights, max(PAIRED_ROUNDS, repeats))
     return {"points": points, "equal_error": equal, "python_loop_seconds_per_case": floor,
-            "python_loop_batch_size": floor_size,
-            "tight": next(p for p in points if p["tolerance"] == 1e-12),
+            "python_loop_batch_size": floor_size, "tight": tight, "paired": paired,
             "simd_size": simd, "heyoka_version": heyoka.__version__,
             "how": "Eqs. 1-2 as dynamics.rhs, replayed on heyoka expressions; a_c R and "
                    "a_c T runtime parameters set per arc; taylor_adaptive_batch, "
@@ -305,7 +349,7 @@ def _closed_form_batch(repeats, stacked, native):
     scalar_xs = np.array(scalar(*given)[0])
     moved = np.max(np.abs(xs - scalar_xs) / np.max(np.abs(scalar_xs), axis=1, keepdims=True))
     return {"seconds": seconds, "compile_seconds": compile_seconds, "xs": xs, "q3": q3,
-            "one_case_at_a_time": {
+            "call": lambda: closed(*given), "one_case_at_a_time": {
                 "seconds": scalar_seconds, "compile_seconds": scalar_compile,
                 "largest_difference_over_row_size": float(moved),
                 "how": "the same mapped Function compiled by CasADi's own JIT, as before "
@@ -365,7 +409,7 @@ def batch(repeats, grid=None, cvodes_cases=BATCH_CVODES_CASES, native=True):
     heyoka = heyoka_batch(repeats, (x0[:4], np.repeat(acs[:, None], ARCS, 1),
                                     np.repeat(alphas[:, None], ARCS, 1),
                                     np.tile(lengths, (cases, 1))),
-                          truth, float(np.median(errors)))
+                          truth, float(np.median(errors)), closed=closed["call"])
     block = _batch_block(closed, errors, timed, points, heyoka, native, grid)
     block["per_case"] = per_case_table(block)
     return block
@@ -547,6 +591,12 @@ def _print_batch(block):
               f"batch size {taylor['equal_error']['batch_size']}")
     else:
         print("  heyoka reached the closed form's error at none of its tolerances")
+    for key, label in (("equal_error", "at equal error"), ("tight", "at 1e-12")):
+        pair = (taylor.get("paired") or {}).get(key)
+        if pair is not None:
+            print(f"  heyoka {label} over the closed form, timed in turn {pair['rounds']} "
+                  f"times: median {pair['median']:.3g} ({pair['smallest']:.3g} to "
+                  f"{pair['largest']:.3g})")
 
 
 def run(out, repeats, grid=None):
