@@ -274,8 +274,11 @@ def test_unreachable_target_fails_without_claiming_infeasibility(tmp_path, capsy
     assert len(lines) == 1 and "NOT verified" in lines[0]
     assert "does not prove the target unreachable" in lines[0]
     assert "throttle" not in lines[0]  # a fixed flight time too short is not the sail's push
+    # The walk to longer flights (up to twice the 30 d) found none either, and says so.
+    assert "no longer flight from the same departure, up to 60 d" in lines[0]
     data = json.loads((out / "solution.json").read_text())
     assert data["verified"] is False and data["outcome"] == "infeasible"
+    assert "up to 60 d" in data["verification_note"]
     assert len(data["refinement"]["starts"]) > 1
 
 

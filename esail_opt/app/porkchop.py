@@ -301,9 +301,12 @@ def _edge(problems, cells):
              and (shortest is None or _tof(p) < _tof(shortest.problem))]
     if not below:
         return None
-    found = pipeline.nearest_feasible(max(below, key=_tof), start=shortest)
+    try:
+        found = pipeline.nearest_feasible(max(below, key=_tof), start=shortest)
+    except edge.NoLongerPoint:
+        return None
     # Walked up from a cell with no point, the flight may not verify: no edge then.
-    return found if found is not None and found.verified else None
+    return found if found.verified else None
 
 
 def cell_folder(row):

@@ -18,8 +18,8 @@ from esail_opt.optimisation.ipopt import (build_solver, ipopt_options, solve_pro
                                           solve_transcription)
 from esail_opt.optimisation.seed import initial_guess
 
-__all__ = ["Edge", "EDGE_DAYS", "LONGER", "WALK_ITERATIONS", "at_tof", "nearest_feasible",
-           "walk", "walks"]
+__all__ = ["Edge", "EDGE_DAYS", "LONGER", "NoLongerPoint", "WALK_ITERATIONS", "at_tof",
+           "nearest_feasible", "walk", "walks"]
 
 #: The walk halves the interval between the longest time found infeasible and the
 #: shortest found feasible until it is this short, days.
@@ -30,6 +30,11 @@ WALK_ITERATIONS = 150
 #: Times of flight at which a fixed-time problem that found no point is solved again, as
 #: multiples of the asked one, until one converges: the walk to the edge starts there.
 LONGER = (1.1, 1.25, 1.5, 2.0)
+
+
+class NoLongerPoint(Exception):
+    """No longer time of flight from the departure found a point either; the message says
+    how far the walk tried and why it stopped, in words that end a failed run's note."""
 
 
 @dataclass(frozen=True)
@@ -73,8 +78,8 @@ def at_tof(problem, tof_days):
 
 def nearest_feasible(problem, solve_unwalked, fly, start=None, progress=None):
     """The :class:`Edge` from the departure of ``problem`` (fixed-time, :func:`walks`, no
-    point at its time of flight), or None when the walk found no time of flight at which
-    the closed form converges.
+    point at its time of flight).  Without ``start``, raises :class:`NoLongerPoint` when no
+    longer solve (:data:`LONGER`) converges.
 
     ``solve_unwalked(problem, progress)`` -> ``pipeline.Run``: a lone solve without a walk, for
     a longer time of flight whose single solve found no point; ``fly(problem, result, transcription,
@@ -84,10 +89,7 @@ def nearest_feasible(problem, solve_unwalked, fly, start=None, progress=None):
     when it does not verify.  ``progress(text)`` gets one line per solve.
     """
     say = progress or (lambda text: None)
-    walked = walk(problem, solve_unwalked, start, say)
-    if walked is None:
-        return None
-    cell, result, tr, infeasible, iterations = walked
+    cell, result, tr, infeasible, iterations = walk(problem, solve_unwalked, start, say)
     if start is not None and not cell.objective.tof_days < start.problem.objective.tof_days:
         return Edge(start, infeasible, iterations)  # no step below the start converged
     say(f"{problem.name}: the shortest flight found feasible is "
@@ -104,14 +106,12 @@ def walk(problem, solve_unwalked, start=None, progress=None):
     of :func:`_first_feasible_longer` that converges (arguments as for :func:`nearest_feasible`).
 
     Returns ``(Problem, NLPResult, Transcription, infeasible_tof_days, iterations)``, the
-    converged optimum there with its problem and NLP, or None when none converges.
+    converged optimum there with its problem and NLP; raises :class:`NoLongerPoint` when
+    none converges.
     """
     say = progress or (lambda text: None)
     if start is None:
-        found = _first_feasible_longer(problem, solve_unwalked, say)
-        if found is None:
-            return None
-        return _halve(problem, *found, say)
+        return _halve(problem, *_first_feasible_longer(problem, solve_unwalked, say), say)
     return _halve(problem, start.problem, start.result, start.transcription, 0,
                   problem.objective.tof_days, say)
 
@@ -138,7 +138,7 @@ def _halve(problem, cell, result, tr, iterations, lo, say):
 def _first_feasible_longer(problem, solve_unwalked, say):
     """The solves (:func:`_solve_at`) at :data:`LONGER` multiples of ``problem``'s time of
     flight, up to the first that converges: (problem, NLPResult, Transcription,
-    iterations spent, longest time of flight found infeasible), or None."""
+    iterations spent, longest time of flight found infeasible); NoLongerPoint if none does."""
     asked = problem.objective.tof_days
     lo, iterations = asked, 0
     for factor in LONGER:
@@ -149,12 +149,17 @@ def _first_feasible_longer(problem, solve_unwalked, say):
         except NoStart as why:
             # The seed escapes before the time of flight; a longer flight's would too.
             say(f"{problem.name}: no seed at {asked * factor:.6g} d: {why}")
-            return None
+            tried = ("no longer flight was tried" if lo == asked else
+                     f"no longer flight from the same departure, up to {lo:.6g} d, found a "
+                     "point either")
+            raise NoLongerPoint(f"{tried}: at {asked * factor:.6g} d the seed cannot be "
+                                "flown") from None
         iterations += spent
         if result.outcome.converged:
             return cell, result, tr, iterations, lo
         lo = asked * factor
-    return None
+    raise NoLongerPoint(f"no longer flight from the same departure, up to {lo:.6g} d "
+                        f"({LONGER[-1]:g} times the asked), found a point either")
 
 
 def _solve_at(problem, solve_unwalked, say):

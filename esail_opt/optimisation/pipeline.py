@@ -202,8 +202,11 @@ def _solved(problem, say, walk=True):
                      sub_arcs_requested=sub_arcs)
         run = dataclasses.replace(run, classes_skipped=_unsearched(problem))
     if walk and not result.outcome.found and edge.walks(problem):
-        run = dataclasses.replace(run, nearest_feasible=nearest_feasible(
-            problem, progress=say))
+        try:
+            run = dataclasses.replace(run, nearest_feasible=nearest_feasible(
+                problem, progress=say))
+        except edge.NoLongerPoint as none:
+            run = dataclasses.replace(run, note=f"{run.note}; {none}")
     return run
 
 
@@ -312,7 +315,8 @@ def nearest_feasible(problem, start=None, progress=None):
     ``problem`` is a fixed-time problem that found no point, ``start`` an optional
     verified flight at a longer time of flight), its flight flown by :func:`run_from_optimum`; a
     longer solve whose seed finds no point is a lone solve without a walk of its own
-    (:func:`_run_before_polish`).  An ``edge.Edge``, or None when the walk found none."""
+    (:func:`_run_before_polish`).  An ``edge.Edge``; without ``start``, raises
+    ``edge.NoLongerPoint`` when no longer flight converges."""
     return edge.nearest_feasible(problem, _unwalked, run_from_optimum, start, progress)
 
 
