@@ -234,3 +234,27 @@ def test_the_percentile_interval_covers_the_true_percentile():
         assert 0.94 <= np.mean(held) <= 0.995, (q, np.mean(held))
     assert percentile_interval(draws[0], 99.9) is None
     assert percentile_interval(draws[0][:20], 99) is None
+
+
+def _flights(margin, miss_km, miss_m_s):
+    n = len(miss_km)
+    return robustness.Flights("open_loop" if margin is None else "guided", margin,
+                              np.asarray(miss_km, float), np.asarray(miss_m_s, float),
+                              np.zeros(n), np.zeros(n), np.ones(n), np.zeros((n, 3, 2)),
+                              np.zeros((n, 6)))
+
+
+@pytest.mark.parametrize("guided_km, expected", [
+    ([5e3, 2e4, 3e4, 4e4], "at best 25.0 % of flights (guided with a_c margin 10 %) end "
+                           "within 10000 km and 10 m/s"),
+    ([2e4, 2e4, 3e4, 4e4], "no flight of any kind ends within 10000 km and 10 m/s"),
+])
+def test_the_verdict_names_the_best_kind_or_that_none_meets_the_tolerance(guided_km, expected):
+    """With no flight within the tolerance the verdict names no kind as the best: an
+    analyst read 'at best 0.0 % (open loop)' as open loop winning."""
+    result = robustness.Robustness(
+        name="x", request=None, tolerance=(1e4, 10.0), nominal_miss=(0.0, 0.0),
+        open_loop=_flights(None, [1e6] * 4, [100.0] * 4),
+        guided=(_flights(0.1, guided_km, [1.0] * 4),), checks=[], seconds={},
+        departure_jd=0.0, ends_days=np.zeros(2), target_track=np.zeros((3, 2)))
+    assert result._verdict().endswith(expected)

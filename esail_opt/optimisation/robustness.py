@@ -304,8 +304,10 @@ class Robustness:
         numbers = ("the statistics are verified (each CVODES re-flight agrees with its "
                    "closed-form flight)" if self.verified else
                    "the statistics are NOT verified (a CVODES re-flight disagrees)")
-        return (f"  verdict: {numbers}; at best {share:.1f} % of flights ({what}) end "
-                f"within {self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s")
+        bounds = f"{self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s"
+        if share == 0:
+            return f"  verdict: {numbers}; no flight of any kind ends within {bounds}"
+        return f"  verdict: {numbers}; at best {share:.1f} % of flights ({what}) end within {bounds}"
 
 
 def _bracket(interval):
