@@ -106,17 +106,17 @@ def test_the_summary_names_each_start_of_a_count_and_what_was_not_flown():
                looked(17, 860.2, None, False))
     lines = _class_lines(SimpleNamespace(classes=classes, classes_skipped="k < 16",
                                          nearest_feasible=None))
-    assert lines[0] == ("  turn counts on the body: k = 16 1393.0 d, not flown; "
-                        "k = 17 860.1 d, verified (chosen); "
-                        "k = 17 (another start) 860.2 d, not flown; "
-                        "k = 18 990.0 d on the ecliptic projection, not flown in 3-D")
+    assert lines[0] == ("  turn counts on the body: k = 16: 1393.0 d, not flown; "
+                        "k = 17: 860.1 d, verified (chosen); "
+                        "k = 17 (another start): 860.2 d, not flown; "
+                        "k = 18: 990.0 d on the ecliptic projection, not flown in 3-D")
     assert "not a flight" in lines[1]
     # The same count flown in 3-D and seen on the projection is two models, not two starts.
     lifted = (looked(16, 600.0, True, True), looked(16, 580.0, None, False, projected=True))
     line = _class_lines(SimpleNamespace(classes=lifted, classes_skipped="",
                                         nearest_feasible=None))[0]
-    assert line == ("  turn counts on the body: k = 16 600.0 d, verified (chosen); "
-                    "k = 16 580.0 d on the ecliptic projection, not flown in 3-D")
+    assert line == ("  turn counts on the body: k = 16: 600.0 d, verified (chosen); "
+                    "k = 16: 580.0 d on the ecliptic projection, not flown in 3-D")
 
 
 def test_an_orbit_transfer_says_which_classes_it_did_not_look_at():
@@ -186,7 +186,9 @@ def test_a_longer_flight_whose_seed_escapes_ends_the_walk_without_an_error(monke
 
     monkeypatch.setattr(edge, "initial_guess", seed)
     lines = []
-    assert pipeline.nearest_feasible(problem, progress=lines.append) is None
+    with pytest.raises(edge.NoLongerPoint, match="no longer flight was tried: at 660 d the "
+                                                "seed cannot be flown"):
+        pipeline.nearest_feasible(problem, progress=lines.append)
     assert any("no seed at 660 d" in line for line in lines), lines
 
 @pytest.mark.slow

@@ -56,7 +56,8 @@ def _flight_lines(v):
 def _class_line(c, again=False):
     """One turn count looked at (``again``: another start of a count already shown on the
     same model): what it gave, on which model, and whether it was flown and chosen."""
-    k = f"k = {c.revolutions_k}" + (" (another start)" if again else "")
+    # The colon keeps a negative count apart from its value ("k = -24: 853.0 d").
+    k = f"k = {c.revolutions_k}" + (" (another start)" if again else "") + ":"
     where = " on the ecliptic projection" if c.projected else ""
     if c.tof_days is None and c.status == STOPPED:
         return (f"{k} hopeless{where}, stopped after {c.iterations} iterations "
