@@ -256,5 +256,5 @@ def test_the_verdict_names_the_best_kind_or_that_none_meets_the_tolerance(guided
         name="x", request=None, tolerance=(1e4, 10.0), nominal_miss=(0.0, 0.0),
         open_loop=_flights(None, [1e6] * 4, [100.0] * 4),
         guided=(_flights(0.1, guided_km, [1.0] * 4),), checks=[], seconds={},
-        departure_jd=0.0, ends_days=np.zeros(2), target_track=np.zeros((3, 2)))
+        departure_jd=0.0, ends_days=np.zeros(2), target_path=np.zeros((3, 2)))
     assert result._verdict().endswith(expected)

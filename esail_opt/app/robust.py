@@ -139,6 +139,7 @@ def figure(result, flights_drawn=200):
     tolerance, and a cloud of trajectories seen from the ecliptic's north."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     fig = Figure(figsize=(13, 4.4), layout="constrained")
     hist_r, hist_v, cloud = fig.subplots(1, 3)
@@ -158,6 +159,7 @@ def figure(result, flights_drawn=200):
         ax.set_xscale("log")
         ax.set_xlabel(f"arrival miss ({unit})")
         ax.set_ylabel("flights")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax.legend(handles=[tolerance], fontsize=8)
     # The kinds' labels are long and the same in both histograms: said once, under them.
     fig.legend(handles=hist_r.get_legend_handles_labels()[0][:len(kinds)],
@@ -166,7 +168,7 @@ def figure(result, flights_drawn=200):
         take = k.positions[: flights_drawn]
         for pos in take:
             cloud.plot(pos[0], pos[1], color=colour, lw=0.4, alpha=0.3)
-    track = result.target_track
+    track = result.target_path
     cloud.plot(track[0], track[1], color="tab:red", lw=1.2, label="target")
     cloud.plot(track[0, -1], track[1, -1], "o", color="tab:red")
     cloud.plot(0, 0, "o", color="gold", ms=9)

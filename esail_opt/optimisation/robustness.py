@@ -214,6 +214,11 @@ def _check(mission, flights, factors, controls):
             "worst_velocity_m_s": worst_m_s, "agree": bool(agree)}
 
 
+#: Days at which the figure draws the target's path: at the segments' ends alone, an
+#: inner planet's orbit over a long flight showed as a polygon.
+PATH_SAMPLES = 600
+
+
 @dataclass(frozen=True)
 class Robustness:
     """A run's outcome (:func:`run`), verified when every CVODES check agrees."""
@@ -228,7 +233,7 @@ class Robustness:
     seconds: dict
     departure_jd: float
     ends_days: np.ndarray
-    target_track: np.ndarray
+    target_path: np.ndarray  # (3, PATH_SAMPLES), au: the target over the flight, drawn
 
     @property
     def verified(self):
@@ -407,6 +412,9 @@ def run(schedule, request, progress=lambda text: None):
     gap = end - mission.target_track[:, -1]
     nominal_miss = (units.length_to_km(np.linalg.norm(gap[:3])),
                     units.speed_to_m_s(np.linalg.norm(gap[3:])))
+    path_days = np.linspace(0.0, mission.ends_days[-1], PATH_SAMPLES)
+    path = lookup.ecliptic_state(schedule.target, np.full(PATH_SAMPLES, J2000_JD), "target",
+                                 schedule.departure_epoch_days + path_days)[:3]
     return Robustness(schedule.name, request, mission.tolerance, nominal_miss, open_loop,
                       tuple(f for f, _ in flown[1:]), checks, seconds, mission.departure_jd,
-                      mission.ends_days, mission.target_track)
+                      mission.ends_days, path)
