@@ -688,3 +688,26 @@ def test_plot_draws_a_porkchop_from_its_record(tmp_path, capsys):
     assert best.get_ydata()[0] == record["best"]["objective"]
     assert ax.get_title().startswith(f"{record['problem']}: ")
 
+
+
+def test_plot_draws_a_sweep_from_its_record(tmp_path, capsys):
+    """sweep.png drawn again from a shipped sweep.json: each verified member at its value,
+    the record's rows read back through JSON as the sweep wrote them."""
+    from esail_opt.app import cli, sweep
+
+    source = RESULTS / "sweep_earth_mars_ac" / "sweep.json"
+    if not source.exists():
+        pytest.skip("no shipped sweep.json")
+    folder = tmp_path / "run"
+    folder.mkdir()
+    shutil.copy(source, folder / "sweep.json")
+    assert cli.main(["plot", str(folder)]) == 0
+    assert f"wrote {folder / 'sweep.png'}" in capsys.readouterr().out
+    assert (folder / "sweep.png").stat().st_size > 10_000
+    record = json.loads(source.read_text())
+    objective = sweep.figure(record).axes[0]
+    (verified,) = [line for line in objective.get_lines() if line.get_label() == "verified"]
+    rows = [r for r in record["rows"] if r["verified"]]
+    assert list(verified.get_xdata()) == [r["value"] for r in rows]
+    factor = record["objective_shown_as"][0]  # canonical objective to the unit shown
+    assert np.allclose(verified.get_ydata(), [factor * r["objective"] for r in rows])

@@ -336,16 +336,21 @@ def _run_solve(args):
 
 def _add_plot(sub):
     p = sub.add_parser(
-        "plot", help="draw a solution's or a porkchop's figures again from its files",
+        "plot", help="draw a solution's, porkchop's, search's or sweep's figures again from "
+        "its files",
         description="Draw the figures of the run in FOLDER again, without solving: "
         "trajectory.png and timeline.png from its solution.json, porkchop.png from its "
         "porkchop.json, search.png from its search.json (a search's best/ is a solution's "
-        "folder).  Exit status 0 when every figure was written; 2 when FOLDER is "
+        "folder), sweep.png from its sweep.json.  Exit status 0 when every figure was written; 2 when FOLDER is "
         "not a folder or holds neither file (or one that cannot be read); 4 when a "
         "figure could not be drawn (the others are written).",
     )
     p.add_argument("folder", metavar="FOLDER", help="a run's output folder, e.g. results/NAME")
     p.set_defaults(run=_run_plot)
+
+
+#: The records `esail-opt plot` draws from, each with its own figures.
+PLOTTED = ("solution.json", "porkchop.json", "search.json", "sweep.json")
 
 
 def _run_plot(args):
@@ -355,11 +360,10 @@ def _run_plot(args):
     if not folder.is_dir():
         raise InputError(f"folder = {str(folder)!r} is not a folder (a run's output folder "
                          "is expected, e.g. results/NAME)")
-    records = [folder / name for name in ("solution.json", "porkchop.json", "search.json")
-               if (folder / name).is_file()]
+    records = [folder / name for name in PLOTTED if (folder / name).is_file()]
     if not records:
-        raise InputError(f"folder = {str(folder)!r} holds no solution.json, porkchop.json or "
-                         "search.json to draw from")
+        raise InputError(f"folder = {str(folder)!r} holds no {', '.join(PLOTTED[:-1])} or "
+                         f"{PLOTTED[-1]} to draw from")
     written, failures = [], []
     for record in records:
         drawn, failed = _plot_record(record)
@@ -373,8 +377,8 @@ def _run_plot(args):
 
 
 def _plot_record(record):
-    """Draw the figures of one solution.json, porkchop.json or search.json into its
-    folder: the paths written and one line per figure that could not be drawn."""
+    """Draw the figures of one of :data:`PLOTTED` into its folder: the paths written and
+    one line per figure that could not be drawn."""
     import json
 
     from esail_opt.app import plots
@@ -394,6 +398,11 @@ def _plot_record(record):
         from esail_opt.app import search
 
         return plots.write_figures([("search.png", lambda: search.figure(result))],
+                                   record.parent)
+    if kind == "sweep":
+        from esail_opt.app import sweep
+
+        return plots.write_figures([("sweep.png", lambda: sweep.figure(result))],
                                    record.parent)
     from esail_opt.app import porkchop
 
