@@ -15,7 +15,8 @@ def summary(sol):
 def _solve_lines(sol):
     """Ipopt's record, the time of flight and the closed form's final state."""
     end = sol.final_state
-    # A dated problem's theta counts turns since 2000: the angle reads better.
+    # A dated problem's theta counts turns since 2000: the angle reads better, and says it
+    # is one, as solution.json keeps the count.
     return [
         f"{sol.problem.name}: {sol.status} "
         f"({'converged' if sol.converged else 'NOT converged'}), "
@@ -23,7 +24,7 @@ def _solve_lines(sol):
         f"{_refinements(len(sol.rounds))}",
         f"  tof {sol.tof_days:.3f} d (closed form), {len(sol.schedule)} segments x "
         f"{sol.problem.sub_arcs} sub-arcs",
-        f"  final (closed form): r {end.r_au:.6f} au, theta {end.theta_deg % 360.0:.3f} deg, "
+        f"  final (closed form): r {end.r_au:.6f} au, theta {end.theta_deg % 360.0:.3f} deg (mod 360), "
         f"a {end.a_au:.6f} au, e {end.e:.5f}",
     ]
 
