@@ -15,6 +15,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import esail_opt as eo
+from esail_opt.app import schema
 from esail_opt.errors import InputError
 from esail_opt.propagation.arcs import ArcModel
 from esail_opt.optimisation import error_control, multistart, pipeline
@@ -539,7 +540,9 @@ def test_mars_rendezvous_in_3d_flies_onto_de421s_mars(tmp_path):
 
     Solution.of(run).write(tmp_path, plots=False)
     data = json.loads((tmp_path / "solution.json").read_text())
-    assert data["schema_version"] == 7
+    assert data["schema_version"] == schema.SCHEMA_VERSION
+    # ISO 8601 cannot name the dates' scale: the file does, beside them.
+    assert data["time_scale"] == "TDB" and data["departure_date"].startswith("20")
     dep = data["problem"]["departure_state"]
     earth = de421_ecliptic("earthmoon", jd0)
     assert abs(dep["z_au"] - earth[2]) < 1e-12 and abs(dep["x_au"] - earth[0]) < 1e-12

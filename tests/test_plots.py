@@ -18,7 +18,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import esail_opt as eo
-from esail_opt.app import plots
+from esail_opt.app import plots, schema
 from esail_opt.app.solution import Solution
 
 DIGITS = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
@@ -266,7 +266,7 @@ def test_trajectory_in_3d_shows_the_flight_from_above_and_from_the_side(flown3d)
     marked there and so named in the legend."""
     d = flown3d.to_json()
     cv = d["trajectory"]["cvodes"]
-    assert d["schema_version"] == 7
+    assert d["schema_version"] == schema.SCHEMA_VERSION and d["time_scale"] == "TDB"
     fig = plots.trajectory_figure(flown3d)
     top, side = fig.axes
     assert (top.get_xlabel(), top.get_ylabel()) == ("x (au)", "y (au)")
@@ -326,7 +326,7 @@ def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
 
     folder = tmp_path / "run"
     flown3d.write(folder, plots=False)
-    assert json.loads((folder / "solution.json").read_text())["schema_version"] == 7
+    assert json.loads((folder / "solution.json").read_text())["schema_version"] == schema.SCHEMA_VERSION
     assert cli.main(["plot", str(folder)]) == 0
     for name, _ in plots.FIGURES:
         assert (folder / name).stat().st_size > 10_000

@@ -181,6 +181,7 @@ def calendar(problem, result, check):
                departure_epoch_days=units.time_to_days(float(result.epoch)),
                arrival_date=dates.iso_from_jd(dates.jd_from_tu(
                    result.epoch + float(np.sum(result.durations)))),
+               time_scale=dates.TIME_SCALE,
                departure_body=DepartureBody(
                    name=lookup.name(dep.body), source=lookup.source(dep.body),
                    out_of_plane_km=units.length_to_km(abs(z0)), vinf_km_s=dep.vinf_km_s,

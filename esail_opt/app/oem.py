@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from esail_opt.runtime.files import atomic_path
-from esail_opt.bodies.dates import jd_from_iso
+from esail_opt.bodies.dates import TIME_SCALE, jd_from_iso
 from esail_opt.bodies.ephemeris import icrf_from_ecliptic
 from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
@@ -23,7 +23,7 @@ from esail_opt.physics import constants as units
 OEM_VERSION = "2.0"
 CENTER_NAME = "SUN"
 REF_FRAME = "ICRF"
-TIME_SYSTEM = "TDB"
+TIME_SYSTEM = TIME_SCALE
 #: The epochs' format, as the ``oem`` package writes them.
 EPOCH_FORMAT = "%Y-%m-%dT%H:%M:%S.%f"
 #: Hermite interpolation of degree 7 (four samples, positions and velocities) within a

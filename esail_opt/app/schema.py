@@ -15,9 +15,9 @@ import numpy as np
 from esail_opt.errors import InputError
 from esail_opt.physics import constants as units
 
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 8
 #: Versions this code reads (``schema_changes.md``); a version-5 file through :func:`upgrade`.
-READABLE = (2, 3, 4, 5, 6, 7)
+READABLE = (2, 3, 4, 5, 6, 7, 8)
 
 
 def check(data, source):
@@ -30,7 +30,7 @@ def check(data, source):
 
 
 def upgrade(data):
-    """``data``, a readable ``solution.json``, with the keys of version 7: a 3-D version-5
+    """``data``, a readable ``solution.json``, with the keys of version 8: a 3-D version-5
     file's ``out_of_plane_km`` becomes ``normal_miss_km`` (version 6 in
     ``schema_changes.md``), the body's own distance from the ecliptic None."""
     three_d = "x_au" in (data.get("final_state") or {})

@@ -74,6 +74,7 @@ class Solution(Record):
     departure_date: Optional[str] = key(omit=if_none, default=None)
     departure_epoch_days: Optional[float] = key(omit=if_none, default=None)
     arrival_date: Optional[str] = key(omit=if_none, default=None)
+    time_scale: Optional[str] = key(omit=if_none, default=None)
     departure_body: Optional[DepartureBody] = key(omit=if_none, default=None)
     target_body: Optional[TargetBody] = key(omit=if_none, default=None)
     objective_closed_form: Optional[float] = key(omit=_not_polished, default=None)

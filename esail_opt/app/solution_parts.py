@@ -291,6 +291,7 @@ class Polish(Record):
     departure_date: Optional[str] = key(omit=if_none, default=None)
     departure_epoch_days: Optional[float] = key(omit=if_none, default=None)
     arrival_date: Optional[str] = key(omit=if_none, default=None)
+    time_scale: Optional[str] = key(omit=if_none, default=None)
     ac_mm_s2_required: Optional[float] = key(omit=if_none, default=None)
     departure_body: Optional[DepartureBody] = key(omit=if_none, default=None)
     target_body: Optional[TargetBody] = key(omit=if_none, default=None)

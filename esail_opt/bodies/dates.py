@@ -19,6 +19,8 @@ from esail_opt.physics import constants as units
 
 #: Julian date of the epoch J2000.0 (2000-01-01T12:00:00 TDB).
 J2000_JD = 2451545.0
+#: The time scale of every date read and written: the ephemeris's.
+TIME_SCALE = "TDB"
 
 #: The form a date must have, as told to a user whose date is refused.
 ISO_FORM = "YYYY-MM-DD[THH:MM[:SS]]"
