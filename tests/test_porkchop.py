@@ -661,3 +661,19 @@ def test_a_3d_scan_lifts_onto_a_class_nlp_the_error_control_refined():
     grid = porkchop.Grid(tuple(porkchop.parse_dates("2030-01-01:2030-05-18:4")))
     cells = scan.scan([porkchop.cell_problem(problem, grid, i) for i in grid.path()])
     assert all(cell.verified for cell in cells), [cell.note for cell in cells]
+
+
+@pytest.mark.parametrize("shape, index, said", [
+    ([5], 0, "the first departure date"),
+    ([5], 2, None),
+    ([5], 4, "the last departure date"),
+    ([3, 4], 5, None),  # date 1 of 3, time 1 of 4: inside
+    ([3, 4], 7, "the longest time of flight"),
+    ([3, 4], 8, "the last departure date and the shortest time of flight"),
+    ([1, 4], 0, "the shortest time of flight"),  # one date: no border in dates
+])
+def test_the_best_cell_on_the_grids_border_is_said(shape, index, said):
+    """A best cell on the border of the scanned grid may have a better one beyond it (a new
+    analyst's best sat on the first date, unremarked)."""
+    assert porkchop.best_at_border({"best": {"index": index}, "shape": shape}) == said
+    assert porkchop.best_at_border({"best": None, "shape": shape}) is None

@@ -630,6 +630,9 @@ def _run_porkchop(args):
         unit = result["objective_unit"] or ""
         print(f"best: depart {best['departure_date']}, arrive {best['arrival_date']}, "
               f"{best['objective']:.6g} {unit}".rstrip())
+        border = porkchop.best_at_border(result)
+        if border is not None:
+            print(f"  the best cell is at {border} scanned: a better one may lie beyond it")
     print(f"{result['verified_cells']}/{result['cells']} cells verified in "
           f"{result['wall_seconds']:.1f} s ({result['executor']})")
     if result["not_verified"]:

@@ -437,6 +437,23 @@ def _table(request, outcome):
             "journal": None if outcome.journal is None else str(outcome.journal)}
 
 
+def best_at_border(result):
+    """Where the best cell lies on the scanned grid's border, in words ("the last
+    departure date", "the shortest time of flight", ...), or None inside it or with no
+    best: there the optimum may lie outside the range scanned."""
+    best = result["best"]
+    if best is None:
+        return None
+    dates_count, tofs_count = (*result["shape"], 1)[:2]  # a fixed time: one column
+    i, j = divmod(best["index"], tofs_count)
+    said = []
+    if dates_count > 1 and i in (0, dates_count - 1):
+        said.append(f"the {'first' if i == 0 else 'last'} departure date")
+    if tofs_count > 1 and j in (0, tofs_count - 1):
+        said.append(f"the {'shortest' if j == 0 else 'longest'} time of flight")
+    return " and ".join(said) or None
+
+
 def edge_line(rows):
     """The edge of the feasible per departure date, from the rows that carry it: one
     dict per date walked (``departure_date``, ``tof_days``, ``ac_mm_s2_required``,
