@@ -341,9 +341,9 @@ def _add_plot(sub):
         description="Draw the figures of the run in FOLDER again, without solving: "
         "trajectory.png and timeline.png from its solution.json, porkchop.png from its "
         "porkchop.json, search.png from its search.json (a search's best/ is a solution's "
-        "folder), sweep.png from its sweep.json.  Exit status 0 when every figure was written; 2 when FOLDER is "
-        "not a folder or holds neither file (or one that cannot be read); 4 when a "
-        "figure could not be drawn (the others are written).",
+        "folder), sweep.png from its sweep.json.  Exit status 0 when every figure was "
+        "written; 2 when FOLDER is not a folder or holds none of these files (or one that "
+        "cannot be read); 4 when a figure could not be drawn (the others are written).",
     )
     p.add_argument("folder", metavar="FOLDER", help="a run's output folder, e.g. results/NAME")
     p.set_defaults(run=_run_plot)

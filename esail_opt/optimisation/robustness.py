@@ -214,8 +214,8 @@ def _check(mission, flights, factors, controls):
             "worst_velocity_m_s": worst_m_s, "agree": bool(agree)}
 
 
-#: Days at which the figure draws the target's path: at the segments' ends alone, an
-#: inner planet's orbit over a long flight showed as a polygon.
+#: How many evenly spread days of the flight the figure draws the target's path at: at
+#: the segments' ends alone, an inner planet's orbit over a long flight was a polygon.
 PATH_SAMPLES = 600
 
 
@@ -312,7 +312,8 @@ class Robustness:
         bounds = f"{self.tolerance[0]:g} km and {self.tolerance[1]:g} m/s"
         if share == 0:
             return f"  verdict: {numbers}; no flight of any kind ends within {bounds}"
-        return f"  verdict: {numbers}; at best {share:.1f} % of flights ({what}) end within {bounds}"
+        return (f"  verdict: {numbers}; at best {share:.1f} % of flights ({what}) end "
+                f"within {bounds}")
 
 
 def _bracket(interval):
