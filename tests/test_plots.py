@@ -669,42 +669,41 @@ def test_plot_refuses_a_folder_without_a_record_in_one_line(case, tmp_path, caps
     assert "esail-opt plot: error: " in _one_error_line(capsys.readouterr().err)
 
 
+def _redrawn(tmp_path, capsys, shipped, kind):
+    """``esail-opt plot`` on a folder holding only the shipped ``results/SHIPPED/KIND.json``:
+    its KIND.png written, and the record as read."""
+    from esail_opt.app import cli
+
+    source = RESULTS / shipped / f"{kind}.json"
+    if not source.exists():
+        pytest.skip(f"no shipped {kind}.json")
+    folder = tmp_path / "run"
+    folder.mkdir()
+    shutil.copy(source, folder / source.name)
+    assert cli.main(["plot", str(folder)]) == 0
+    assert f"wrote {folder / f'{kind}.png'}" in capsys.readouterr().out
+    assert (folder / f"{kind}.png").stat().st_size > 10_000
+    return json.loads(source.read_text())
+
+
 def test_plot_draws_a_porkchop_from_its_record(tmp_path, capsys):
     """porkchop.png drawn again from a shipped porkchop.json: the best cell starred
     where the record puts it, and the title as the record names it."""
-    from esail_opt.app import cli, porkchop
+    from esail_opt.app import porkchop
 
-    source = RESULTS / "earth_mars_window_porkchop" / "porkchop.json"
-    if not source.exists():
-        pytest.skip("no shipped porkchop.json")
-    folder = tmp_path / "run"
-    folder.mkdir()
-    shutil.copy(source, folder / "porkchop.json")
-    assert cli.main(["plot", str(folder)]) == 0
-    assert (folder / "porkchop.png").stat().st_size > 10_000
-    record = json.loads(source.read_text())
+    record = _redrawn(tmp_path, capsys, "earth_mars_window_porkchop", "porkchop")
     (ax, *_) = porkchop.figure(record).axes
     (best,) = [line for line in ax.get_lines() if line.get_label() == "best"]
     assert best.get_ydata()[0] == record["best"]["objective"]
     assert ax.get_title().startswith(f"{record['problem']}: ")
 
 
-
 def test_plot_draws_a_sweep_from_its_record(tmp_path, capsys):
     """sweep.png drawn again from a shipped sweep.json: each verified member at its value,
     the record's rows read back through JSON as the sweep wrote them."""
-    from esail_opt.app import cli, sweep
+    from esail_opt.app import sweep
 
-    source = RESULTS / "sweep_earth_mars_ac" / "sweep.json"
-    if not source.exists():
-        pytest.skip("no shipped sweep.json")
-    folder = tmp_path / "run"
-    folder.mkdir()
-    shutil.copy(source, folder / "sweep.json")
-    assert cli.main(["plot", str(folder)]) == 0
-    assert f"wrote {folder / 'sweep.png'}" in capsys.readouterr().out
-    assert (folder / "sweep.png").stat().st_size > 10_000
-    record = json.loads(source.read_text())
+    record = _redrawn(tmp_path, capsys, "sweep_earth_mars_ac", "sweep")
     objective = sweep.figure(record).axes[0]
     (verified,) = [line for line in objective.get_lines() if line.get_label() == "verified"]
     rows = [r for r in record["rows"] if r["verified"]]
