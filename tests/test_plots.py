@@ -326,7 +326,8 @@ def test_plot_redraws_a_3d_solution_from_its_file(flown3d, tmp_path, capsys):
 
     folder = tmp_path / "run"
     flown3d.write(folder, plots=False)
-    assert json.loads((folder / "solution.json").read_text())["schema_version"] == schema.SCHEMA_VERSION
+    written = json.loads((folder / "solution.json").read_text())
+    assert written["schema_version"] == schema.SCHEMA_VERSION
     assert cli.main(["plot", str(folder)]) == 0
     for name, _ in plots.FIGURES:
         assert (folder / name).stat().st_size > 10_000

@@ -24,8 +24,8 @@ def _solve_lines(sol):
         f"{_refinements(len(sol.rounds))}",
         f"  tof {sol.tof_days:.3f} d (closed form), {len(sol.schedule)} segments x "
         f"{sol.problem.sub_arcs} sub-arcs",
-        f"  final (closed form): r {end.r_au:.6f} au, theta {end.theta_deg % 360.0:.3f} deg (mod 360), "
-        f"a {end.a_au:.6f} au, e {end.e:.5f}",
+        f"  final (closed form): r {end.r_au:.6f} au, theta {end.theta_deg % 360.0:.3f} deg "
+        f"(mod 360), a {end.a_au:.6f} au, e {end.e:.5f}",
     ]
 
 

@@ -249,8 +249,7 @@ def paired_ratios(closed, others, rounds):
     """Each of ``others`` (name -> call) over the closed form's call ``closed``, timed in
     turn ``rounds`` times (CPU seconds, the order rotating each round), the ratio taken
     round by round: on a shared machine a method timed minutes after another meets other
-    neighbours (whole runs of this bench moved the ratio at equal error from 0.7 to 1.4),
-    while one round's calls, fractions of a second apart, meet the same ones.  Returns
+    neighbours, while one round's calls, fractions of a second apart, meet the same ones.  Returns
     per name the median ratio (above 1: the closed form is faster), the smallest and
     largest, and the rounds."""
     import statistics

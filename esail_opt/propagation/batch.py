@@ -11,8 +11,9 @@ first-order arc at angles given per case (:func:`angles_batch_function`,
 generated here across cases (:func:`_vectorised`): each CasADi instruction becomes one
 operation on a vector of four or eight cases (GCC's vector extensions), the elementary
 functions go to glibc's libmvec.  Its arithmetic is the scalar code's, rounded alike, but for
-libmvec's sin, cos, log, atan and atan2 (within 4 ulp, not 1) and a shared divisor's inverse
-(:data:`VECTOR_FLAGS`), which move ten-year states by a few 1e-13 of their size.  Elsewhere, or if that compile fails, the mapped Function's value
+libmvec's sin, cos, log, atan and atan2 (within 4 ulp, not 1) and a shared divisor's
+inverse (:data:`VECTOR_FLAGS`), which move ten-year states by a few 1e-13 of their size.
+Elsewhere, or if that compile fails, the mapped Function's value
 alone (derivatives would be far larger to compile) goes through ``propagation.compiled``,
 which may leave it on CasADi's virtual machine.
 """
@@ -54,9 +55,9 @@ _JIT_FOLDER = tempfile.gettempdir() + os.sep
 #: a fallback without it); -ffp-contract=off rounds each product and sum as CasADi's
 #: scalar code does (fused multiply-adds moved ten-year states by 5e-11 of their size);
 #: -O3 without errno or traps gave the bits of -O1, a little faster; -freciprocal-math
-#: divides once by a divisor an arc uses many times (one is used 94 times) and multiplies
-#: by its inverse, within an ulp of each division: ten-year states move by 2e-13 of their
-#: size, as libmvec's functions do, and the batch takes 7 to 10 % less time.
+#: divides once by a divisor an arc shares among many divisions and multiplies by its
+#: inverse, within an ulp of each division, a shift of the size libmvec's functions make
+#: (gain and shift measured in results/bench/README.md).
 VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fno-math-errno",
                 "-fno-trapping-math", "-freciprocal-math")
 #: The C of one arc over a vector of W cases (8 with AVX-512, 4 otherwise); M1/M2 call

@@ -114,8 +114,8 @@ def _valid(xs, q3):
 def _validity_limit(case, good, bad):
     """The largest valid angle between ``good`` (valid) and ``bad`` (not), by bisection, and
     the arc's time there.  Each angle is sampled as :func:`samples_over` asks, rounded up to
-    a power of two so that a few arcs serve the whole search: with the horizon's samples, a
-    horizon of centuries cost seconds a step for an arc that ends in its first year."""
+    a power of two so that a few arcs serve the whole search: the horizon's samples would
+    make each step of a long horizon's search cost as much as the whole horizon."""
     runs = {}
 
     def run(angle):
